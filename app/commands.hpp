@@ -1,0 +1,43 @@
+// The subcommands of `incise`, one function each; main.cpp only parses the command line.
+#pragma once
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace incise::app {
+
+struct ReplayArgs {
+  std::string scene;
+  std::string trajectory;
+  std::string out = "out/replay";
+  std::optional<int> capture_every;
+  std::string size;
+  std::optional<long> steps;
+  bool check = false;
+  bool quiet = false;
+};
+
+struct RunArgs {
+  std::string scene;
+  long frames = 0;
+  std::string screenshot;
+};
+
+struct SynthArgs {
+  std::string out;
+  std::vector<double> contact{0, 0, 0.04};
+  double depth = 0.008;
+  std::vector<double> stroke{0.03, 0, 0};
+  double rate_hz = 1000;
+};
+
+int replay(const ReplayArgs& args);
+int check(const std::string& scene_file);
+int run(const RunArgs& args);
+int trajectory_export(const std::string& file, const std::string& out);
+int trajectory_info(const std::string& file);
+int trajectory_synth(const SynthArgs& args);
+
+}  // namespace incise::app

@@ -1,0 +1,74 @@
+// The `incise` command: replay (headless), check, run (window), trajectory tools.
+#include "app/commands.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <iostream>
+
+int main(int argc, char** argv) {
+  CLI::App app{"incise: an interactive surgical simulator for practising incisions on soft organs.\n"
+               "Headless replay of recorded tool trajectories with off-screen capture, scene checks,\n"
+               "and the interactive window. See README.md and docs/ for the scene and trajectory formats."};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "incise 0.1.0");
+
+  incise::app::ReplayArgs replay;
+  auto* replay_cmd = app.add_subcommand("replay", "Replay a scene headless on simulated time; write metrics.json and frames");
+  replay_cmd->add_option("scene", replay.scene, "Scene file (JSON)")->required();
+  replay_cmd->add_option("--trajectory", replay.trajectory, "Tool trajectory file (overrides tool.trajectory)");
+  replay_cmd->add_option("--out", replay.out, "Output folder (metrics.json, frames/)")->capture_default_str();
+  replay_cmd->add_option("--capture-every", replay.capture_every, "Capture a frame every K steps (0: none; default from render.capture_every)");
+  replay_cmd->add_option("--size", replay.size, "Frame size WxH, e.g. 640x480 (default from render.size)");
+  replay_cmd->add_option("--steps", replay.steps, "Number of steps (default: solver.duration / solver.dt)");
+  replay_cmd->add_flag("--check", replay.check, "Check the scene's `expect` block; exit 1 when one fails");
+  replay_cmd->add_flag("--quiet", replay.quiet, "No progress bar or summary");
+
+  std::string check_scene;
+  auto* check_cmd = app.add_subcommand("check", "Validate a scene file and build its world; exit non-zero on any error");
+  check_cmd->add_option("scene", check_scene, "Scene file (JSON)")->required();
+
+  incise::app::RunArgs run;
+  auto* run_cmd = app.add_subcommand("run", "Open the interactive window on a scene");
+  run_cmd->add_option("scene", run.scene, "Scene file (JSON)")->required();
+  run_cmd->add_option("--frames", run.frames, "Close after this many frames (0: when the window closes)");
+  run_cmd->add_option("--screenshot", run.screenshot, "Save a PNG of the last frame");
+
+  auto* trajectory_cmd = app.add_subcommand("trajectory", "Inspect, export or synthesise tool trajectory files");
+  trajectory_cmd->require_subcommand(1);
+  std::string export_file, export_out;
+  bool export_csv = false;
+  auto* export_cmd = trajectory_cmd->add_subcommand("export", "Write a trajectory as text for people");
+  export_cmd->add_option("file", export_file, "Trajectory file")->required();
+  export_cmd->add_flag("--csv", export_csv, "CSV (the only format for now)");
+  export_cmd->add_option("--out", export_out, "Output file (default: standard output)");
+  std::string info_file;
+  auto* info_cmd = trajectory_cmd->add_subcommand("info", "Summarise a trajectory file and report damage");
+  info_cmd->add_option("file", info_file, "Trajectory file")->required();
+  incise::app::SynthArgs synth;
+  auto* synth_cmd = trajectory_cmd->add_subcommand("synth", "Synthesise a probe poke (approach, press, slide, lift)");
+  synth_cmd->add_option("--out", synth.out, "Output trajectory file")->required();
+  synth_cmd->add_option("--contact", synth.contact, "Contact point on the surface x,y,z (m)")->delimiter(',');
+  synth_cmd->add_option("--depth", synth.depth, "Press depth (m)")->capture_default_str();
+  synth_cmd->add_option("--stroke", synth.stroke, "Lateral stroke while pressed x,y,z (m)")->delimiter(',');
+  synth_cmd->add_option("--rate", synth.rate_hz, "Samples per second")->capture_default_str();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  try {
+    if (*replay_cmd) return incise::app::replay(replay);
+    if (*check_cmd) return incise::app::check(check_scene);
+    if (*run_cmd) return incise::app::run(run);
+    if (*export_cmd) return incise::app::trajectory_export(export_file, export_out);
+    if (*info_cmd) return incise::app::trajectory_info(info_file);
+    if (*synth_cmd) return incise::app::trajectory_synth(synth);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "incise: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

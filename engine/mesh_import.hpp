@@ -1,0 +1,32 @@
+// Closed surface meshes from files (anything assimp reads: OBJ, STL, PLY, glTF, ...), and the
+// inside test that fills them with elements.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <stdexcept>
+#include <vector>
+
+namespace incise::engine {
+
+struct TriangleSoup {
+  std::vector<std::array<double, 3>> vertices;
+  std::vector<std::array<int, 3>> triangles;
+  std::array<double, 3> min{}, max{};
+};
+
+class MeshError : public std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Reads every mesh of the file, merges coincident vertices, scales by `scale`. Throws
+// MeshError naming the file when it cannot be read, holds no triangles, or is not closed
+// (an edge used by other than two triangles: the count and the first such edge are named).
+TriangleSoup import_surface(const std::filesystem::path& file, double scale = 1.0);
+
+// Generalised winding number (sum of solid angles / 4 pi, Van Oosterom–Strackee): about 1
+// inside a closed surface and 0 outside, whatever its orientation conventions per shell,
+// and robust to small cracks, unlike ray parity.
+double winding_number(const TriangleSoup& mesh, const std::array<double, 3>& point);
+
+}  // namespace incise::engine

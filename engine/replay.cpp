@@ -1,0 +1,355 @@
+#include "engine/replay.hpp"
+
+#include "engine/publication.hpp"
+#include "engine/trajectory.hpp"
+#include "engine/world.hpp"
+#include "render/image.hpp"
+#include "render/offscreen.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+#include <thread>
+#include <unistd.h>
+
+namespace incise::engine {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using Json = nlohmann::json;
+
+struct Snapshot {
+  std::uint64_t step = 0;
+  double time = 0;
+  render::Frame frame;
+};
+
+double percentile(std::vector<double> values, double q) {
+  if (values.empty()) return 0;
+  std::sort(values.begin(), values.end());
+  double rank = q * static_cast<double>(values.size() - 1);
+  auto lo = static_cast<std::size_t>(std::floor(rank));
+  auto hi = std::min(lo + 1, values.size() - 1);
+  return values[lo] + (rank - static_cast<double>(lo)) * (values[hi] - values[lo]);
+}
+
+std::string hex64(std::uint64_t v) {
+  std::ostringstream out;
+  out << "0x" << std::hex << std::setw(16) << std::setfill('0') << v;
+  return out.str();
+}
+
+void draw_progress(long done, long total, double sim_time, double wall) {
+  const int width = 30;
+  int filled = total > 0 ? static_cast<int>(width * done / total) : width;
+  std::fprintf(stderr, "\r[%.*s%*s] %ld/%ld steps  t = %.3f s  %.1f s wall", filled,
+               "##############################", width - filled, "", done, total, sim_time, wall);
+  std::fflush(stderr);
+}
+
+// The render thread: owns its GL context from creation to destruction.
+class Capture {
+ public:
+  Capture(std::filesystem::path frames_dir, int width, int height)
+      : frames_dir_(std::move(frames_dir)), width_(width), height_(height) {
+    thread_ = std::thread([this] { run(); });
+  }
+  ~Capture() { finish(); }
+
+  // Physics side: a slot to fill (waits while the render thread is a ring behind), or
+  // nullptr when rendering failed and frames are no longer taken.
+  Snapshot* begin() {
+    while (!failed_.load(std::memory_order_acquire)) {
+      if (Snapshot* slot = ring_.try_begin_push()) return slot;
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    return nullptr;
+  }
+  void end() { ring_.end_push(); }
+
+  void finish() {
+    if (!thread_.joinable()) return;
+    done_.store(true, std::memory_order_release);
+    thread_.join();
+  }
+  bool failed() const { return failed_.load(std::memory_order_acquire); }
+  const std::string& error() const { return error_; }  // read after finish()
+  const std::string& renderer() const { return renderer_; }
+  long frames() const { return frames_; }
+  double ms_render_median() const { return percentile(render_ms_, 0.5); }
+
+ private:
+  void run() {
+    try {
+      auto target = render::OffscreenTarget::create(width_, height_);
+      renderer_ = target.renderer_string();
+      for (;;) {
+        Snapshot* s = ring_.front();
+        if (!s) {
+          if (done_.load(std::memory_order_acquire) && !ring_.front()) break;
+          std::this_thread::sleep_for(std::chrono::microseconds(500));
+          continue;
+        }
+        auto start = Clock::now();
+        render::Image image = target.render(s->frame);
+        char name[64];
+        std::snprintf(name, sizeof name, "frame_%06llu.png", static_cast<unsigned long long>(s->step));
+        render::write_png(frames_dir_ / name, image);
+        render_ms_.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+        ++frames_;
+        ring_.pop();
+      }
+    } catch (const std::exception& e) {
+      error_ = e.what();
+      failed_.store(true, std::memory_order_release);
+    }
+  }
+
+  std::filesystem::path frames_dir_;
+  int width_, height_;
+  SnapshotRing<Snapshot, 4> ring_;
+  std::thread thread_;
+  std::atomic<bool> done_{false};
+  std::atomic<bool> failed_{false};
+  std::string error_;
+  std::string renderer_;
+  long frames_ = 0;
+  std::vector<double> render_ms_;
+};
+
+}  // namespace
+
+std::optional<double> metric_value(const Json& metrics, const std::string& path) {
+  const Json* node = &metrics;
+  std::size_t start = 0;
+  while (start <= path.size()) {
+    auto dot = path.find('.', start);
+    std::string key = path.substr(start, dot == std::string::npos ? std::string::npos : dot - start);
+    if (node->is_object()) {
+      auto it = node->find(key);
+      if (it == node->end()) return std::nullopt;
+      node = &*it;
+    } else if (node->is_array()) {
+      char* end = nullptr;
+      unsigned long index = std::strtoul(key.c_str(), &end, 10);
+      if (key.empty() || *end != '\0' || index >= node->size()) return std::nullopt;
+      node = &(*node)[index];
+    } else {
+      return std::nullopt;
+    }
+    if (dot == std::string::npos) break;
+    start = dot + 1;
+  }
+  if (node->is_boolean()) return node->get<bool>() ? 1.0 : 0.0;
+  if (!node->is_number()) return std::nullopt;
+  return node->get<double>();
+}
+
+std::vector<ExpectationResult> check_expectations(const Scene& scene, const Json& metrics) {
+  std::vector<ExpectationResult> results;
+  for (const auto& e : scene.expect) {
+    ExpectationResult r;
+    r.metric = e.metric;
+    r.min = e.min;
+    r.max = e.max;
+    r.value = metric_value(metrics, e.metric);
+    r.passed = r.value && std::isfinite(*r.value) && (!e.min || *r.value >= *e.min) &&
+               (!e.max || *r.value <= *e.max);
+    results.push_back(r);
+  }
+  return results;
+}
+
+ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
+  std::optional<Trajectory> trajectory;
+  std::optional<std::filesystem::path> trajectory_file = options.trajectory;
+  if (!trajectory_file && scene.tool) trajectory_file = scene.tool->trajectory;
+  if (trajectory_file) trajectory = read_trajectory(*trajectory_file);
+  Json trajectory_json = nullptr;
+  if (trajectory) {
+    trajectory_json = {{"file", trajectory_file->string()},
+                       {"samples", trajectory->samples.size()},
+                       {"chunks", trajectory->report.chunks_read},
+                       {"complete", trajectory->report.complete},
+                       {"problem", trajectory->report.problem}};
+  }
+
+  World world(scene, std::move(trajectory));
+  const long steps = options.steps ? *options.steps
+                                   : std::lround(scene.solver.duration / scene.solver.dt);
+  const int capture_every = options.capture_every ? *options.capture_every : scene.render.capture_every;
+  const int width = options.size ? options.size->first : scene.render.width;
+  const int height = options.size ? options.size->second : scene.render.height;
+
+  std::filesystem::create_directories(options.out_dir);
+  const auto frames_dir = options.out_dir / "frames";
+  std::unique_ptr<Capture> capture;
+  if (capture_every > 0) {
+    std::filesystem::create_directories(frames_dir);
+    for (const auto& entry : std::filesystem::directory_iterator(frames_dir))
+      if (entry.path().extension() == ".png") std::filesystem::remove(entry.path());
+    capture = std::make_unique<Capture>(frames_dir, width, height);
+  }
+
+  std::vector<StepStats> stats;
+  stats.reserve(static_cast<std::size_t>(std::max(0L, steps)));
+  std::atomic<long> steps_done{0};
+  std::string error;
+  auto publish = [&](std::uint64_t step) {
+    if (!capture) return;
+    if (Snapshot* s = capture->begin()) {
+      s->step = step;
+      s->time = world.time();
+      world.fill_frame(s->frame, width, height);
+      capture->end();
+    }
+  };
+
+  const auto wall_start = Clock::now();
+  std::thread physics([&] {
+    try {
+      publish(0);
+      for (long k = 1; k <= steps; ++k) {
+        stats.push_back(world.step());
+        if (capture_every > 0 && k % capture_every == 0) publish(static_cast<std::uint64_t>(k));
+        steps_done.store(k, std::memory_order_release);
+      }
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    steps_done.store(-1, std::memory_order_release);
+  });
+  const bool tty = options.progress && isatty(STDERR_FILENO);
+  while (steps_done.load(std::memory_order_acquire) >= 0) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    long done = steps_done.load(std::memory_order_acquire);
+    if (tty && done >= 0)
+      draw_progress(done, steps, static_cast<double>(done) * scene.solver.dt,
+                    std::chrono::duration<double>(Clock::now() - wall_start).count());
+  }
+  physics.join();
+  if (capture) capture->finish();
+  const double wall = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  if (tty) {
+    draw_progress(static_cast<long>(stats.size()), steps, world.time(), wall);
+    std::fputc('\n', stderr);
+  }
+
+  // Metrics.
+  std::vector<double> total, tool_input, contact, solve, surface;
+  double cg_sum = 0, cg_residual_max = 0, max_force = 0;
+  int cg_max = 0, nonfinite = 0, not_converged = 0, contacts_max = 0;
+  for (const auto& s : stats) {
+    total.push_back(s.ms_total);
+    tool_input.push_back(s.ms_tool_input);
+    contact.push_back(s.ms_contact);
+    solve.push_back(s.ms_solve);
+    surface.push_back(s.ms_surface);
+    cg_sum += s.cg_iterations;
+    cg_max = std::max(cg_max, s.cg_iterations);
+    cg_residual_max = std::max(cg_residual_max, s.cg_residual);
+    nonfinite += s.nonfinite_events;
+    not_converged += s.cg_converged ? 0 : 1;
+    contacts_max = std::max(contacts_max, s.contacts);
+    max_force = std::max(max_force, std::sqrt(s.tool_force[0] * s.tool_force[0] +
+                                              s.tool_force[1] * s.tool_force[1] +
+                                              s.tool_force[2] * s.tool_force[2]));
+  }
+  std::array<double, 3> centroid{};
+  double mean_displacement = 0, max_displacement = 0;
+  std::size_t nodes = 0;
+  Json bodies = Json::array();
+  for (const auto& body : world.bodies()) {
+    const auto& x = body.state.positions;
+    const auto& rest = body.model->rest_positions();
+    const int n = body.model->node_count();
+    for (int i = 0; i < n; ++i) {
+      for (int c = 0; c < 3; ++c) centroid[c] += x[3 * i + c];
+      double d = (x.segment<3>(3 * i) - rest.segment<3>(3 * i)).norm();
+      mean_displacement += d;
+      max_displacement = std::max(max_displacement, d);
+    }
+    nodes += static_cast<std::size_t>(n);
+    int fixed = 0;
+    for (auto f : body.fixed) fixed += f;
+    bodies.push_back({{"name", body.name},
+                      {"model", "fem_corotational_tet4"},
+                      {"nodes", n},
+                      {"dofs", 3 * n},
+                      {"elements", body.elements},
+                      {"fixed_nodes", fixed},
+                      {"surface_triangles", body.surface.size()}});
+  }
+  for (auto& c : centroid) c /= static_cast<double>(std::max<std::size_t>(nodes, 1));
+  mean_displacement /= static_cast<double>(std::max<std::size_t>(nodes, 1));
+  const StepStats last = stats.empty() ? StepStats{} : stats.back();
+
+  Json metrics = {
+      {"scene", scene.name},
+      {"scene_file", scene.file.string()},
+      {"backend", {{"name", "cpu"}, {"precision", "double"}}},
+      {"steps", stats.size()},
+      {"steps_requested", steps},
+      {"dt_s", scene.solver.dt},
+      {"sim_time_s", world.time()},
+      {"wall_time_s", wall},
+      {"ms_per_step", {{"median", percentile(total, 0.5)}, {"p95", percentile(total, 0.95)},
+                       {"max", total.empty() ? 0 : *std::max_element(total.begin(), total.end())}}},
+      {"phases_ms", {{"tool_input", percentile(tool_input, 0.5)}, {"contact", percentile(contact, 0.5)},
+                     {"solve", percentile(solve, 0.5)}, {"surface", percentile(surface, 0.5)}}},
+      {"cg_iterations", {{"mean", stats.empty() ? 0.0 : cg_sum / static_cast<double>(stats.size())},
+                         {"max", cg_max}}},
+      {"cg_residual_max", cg_residual_max},
+      {"cg_not_converged_steps", not_converged},
+      {"nonfinite_events", nonfinite},
+      {"energy_J", {{"elastic", last.elastic_energy}, {"kinetic", last.kinetic_energy}}},
+      {"positions_digest", {{"centroid", centroid},
+                            {"mean_displacement", mean_displacement},
+                            {"max_displacement", max_displacement}}},
+      {"state_hash", hex64(world.state_hash())},
+      {"bodies", bodies},
+      {"tool", {{"max_force_N", max_force}, {"max_contacts", contacts_max}}},
+      {"trajectory", trajectory_json},
+  };
+  if (capture) {
+    metrics["frames"] = {{"count", capture->frames()},
+                         {"every_steps", capture_every},
+                         {"dir", frames_dir.string()},
+                         {"size", {width, height}},
+                         {"renderer", capture->renderer()},
+                         {"ms_render_median", capture->ms_render_median()}};
+    if (capture->failed()) {
+      metrics["frames"]["error"] = capture->error();
+      if (error.empty()) error = "off-screen capture failed: " + capture->error();
+    }
+  }
+  ReplayResult result;
+  if (!error.empty()) {
+    metrics["error"] = error;
+    result.ok = false;
+  }
+  if (!scene.expect.empty()) {
+    Json expect = Json::array();
+    for (const auto& r : check_expectations(scene, metrics)) {
+      Json item = {{"metric", r.metric}, {"passed", r.passed}};
+      item["value"] = r.value ? Json(*r.value) : Json(nullptr);
+      if (r.min) item["min"] = *r.min;
+      if (r.max) item["max"] = *r.max;
+      expect.push_back(item);
+    }
+    metrics["expect"] = expect;
+  }
+  std::ofstream out(options.out_dir / "metrics.json");
+  out << metrics.dump(2) << "\n";
+  if (!out) throw std::runtime_error((options.out_dir / "metrics.json").string() + ": cannot write");
+  result.metrics = std::move(metrics);
+  return result;
+}
+
+}  // namespace incise::engine

@@ -1,0 +1,410 @@
+#include "engine/scene.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace incise::engine {
+
+using Json = nlohmann::json;
+
+namespace {
+
+std::string join_errors(const std::string& file, const std::vector<std::string>& errors) {
+  std::ostringstream out;
+  out << file << ": " << errors.size() << (errors.size() == 1 ? " error" : " errors");
+  for (const auto& e : errors) out << "\n  " << file << ": " << e;
+  return out.str();
+}
+
+std::string number_text(double v) {
+  std::ostringstream out;
+  out << v;
+  return out.str();
+}
+
+// Reads one JSON object, remembering which keys were consumed so the rest can be
+// reported as unknown. Every accessor records an error and returns a neutral value
+// rather than throwing, so one pass lists all the problems of a file.
+class Reader {
+ public:
+  Reader(const Json& node, std::string path, std::vector<std::string>& errors)
+      : node_(node), path_(std::move(path)), errors_(errors) {
+    if (!node_.is_object()) error(path_, "must be an object");
+  }
+
+  ~Reader() {
+    if (!node_.is_object()) return;
+    for (const auto& [key, value] : node_.items()) {
+      if (!used_.count(key)) error(child(key), "unknown key");
+    }
+  }
+
+  bool has(const std::string& key) const { return node_.is_object() && node_.contains(key); }
+  std::string child(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+  const std::string& path() const { return path_; }
+
+  const Json* get(const std::string& key, bool required) {
+    used_.insert(key);
+    if (!node_.is_object()) return nullptr;
+    auto it = node_.find(key);
+    if (it == node_.end()) {
+      if (required) error(child(key), "is required");
+      return nullptr;
+    }
+    return &*it;
+  }
+
+  // A finite number in [lo, hi] (hi_open: [lo, hi)); lo_open likewise.
+  double number(const std::string& key, bool required, double fallback, double lo, double hi,
+                bool lo_open = false, bool hi_open = false) {
+    const Json* v = get(key, required);
+    if (!v) return fallback;
+    if (!v->is_number()) {
+      error(child(key), "must be a number, not " + std::string(v->type_name()));
+      return fallback;
+    }
+    double x = v->get<double>();
+    bool below = lo_open ? !(x > lo) : !(x >= lo);
+    bool above = hi_open ? !(x < hi) : !(x <= hi);
+    if (!std::isfinite(x) || below || above) {
+      error(child(key), number_text(x) + " must be in " + (lo_open ? "(" : "[") + number_text(lo) +
+                            ", " + number_text(hi) + (hi_open ? ")" : "]"));
+      return fallback;
+    }
+    return x;
+  }
+
+  int integer(const std::string& key, bool required, int fallback, int lo, int hi) {
+    const Json* v = get(key, required);
+    if (!v) return fallback;
+    if (!v->is_number_integer()) {
+      error(child(key), "must be an integer");
+      return fallback;
+    }
+    auto x = v->get<long long>();
+    if (x < lo || x > hi) {
+      error(child(key), std::to_string(x) + " must be in [" + std::to_string(lo) + ", " +
+                            std::to_string(hi) + "]");
+      return fallback;
+    }
+    return static_cast<int>(x);
+  }
+
+  bool boolean(const std::string& key, bool fallback) {
+    const Json* v = get(key, false);
+    if (!v) return fallback;
+    if (!v->is_boolean()) {
+      error(child(key), "must be true or false");
+      return fallback;
+    }
+    return v->get<bool>();
+  }
+
+  std::string text(const std::string& key, bool required, const std::string& fallback,
+                   const std::vector<std::string>& allowed = {}) {
+    const Json* v = get(key, required);
+    if (!v) return fallback;
+    if (!v->is_string()) {
+      error(child(key), "must be a string");
+      return fallback;
+    }
+    auto s = v->get<std::string>();
+    if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), s) == allowed.end()) {
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      error(child(key), "'" + s + "' is not one of: " + list);
+      return fallback;
+    }
+    return s;
+  }
+
+  Point point(const std::string& key, bool required, Point fallback, double lo = -1e6,
+              double hi = 1e6) {
+    const Json* v = get(key, required);
+    if (!v) return fallback;
+    if (!v->is_array() || v->size() != 3) {
+      error(child(key), "must be an array of 3 numbers");
+      return fallback;
+    }
+    Point p{};
+    for (int i = 0; i < 3; ++i) {
+      const Json& e = (*v)[i];
+      if (!e.is_number() || !std::isfinite(e.get<double>()) || e.get<double>() < lo ||
+          e.get<double>() > hi) {
+        error(child(key) + "[" + std::to_string(i) + "]",
+              "must be a finite number in [" + number_text(lo) + ", " + number_text(hi) + "]");
+        return fallback;
+      }
+      p[i] = e.get<double>();
+    }
+    return p;
+  }
+
+  void error(const std::string& where, const std::string& what) {
+    errors_.push_back((where.empty() ? std::string("(top level)") : where) + ": " + what);
+  }
+
+ private:
+  const Json& node_;
+  std::string path_;
+  std::vector<std::string>& errors_;
+  std::set<std::string> used_;
+};
+
+Box read_box(const Json& node, const std::string& path, std::vector<std::string>& errors) {
+  Reader r(node, path, errors);
+  Box b;
+  b.min = r.point("min", true, {});
+  b.max = r.point("max", true, {});
+  for (int i = 0; i < 3; ++i) {
+    if (b.min[i] > b.max[i]) {
+      r.error(path, "min[" + std::to_string(i) + "] " + number_text(b.min[i]) +
+                        " is greater than max[" + std::to_string(i) + "] " + number_text(b.max[i]));
+      break;
+    }
+  }
+  return b;
+}
+
+std::filesystem::path resolve(const std::filesystem::path& scene_file, const std::string& p) {
+  std::filesystem::path path(p);
+  if (path.is_absolute()) return path;
+  return scene_file.parent_path() / path;
+}
+
+GeneratorSpec read_generator(const Json& node, const std::string& path,
+                             std::vector<std::string>& errors) {
+  Reader r(node, path, errors);
+  GeneratorSpec g;
+  g.type = r.text("type", true, "", {"box", "ellipsoid", "organ"});
+  if (g.type == "box") {
+    g.box.min = r.point("min", true, {});
+    g.box.max = r.point("max", true, {});
+    for (int i = 0; i < 3; ++i)
+      if (!(g.box.min[i] < g.box.max[i])) {
+        r.error(r.child("max"), "must be greater than min on every axis");
+        break;
+      }
+  } else if (g.type == "ellipsoid" || g.type == "organ") {
+    g.center = r.point("center", true, {});
+    g.radii = r.point("radii", true, {1, 1, 1}, 1e-6, 100);
+  }
+  return g;
+}
+
+BodySpec read_body(const Json& node, const std::string& path, const std::filesystem::path& file,
+                   std::vector<std::string>& errors) {
+  Reader r(node, path, errors);
+  BodySpec b;
+  b.name = r.text("name", true, "");
+  if (r.has("name") && b.name.empty()) r.error(r.child("name"), "must not be empty");
+  b.model = r.text("model", true, "fem", {"fem"});
+  if (const Json* mesh = r.get("mesh", false)) {
+    if (!mesh->is_string()) {
+      r.error(r.child("mesh"), "must be a file path (string)");
+    } else {
+      b.mesh = resolve(file, mesh->get<std::string>());
+      if (!std::filesystem::exists(*b.mesh))
+        r.error(r.child("mesh"), "file '" + b.mesh->string() + "' does not exist");
+    }
+  }
+  b.mesh_scale = r.number("mesh_scale", false, 1.0, 0, 1e6, true);
+  if (const Json* g = r.get("generator", false)) b.generator = read_generator(*g, r.child("generator"), errors);
+  if (b.mesh && b.generator) r.error(path, "give either 'mesh' or 'generator', not both");
+  if (!b.mesh && !b.generator && !r.has("mesh")) r.error(path, "needs a 'mesh' or a 'generator'");
+  b.resolution = r.number("resolution", true, 0.01, 1e-4, 10, false);
+  if (const Json* m = r.get("material", true)) {
+    Reader mr(*m, r.child("material"), errors);
+    b.material.youngs_modulus = mr.number("E", true, 1e4, 0, 1e12, true);
+    b.material.poisson_ratio = mr.number("nu", true, 0.3, 0, 0.5, false, true);
+    b.material.density = mr.number("rho", true, 1000, 0, 1e5, true);
+  }
+  if (const Json* fixed = r.get("fixed", false)) {
+    if (!fixed->is_array()) {
+      r.error(r.child("fixed"), "must be an array of boxes {\"min\": [...], \"max\": [...]}");
+    } else {
+      for (std::size_t i = 0; i < fixed->size(); ++i)
+        b.fixed.push_back(read_box((*fixed)[i], r.child("fixed") + "[" + std::to_string(i) + "]", errors));
+    }
+  }
+  if (const Json* d = r.get("damping", false)) {
+    Reader dr(*d, r.child("damping"), errors);
+    b.damping_mass = dr.number("mass", false, 0, 0, 1e4);
+    b.damping_stiffness = dr.number("stiffness", false, 0, 0, 10);
+  }
+  return b;
+}
+
+}  // namespace
+
+SceneError::SceneError(const std::string& file, std::vector<std::string> errors)
+    : std::runtime_error(join_errors(file, errors)), errors_(std::move(errors)) {}
+
+bool Box::contains(const Point& p, double tolerance) const {
+  for (int i = 0; i < 3; ++i)
+    if (p[i] < min[i] - tolerance || p[i] > max[i] + tolerance) return false;
+  return true;
+}
+
+Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
+  const std::string name = file.string();
+  Json root;
+  try {
+    root = Json::parse(text);
+  } catch (const Json::parse_error& e) {
+    // nlohmann's message carries the line and column.
+    throw SceneError(name, {std::string("not valid JSON: ") + e.what()});
+  }
+  std::vector<std::string> errors;
+  Scene scene;
+  scene.file = file;
+  {
+    Reader r(root, "", errors);
+    scene.name = r.text("name", true, "");
+    scene.description = r.text("description", false, "");
+
+    if (const Json* bodies = r.get("bodies", true)) {
+      if (!bodies->is_array() || bodies->empty()) {
+        r.error("bodies", "must be a non-empty array");
+      } else {
+        std::set<std::string> names;
+        for (std::size_t i = 0; i < bodies->size(); ++i) {
+          std::string path = "bodies[" + std::to_string(i) + "]";
+          scene.bodies.push_back(read_body((*bodies)[i], path, file, errors));
+          const auto& n = scene.bodies.back().name;
+          if (!n.empty() && !names.insert(n).second) r.error(path + ".name", "'" + n + "' is used twice");
+        }
+      }
+    }
+
+    if (const Json* tool = r.get("tool", false)) {
+      Reader tr(*tool, "tool", errors);
+      ToolSpec t;
+      t.shape = tr.text("shape", true, "sphere", {"sphere", "capsule"});
+      t.radius = tr.number("radius", true, 0.005, 0, 1, true);
+      t.length = tr.number("length", t.shape == "capsule", 0, 0, 10);
+      t.stiffness = tr.number("stiffness", false, 500, 0, 1e9, true);
+      if (const Json* traj = tr.get("trajectory", true)) {
+        if (!traj->is_string()) {
+          tr.error("tool.trajectory", "must be a file path (string)");
+        } else {
+          t.trajectory = resolve(file, traj->get<std::string>());
+          if (!std::filesystem::exists(*t.trajectory))
+            tr.error("tool.trajectory", "file '" + t.trajectory->string() + "' does not exist");
+        }
+      }
+      scene.tool = t;
+    }
+
+    if (const Json* solver = r.get("solver", true)) {
+      Reader sr(*solver, "solver", errors);
+      auto& s = scene.solver;
+      s.dt = sr.number("dt", true, 0.01, 0, 0.1, true);
+      s.tolerance = sr.number("tolerance", false, 1e-6, 0, 1, true, true);
+      s.max_iterations = sr.integer("max_iterations", false, 200, 1, 100000);
+      s.backend = sr.text("backend", false, "cpu", {"cpu", "gpu"});
+      s.gravity = sr.point("gravity", false, {0, 0, -9.81}, -1e4, 1e4);
+      s.duration = sr.number("duration", true, 1, 0, 1e5, true);
+      s.max_retries = sr.integer("max_retries", false, 3, 0, 20);
+    }
+
+    if (const Json* loads = r.get("loads", false)) {
+      if (!loads->is_array()) {
+        r.error("loads", "must be an array");
+      } else {
+        for (std::size_t i = 0; i < loads->size(); ++i) {
+          std::string path = "loads[" + std::to_string(i) + "]";
+          Reader lr((*loads)[i], path, errors);
+          LoadSpec l;
+          l.body = lr.text("body", true, "");
+          bool known = false;
+          for (const auto& b : scene.bodies) known = known || b.name == l.body;
+          if (lr.has("body") && !l.body.empty() && !known)
+            lr.error(path + ".body", "no body is named '" + l.body + "'");
+          if (const Json* region = lr.get("region", true)) l.region = read_box(*region, path + ".region", errors);
+          if (const Json* events = lr.get("events", true)) {
+            if (!events->is_array() || events->empty()) {
+              lr.error(path + ".events", "must be a non-empty array of {\"t\": s, \"force\": [N, N, N]}");
+            } else {
+              for (std::size_t k = 0; k < events->size(); ++k) {
+                std::string epath = path + ".events[" + std::to_string(k) + "]";
+                Reader er((*events)[k], epath, errors);
+                LoadEvent e;
+                e.time = er.number("t", true, 0, 0, 1e6);
+                e.force = er.point("force", true, {}, -1e6, 1e6);
+                if (!l.events.empty() && !(e.time > l.events.back().time))
+                  er.error(epath + ".t", "times must increase (" + number_text(e.time) +
+                                             " follows " + number_text(l.events.back().time) + ")");
+                l.events.push_back(e);
+              }
+            }
+          }
+          scene.loads.push_back(l);
+        }
+      }
+    }
+
+    if (const Json* render = r.get("render", false)) {
+      Reader rr(*render, "render", errors);
+      auto& s = scene.render;
+      s.capture_every = rr.integer("capture_every", false, 0, 0, 1000000);
+      if (const Json* size = rr.get("size", false)) {
+        if (!size->is_array() || size->size() != 2 || !(*size)[0].is_number_integer() ||
+            !(*size)[1].is_number_integer() || (*size)[0].get<long long>() < 16 ||
+            (*size)[1].get<long long>() < 16 || (*size)[0].get<long long>() > 8192 ||
+            (*size)[1].get<long long>() > 8192) {
+          rr.error("render.size", "must be [width, height], integers in [16, 8192]");
+        } else {
+          s.width = (*size)[0].get<int>();
+          s.height = (*size)[1].get<int>();
+        }
+      }
+      if (const Json* cam = rr.get("camera", false)) {
+        Reader cr(*cam, "render.camera", errors);
+        CameraSpec c;
+        c.eye = cr.point("eye", true, {});
+        c.target = cr.point("target", true, {});
+        c.fov_deg = cr.number("fov_deg", false, 40, 1, 170);
+        if (c.eye == c.target) cr.error("render.camera.eye", "must differ from target");
+        s.camera = c;
+      }
+      s.floor = rr.boolean("floor", true);
+      s.floor_z = rr.number("floor_z", false, 0, -1e6, 1e6);
+    }
+
+    if (const Json* expect = r.get("expect", false)) {
+      if (!expect->is_object()) {
+        r.error("expect", "must be an object {\"metric.path\": {\"min\": x, \"max\": y}}");
+      } else {
+        for (const auto& [key, value] : expect->items()) {
+          std::string path = "expect." + key;
+          Reader er(value, path, errors);
+          Expectation e;
+          e.metric = key;
+          if (er.has("min")) e.min = er.number("min", true, 0, -1e300, 1e300);
+          if (er.has("max")) e.max = er.number("max", true, 0, -1e300, 1e300);
+          if (value.is_object() && !e.min && !e.max) er.error(path, "needs 'min' or 'max'");
+          if (e.min && e.max && *e.min > *e.max) er.error(path, "min is greater than max");
+          scene.expect.push_back(e);
+        }
+      }
+    }
+  }
+  if (!errors.empty()) throw SceneError(name, errors);
+  return scene;
+}
+
+Scene load_scene(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw SceneError(file.string(), {"cannot open the file"});
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  if (buffer.str().empty()) throw SceneError(file.string(), {"the file is empty"});
+  return parse_scene(buffer.str(), file);
+}
+
+}  // namespace incise::engine

@@ -1,0 +1,129 @@
+// Scene files: JSON in, a validated Scene out (docs/scenes.md is the reference).
+//
+// Every field is checked where it is read; an error names the file and the field
+// (`bodies[0].material.nu: 0.7 must be in [0, 0.5)`), unknown keys are errors, and all
+// the errors of a file are reported together so a user fixes them in one pass.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace incise::engine {
+
+using Point = std::array<double, 3>;
+
+class SceneError : public std::runtime_error {
+ public:
+  SceneError(const std::string& file, std::vector<std::string> errors);
+  const std::vector<std::string>& errors() const { return errors_; }
+
+ private:
+  std::vector<std::string> errors_;
+};
+
+struct Box {
+  Point min{};
+  Point max{};
+  bool contains(const Point& p, double tolerance = 0) const;
+};
+
+struct MaterialSpec {
+  double youngs_modulus = 0;  // Pa
+  double poisson_ratio = 0;
+  double density = 0;  // kg/m^3
+};
+
+// Either a mesh file (closed surface, read with assimp and filled with elements) or a
+// generated shape.
+struct GeneratorSpec {
+  std::string type;  // "box", "ellipsoid", "organ"
+  Box box;           // box
+  Point center{};    // ellipsoid, organ
+  Point radii{};     // ellipsoid, organ
+};
+
+struct BodySpec {
+  std::string name;
+  std::string model;                      // "fem" (corotational linear tetrahedra)
+  std::optional<std::filesystem::path> mesh;  // resolved against the scene's folder
+  double mesh_scale = 1;
+  std::optional<GeneratorSpec> generator;
+  double resolution = 0;  // element (cell) size, m
+  MaterialSpec material;
+  std::vector<Box> fixed;  // nodes inside any box are fixed
+  double damping_mass = 0;       // Rayleigh alpha, 1/s
+  double damping_stiffness = 0;  // Rayleigh beta, s
+};
+
+struct ToolSpec {
+  std::string shape;  // "sphere" or "capsule"
+  double radius = 0;
+  double length = 0;  // capsule: along the tool's local -z from the tip... see docs
+  double stiffness = 0;  // penalty contact stiffness per surface node, N/m
+  std::optional<std::filesystem::path> trajectory;
+};
+
+struct SolverSpec {
+  double dt = 0;
+  double tolerance = 1e-6;
+  int max_iterations = 200;
+  std::string backend = "cpu";
+  Point gravity{0, 0, -9.81};
+  double duration = 0;  // s of simulated time for a replay
+  int max_retries = 3;  // halvings of dt after a non-finite step
+};
+
+struct LoadEvent {
+  double time = 0;
+  Point force{};  // total force, N, spread over the region's nodes by mass
+};
+
+struct LoadSpec {
+  std::string body;
+  Box region;
+  std::vector<LoadEvent> events;  // increasing times; linear in between, held outside
+};
+
+struct CameraSpec {
+  Point eye{};
+  Point target{};
+  double fov_deg = 40;
+};
+
+struct RenderSpec {
+  int capture_every = 0;  // steps; 0: no frames
+  int width = 640;
+  int height = 480;
+  std::optional<CameraSpec> camera;  // fitted to the bodies when absent
+  bool floor = true;
+  double floor_z = 0;
+};
+
+struct Expectation {
+  std::string metric;  // dotted path into metrics.json, e.g. "positions_digest.max_displacement"
+  std::optional<double> min;
+  std::optional<double> max;
+};
+
+struct Scene {
+  std::filesystem::path file;
+  std::string name;
+  std::string description;
+  std::vector<BodySpec> bodies;
+  std::optional<ToolSpec> tool;
+  SolverSpec solver;
+  std::vector<LoadSpec> loads;
+  RenderSpec render;
+  std::vector<Expectation> expect;
+};
+
+// Reads and validates; throws SceneError listing every problem.
+Scene load_scene(const std::filesystem::path& file);
+// The same from text (tests); `file` only names the source in messages and resolves paths.
+Scene parse_scene(const std::string& text, const std::filesystem::path& file);
+
+}  // namespace incise::engine

@@ -1,0 +1,379 @@
+#include "engine/world.hpp"
+
+#include "engine/mesh_import.hpp"
+#include "physics/fem/corotational_fem.hpp"
+#include "physics/fem/surface_snap.hpp"
+#include "physics/fem/tet_mesh.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <functional>
+
+namespace incise::engine {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+physics::Vec3 vec(const Point& p) { return {p[0], p[1], p[2]}; }
+
+// The "organ" generator: a lobe shaped like a small liver segment — an ellipsoid whose
+// upper surface is tilted and bulged, cut flat underneath so that it rests on supports.
+bool inside_organ(const GeneratorSpec& g, const physics::Vec3& p) {
+  double u = (p.x() - g.center[0]) / g.radii[0];
+  double v = (p.y() - g.center[1]) / g.radii[1];
+  double w = (p.z() - g.center[2]) / g.radii[2];
+  if (w < -0.55) return false;  // flat base
+  // Thicker on the -x side, thinning towards +x like a hepatic lobe's edge.
+  double thickness = 1.0 - 0.35 * u;
+  double wz = (w + 0.25 * (u * u + v * v)) / thickness;
+  double lateral = u * u + 1.15 * v * v * (1 + 0.3 * u);
+  return lateral + wz * wz <= 1.0;
+}
+
+std::function<bool(const physics::Vec3&)> inside_test(const GeneratorSpec& g) {
+  if (g.type == "box") {
+    return [g](const physics::Vec3& p) {
+      for (int i = 0; i < 3; ++i)
+        if (p[i] < g.box.min[i] || p[i] > g.box.max[i]) return false;
+      return true;
+    };
+  }
+  if (g.type == "ellipsoid") {
+    return [g](const physics::Vec3& p) {
+      double s = 0;
+      for (int i = 0; i < 3; ++i) {
+        double d = (p[i] - g.center[i]) / g.radii[i];
+        s += d * d;
+      }
+      return s <= 1.0;
+    };
+  }
+  return [g](const physics::Vec3& p) { return inside_organ(g, p); };
+}
+
+std::array<double, 3> rotate(const std::array<double, 4>& q, const std::array<double, 3>& v) {
+  // v' = v + 2 w (u x v) + 2 u x (u x v), q = (w, u)
+  double w = q[0];
+  double ux = q[1], uy = q[2], uz = q[3];
+  double cx = uy * v[2] - uz * v[1];
+  double cy = uz * v[0] - ux * v[2];
+  double cz = ux * v[1] - uy * v[0];
+  double ccx = uy * cz - uz * cy;
+  double ccy = uz * cx - ux * cz;
+  double ccz = ux * cy - uy * cx;
+  return {v[0] + 2 * (w * cx + ccx), v[1] + 2 * (w * cy + ccy), v[2] + 2 * (w * cz + ccz)};
+}
+
+}  // namespace
+
+std::array<double, 3> load_force_at(const LoadSpec& load, double time) {
+  const auto& e = load.events;
+  if (time <= e.front().time) return e.front().force;
+  if (time >= e.back().time) return e.back().force;
+  auto it = std::upper_bound(e.begin(), e.end(), time,
+                             [](double t, const LoadEvent& ev) { return t < ev.time; });
+  const LoadEvent& b = *it;
+  const LoadEvent& a = *(it - 1);
+  double s = (time - a.time) / (b.time - a.time);
+  return {a.force[0] + s * (b.force[0] - a.force[0]), a.force[1] + s * (b.force[1] - a.force[1]),
+          a.force[2] + s * (b.force[2] - a.force[2])};
+}
+
+Body build_body(const BodySpec& spec, const SolverSpec& solver) {
+  Body body;
+  body.name = spec.name;
+  const std::string where = "body '" + spec.name + "'";
+
+  std::function<bool(const physics::Vec3&)> inside;
+  physics::Vec3 lo, hi;
+  std::shared_ptr<TriangleSoup> soup;
+  if (spec.generator) {
+    const auto& g = *spec.generator;
+    inside = inside_test(g);
+    if (g.type == "box") {
+      lo = vec(g.box.min);
+      hi = vec(g.box.max);
+    } else {
+      lo = vec(g.center) - vec(g.radii);
+      hi = vec(g.center) + vec(g.radii);
+    }
+  } else {
+    soup = std::make_shared<TriangleSoup>(import_surface(*spec.mesh, spec.mesh_scale));
+    inside = [soup](const physics::Vec3& p) {
+      return winding_number(*soup, {p.x(), p.y(), p.z()}) > 0.5;
+    };
+    lo = vec(soup->min);
+    hi = vec(soup->max);
+  }
+  physics::TetMesh mesh;
+  if (spec.generator && spec.generator->type == "box") {
+    // A box is meshed exactly, with as many cells as fit the resolution on each side.
+    std::array<int, 3> cells{};
+    for (int i = 0; i < 3; ++i)
+      cells[i] = std::max(1, static_cast<int>(std::lround((hi[i] - lo[i]) / spec.resolution)));
+    mesh = physics::make_box_tets(lo, hi, cells);
+  } else {
+    try {
+      mesh = physics::make_tets_inside(inside, lo, hi, spec.resolution);
+      // Voxel boundaries are staircases of one cell; the surgeon should see the organ's shape.
+      body.snap = physics::snap_boundary_to_surface(mesh, inside, spec.resolution);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(where + ": " + e.what());
+    }
+  }
+  body.elements = mesh.tets.size();
+  physics::Material material{spec.material.youngs_modulus, spec.material.poisson_ratio,
+                             spec.material.density};
+  body.surface = physics::boundary_triangles(mesh.tets);
+  auto model = std::make_unique<physics::CorotationalTetFem>(mesh, material);
+  const int n = model->node_count();
+  body.state.positions = model->rest_positions();
+  body.state.velocities = physics::Vector::Zero(3 * n);
+  body.fixed.assign(n, 0);
+  for (const auto& box : spec.fixed) {
+    auto in = physics::nodes_in_box(model->rest_positions(), vec(box.min), vec(box.max));
+    for (int i = 0; i < n; ++i) body.fixed[i] |= in[i];
+  }
+  body.gravity = physics::gravity_forces(model->lumped_masses(), vec(solver.gravity));
+
+  std::vector<int> surface_index(n, -1);
+  for (const auto& t : body.surface)
+    for (int v : t) surface_index[v] = 0;
+  for (int i = 0; i < n; ++i)
+    if (surface_index[i] == 0) {
+      surface_index[i] = static_cast<int>(body.surface_nodes.size());
+      body.surface_nodes.push_back(i);
+    }
+  body.render_triangles.reserve(body.surface.size() * 3);
+  for (const auto& t : body.surface)
+    for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(surface_index[v]));
+
+  body.integrator.dt = solver.dt;
+  body.integrator.rayleigh_mass = spec.damping_mass;
+  body.integrator.rayleigh_stiffness = spec.damping_stiffness;
+  body.integrator.cg.tolerance = solver.tolerance;
+  body.integrator.cg.max_iterations = solver.max_iterations;
+  body.model = std::move(model);
+  return body;
+}
+
+World::World(const Scene& scene, std::optional<Trajectory> trajectory)
+    : scene_(scene), trajectory_(std::move(trajectory)) {
+  if (scene_.solver.backend != "cpu")
+    throw std::runtime_error(scene_.file.string() + ": solver.backend: '" + scene_.solver.backend +
+                             "' is not available in this build (only 'cpu'; the GPU backend is issue 6)");
+  bounds_min_ = {1e300, 1e300, 1e300};
+  bounds_max_ = {-1e300, -1e300, -1e300};
+  for (const auto& spec : scene_.bodies) {
+    bodies_.push_back(build_body(spec, scene_.solver));
+    const auto& x = bodies_.back().state.positions;
+    for (Eigen::Index i = 0; i < x.size(); ++i) {
+      bounds_min_[i % 3] = std::min(bounds_min_[i % 3], x[i]);
+      bounds_max_[i % 3] = std::max(bounds_max_[i % 3], x[i]);
+    }
+  }
+  for (std::size_t l = 0; l < scene_.loads.size(); ++l) {
+    const auto& load = scene_.loads[l];
+    for (auto& body : bodies_) {
+      if (body.name != load.body) continue;
+      std::vector<int> nodes;
+      const auto& x = body.state.positions;
+      for (int i = 0; i < body.model->node_count(); ++i)
+        if (load.region.contains({x[3 * i], x[3 * i + 1], x[3 * i + 2]}, 1e-9)) nodes.push_back(i);
+      if (nodes.empty())
+        throw std::runtime_error(scene_.file.string() + ": loads[" + std::to_string(l) +
+                                 "].region: contains no node of body '" + body.name + "'");
+      body.load_nodes.push_back(std::move(nodes));
+      body.load_index.push_back(l);
+    }
+  }
+  if (scene_.tool) {
+    if (!trajectory_ || trajectory_->samples.empty())
+      throw std::runtime_error(scene_.file.string() + ": tool.trajectory: holds no sample");
+    tool_.present = true;
+    tool_.radius = scene_.tool->radius;
+  }
+  take_tool_input(0.0);
+}
+
+void World::take_tool_input(double time) {
+  if (!tool_.present) return;
+  // Every sample since the last step belongs to the tool's swept path; the probe's contact
+  // needs only the pose at the end of the step (the blade's CCD will use the whole sweep).
+  tool_.pose = sample_at(trajectory_->samples, time);
+  tool_.tip = tool_.pose.position;
+  tool_.tail = tool_.tip;
+  if (scene_.tool->shape == "capsule") {
+    auto axis = rotate(tool_.pose.orientation, {0, 0, scene_.tool->length});
+    for (int i = 0; i < 3; ++i) tool_.tail[i] = tool_.tip[i] + axis[i];
+  }
+}
+
+std::vector<physics::NodalSpring> World::contact(const Body& body, StepStats& stats) const {
+  std::vector<physics::NodalSpring> springs;
+  if (!tool_.present) return springs;
+  const double k = scene_.tool->stiffness;
+  const physics::Vec3 a = vec(tool_.tip), b = vec(tool_.tail);
+  const physics::Vec3 ab = b - a;
+  const double ab2 = ab.squaredNorm();
+  const auto& x = body.state.positions;
+  for (int node : body.surface_nodes) {
+    if (body.fixed[node]) continue;
+    physics::Vec3 p = x.segment<3>(3 * node);
+    double s = ab2 > 0 ? std::clamp((p - a).dot(ab) / ab2, 0.0, 1.0) : 0.0;
+    physics::Vec3 closest = a + s * ab;
+    physics::Vec3 d = p - closest;
+    double distance = d.norm();
+    double depth = tool_.radius - distance;
+    if (depth <= 0) continue;
+    // A node exactly on the axis has no defined normal: push it up, away from the handle.
+    physics::Vec3 normal = distance > 1e-12 ? physics::Vec3(d / distance) : physics::Vec3(0, 0, -1);
+    physics::NodalSpring spring;
+    spring.node = node;
+    spring.force = k * depth * normal;
+    // Penalty stiffness along the normal only: the tangential part of the exact Jacobian
+    // is negative near the axis and would make the system indefinite.
+    spring.stiffness = k * normal * normal.transpose();
+    springs.push_back(spring);
+    for (int i = 0; i < 3; ++i) stats.tool_force[i] -= spring.force[i];
+  }
+  stats.contacts += static_cast<int>(springs.size());
+  return springs;
+}
+
+void World::solve_body(Body& body, const std::vector<physics::NodalSpring>& springs,
+                       double end_time, StepStats& stats) {
+  physics::Vector external = body.gravity;
+  for (std::size_t k = 0; k < body.load_nodes.size(); ++k) {
+    auto force = load_force_at(scene_.loads[body.load_index[k]], end_time);
+    double total_mass = 0;
+    for (int i : body.load_nodes[k]) total_mass += body.model->lumped_masses()[i];
+    for (int i : body.load_nodes[k]) {
+      double share = body.model->lumped_masses()[i] / total_mass;
+      for (int c = 0; c < 3; ++c) external[3 * i + c] += share * force[c];
+    }
+  }
+  // Non-finite guard: a step that produces a non-finite value leaves the state untouched
+  // and is retried as 2, 4, ... sub-steps (dt halved each time) before giving up.
+  for (int attempt = 0; attempt <= scene_.solver.max_retries; ++attempt) {
+    int substeps = 1 << attempt;
+    physics::ImplicitEulerSettings settings = body.integrator;
+    settings.dt = body.integrator.dt / substeps;
+    physics::State saved = body.state;
+    bool failed = false;
+    for (int s = 0; s < substeps && !failed; ++s) {
+      auto report = physics::implicit_euler_step(*body.model, body.state, body.fixed, external,
+                                                 springs, settings);
+      stats.cg_iterations += report.cg.iterations;
+      stats.cg_residual = std::max(stats.cg_residual, report.cg.relative_residual);
+      stats.cg_converged = stats.cg_converged && report.cg.converged;
+      stats.elastic_energy += report.elastic_energy;
+      stats.kinetic_energy += report.kinetic_energy;
+      failed = report.nonfinite;
+    }
+    if (!failed) return;
+    body.state = std::move(saved);
+    stats.nonfinite_events++;
+  }
+  throw NonFiniteError("step " + std::to_string(steps_ + 1) + " (t = " + std::to_string(end_time) +
+                       " s), body '" + body.name + "': non-finite values after " +
+                       std::to_string(scene_.solver.max_retries) + " retries with halved dt");
+}
+
+StepStats World::step() {
+  StepStats stats;
+  auto start = Clock::now();
+  auto phase = start;
+  const double end_time = static_cast<double>(steps_ + 1) * scene_.solver.dt;
+  take_tool_input(end_time);
+  stats.ms_tool_input = ms_since(phase);
+  std::vector<std::vector<physics::NodalSpring>> springs(bodies_.size());
+  phase = Clock::now();
+  for (std::size_t b = 0; b < bodies_.size(); ++b) springs[b] = contact(bodies_[b], stats);
+  stats.ms_contact = ms_since(phase);
+  phase = Clock::now();
+  for (std::size_t b = 0; b < bodies_.size(); ++b) solve_body(bodies_[b], springs[b], end_time, stats);
+  stats.ms_solve = ms_since(phase);
+  // update_surface: the surface is the boundary of the volume mesh, so its vertices are
+  // nodes and there is nothing to map until bodies become cuttable (issue 4).
+  stats.ms_surface = 0;
+  ++steps_;
+  time_ = end_time;
+  stats.ms_total = ms_since(start);
+  return stats;
+}
+
+std::uint64_t World::state_hash() const {
+  std::uint64_t hash = 1469598103934665603ull;
+  auto mix = [&hash](const physics::Vector& v) {
+    const auto* bytes = reinterpret_cast<const unsigned char*>(v.data());
+    for (std::size_t i = 0; i < static_cast<std::size_t>(v.size()) * sizeof(double); ++i) {
+      hash ^= bytes[i];
+      hash *= 1099511628211ull;
+    }
+  };
+  for (const auto& body : bodies_) {
+    mix(body.state.positions);
+    mix(body.state.velocities);
+  }
+  return hash;
+}
+
+void World::fill_frame(render::Frame& frame, int width, int height) const {
+  frame.meshes.resize(bodies_.size());
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const auto& body = bodies_[b];
+    auto& mesh = frame.meshes[b];
+    mesh.positions.resize(body.surface_nodes.size() * 3);
+    const auto& x = body.state.positions;
+    for (std::size_t i = 0; i < body.surface_nodes.size(); ++i)
+      for (int c = 0; c < 3; ++c)
+        mesh.positions[3 * i + c] = static_cast<float>(x[3 * body.surface_nodes[i] + c]);
+    mesh.normals.clear();
+    if (mesh.triangles.size() != body.render_triangles.size()) mesh.triangles = body.render_triangles;
+  }
+  frame.tools.clear();
+  if (tool_.present) {
+    render::ToolShape shape;
+    shape.kind = scene_.tool->shape == "capsule" ? render::ToolShape::Kind::capsule
+                                                 : render::ToolShape::Kind::sphere;
+    for (int i = 0; i < 3; ++i) {
+      shape.a[i] = static_cast<float>(tool_.tip[i]);
+      shape.b[i] = static_cast<float>(tool_.tail[i]);
+    }
+    shape.radius = static_cast<float>(tool_.radius);
+    shape.engaged = (tool_.pose.buttons & 1u) != 0;
+    frame.tools.push_back(shape);
+  }
+  const auto& r = scene_.render;
+  frame.floor = r.floor;
+  frame.floor_z = static_cast<float>(r.floor_z);
+  if (r.camera) {
+    for (int i = 0; i < 3; ++i) {
+      frame.camera.eye[i] = static_cast<float>(r.camera->eye[i]);
+      frame.camera.target[i] = static_cast<float>(r.camera->target[i]);
+    }
+    frame.camera.fov_y_deg = static_cast<float>(r.camera->fov_deg);
+    float span = 0;
+    for (int i = 0; i < 3; ++i)
+      span = std::max(span, std::abs(frame.camera.eye[i] - frame.camera.target[i]));
+    frame.camera.near_plane = span * 0.01f;
+    frame.camera.far_plane = span * 20.0f;
+  } else {
+    std::array<float, 3> lo{}, hi{};
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = static_cast<float>(bounds_min_[i]);
+      hi[i] = static_cast<float>(bounds_max_[i]);
+    }
+    frame.camera = render::fit_camera(lo, hi, static_cast<float>(width) / static_cast<float>(height));
+  }
+}
+
+}  // namespace incise::engine

@@ -1,0 +1,115 @@
+// The World: what a scene names, built once, stepped on simulated time.
+//
+// A step reads as the pipeline it runs (seed 004's loop order; cutting stages join when
+// bodies become cuttable):
+//   take_tool_input -> contact -> solve -> update_surface   (then the caller publishes)
+// Static model data lives in each body's model; the dynamic data is the bodies' States,
+// so the state hash covers exactly what determines the future of the simulation.
+#pragma once
+
+#include "engine/scene.hpp"
+#include "engine/trajectory.hpp"
+#include "physics/core/model.hpp"
+#include "physics/core/implicit_euler.hpp"
+#include "physics/fem/surface_snap.hpp"
+#include "render/frame.hpp"
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace incise::engine {
+
+// Raised when a step stays non-finite after every retry; names the body and the step.
+class NonFiniteError : public std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct Body {
+  std::string name;
+  std::unique_ptr<physics::DeformableModel> model;
+  physics::State state;
+  std::vector<std::uint8_t> fixed;                 // per node
+  std::vector<std::array<int, 3>> surface;         // boundary triangles (node indices)
+  std::vector<int> surface_nodes;                  // nodes on the surface, increasing
+  std::vector<std::uint32_t> render_triangles;     // surface triangles in surface_nodes numbering
+  physics::Vector gravity;                         // 3n, constant
+  physics::ImplicitEulerSettings integrator;
+  std::vector<std::vector<int>> load_nodes;        // per scene load aimed at this body
+  std::vector<std::size_t> load_index;             // which scene load
+  std::size_t elements = 0;
+  physics::SnapReport snap;  // boundary nodes moved onto the true surface (generated and mesh bodies)
+};
+
+// Where time went in one step, and what the solver said.
+struct StepStats {
+  double ms_tool_input = 0;
+  double ms_contact = 0;
+  double ms_solve = 0;
+  double ms_surface = 0;
+  double ms_total = 0;
+  int cg_iterations = 0;  // summed over bodies and retried sub-steps
+  double cg_residual = 0;  // worst relative residual over bodies
+  bool cg_converged = true;
+  int nonfinite_events = 0;  // steps that produced a non-finite value and were retried
+  int contacts = 0;
+  std::array<double, 3> tool_force{};  // force of the tissue on the tool, N
+  double elastic_energy = 0;
+  double kinetic_energy = 0;
+};
+
+struct ToolState {
+  ToolSample pose;
+  std::array<double, 3> tip{};
+  std::array<double, 3> tail{};  // capsule end (= tip for a sphere)
+  double radius = 0;
+  bool present = false;
+};
+
+class World {
+ public:
+  // `trajectory` drives the tool when the scene has one (already read by the caller so the
+  // read report can go to the metrics).
+  World(const Scene& scene, std::optional<Trajectory> trajectory);
+
+  StepStats step();
+  double time() const { return time_; }
+  std::uint64_t steps_taken() const { return steps_; }
+  double dt() const { return scene_.solver.dt; }
+  const Scene& scene() const { return scene_; }
+  const std::vector<Body>& bodies() const { return bodies_; }
+  const ToolState& tool() const { return tool_; }
+
+  // FNV-1a over the bytes of every body's positions and velocities, in body order.
+  std::uint64_t state_hash() const;
+  // Fill a render frame (surfaces as floats, tool, camera) from the current state.
+  void fill_frame(render::Frame& frame, int width, int height) const;
+  std::array<double, 3> bounds_min() const { return bounds_min_; }
+  std::array<double, 3> bounds_max() const { return bounds_max_; }
+
+ private:
+  void take_tool_input(double time);
+  std::vector<physics::NodalSpring> contact(const Body& body, StepStats& stats) const;
+  void solve_body(Body& body, const std::vector<physics::NodalSpring>& springs, double end_time,
+                  StepStats& stats);
+
+  Scene scene_;
+  std::vector<Body> bodies_;
+  std::optional<Trajectory> trajectory_;
+  ToolState tool_;
+  double time_ = 0;
+  std::uint64_t steps_ = 0;
+  std::array<double, 3> bounds_min_{}, bounds_max_{};
+};
+
+// Build one body from its spec (generator or mesh file -> tetrahedra -> model).
+Body build_body(const BodySpec& spec, const SolverSpec& solver);
+
+// Force of a load at time t: linear between events, held before the first and after the last.
+std::array<double, 3> load_force_at(const LoadSpec& load, double time);
+
+}  // namespace incise::engine

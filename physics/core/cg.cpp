@@ -1,0 +1,121 @@
+#include "physics/core/cg.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace incise::physics {
+
+namespace {
+
+void zero_fixed(const std::vector<uint8_t>& fixed_nodes, Vector& v) {
+  for (size_t node = 0; node < fixed_nodes.size(); ++node) {
+    if (fixed_nodes[node] != 0) v.segment<3>(3 * static_cast<Eigen::Index>(node)).setZero();
+  }
+}
+
+}  // namespace
+
+CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const Vector& diagonal,
+                            const std::vector<uint8_t>& fixed_nodes, Vector& x,
+                            const CgSettings& settings) {
+  const Eigen::Index size = b.size();
+  if (x.size() != size || diagonal.size() != size) {
+    throw std::invalid_argument("conjugate_gradient: x (" + std::to_string(x.size()) +
+                                ") and diagonal (" + std::to_string(diagonal.size()) +
+                                ") must have the size of b (" + std::to_string(size) + ")");
+  }
+  if (!fixed_nodes.empty() && static_cast<Eigen::Index>(3 * fixed_nodes.size()) != size) {
+    throw std::invalid_argument("conjugate_gradient: fixed_nodes has " +
+                                std::to_string(fixed_nodes.size()) + " nodes, b has " +
+                                std::to_string(size) + " entries (3 per node expected)");
+  }
+
+  CgResult result;
+  zero_fixed(fixed_nodes, x);
+  if (!x.allFinite()) x.setZero();  // a non-finite guess carries no information
+
+  Vector filtered_b = b;
+  zero_fixed(fixed_nodes, filtered_b);
+  const double b_norm = filtered_b.norm();
+  if (!std::isfinite(b_norm)) {
+    result.nonfinite = true;
+    return result;
+  }
+  if (b_norm == 0.0) {
+    x.setZero();
+    result.converged = true;
+    return result;
+  }
+
+  Vector inverse_diagonal(size);
+  for (Eigen::Index i = 0; i < size; ++i) {
+    const double d = diagonal[i];
+    inverse_diagonal[i] = (d > 0.0 && std::isfinite(d)) ? 1.0 / d : 1.0;
+  }
+
+  Vector product(size);
+  apply(x, product);
+  Vector residual = filtered_b - product;
+  zero_fixed(fixed_nodes, residual);
+  double residual_norm = residual.norm();
+  if (!std::isfinite(residual_norm)) {
+    result.nonfinite = true;
+    return result;
+  }
+  result.relative_residual = residual_norm / b_norm;
+  if (result.relative_residual <= settings.tolerance) {
+    result.converged = true;
+    return result;
+  }
+
+  Vector preconditioned = inverse_diagonal.cwiseProduct(residual);
+  Vector direction = preconditioned;
+  double residual_dot_preconditioned = residual.dot(preconditioned);
+  Vector candidate(size);
+
+  while (result.iterations < settings.max_iterations) {
+    apply(direction, product);
+    zero_fixed(fixed_nodes, product);
+    const double curvature = direction.dot(product);
+    if (!std::isfinite(curvature)) {
+      result.nonfinite = true;
+      return result;
+    }
+    if (curvature <= 0.0) {
+      result.non_positive_curvature = true;
+      return result;
+    }
+    // Step length minimising the A-norm of the error along the direction.
+    const double step = residual_dot_preconditioned / curvature;
+    candidate = x + step * direction;
+    if (!std::isfinite(step) || !candidate.allFinite()) {
+      result.nonfinite = true;
+      return result;
+    }
+    x.swap(candidate);
+    residual -= step * product;
+    ++result.iterations;
+
+    residual_norm = residual.norm();
+    if (!std::isfinite(residual_norm)) {
+      result.nonfinite = true;
+      return result;
+    }
+    result.relative_residual = residual_norm / b_norm;
+    if (result.relative_residual <= settings.tolerance) {
+      result.converged = true;
+      return result;
+    }
+
+    preconditioned = inverse_diagonal.cwiseProduct(residual);
+    const double next_dot = residual.dot(preconditioned);
+    // Fletcher-Reeves form of beta, exact in exact arithmetic for a fixed preconditioner.
+    const double beta = next_dot / residual_dot_preconditioned;
+    residual_dot_preconditioned = next_dot;
+    direction = preconditioned + beta * direction;
+  }
+  return result;
+}
+
+}  // namespace incise::physics

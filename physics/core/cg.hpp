@@ -1,0 +1,41 @@
+// Matrix-free Jacobi-preconditioned conjugate gradient with fixed degrees of freedom
+// projected out (the filtered CG of Baraff & Witkin 1998, section 5.3).
+#pragma once
+
+#include "physics/core/model.hpp"
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+namespace incise::physics {
+
+struct CgSettings {
+  double tolerance = 1e-6;  // on |r| / |b|, both restricted to the free degrees of freedom
+  int max_iterations = 200;
+};
+
+struct CgResult {
+  int iterations = 0;
+  double relative_residual = 0;
+  bool converged = false;
+  bool nonfinite = false;               // a NaN or infinity appeared; x holds the last finite iterate
+  bool non_positive_curvature = false;  // p.Ap <= 0: the operator is not positive definite
+};
+
+// out = A p. `out` is already sized like p; the callable overwrites it.
+using LinearOperator = std::function<void(const Vector& p, Vector& out)>;
+
+// Solves A x = b on the free degrees of freedom, A symmetric positive definite there.
+// - `x` is the initial guess on entry (its size must match b) and the solution on exit.
+// - `fixed_nodes` holds one entry per node (3 degrees of freedom each), 1 = fixed; empty means
+//   nothing fixed. Fixed entries of x are set to zero and the residual and search directions
+//   are kept zero there, so the solution lies in the free subspace.
+// - `diagonal` is the diagonal of A for the Jacobi preconditioner; entries that are not
+//   positive and finite fall back to 1.
+// Deterministic: the same inputs give bitwise the same x.
+CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const Vector& diagonal,
+                            const std::vector<uint8_t>& fixed_nodes, Vector& x,
+                            const CgSettings& settings = {});
+
+}  // namespace incise::physics

@@ -1,0 +1,160 @@
+#include "physics/core/implicit_euler.hpp"
+
+#include <stdexcept>
+#include <string>
+
+namespace incise::physics {
+
+namespace {
+
+using Index = Eigen::Index;
+
+// out = M p with M the lumped (diagonal) mass, 3 entries per node.
+void multiply_mass(const Vector& masses, const Vector& p, Vector& out) {
+  for (Index node = 0; node < masses.size(); ++node) {
+    out.segment<3>(3 * node) = masses[node] * p.segment<3>(3 * node);
+  }
+}
+
+// out += K_springs p.
+void add_spring_product(std::span<const NodalSpring> springs, const Vector& p, Vector& out) {
+  for (const NodalSpring& spring : springs) {
+    out.segment<3>(3 * spring.node) += spring.stiffness * p.segment<3>(3 * spring.node);
+  }
+}
+
+void check_inputs(const DeformableModel& model, const State& state,
+                  const std::vector<uint8_t>& fixed_nodes, const Vector& external_forces,
+                  std::span<const NodalSpring> springs, const ImplicitEulerSettings& settings) {
+  const int nodes = model.node_count();
+  const Index size = 3 * static_cast<Index>(nodes);
+  auto fail = [](const std::string& what) {
+    throw std::invalid_argument("implicit_euler_step: " + what);
+  };
+  if (state.positions.size() != size || state.velocities.size() != size) {
+    fail("state has " + std::to_string(state.positions.size()) + " positions and " +
+         std::to_string(state.velocities.size()) + " velocities, the model needs " +
+         std::to_string(size));
+  }
+  if (external_forces.size() != size) {
+    fail("external_forces has " + std::to_string(external_forces.size()) + " entries, expected " +
+         std::to_string(size));
+  }
+  if (!fixed_nodes.empty() && static_cast<int>(fixed_nodes.size()) != nodes) {
+    fail("fixed_nodes has " + std::to_string(fixed_nodes.size()) + " entries, expected " +
+         std::to_string(nodes));
+  }
+  for (const NodalSpring& spring : springs) {
+    if (spring.node < 0 || spring.node >= nodes) {
+      fail("spring node " + std::to_string(spring.node) + " outside [0, " +
+           std::to_string(nodes) + ")");
+    }
+  }
+  if (!(settings.dt > 0.0)) fail("dt must be positive");
+}
+
+}  // namespace
+
+Vector gravity_forces(const Vector& lumped_masses, const Vec3& g) {
+  Vector forces(3 * lumped_masses.size());
+  for (Index node = 0; node < lumped_masses.size(); ++node) {
+    forces.segment<3>(3 * node) = lumped_masses[node] * g;
+  }
+  return forces;
+}
+
+double kinetic_energy(const Vector& lumped_masses, const Vector& velocities) {
+  double energy = 0;
+  for (Index node = 0; node < lumped_masses.size(); ++node) {
+    energy += 0.5 * lumped_masses[node] * velocities.segment<3>(3 * node).squaredNorm();
+  }
+  return energy;
+}
+
+StepReport implicit_euler_step(DeformableModel& model, State& state,
+                               const std::vector<uint8_t>& fixed_nodes,
+                               const Vector& external_forces, std::span<const NodalSpring> springs,
+                               const ImplicitEulerSettings& settings) {
+  check_inputs(model, state, fixed_nodes, external_forces, springs, settings);
+  StepReport report;
+  const Index size = state.positions.size();
+  const Vector& masses = model.lumped_masses();
+  const double dt = settings.dt;
+  const double alpha = settings.rayleigh_mass;
+  const double beta = settings.rayleigh_stiffness;
+
+  model.update_rotations(state.positions);
+
+  // Right-hand side: dt [f(x) - (dt + beta) K v - alpha M v].
+  Vector forces = external_forces;
+  model.add_elastic_forces(state.positions, forces);
+  for (const NodalSpring& spring : springs) forces.segment<3>(3 * spring.node) += spring.force;
+
+  Vector stiffness_velocity = Vector::Zero(size);
+  model.add_stiffness_product(state.velocities, stiffness_velocity);
+  add_spring_product(springs, state.velocities, stiffness_velocity);
+  Vector mass_velocity(size);
+  multiply_mass(masses, state.velocities, mass_velocity);
+
+  const Vector rhs = dt * (forces - (dt + beta) * stiffness_velocity - alpha * mass_velocity);
+  if (!rhs.allFinite()) {
+    report.nonfinite = true;
+    return report;
+  }
+
+  // System matrix A = m_coefficient M + k_coefficient K.
+  const double mass_coefficient = 1.0 + dt * alpha;
+  const double stiffness_coefficient = dt * beta + dt * dt;
+  Vector stiffness_p(size);
+  const LinearOperator apply = [&](const Vector& p, Vector& out) {
+    multiply_mass(masses, p, out);
+    out *= mass_coefficient;
+    stiffness_p.setZero();
+    model.add_stiffness_product(p, stiffness_p);
+    add_spring_product(springs, p, stiffness_p);
+    out += stiffness_coefficient * stiffness_p;
+  };
+
+  Vector stiffness_diagonal = Vector::Zero(size);
+  model.add_stiffness_diagonal(stiffness_diagonal);
+  for (const NodalSpring& spring : springs) {
+    stiffness_diagonal.segment<3>(3 * spring.node) += spring.stiffness.diagonal();
+  }
+  Vector diagonal(size);
+  for (Index node = 0; node < masses.size(); ++node) {
+    diagonal.segment<3>(3 * node) = mass_coefficient * masses[node] * Vec3::Ones() +
+                                    stiffness_coefficient * stiffness_diagonal.segment<3>(3 * node);
+  }
+
+  Vector velocity_change = Vector::Zero(size);
+  report.cg = conjugate_gradient(apply, rhs, diagonal, fixed_nodes, velocity_change, settings.cg);
+  if (report.cg.nonfinite) {
+    report.nonfinite = true;
+    return report;
+  }
+
+  Vector velocities = state.velocities + velocity_change;
+  for (size_t node = 0; node < fixed_nodes.size(); ++node) {
+    if (fixed_nodes[node] != 0) velocities.segment<3>(3 * static_cast<Index>(node)).setZero();
+  }
+  Vector positions = state.positions + dt * velocities;
+  if (!velocities.allFinite() || !positions.allFinite()) {
+    report.nonfinite = true;
+    return report;
+  }
+  // Fixed nodes keep their position bitwise (x + dt * 0 already equals x, kept explicit).
+  for (size_t node = 0; node < fixed_nodes.size(); ++node) {
+    if (fixed_nodes[node] != 0) {
+      const Index offset = 3 * static_cast<Index>(node);
+      positions.segment<3>(offset) = state.positions.segment<3>(offset);
+    }
+  }
+
+  state.positions.swap(positions);
+  state.velocities.swap(velocities);
+  report.elastic_energy = model.elastic_energy(state.positions);
+  report.kinetic_energy = kinetic_energy(masses, state.velocities);
+  return report;
+}
+
+}  // namespace incise::physics

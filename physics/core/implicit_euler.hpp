@@ -1,0 +1,50 @@
+// One linearly implicit (backward) Euler step with the corotation frames frozen
+// (Baraff & Witkin 1998, eq. 6 with Rayleigh damping D = alpha M + beta K).
+#pragma once
+
+#include "physics/core/cg.hpp"
+#include "physics/core/model.hpp"
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace incise::physics {
+
+struct ImplicitEulerSettings {
+  double dt = 1e-3;
+  double rayleigh_mass = 0;       // alpha, 1/s
+  double rayleigh_stiffness = 0;  // beta, s
+  CgSettings cg;
+};
+
+struct StepReport {
+  CgResult cg;
+  bool nonfinite = false;     // the step was rejected and the State left unchanged
+  double elastic_energy = 0;  // of the new state
+  double kinetic_energy = 0;  // of the new state
+};
+
+// Solves
+//   [(1 + dt alpha) M + (dt beta + dt^2) K] dv
+//       = dt [f_elastic(x) + f_ext + f_springs - dt K v - alpha M v - beta K v]
+// then v += dv, x += dt v, where K is the model stiffness plus the springs' 3x3 stiffnesses
+// (penalty contacts are integrated implicitly for stability).
+// - Calls model.update_rotations(x) first.
+// - `fixed_nodes`: one entry per node, 1 = fixed (empty = none); fixed nodes keep their
+//   position and get zero velocity.
+// - `external_forces`: 3n (gravity, loads).
+// - If anything non-finite arises the State is left unchanged and nonfinite is set.
+// - A CG that stops unconverged (max iterations) still advances the state; see report.cg.
+StepReport implicit_euler_step(DeformableModel& model, State& state,
+                               const std::vector<uint8_t>& fixed_nodes,
+                               const Vector& external_forces, std::span<const NodalSpring> springs,
+                               const ImplicitEulerSettings& settings);
+
+// m_i g at every node (3n).
+Vector gravity_forces(const Vector& lumped_masses, const Vec3& g);
+
+// 1/2 sum_i m_i |v_i|^2.
+double kinetic_energy(const Vector& lumped_masses, const Vector& velocities);
+
+}  // namespace incise::physics

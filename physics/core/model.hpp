@@ -1,0 +1,52 @@
+// The contract between deformable models, the integrators and the engine.
+//
+// Static model data (rest shape, shape functions, material) lives inside a model and is
+// built once; the dynamic state (positions, velocities) is a separate State, in the manner
+// of MuJoCo's mjModel / mjData: copying or resetting a simulation is copying the State.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <vector>
+
+namespace incise::physics {
+
+using Vector = Eigen::VectorXd;  // 3n entries, node-major: x0 y0 z0 x1 y1 z1 ...
+using Vec3 = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3d;
+
+// Dynamic state of one body.
+struct State {
+  Vector positions;
+  Vector velocities;
+};
+
+// A deformable model with corotation frames frozen during a step (the corotational
+// linearisation of seed 004 Annex B): forces are -R K (R^T x - X), stiffness R K R^T.
+class DeformableModel {
+ public:
+  virtual ~DeformableModel() = default;
+  virtual int node_count() const = 0;
+  virtual const Vector& rest_positions() const = 0;  // 3n
+  virtual const Vector& lumped_masses() const = 0;   // n, all > 0
+  // Recompute the per-element rotations from x; they stay frozen until the next call.
+  virtual void update_rotations(const Vector& x) = 0;
+  // f += elastic forces at x.
+  virtual void add_elastic_forces(const Vector& x, Vector& f) const = 0;
+  // out += K p, K = -df/dx with the frozen rotations (symmetric, positive semi-definite).
+  virtual void add_stiffness_product(const Vector& p, Vector& out) const = 0;
+  // diag += diagonal of K (for the Jacobi preconditioner).
+  virtual void add_stiffness_diagonal(Vector& diag) const = 0;
+  virtual double elastic_energy(const Vector& x) const = 0;
+};
+
+// A point force with its own stiffness, added to the implicit system (penalty contact,
+// springs to a tool): force f at node, stiffness K = -df/dx (3x3, symmetric PSD).
+struct NodalSpring {
+  int node = 0;
+  Vec3 force = Vec3::Zero();
+  Mat3 stiffness = Mat3::Zero();
+};
+
+}  // namespace incise::physics

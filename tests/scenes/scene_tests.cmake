@@ -1,0 +1,23 @@
+# Integration: the `incise` command on the shipped scenes and on broken inputs.
+file(GLOB shipped_scenes ${PROJECT_SOURCE_DIR}/assets/scenes/*.json)
+foreach(scene ${shipped_scenes})
+  get_filename_component(name ${scene} NAME_WE)
+  add_test(NAME scene_check_${name} COMMAND incise check ${scene})
+endforeach()
+
+# Each broken scene must be refused (non-zero exit) with its field named (the expected text
+# follows "expect_error: " in the file's description).
+file(GLOB broken_scenes ${CMAKE_CURRENT_LIST_DIR}/broken/*.json)
+foreach(scene ${broken_scenes})
+  get_filename_component(name ${scene} NAME_WE)
+  file(READ ${scene} text)
+  string(REGEX MATCH "expect_error: ([^\"]*)" _ "${text}")
+  add_test(NAME scene_refused_${name}
+           COMMAND ${CMAKE_COMMAND} -DINCISE=$<TARGET_FILE:incise> -DSCENE=${scene}
+                   "-DEXPECTED=${CMAKE_MATCH_1}" -P ${CMAKE_CURRENT_LIST_DIR}/expect_refusal.cmake)
+endforeach()
+
+add_test(NAME replay_default_smoke
+         COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/replay_smoke.sh $<TARGET_FILE:incise>
+                 ${PROJECT_SOURCE_DIR}/assets/scenes/default.json ${CMAKE_CURRENT_BINARY_DIR}/replay_smoke)
+set_tests_properties(replay_default_smoke PROPERTIES TIMEOUT 600)

@@ -1,0 +1,17 @@
+# Tests of the physics library. Included from tests/CMakeLists.txt, which has already run
+# find_package(GTest) and include(GoogleTest).
+add_executable(test_fem
+  ${CMAKE_CURRENT_LIST_DIR}/test_fem_generators.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_fem_static.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_fem_corotational.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_fem_cantilever.cpp
+)
+target_link_libraries(test_fem PRIVATE incise_physics GTest::gtest_main)
+gtest_discover_tests(test_fem DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
+
+add_executable(test_integrator
+  ${CMAKE_CURRENT_LIST_DIR}/test_integrator_cg.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_integrator_implicit_euler.cpp
+)
+target_link_libraries(test_integrator PRIVATE incise_physics GTest::gtest_main)
+gtest_discover_tests(test_integrator DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")

@@ -1,0 +1,194 @@
+#include "physics/core/cg.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace incise::physics {
+namespace {
+
+using Dense = Eigen::MatrixXd;
+
+// Deterministic pseudo-random values in [-1, 1] (a fixed linear congruential sequence, so the
+// test matrices do not depend on the standard library's distributions).
+class Sequence {
+ public:
+  explicit Sequence(uint64_t seed) : state_(seed) {}
+  double next() {
+    state_ = state_ * 6364136223846793005ULL + 1442695040888963407ULL;
+    return static_cast<double>(state_ >> 11) / static_cast<double>(1ULL << 53) * 2.0 - 1.0;
+  }
+
+ private:
+  uint64_t state_;
+};
+
+// SPD with a spread diagonal, so Jacobi preconditioning has work to do.
+Dense make_spd(int size, uint64_t seed) {
+  Sequence sequence(seed);
+  Dense b(size, size);
+  for (int i = 0; i < size; ++i)
+    for (int j = 0; j < size; ++j) b(i, j) = sequence.next();
+  Dense a = b.transpose() * b + size * Dense::Identity(size, size);
+  for (int i = 0; i < size; ++i) {
+    const double scale = std::pow(10.0, 2.0 * i / size);
+    a.row(i) *= scale;
+    a.col(i) *= scale;
+  }
+  return a;
+}
+
+Vector make_vector(int size, uint64_t seed) {
+  Sequence sequence(seed);
+  Vector v(size);
+  for (int i = 0; i < size; ++i) v[i] = sequence.next();
+  return v;
+}
+
+LinearOperator dense_operator(const Dense& a) {
+  return [&a](const Vector& p, Vector& out) { out.noalias() = a * p; };
+}
+
+TEST(ConjugateGradient, SolvesSpdSystemToTolerance) {
+  const int size = 36;
+  const Dense a = make_spd(size, 1);
+  const Vector b = make_vector(size, 2);
+  Vector x = Vector::Zero(size);
+  CgSettings settings;
+  settings.tolerance = 1e-10;
+  const CgResult result = conjugate_gradient(dense_operator(a), b, a.diagonal(), {}, x, settings);
+  EXPECT_TRUE(result.converged);
+  EXPECT_FALSE(result.nonfinite);
+  EXPECT_GT(result.iterations, 0);
+  EXPECT_LE(result.relative_residual, 1e-10);
+  EXPECT_LE((b - a * x).norm() / b.norm(), 1e-10);
+  const Vector reference = a.llt().solve(b);
+  EXPECT_LE((x - reference).norm() / reference.norm(), 1e-8);
+}
+
+TEST(ConjugateGradient, StopsAtMaxIterationsUnconverged) {
+  const int size = 36;
+  const Dense a = make_spd(size, 3);
+  const Vector b = make_vector(size, 4);
+  Vector x = Vector::Zero(size);
+  CgSettings settings;
+  settings.tolerance = 1e-14;
+  settings.max_iterations = 3;
+  const CgResult result = conjugate_gradient(dense_operator(a), b, a.diagonal(), {}, x, settings);
+  EXPECT_FALSE(result.converged);
+  EXPECT_EQ(result.iterations, 3);
+  EXPECT_GT(result.relative_residual, 1e-14);
+  EXPECT_NEAR(result.relative_residual, (b - a * x).norm() / b.norm(), 1e-12);
+}
+
+TEST(ConjugateGradient, RespectsFixedMask) {
+  const int nodes = 12;
+  const int size = 3 * nodes;
+  const Dense a = make_spd(size, 5);
+  const Vector b = make_vector(size, 6);
+  std::vector<uint8_t> fixed(nodes, 0);
+  fixed[0] = fixed[5] = fixed[11] = 1;
+  Vector x = Vector::Constant(size, 7.0);  // fixed entries must be overwritten with zero
+  CgSettings settings;
+  settings.tolerance = 1e-12;
+  const CgResult result = conjugate_gradient(dense_operator(a), b, a.diagonal(), fixed, x, settings);
+  ASSERT_TRUE(result.converged);
+
+  std::vector<int> free_dofs;
+  for (int dof = 0; dof < size; ++dof) {
+    if (fixed[dof / 3]) {
+      EXPECT_EQ(x[dof], 0.0) << "dof " << dof;
+    } else {
+      free_dofs.push_back(dof);
+    }
+  }
+  const int free_count = static_cast<int>(free_dofs.size());
+  Dense reduced(free_count, free_count);
+  Vector reduced_b(free_count);
+  for (int i = 0; i < free_count; ++i) {
+    reduced_b[i] = b[free_dofs[i]];
+    for (int j = 0; j < free_count; ++j) reduced(i, j) = a(free_dofs[i], free_dofs[j]);
+  }
+  const Vector reference = reduced.llt().solve(reduced_b);
+  for (int i = 0; i < free_count; ++i) {
+    EXPECT_NEAR(x[free_dofs[i]], reference[i], 1e-9 * reference.cwiseAbs().maxCoeff());
+  }
+}
+
+TEST(ConjugateGradient, ZeroRightHandSideGivesZero) {
+  const Dense a = make_spd(9, 7);
+  Vector x = Vector::Constant(9, 3.0);
+  const CgResult result = conjugate_gradient(dense_operator(a), Vector::Zero(9), a.diagonal(), {}, x);
+  EXPECT_TRUE(result.converged);
+  EXPECT_EQ(result.iterations, 0);
+  EXPECT_EQ(x, Vector::Zero(9));
+}
+
+TEST(ConjugateGradient, ReportsNonFiniteOperatorAndKeepsFiniteIterate) {
+  const int size = 12;
+  const Dense a = make_spd(size, 8);
+  const Vector b = make_vector(size, 9);
+  int calls = 0;
+  const LinearOperator poisoned = [&](const Vector& p, Vector& out) {
+    out.noalias() = a * p;
+    if (++calls >= 3) out[4] = std::numeric_limits<double>::quiet_NaN();
+  };
+  Vector x = Vector::Zero(size);
+  CgSettings settings;
+  settings.tolerance = 1e-14;
+  const CgResult result = conjugate_gradient(poisoned, b, a.diagonal(), {}, x, settings);
+  EXPECT_TRUE(result.nonfinite);
+  EXPECT_FALSE(result.converged);
+  EXPECT_TRUE(x.allFinite());
+  EXPECT_EQ(result.iterations, 1);  // call 1: initial residual, call 2: iteration 1
+  EXPECT_NE(x, Vector::Zero(size));
+}
+
+TEST(ConjugateGradient, ReportsNonFiniteRightHandSide) {
+  const Dense a = make_spd(6, 10);
+  Vector b = make_vector(6, 11);
+  b[2] = std::numeric_limits<double>::infinity();
+  Vector x = Vector::Zero(6);
+  const CgResult result = conjugate_gradient(dense_operator(a), b, a.diagonal(), {}, x);
+  EXPECT_TRUE(result.nonfinite);
+  EXPECT_TRUE(x.allFinite());
+}
+
+TEST(ConjugateGradient, ReportsNonPositiveCurvature) {
+  const Dense a = -Dense::Identity(6, 6);
+  Vector x = Vector::Zero(6);
+  const CgResult result =
+      conjugate_gradient(dense_operator(a), make_vector(6, 12), Vector::Ones(6), {}, x);
+  EXPECT_TRUE(result.non_positive_curvature);
+  EXPECT_FALSE(result.converged);
+  EXPECT_TRUE(x.allFinite());
+}
+
+TEST(ConjugateGradient, IsBitwiseDeterministic) {
+  const Dense a = make_spd(30, 13);
+  const Vector b = make_vector(30, 14);
+  Vector first = Vector::Zero(30), second = Vector::Zero(30);
+  conjugate_gradient(dense_operator(a), b, a.diagonal(), {}, first);
+  conjugate_gradient(dense_operator(a), b, a.diagonal(), {}, second);
+  EXPECT_EQ(first, second);
+}
+
+TEST(ConjugateGradient, RejectsMismatchedSizes) {
+  const Dense a = make_spd(6, 15);
+  Vector x = Vector::Zero(5);
+  EXPECT_THROW(conjugate_gradient(dense_operator(a), make_vector(6, 1), a.diagonal(), {}, x),
+               std::invalid_argument);
+  Vector y = Vector::Zero(6);
+  EXPECT_THROW(conjugate_gradient(dense_operator(a), make_vector(6, 1), a.diagonal(),
+                                  std::vector<uint8_t>(3, 0), y),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace incise::physics

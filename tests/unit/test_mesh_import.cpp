@@ -1,0 +1,77 @@
+#include "engine/mesh_import.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+using incise::engine::import_surface;
+using incise::engine::MeshError;
+using incise::engine::winding_number;
+
+namespace {
+
+std::filesystem::path write_file(const std::string& name, const std::string& text) {
+  auto path = std::filesystem::temp_directory_path() / name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+const char* kCube = R"(v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+v 0 0 1
+v 1 0 1
+v 1 1 1
+v 0 1 1
+f 1 3 2
+f 1 4 3
+f 5 6 7
+f 5 7 8
+f 1 2 6
+f 1 6 5
+f 2 3 7
+f 2 7 6
+f 3 4 8
+f 3 8 7
+f 4 1 5
+f 4 5 8
+)";
+
+}  // namespace
+
+TEST(MeshImport, ClosedCubeAndWindingNumber) {
+  auto path = write_file("incise_cube.obj", kCube);
+  auto soup = import_surface(path, 2.0);
+  EXPECT_EQ(soup.vertices.size(), 8u);
+  EXPECT_EQ(soup.triangles.size(), 12u);
+  EXPECT_DOUBLE_EQ(soup.max[0], 2.0);
+  EXPECT_NEAR(std::abs(winding_number(soup, {1, 1, 1})), 1.0, 1e-9);
+  EXPECT_NEAR(winding_number(soup, {3, 1, 1}), 0.0, 1e-9);
+  EXPECT_NEAR(winding_number(soup, {-0.5, -0.5, 2.5}), 0.0, 1e-9);
+  std::filesystem::remove(path);
+}
+
+TEST(MeshImport, OpenSurfaceIsRefusedWithTheFileNamed) {
+  std::string open(kCube);
+  open = open.substr(0, open.rfind("f 4 5 8"));  // drop one triangle: a hole
+  auto path = write_file("incise_open_cube.obj", open);
+  try {
+    import_surface(path);
+    FAIL() << "accepted an open surface";
+  } catch (const MeshError& e) {
+    std::string m = e.what();
+    EXPECT_NE(m.find("incise_open_cube.obj"), std::string::npos) << m;
+    EXPECT_NE(m.find("not closed"), std::string::npos) << m;
+    EXPECT_NE(m.find("3 edges"), std::string::npos) << m;
+  }
+  std::filesystem::remove(path);
+}
+
+TEST(MeshImport, GarbageAndMissingFilesAreErrors) {
+  auto path = write_file("incise_garbage.obj", "this is not a mesh\n\x01\x02");
+  EXPECT_THROW(import_surface(path), MeshError);
+  EXPECT_THROW(import_surface("no/such/mesh.stl"), MeshError);
+  std::filesystem::remove(path);
+}

@@ -1,0 +1,169 @@
+// Scene validation: a good scene loads; each broken one is refused with a message that
+// names the file and the field.
+#include "engine/scene.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <functional>
+
+using incise::engine::parse_scene;
+using incise::engine::SceneError;
+using Json = nlohmann::json;
+
+namespace {
+
+const std::filesystem::path kSceneFile = std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes/test_scene.json";
+
+Json good_scene() {
+  return Json::parse(R"({
+    "name": "unit",
+    "bodies": [{
+      "name": "block", "model": "fem",
+      "generator": {"type": "box", "min": [0, 0, 0], "max": [0.04, 0.02, 0.02]},
+      "resolution": 0.01,
+      "material": {"E": 5000, "nu": 0.45, "rho": 1000},
+      "fixed": [{"min": [-1, -1, -1], "max": [0.001, 1, 1]}]
+    }],
+    "solver": {"dt": 0.01, "duration": 0.1, "tolerance": 1e-6, "max_iterations": 100},
+    "loads": [{"body": "block", "region": {"min": [0.039, -1, -1], "max": [1, 1, 1]},
+               "events": [{"t": 0, "force": [0, 0, 0]}, {"t": 1, "force": [0, 0, -1]}]}],
+    "render": {"capture_every": 5, "size": [320, 240]},
+    "expect": {"nonfinite_events": {"max": 0}}
+  })");
+}
+
+// Returns the error text of parsing the mutated scene (empty if it parsed).
+std::string error_of(const std::function<void(Json&)>& mutate) {
+  Json scene = good_scene();
+  mutate(scene);
+  try {
+    parse_scene(scene.dump(), kSceneFile);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(Scene, GoodSceneLoads) {
+  auto scene = parse_scene(good_scene().dump(), kSceneFile);
+  ASSERT_EQ(scene.bodies.size(), 1u);
+  EXPECT_EQ(scene.bodies[0].material.poisson_ratio, 0.45);
+  EXPECT_EQ(scene.render.width, 320);
+  EXPECT_EQ(scene.loads[0].events.size(), 2u);
+  ASSERT_EQ(scene.expect.size(), 1u);
+  EXPECT_EQ(*scene.expect[0].max, 0.0);
+}
+
+struct BrokenCase {
+  const char* name;
+  std::function<void(Json&)> mutate;
+  const char* expected;  // substring of the message
+};
+
+TEST(Scene, BrokenScenesAreRefusedWithTheFieldNamed) {
+  const std::vector<BrokenCase> cases = {
+      {"nu too large", [](Json& s) { s["bodies"][0]["material"]["nu"] = 0.7; },
+       "bodies[0].material.nu: 0.7 must be in [0, 0.5)"},
+      {"nu exactly 0.5", [](Json& s) { s["bodies"][0]["material"]["nu"] = 0.5; },
+       "bodies[0].material.nu: 0.5 must be in [0, 0.5)"},
+      {"negative E", [](Json& s) { s["bodies"][0]["material"]["E"] = -3; },
+       "bodies[0].material.E: -3 must be in (0"},
+      {"unknown key", [](Json& s) { s["bodies"][0]["colour"] = "red"; }, "bodies[0].colour: unknown key"},
+      {"unknown top-level key", [](Json& s) { s["solvr"] = Json::object(); }, "solvr: unknown key"},
+      {"missing solver", [](Json& s) { s.erase("solver"); }, "solver: is required"},
+      {"dt as string", [](Json& s) { s["solver"]["dt"] = "fast"; }, "solver.dt: must be a number, not string"},
+      {"unknown model", [](Json& s) { s["bodies"][0]["model"] = "sph"; }, "bodies[0].model: 'sph' is not one of: fem"},
+      {"unknown backend", [](Json& s) { s["solver"]["backend"] = "cuda"; }, "solver.backend: 'cuda' is not one of: cpu, gpu"},
+      {"no bodies", [](Json& s) { s["bodies"] = Json::array(); }, "bodies: must be a non-empty array"},
+      {"mesh and generator", [](Json& s) { s["bodies"][0]["mesh"] = "../meshes/cube.obj"; },
+       "bodies[0]: give either 'mesh' or 'generator', not both"},
+      {"missing mesh file", [](Json& s) {
+         s["bodies"][0].erase("generator");
+         s["bodies"][0]["mesh"] = "no/such/organ.obj";
+       }, "bodies[0].mesh: file '"},
+      {"inverted fixed box", [](Json& s) { s["bodies"][0]["fixed"][0]["min"] = {2, 0, 0}; },
+       "bodies[0].fixed[0]: min[0] 2 is greater than max[0] 0.001"},
+      {"point with two numbers", [](Json& s) { s["solver"]["gravity"] = {0, -9.81}; },
+       "solver.gravity: must be an array of 3 numbers"},
+      {"load on unknown body", [](Json& s) { s["loads"][0]["body"] = "liver"; },
+       "loads[0].body: no body is named 'liver'"},
+      {"load times decrease", [](Json& s) { s["loads"][0]["events"][1]["t"] = 0; },
+       "loads[0].events[1].t: times must increase"},
+      {"render size", [](Json& s) { s["render"]["size"] = {10, 240}; }, "render.size: must be [width, height]"},
+      {"negative capture", [](Json& s) { s["render"]["capture_every"] = -1; }, "render.capture_every: -1 must be in [0"},
+      {"tool without trajectory", [](Json& s) { s["tool"] = {{"shape", "sphere"}, {"radius", 0.005}}; },
+       "tool.trajectory: is required"},
+      {"missing trajectory file", [](Json& s) {
+         s["tool"] = {{"shape", "sphere"}, {"radius", 0.005}, {"trajectory", "nowhere.traj"}};
+       }, "tool.trajectory: file '"},
+      {"capsule without length", [](Json& s) {
+         s["tool"] = {{"shape", "capsule"}, {"radius", 0.005}, {"trajectory", "../trajectories/default.traj"}};
+       }, "tool.length: is required"},
+      {"expect without bounds", [](Json& s) { s["expect"]["steps"] = Json::object(); }, "expect.steps: needs 'min' or 'max'"},
+      {"duplicate body names", [](Json& s) { s["bodies"].push_back(s["bodies"][0]); },
+       "bodies[1].name: 'block' is used twice"},
+      {"non-integer iterations", [](Json& s) { s["solver"]["max_iterations"] = 2.5; },
+       "solver.max_iterations: must be an integer"},
+  };
+  ASSERT_GE(cases.size(), 10u);
+  for (const auto& c : cases) {
+    std::string message = error_of(c.mutate);
+    SCOPED_TRACE(c.name);
+    ASSERT_FALSE(message.empty()) << "accepted a broken scene";
+    EXPECT_NE(message.find(c.expected), std::string::npos) << "message was:\n" << message;
+    EXPECT_NE(message.find("test_scene.json"), std::string::npos) << "the file is not named:\n" << message;
+  }
+}
+
+TEST(Scene, AllErrorsOfAFileAreListedTogether) {
+  std::string message = error_of([](Json& s) {
+    s["bodies"][0]["material"]["nu"] = 0.7;
+    s["solver"]["dt"] = -1;
+    s["typo"] = 1;
+  });
+  EXPECT_NE(message.find("3 errors"), std::string::npos) << message;
+  EXPECT_NE(message.find("bodies[0].material.nu"), std::string::npos);
+  EXPECT_NE(message.find("solver.dt"), std::string::npos);
+  EXPECT_NE(message.find("typo: unknown key"), std::string::npos);
+}
+
+TEST(Scene, InvalidJsonNamesTheLine) {
+  try {
+    parse_scene("{\n  \"name\": \"x\",\n  \"bodies\": [\n}", kSceneFile);
+    FAIL() << "accepted invalid JSON";
+  } catch (const SceneError& e) {
+    std::string m = e.what();
+    EXPECT_NE(m.find("not valid JSON"), std::string::npos) << m;
+    EXPECT_NE(m.find("line 4"), std::string::npos) << m;
+  }
+}
+
+TEST(Scene, MissingAndEmptyFilesAreErrors) {
+  EXPECT_THROW(incise::engine::load_scene("no/such/scene.json"), SceneError);
+  auto empty = std::filesystem::temp_directory_path() / "incise_empty_scene.json";
+  { std::ofstream(empty).flush(); }
+  try {
+    incise::engine::load_scene(empty);
+    FAIL();
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("empty"), std::string::npos);
+  }
+  std::filesystem::remove(empty);
+}
+
+TEST(Scene, ShippedScenesAreValid) {
+  const auto dir = std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes";
+  int count = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() != ".json") continue;
+    SCOPED_TRACE(entry.path().string());
+    EXPECT_NO_THROW(incise::engine::load_scene(entry.path()));
+    ++count;
+  }
+  EXPECT_GE(count, 1);
+}

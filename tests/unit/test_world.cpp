@@ -1,0 +1,152 @@
+// The World and the headless replay: invariants of the assembled engine.
+#include "engine/replay.hpp"
+#include "engine/scene.hpp"
+#include "engine/trajectory.hpp"
+#include "engine/trajectory_synth.hpp"
+#include "engine/world.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+
+using namespace incise::engine;
+using Json = nlohmann::json;
+
+namespace {
+
+struct TempDir {
+  std::filesystem::path path;
+  explicit TempDir(const std::string& name) : path(std::filesystem::temp_directory_path() / name) {
+    std::filesystem::remove_all(path);
+    std::filesystem::create_directories(path);
+  }
+  ~TempDir() { std::filesystem::remove_all(path); }
+};
+
+// A 4 x 2 x 2 cm block clamped at x = 0 and a sphere probe pressing its top.
+Json block_scene(bool with_tool) {
+  Json s = Json::parse(R"({
+    "name": "block",
+    "bodies": [{
+      "name": "block", "model": "fem",
+      "generator": {"type": "box", "min": [0, -0.01, 0], "max": [0.04, 0.01, 0.02]},
+      "resolution": 0.005,
+      "material": {"E": 20000, "nu": 0.4, "rho": 1000},
+      "fixed": [{"min": [-1, -1, -1], "max": [0.0001, 1, 1]}],
+      "damping": {"mass": 1.0}
+    }],
+    "solver": {"dt": 0.01, "duration": 0.3, "tolerance": 1e-8, "max_iterations": 500}
+  })");
+  if (with_tool)
+    s["tool"] = {{"shape", "sphere"}, {"radius", 0.004}, {"stiffness", 2000}, {"trajectory", "poke.traj"}};
+  return s;
+}
+
+Scene write_scene(const TempDir& dir, const Json& json) {
+  PokeSpec poke;
+  poke.approach_point = {0.03, 0, 0.05};
+  poke.contact_point = {0.03, 0, 0.024};  // the sphere's centre when its bottom touches the top
+  poke.depth = 0.004;
+  poke.stroke = {-0.01, 0, 0};
+  poke.approach_seconds = 0.05;
+  poke.press_seconds = 0.1;
+  poke.hold_seconds = 0.05;
+  poke.stroke_seconds = 0.1;
+  poke.release_seconds = 0.05;
+  write_trajectory(dir.path / "poke.traj", synthesize_poke(poke));
+  auto file = dir.path / "scene.json";
+  return parse_scene(json.dump(), file);
+}
+
+}  // namespace
+
+TEST(World, ReplayIsDeterministicAndTheHashSeesChanges) {
+  TempDir dir("incise_world_determinism");
+  Scene scene = write_scene(dir, block_scene(true));
+  ReplayOptions options;
+  options.out_dir = dir.path / "a";
+  auto a = run_replay(scene, options);
+  options.out_dir = dir.path / "b";
+  auto b = run_replay(scene, options);
+  ASSERT_TRUE(a.ok);
+  ASSERT_TRUE(b.ok);
+  EXPECT_EQ(a.metrics["state_hash"], b.metrics["state_hash"]);
+  EXPECT_EQ(a.metrics["steps"], 30);
+  EXPECT_TRUE(std::filesystem::exists(dir.path / "a" / "metrics.json"));
+
+  Json softer = block_scene(true);
+  softer["bodies"][0]["material"]["E"] = 19999;
+  Scene changed = write_scene(dir, softer);
+  options.out_dir = dir.path / "c";
+  auto c = run_replay(changed, options);
+  EXPECT_NE(a.metrics["state_hash"], c.metrics["state_hash"]);
+}
+
+TEST(World, FreeBodyFallsWithGravityExactly) {
+  // No support, no tool: internal forces cancel, so the centroid velocity after n implicit
+  // Euler steps is exactly g t, whatever the elasticity does.
+  TempDir dir("incise_world_fall");
+  Json json = block_scene(false);
+  json["bodies"][0].erase("fixed");
+  json["bodies"][0].erase("damping");
+  Scene scene = write_scene(dir, json);
+  World world(scene, std::nullopt);
+  for (int k = 0; k < 20; ++k) world.step();
+  const auto& body = world.bodies()[0];
+  const auto& m = body.model->lumped_masses();
+  double momentum_z = 0, mass = 0;
+  for (int i = 0; i < body.model->node_count(); ++i) {
+    momentum_z += m[i] * body.state.velocities[3 * i + 2];
+    mass += m[i];
+  }
+  EXPECT_NEAR(momentum_z / mass, -9.81 * 0.2, 1e-6);
+}
+
+TEST(World, ProbePushesTheTissueAndFeelsItBack) {
+  TempDir dir("incise_world_probe");
+  Scene scene = write_scene(dir, block_scene(true));
+  Trajectory trajectory = read_trajectory(dir.path / "poke.traj");
+  World world(scene, trajectory);
+  double deepest_top = 1;
+  double max_up_force = 0;
+  for (int k = 0; k < 20; ++k) {
+    auto stats = world.step();
+    max_up_force = std::max(max_up_force, stats.tool_force[2]);
+    const auto& x = world.bodies()[0].state.positions;
+    // The top node under the probe's path moves down.
+    for (int i = 0; i < world.bodies()[0].model->node_count(); ++i) {
+      const auto& rest = world.bodies()[0].model->rest_positions();
+      if (std::abs(rest[3 * i] - 0.03) < 1e-9 && std::abs(rest[3 * i + 1]) < 1e-9 &&
+          std::abs(rest[3 * i + 2] - 0.02) < 1e-9)
+        deepest_top = std::min(deepest_top, x[3 * i + 2]);
+    }
+  }
+  EXPECT_LT(deepest_top, 0.02 - 0.001);  // pressed at least 1 mm
+  EXPECT_GT(max_up_force, 0.0);          // the tissue pushes the tool up
+}
+
+TEST(World, LoadsAreInterpolatedLinearlyAndHeld) {
+  LoadSpec load;
+  load.events = {{0.0, {0, 0, 0}}, {1.0, {0, 0, -2}}, {3.0, {4, 0, -2}}};
+  EXPECT_DOUBLE_EQ(load_force_at(load, -1)[2], 0);
+  EXPECT_DOUBLE_EQ(load_force_at(load, 0.25)[2], -0.5);
+  EXPECT_DOUBLE_EQ(load_force_at(load, 2.0)[0], 2.0);
+  EXPECT_DOUBLE_EQ(load_force_at(load, 10)[0], 4.0);
+}
+
+TEST(World, ExpectationsAreChecked) {
+  Json metrics = {{"nonfinite_events", 0}, {"positions_digest", {{"centroid", {1.0, 2.0, 3.0}}}}};
+  Scene scene;
+  scene.expect = {{"nonfinite_events", std::nullopt, 0.0},
+                  {"positions_digest.centroid.2", 2.5, 3.5},
+                  {"positions_digest.centroid.0", 1.5, std::nullopt},
+                  {"no.such.metric", 0.0, std::nullopt}};
+  auto results = check_expectations(scene, metrics);
+  ASSERT_EQ(results.size(), 4u);
+  EXPECT_TRUE(results[0].passed);
+  EXPECT_TRUE(results[1].passed);
+  EXPECT_FALSE(results[2].passed);
+  EXPECT_FALSE(results[3].passed);
+  EXPECT_FALSE(results[3].value.has_value());
+}
