@@ -123,7 +123,7 @@ Body build_body(const BodySpec& spec, const SolverSpec& solver) {
     try {
       mesh = physics::make_tets_inside(inside, lo, hi, spec.resolution);
       // Voxel boundaries are staircases of one cell; the surgeon should see the organ's shape.
-      body.snap = physics::snap_boundary_to_surface(mesh, inside, spec.resolution);
+      body.snap = physics::snap_boundary_to_surface(mesh, inside, 1.5 * spec.resolution, 0.1);
     } catch (const std::exception& e) {
       throw std::runtime_error(where + ": " + e.what());
     }

@@ -2,11 +2,11 @@
 // projected out (the filtered CG of Baraff & Witkin 1998, section 5.3).
 #pragma once
 
-#include "physics/core/model.hpp"
-
 #include <cstdint>
 #include <functional>
 #include <vector>
+
+#include "physics/core/model.hpp"
 
 namespace incise::physics {
 
@@ -19,7 +19,7 @@ struct CgResult {
   int iterations = 0;
   double relative_residual = 0;
   bool converged = false;
-  bool nonfinite = false;               // a NaN or infinity appeared; x holds the last finite iterate
+  bool nonfinite = false;  // a NaN or infinity appeared; x holds the last finite iterate
   bool non_positive_curvature = false;  // p.Ap <= 0: the operator is not positive definite
 };
 

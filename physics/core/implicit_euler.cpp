@@ -46,8 +46,8 @@ void check_inputs(const DeformableModel& model, const State& state,
   }
   for (const NodalSpring& spring : springs) {
     if (spring.node < 0 || spring.node >= nodes) {
-      fail("spring node " + std::to_string(spring.node) + " outside [0, " +
-           std::to_string(nodes) + ")");
+      fail("spring node " + std::to_string(spring.node) + " outside [0, " + std::to_string(nodes) +
+           ")");
     }
   }
   if (!(settings.dt > 0.0)) fail("dt must be positive");
@@ -96,8 +96,9 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   Vector mass_velocity(size);
   multiply_mass(masses, state.velocities, mass_velocity);
 
-  const Vector rhs = dt * (forces - (dt + beta) * stiffness_velocity - alpha * mass_velocity);
-  if (!rhs.allFinite()) {
+  const Vector right_hand_side =
+      dt * (forces - (dt + beta) * stiffness_velocity - alpha * mass_velocity);
+  if (!right_hand_side.allFinite()) {
     report.nonfinite = true;
     return report;
   }
@@ -127,7 +128,8 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   }
 
   Vector velocity_change = Vector::Zero(size);
-  report.cg = conjugate_gradient(apply, rhs, diagonal, fixed_nodes, velocity_change, settings.cg);
+  report.cg = conjugate_gradient(apply, right_hand_side, diagonal, fixed_nodes, velocity_change,
+                                 settings.cg);
   if (report.cg.nonfinite) {
     report.nonfinite = true;
     return report;

@@ -2,12 +2,12 @@
 // (Baraff & Witkin 1998, eq. 6 with Rayleigh damping D = alpha M + beta K).
 #pragma once
 
-#include "physics/core/cg.hpp"
-#include "physics/core/model.hpp"
-
 #include <cstdint>
 #include <span>
 #include <vector>
+
+#include "physics/core/cg.hpp"
+#include "physics/core/model.hpp"
 
 namespace incise::physics {
 

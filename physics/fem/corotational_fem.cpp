@@ -1,13 +1,12 @@
 #include "physics/fem/corotational_fem.hpp"
 
-#include "physics/fem/tet_element.hpp"
-
 #include <Eigen/LU>
 #include <Eigen/SVD>
-
 #include <limits>
 #include <stdexcept>
 #include <string>
+
+#include "physics/fem/tet_element.hpp"
 
 namespace incise::physics {
 
@@ -44,10 +43,9 @@ CorotationalTetFem::CorotationalTetFem(const TetMesh& mesh, const Material& mate
                                     std::to_string(nodes) + ")");
       }
     }
-    const TetRestGeometry geometry =
-        tet_rest_geometry(rest_.segment<3>(3 * tet[0]), rest_.segment<3>(3 * tet[1]),
-                          rest_.segment<3>(3 * tet[2]), rest_.segment<3>(3 * tet[3]),
-                          static_cast<long long>(e));
+    const TetRestGeometry geometry = tet_rest_geometry(
+        rest_.segment<3>(3 * tet[0]), rest_.segment<3>(3 * tet[1]), rest_.segment<3>(3 * tet[2]),
+        rest_.segment<3>(3 * tet[3]), static_cast<long long>(e));
     rest_inverse_shape_[e] = geometry.inverse_shape;
     volumes_[e] = geometry.volume;
     for (int a = 0; a < 3; ++a) {

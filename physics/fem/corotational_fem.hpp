@@ -7,14 +7,13 @@
 // with K_e the small-strain stiffness of the rest element.
 #pragma once
 
+#include <Eigen/Core>
+#include <array>
+#include <vector>
+
 #include "physics/core/model.hpp"
 #include "physics/fem/material.hpp"
 #include "physics/fem/tet_mesh.hpp"
-
-#include <Eigen/Core>
-
-#include <array>
-#include <vector>
 
 namespace incise::physics {
 

@@ -1,12 +1,11 @@
 #include "physics/fem/static_solve.hpp"
 
-#include "physics/fem/tet_element.hpp"
-
 #include <Eigen/SparseCholesky>
-
 #include <cmath>
 #include <stdexcept>
 #include <string>
+
+#include "physics/fem/tet_element.hpp"
 
 namespace incise::physics {
 
@@ -82,8 +81,8 @@ void check_straight_edges(const Vector& rest, const std::array<int, 10>& tet, si
     const Vec3 b = rest.segment<3>(3 * tet[quadratic_tet_edges[e][1]]);
     const Vec3 middle = rest.segment<3>(3 * tet[4 + e]);
     if ((middle - 0.5 * (a + b)).norm() > 1e-9 * (b - a).norm()) {
-      throw std::invalid_argument("quadratic tet element " + std::to_string(element) +
-                                  ": node " + std::to_string(tet[4 + e]) +
+      throw std::invalid_argument("quadratic tet element " + std::to_string(element) + ": node " +
+                                  std::to_string(tet[4 + e]) +
                                   " is not at the middle of its edge (curved edges are not "
                                   "supported)");
     }
@@ -217,12 +216,13 @@ Vector solve_static(const SparseMatrix& stiffness, const Vector& load,
   Vector displacements = Vector::Zero(size);
   std::vector<Index> free_index(static_cast<size_t>(size), -1);
   Index free_count = 0;
-  for (Index dof = 0; dof < size; ++dof) {
-    const bool fixed = !fixed_nodes.empty() && fixed_nodes[static_cast<size_t>(dof / 3)] != 0;
+  for (Index component = 0; component < size; ++component) {
+    const bool fixed = !fixed_nodes.empty() && fixed_nodes[static_cast<size_t>(component / 3)] != 0;
     if (fixed) {
-      if (prescribed_displacements.size() != 0) displacements[dof] = prescribed_displacements[dof];
+      if (prescribed_displacements.size() != 0)
+        displacements[component] = prescribed_displacements[component];
     } else {
-      free_index[static_cast<size_t>(dof)] = free_count++;
+      free_index[static_cast<size_t>(component)] = free_count++;
     }
   }
   if (free_count == 0) return displacements;
@@ -230,19 +230,20 @@ Vector solve_static(const SparseMatrix& stiffness, const Vector& load,
   // K_ff u_f = f_f - K_fc u_c.
   std::vector<Triplet> triplets;
   triplets.reserve(static_cast<size_t>(stiffness.nonZeros()));
-  Vector rhs(free_count);
-  for (Index dof = 0; dof < size; ++dof) {
-    if (free_index[static_cast<size_t>(dof)] >= 0) rhs[free_index[static_cast<size_t>(dof)]] = load[dof];
+  Vector right_hand_side(free_count);
+  for (Index component = 0; component < size; ++component) {
+    if (free_index[static_cast<size_t>(component)] >= 0)
+      right_hand_side[free_index[static_cast<size_t>(component)]] = load[component];
   }
   for (Index column = 0; column < stiffness.outerSize(); ++column) {
     const Index free_column = free_index[static_cast<size_t>(column)];
-    for (SparseMatrix::InnerIterator it(stiffness, column); it; ++it) {
-      const Index free_row = free_index[static_cast<size_t>(it.row())];
+    for (SparseMatrix::InnerIterator entry(stiffness, column); entry; ++entry) {
+      const Index free_row = free_index[static_cast<size_t>(entry.row())];
       if (free_row < 0) continue;
       if (free_column >= 0) {
-        triplets.emplace_back(free_row, free_column, it.value());
+        triplets.emplace_back(free_row, free_column, entry.value());
       } else if (displacements[column] != 0.0) {
-        rhs[free_row] -= it.value() * displacements[column];
+        right_hand_side[free_row] -= entry.value() * displacements[column];
       }
     }
   }
@@ -261,16 +262,17 @@ Vector solve_static(const SparseMatrix& stiffness, const Vector& load,
   if (!(pivots.minCoeff() > 1e-12 * largest)) {
     throw std::runtime_error(
         "solve_static: the stiffness restricted to the free nodes is singular or indefinite "
-        "(smallest LDLT pivot " + std::to_string(pivots.minCoeff()) + ", largest " +
-        std::to_string(largest) + "); is the body constrained?");
+        "(smallest LDLT pivot " +
+        std::to_string(pivots.minCoeff()) + ", largest " + std::to_string(largest) +
+        "); is the body constrained?");
   }
-  const Vector solution = factorisation.solve(rhs);
+  const Vector solution = factorisation.solve(right_hand_side);
   if (factorisation.info() != Eigen::Success || !solution.allFinite()) {
     throw std::runtime_error("solve_static: the LDLT solve produced non-finite displacements");
   }
-  for (Index dof = 0; dof < size; ++dof) {
-    const Index free = free_index[static_cast<size_t>(dof)];
-    if (free >= 0) displacements[dof] = solution[free];
+  for (Index component = 0; component < size; ++component) {
+    const Index free = free_index[static_cast<size_t>(component)];
+    if (free >= 0) displacements[component] = solution[free];
   }
   return displacements;
 }

@@ -2,14 +2,13 @@
 // solve (Eigen::SimplicialLDLT). The reference against which the dynamic models are checked.
 #pragma once
 
+#include <Eigen/SparseCore>
+#include <cstdint>
+#include <vector>
+
 #include "physics/core/model.hpp"
 #include "physics/fem/material.hpp"
 #include "physics/fem/tet_mesh.hpp"
-
-#include <Eigen/SparseCore>
-
-#include <cstdint>
-#include <vector>
 
 namespace incise::physics {
 

@@ -55,54 +55,56 @@ SnapReport snap_boundary_to_surface(TetMesh& mesh, const std::function<bool(cons
   std::vector<double> original_volume(mesh.tets.size());
   for (std::size_t t = 0; t < mesh.tets.size(); ++t) original_volume[t] = signed_volume(mesh.rest, mesh.tets[t]);
 
-  const int steps = 8;  // coarse march before bisection, so a thin feature is not jumped over
-  for (int v = 0; v < n; ++v) {
-    if (!on_boundary[v]) continue;
-    ++report.boundary_nodes;
-    double length = normal[v].norm();
-    if (!(length > 0)) {
-      ++report.left;
-      continue;
-    }
-    Vec3 direction = normal[v] / length;
-    Vec3 p = mesh.rest.segment<3>(3 * v);
-    bool p_inside = inside(p);
-    // Inside: the surface is further out; outside: it is back in along -normal.
-    double sign = p_inside ? 1.0 : -1.0;
-    double found = std::nan("");
-    double previous = 0;
-    for (int k = 1; k <= steps; ++k) {
-      double s = sign * reach * k / steps;
-      if (inside(p + s * direction) != p_inside) {
-        found = bisect(inside, p, direction, previous, s, p_inside, bisections);
-        break;
+  // Two passes: a node held back because a neighbour had not moved yet gets a second try
+  // once its neighbours sit on the surface.
+  enum Status : uint8_t { interior, left, partly, moved };
+  std::vector<uint8_t> status(n, interior);
+  for (int v = 0; v < n; ++v)
+    if (on_boundary[v]) status[v] = left;
+  const int steps = 12;  // coarse march before bisection, so a thin feature is not jumped over
+  for (int pass = 0; pass < 2; ++pass) {
+    for (int v = 0; v < n; ++v) {
+      if (status[v] == interior || status[v] == moved) continue;
+      double length = normal[v].norm();
+      if (!(length > 0)) continue;
+      Vec3 direction = normal[v] / length;
+      Vec3 p = mesh.rest.segment<3>(3 * v);
+      bool p_inside = inside(p);
+      // Inside: the surface is further out; outside: it is back in along -normal.
+      double sign = p_inside ? 1.0 : -1.0;
+      double found = std::nan("");
+      double previous = 0;
+      for (int k = 1; k <= steps; ++k) {
+        double s = sign * reach * k / steps;
+        if (inside(p + s * direction) != p_inside) {
+          found = bisect(inside, p, direction, previous, s, p_inside, bisections);
+          break;
+        }
+        previous = s;
       }
-      previous = s;
-    }
-    if (std::isnan(found)) {
-      ++report.left;
-      continue;
-    }
-    bool accepted = false;
-    for (double fraction : {1.0, 0.5, 0.25}) {
-      mesh.rest.segment<3>(3 * v) = p + fraction * found * direction;
-      double worst = 1;
-      for (int t : tets_of[v]) worst = std::min(worst, signed_volume(mesh.rest, mesh.tets[t]) / original_volume[t]);
-      if (worst >= min_volume_ratio) {
-        accepted = true;
-        report.min_volume_ratio = std::min(report.min_volume_ratio, worst);
-        if (fraction == 1.0)
-          ++report.moved;
-        else
-          ++report.moved_partly;
-        break;
+      if (std::isnan(found)) continue;
+      for (double fraction : {1.0, 0.5, 0.25}) {
+        mesh.rest.segment<3>(3 * v) = p + fraction * found * direction;
+        double worst = 1;
+        for (int t : tets_of[v])
+          worst = std::min(worst, signed_volume(mesh.rest, mesh.tets[t]) / original_volume[t]);
+        if (worst >= min_volume_ratio) {
+          status[v] = fraction == 1.0 ? moved : partly;
+          break;
+        }
+        mesh.rest.segment<3>(3 * v) = p;
       }
-    }
-    if (!accepted) {
-      mesh.rest.segment<3>(3 * v) = p;
-      ++report.left;
     }
   }
+  for (int v = 0; v < n; ++v) {
+    report.moved += status[v] == moved;
+    report.moved_partly += status[v] == partly;
+    report.left += status[v] == left;
+    report.boundary_nodes += status[v] != interior;
+  }
+  for (std::size_t t = 0; t < mesh.tets.size(); ++t)
+    report.min_volume_ratio =
+        std::min(report.min_volume_ratio, signed_volume(mesh.rest, mesh.tets[t]) / original_volume[t]);
   return report;
 }
 

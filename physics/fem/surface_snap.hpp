@@ -5,6 +5,8 @@
 
 #include "physics/fem/tet_mesh.hpp"
 
+#include <Eigen/Geometry>
+
 #include <functional>
 
 namespace incise::physics {

@@ -1,14 +1,13 @@
 // Element-level formulas shared by the corotational model and the static solver.
 #pragma once
 
-#include "physics/core/model.hpp"
-
 #include <Eigen/LU>
-
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+
+#include "physics/core/model.hpp"
 
 namespace incise::physics {
 
@@ -35,10 +34,9 @@ inline TetRestGeometry tet_rest_geometry(const Vec3& x0, const Vec3& x1, const V
                                 ")");
   }
   if (determinant < 0) {
-    throw std::invalid_argument("tet element " + std::to_string(element) +
-                                " is inverted in the rest shape (volume " +
-                                std::to_string(determinant / 6) +
-                                "); corners must satisfy det[X1-X0, X2-X0, X3-X0] > 0");
+    throw std::invalid_argument(
+        "tet element " + std::to_string(element) + " is inverted in the rest shape (volume " +
+        std::to_string(determinant / 6) + "); corners must satisfy det[X1-X0, X2-X0, X3-X0] > 0");
   }
   return {shape.inverse(), determinant / 6.0};
 }
@@ -46,10 +44,9 @@ inline TetRestGeometry tet_rest_geometry(const Vec3& x0, const Vec3& x1, const V
 // Block (a, b) of the isotropic linear elastic stiffness density for shape-function gradients
 // g_a, g_b: from W = lambda/2 (div u)^2 + mu eps:eps with u = sum_b N_b u_b,
 //   K_ab = lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I.
-inline Mat3 isotropic_stiffness_block(const Vec3& gradient_a, const Vec3& gradient_b,
-                                      double lambda, double mu) {
-  return lambda * gradient_a * gradient_b.transpose() +
-         mu * gradient_b * gradient_a.transpose() +
+inline Mat3 isotropic_stiffness_block(const Vec3& gradient_a, const Vec3& gradient_b, double lambda,
+                                      double mu) {
+  return lambda * gradient_a * gradient_b.transpose() + mu * gradient_b * gradient_a.transpose() +
          mu * gradient_a.dot(gradient_b) * Mat3::Identity();
 }
 

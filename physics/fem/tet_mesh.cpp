@@ -1,7 +1,6 @@
 #include "physics/fem/tet_mesh.hpp"
 
 #include <Eigen/LU>
-
 #include <algorithm>
 #include <climits>
 #include <cmath>
@@ -63,12 +62,12 @@ void check_cells(const std::array<int, 3>& cells, int node_factor, const char* f
 }
 
 Vector grid_positions(const Vec3& min, const Vec3& max, const std::array<int, 3>& divisions) {
-  const int nx = divisions[0] + 1, ny = divisions[1] + 1, nz = divisions[2] + 1;
-  Vector rest(3 * static_cast<Eigen::Index>(nx) * ny * nz);
+  const int nodes_x = divisions[0] + 1, nodes_y = divisions[1] + 1, nodes_z = divisions[2] + 1;
+  Vector rest(3 * static_cast<Eigen::Index>(nodes_x) * nodes_y * nodes_z);
   Eigen::Index index = 0;
-  for (int k = 0; k < nz; ++k) {
-    for (int j = 0; j < ny; ++j) {
-      for (int i = 0; i < nx; ++i) {
+  for (int k = 0; k < nodes_z; ++k) {
+    for (int j = 0; j < nodes_y; ++j) {
+      for (int i = 0; i < nodes_x; ++i) {
         // Interpolate from both ends so the last node lands exactly on max.
         const Vec3 fraction(double(i) / divisions[0], double(j) / divisions[1],
                             double(k) / divisions[2]);
@@ -88,8 +87,8 @@ TetMesh make_box_tets(Vec3 min, Vec3 max, std::array<int, 3> cells) {
   check_cells(cells, 1, "make_box_tets");
   TetMesh mesh;
   mesh.rest = grid_positions(min, max, cells);
-  const int nx = cells[0] + 1, ny = cells[1] + 1;
-  const auto node = [&](int i, int j, int k) { return i + nx * (j + ny * k); };
+  const int nodes_x = cells[0] + 1, nodes_y = cells[1] + 1;
+  const auto node = [&](int i, int j, int k) { return i + nodes_x * (j + nodes_y * k); };
   const auto split = kuhn_tets();
   mesh.tets.reserve(6 * static_cast<size_t>(cells[0]) * cells[1] * cells[2]);
   for (int k = 0; k < cells[2]; ++k) {
@@ -114,8 +113,10 @@ QuadraticTetMesh make_box_quadratic_tets(Vec3 min, Vec3 max, std::array<int, 3> 
   const std::array<int, 3> fine{2 * cells[0], 2 * cells[1], 2 * cells[2]};
   QuadraticTetMesh mesh;
   mesh.rest = grid_positions(min, max, fine);
-  const int nx = fine[0] + 1, ny = fine[1] + 1;
-  const auto node = [&](const Offset& g) { return g[0] + nx * (g[1] + ny * g[2]); };
+  const int nodes_x = fine[0] + 1, nodes_y = fine[1] + 1;
+  const auto node = [&](const Offset& point) {
+    return point[0] + nodes_x * (point[1] + nodes_y * point[2]);
+  };
   const auto split = kuhn_tets();
   mesh.tets.reserve(6 * static_cast<size_t>(cells[0]) * cells[1] * cells[2]);
   for (int k = 0; k < cells[2]; ++k) {
@@ -163,8 +164,8 @@ TetMesh make_tets_inside(const std::function<bool(const Vec3&)>& inside, Vec3 mi
 
   const Vec3 spacing((max[0] - min[0]) / cells[0], (max[1] - min[1]) / cells[1],
                      (max[2] - min[2]) / cells[2]);
-  const int nx = cells[0] + 1, ny = cells[1] + 1, nz = cells[2] + 1;
-  const auto grid_node = [&](int i, int j, int k) { return i + nx * (j + ny * k); };
+  const int nodes_x = cells[0] + 1, nodes_y = cells[1] + 1, nodes_z = cells[2] + 1;
+  const auto grid_node = [&](int i, int j, int k) { return i + nodes_x * (j + nodes_y * k); };
   const auto split = kuhn_tets();
 
   std::vector<std::array<int, 4>> grid_tets;
@@ -190,7 +191,7 @@ TetMesh make_tets_inside(const std::function<bool(const Vec3&)>& inside, Vec3 mi
 
   // Compact: referenced grid nodes, in grid order, get consecutive indices.
   const Vector grid = grid_positions(min, max, cells);
-  std::vector<int> new_index(static_cast<size_t>(nx) * ny * nz, -1);
+  std::vector<int> new_index(static_cast<size_t>(nodes_x) * nodes_y * nodes_z, -1);
   for (const auto& tet : grid_tets) {
     for (int node : tet) new_index[node] = 0;
   }
@@ -215,7 +216,8 @@ TetMesh make_tets_inside(const std::function<bool(const Vec3&)>& inside, Vec3 mi
 
 std::vector<std::array<int, 3>> boundary_triangles(const std::vector<std::array<int, 4>>& tets) {
   // Outward faces of a positive tet, listed opposite corner 0, 1, 2, 3.
-  static constexpr std::array<std::array<int, 3>, 4> faces{{{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}}};
+  static constexpr std::array<std::array<int, 3>, 4> faces{
+      {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}}};
   struct Entry {
     std::array<int, 3> key;  // sorted corners: equal for the two sides of a shared face
     size_t face;             // 4 * tet + local face

@@ -3,12 +3,12 @@
 // Tetrahedra are positively oriented: det[X1 - X0, X2 - X0, X3 - X0] > 0.
 #pragma once
 
-#include "physics/core/model.hpp"
-
 #include <array>
 #include <cstdint>
 #include <functional>
 #include <vector>
+
+#include "physics/core/model.hpp"
 
 namespace incise::physics {
 
@@ -37,7 +37,8 @@ TetMesh make_box_tets(Vec3 min, Vec3 max, std::array<int, 3> cells);
 
 // The same split with 10-node tetrahedra. Every edge midpoint, face-diagonal midpoint and
 // cell centre is a node of the grid with twice the resolution, so the nodes are exactly that
-// grid: node (i, j, k), 0 <= i <= 2 cells[0], has index i + (2 cells[0] + 1)(j + (2 cells[1] + 1) k).
+// grid: node (i, j, k), 0 <= i <= 2 cells[0], has index i + (2 cells[0] + 1)(j + (2 cells[1] + 1)
+// k).
 QuadraticTetMesh make_box_quadratic_tets(Vec3 min, Vec3 max, std::array<int, 3> cells);
 
 // Voxelises [min, max] with ceil(extent / cell_size) cells per axis (spacing extent / count,

@@ -3,16 +3,16 @@
 // g = 9.81 along -z, E = 10 MPa, nu = 0.3. The tip value is the mean z displacement of the
 // nodes at x = 0.2. Beam theory: Euler-Bernoulli q L^4 / (8 E I) = 5.886 mm plus the
 // Timoshenko shear term q L^2 / (2 kappa G A) = 0.061 mm gives 5.947 mm.
-#include "physics/core/implicit_euler.hpp"
-#include "physics/fem/corotational_fem.hpp"
-#include "physics/fem/static_solve.hpp"
-#include "physics/fem/tet_mesh.hpp"
-
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+
+#include "physics/core/implicit_euler.hpp"
+#include "physics/fem/corotational_fem.hpp"
+#include "physics/fem/static_solve.hpp"
+#include "physics/fem/tet_mesh.hpp"
 
 namespace incise::physics {
 namespace {
@@ -88,9 +88,9 @@ TEST(CantileverB1, LinearTetsConvergeAtSecondOrder) {
   for (int along : {10, 20, 40}) {
     const Solve solve = solve_linear(along);
     errors.push_back(std::abs(solve.tip_mm / reference - 1));
-    std::printf("B1 linear %dx%dx%d: tip %.4f mm, error %.2f %% vs quadratic %.4f mm, solve %.3f s\n",
-                along, along / 5, along / 5, solve.tip_mm, 100 * errors.back(), reference,
-                solve.seconds);
+    std::printf(
+        "B1 linear %dx%dx%d: tip %.4f mm, error %.2f %% vs quadratic %.4f mm, solve %.3f s\n",
+        along, along / 5, along / 5, solve.tip_mm, 100 * errors.back(), reference, solve.seconds);
   }
   std::printf("B1 linear error ratios: %.2f, %.2f\n", errors[0] / errors[1], errors[1] / errors[2]);
   EXPECT_GT(errors[0], errors[1]);
@@ -101,8 +101,8 @@ TEST(CantileverB1, LinearTetsConvergeAtSecondOrder) {
 TEST(CantileverB1, DynamicCorotationalSettlesToStaticLinear) {
   const TetMesh mesh = make_box_tets(beam_min, beam_max, cells_for(10));
   const std::vector<uint8_t> clamped = clamped_nodes(mesh.rest);
-  const double static_tip =
-      tip_mm(mesh.rest, solve_static_linear(mesh, beam_material, clamped, beam_material.density * gravity));
+  const double static_tip = tip_mm(mesh.rest, solve_static_linear(mesh, beam_material, clamped,
+                                                                  beam_material.density * gravity));
 
   CorotationalTetFem model(mesh, beam_material);
   State state{mesh.rest, Vector::Zero(mesh.rest.size())};
@@ -124,8 +124,10 @@ TEST(CantileverB1, DynamicCorotationalSettlesToStaticLinear) {
     if (steps > 50 && std::abs(tip - previous) < 1e-7 * std::abs(tip)) break;
   }
   const std::chrono::duration<double> elapsed = std::chrono::steady_clock::now() - start;
-  std::printf("B1 dynamic corotational 10x2x2: tip %.4f mm after %d steps (%.3f s), static linear %.4f mm\n",
-              tip, steps, elapsed.count(), static_tip);
+  std::printf(
+      "B1 dynamic corotational 10x2x2: tip %.4f mm after %d steps (%.3f s), static linear %.4f "
+      "mm\n",
+      tip, steps, elapsed.count(), static_tip);
   EXPECT_NEAR(tip / static_tip, 1.0, 0.01);
 }
 

@@ -1,15 +1,14 @@
-#include "physics/fem/corotational_fem.hpp"
-#include "physics/fem/static_solve.hpp"
-#include "physics/fem/tet_mesh.hpp"
-
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
-
 #include <cmath>
 #include <stdexcept>
 #include <string>
+
+#include "physics/fem/corotational_fem.hpp"
+#include "physics/fem/static_solve.hpp"
+#include "physics/fem/tet_mesh.hpp"
 
 namespace incise::physics {
 namespace {
@@ -24,15 +23,18 @@ TetMesh one_irregular_tet() {
   return mesh;
 }
 
-TetMesh box_mesh() { return make_box_tets(Vec3(-0.05, 0, 0.01), Vec3(0.05, 0.04, 0.07), {3, 2, 2}); }
+TetMesh box_mesh() {
+  return make_box_tets(Vec3(-0.05, 0, 0.01), Vec3(0.05, 0.04, 0.07), {3, 2, 2});
+}
 
 // Smooth deterministic non-affine deformation, a few percent of the size.
 Vector deform(const Vector& rest) {
   Vector x = rest;
   for (Eigen::Index node = 0; node < rest.size() / 3; ++node) {
     const Vec3 p = rest.segment<3>(3 * node);
-    x.segment<3>(3 * node) += 0.004 * Vec3(std::sin(50 * p.y() + 1), std::cos(40 * p.z()) + p.x() * 30,
-                                           std::sin(30 * p.x() - 20 * p.y()));
+    x.segment<3>(3 * node) +=
+        0.004 * Vec3(std::sin(50 * p.y() + 1), std::cos(40 * p.z()) + p.x() * 30,
+                     std::sin(30 * p.x() - 20 * p.y()));
   }
   return x;
 }
@@ -60,7 +62,8 @@ Vector stiffness_times(const CorotationalTetFem& model, const Vector& p) {
 
 Vector pattern(Eigen::Index size, double phase) {
   Vector p(size);
-  for (Eigen::Index i = 0; i < size; ++i) p[i] = std::sin(1.7 * i + phase) + 0.3 * std::cos(0.3 * i * i);
+  for (Eigen::Index i = 0; i < size; ++i)
+    p[i] = std::sin(1.7 * i + phase) + 0.3 * std::cos(0.3 * i * i);
   return p;
 }
 
@@ -106,7 +109,8 @@ TEST_P(CorotationalMeshes, StiffnessMatchesFiniteDifferenceAtRest) {
   const double step = 1e-7;
   // At rest R^T x - X = 0, so freezing R loses nothing: K = -df/dx exactly.
   const Vector difference =
-      -(forces_at(model, rest + step * direction) - forces_at(model, rest - step * direction)) / (2 * step);
+      -(forces_at(model, rest + step * direction) - forces_at(model, rest - step * direction)) /
+      (2 * step);
   model.update_rotations(rest);
   const Vector product = stiffness_times(model, direction);
   EXPECT_LE((product - difference).norm(), 1e-6 * product.norm());
@@ -117,15 +121,15 @@ TEST_P(CorotationalMeshes, StiffnessIsSymmetricPositiveAndDiagonalMatches) {
   model.update_rotations(rotate(deform(model.rest_positions()), some_rotation));
   const Eigen::Index size = model.rest_positions().size();
   const Vector p = pattern(size, 0.1), q = pattern(size, 2.3);
-  const Vector kp = stiffness_times(model, p), kq = stiffness_times(model, q);
-  EXPECT_NEAR(p.dot(kq), q.dot(kp), 1e-12 * kp.norm() * q.norm());
-  EXPECT_GT(p.dot(kp), 0);
+  const Vector stiffness_p = stiffness_times(model, p), stiffness_q = stiffness_times(model, q);
+  EXPECT_NEAR(p.dot(stiffness_q), q.dot(stiffness_p), 1e-12 * stiffness_p.norm() * q.norm());
+  EXPECT_GT(p.dot(stiffness_p), 0);
 
   Vector diagonal = Vector::Zero(size);
   model.add_stiffness_diagonal(diagonal);
   for (Eigen::Index i = 0; i < size; ++i) {
     const Vector column = stiffness_times(model, Vector::Unit(size, i));
-    EXPECT_NEAR(diagonal[i], column[i], 1e-12 * column.norm()) << "dof " << i;
+    EXPECT_NEAR(diagonal[i], column[i], 1e-12 * column.norm()) << "component " << i;
   }
 }
 
@@ -146,7 +150,8 @@ TEST(CorotationalTetFem, LumpedMassesSumToTotalMass) {
   const TetMesh mesh = box_mesh();
   CorotationalTetFem model(mesh, tissue);
   const double volume = 0.1 * 0.04 * 0.06;
-  EXPECT_NEAR(model.lumped_masses().sum(), tissue.density * volume, 1e-12 * tissue.density * volume);
+  EXPECT_NEAR(model.lumped_masses().sum(), tissue.density * volume,
+              1e-12 * tissue.density * volume);
   EXPECT_GT(model.lumped_masses().minCoeff(), 0);
 }
 
@@ -172,7 +177,8 @@ TEST(CorotationalTetFem, InvertedElementGetsProperRotationAndRestoringForce) {
 
 TEST(CorotationalTetFem, PolarRotationOfRotatedStretch) {
   const Mat3 stretch = (Mat3() << 1.2, 0.1, 0.0, 0.1, 0.9, 0.05, 0.0, 0.05, 1.1).finished();
-  EXPECT_LE((CorotationalTetFem::polar_rotation(some_rotation * stretch) - some_rotation).norm(), 1e-12);
+  EXPECT_LE((CorotationalTetFem::polar_rotation(some_rotation * stretch) - some_rotation).norm(),
+            1e-12);
 }
 
 TEST(CorotationalTetFem, RejectsDegenerateAndInvertedElementsByIndex) {

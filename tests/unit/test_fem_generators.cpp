@@ -1,10 +1,7 @@
-#include "physics/fem/tet_mesh.hpp"
-
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
-
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -13,12 +10,15 @@
 #include <stdexcept>
 #include <utility>
 
+#include "physics/fem/tet_mesh.hpp"
+
 namespace incise::physics {
 namespace {
 
 double signed_volume(const Vector& rest, const std::array<int, 4>& tet) {
   Mat3 edges;
-  for (int c = 0; c < 3; ++c) edges.col(c) = rest.segment<3>(3 * tet[c + 1]) - rest.segment<3>(3 * tet[0]);
+  for (int c = 0; c < 3; ++c)
+    edges.col(c) = rest.segment<3>(3 * tet[c + 1]) - rest.segment<3>(3 * tet[0]);
   return edges.determinant() / 6.0;
 }
 
@@ -26,7 +26,9 @@ double signed_volume(const Vector& rest, const std::array<int, 4>& tet) {
 double enclosed_volume(const Vector& rest, const std::vector<std::array<int, 3>>& triangles) {
   double volume = 0;
   for (const auto& t : triangles) {
-    volume += Vec3(rest.segment<3>(3 * t[0])).dot(Vec3(rest.segment<3>(3 * t[1])).cross(Vec3(rest.segment<3>(3 * t[2])))) / 6.0;
+    volume += Vec3(rest.segment<3>(3 * t[0]))
+                  .dot(Vec3(rest.segment<3>(3 * t[1])).cross(Vec3(rest.segment<3>(3 * t[2])))) /
+              6.0;
   }
   return volume;
 }
@@ -37,7 +39,8 @@ TEST(BoxTets, CountsVolumeAndOrientation) {
   EXPECT_EQ(mesh.rest.size(), 3 * 5 * 4 * 3);
   ASSERT_EQ(mesh.tets.size(), 6u * 4 * 3 * 2);
   const double cell_volume = 0.1 * (0.1 / 3) * 0.025;
-  for (const auto& tet : mesh.tets) EXPECT_NEAR(signed_volume(mesh.rest, tet), cell_volume / 6, 1e-12 * cell_volume);
+  for (const auto& tet : mesh.tets)
+    EXPECT_NEAR(signed_volume(mesh.rest, tet), cell_volume / 6, 1e-12 * cell_volume);
   EXPECT_NEAR(total_volume(mesh.rest, mesh.tets), 0.4 * 0.1 * 0.05, 1e-15);
   EXPECT_EQ(Vec3(mesh.rest.tail<3>()), max);
 }
@@ -47,7 +50,8 @@ TEST(BoxTets, BoundaryIsClosedOutwardAndConforming) {
   const TetMesh mesh = make_box_tets(Vec3(0.5, -1, 0), Vec3(1.5, 1, 3), cells);
   const auto triangles = boundary_triangles(mesh.tets);
   // Conforming: only the box faces remain, 2 triangles per cell face.
-  EXPECT_EQ(triangles.size(), 4u * (cells[0] * cells[1] + cells[1] * cells[2] + cells[0] * cells[2]));
+  EXPECT_EQ(triangles.size(),
+            4u * (cells[0] * cells[1] + cells[1] * cells[2] + cells[0] * cells[2]));
   // Closed and consistently oriented: every directed edge once, its reverse once.
   std::map<std::pair<int, int>, int> directed;
   for (const auto& t : triangles) {
@@ -89,7 +93,8 @@ TEST(TetsInside, SphereVolume) {
   const double radius = 0.05;
   const Vec3 centre(0.01, -0.02, 0.03);
   const auto inside = [&](const Vec3& x) { return (x - centre).squaredNorm() <= radius * radius; };
-  const Vec3 min = centre - Vec3::Constant(1.1 * radius), max = centre + Vec3::Constant(1.1 * radius);
+  const Vec3 min = centre - Vec3::Constant(1.1 * radius),
+             max = centre + Vec3::Constant(1.1 * radius);
   const double cell = radius / 20;
   const TetMesh mesh = make_tets_inside(inside, min, max, cell);
 
@@ -121,10 +126,13 @@ TEST(TetsInside, SphereVolume) {
 TEST(TetsInside, RejectsBadInput) {
   const auto everywhere = [](const Vec3&) { return true; };
   const auto nowhere = [](const Vec3&) { return false; };
-  EXPECT_THROW(make_tets_inside(everywhere, Vec3::Zero(), Vec3::Ones(), 0.0), std::invalid_argument);
-  EXPECT_THROW(make_tets_inside(everywhere, Vec3::Zero(), Vec3::Ones(), -0.1), std::invalid_argument);
+  EXPECT_THROW(make_tets_inside(everywhere, Vec3::Zero(), Vec3::Ones(), 0.0),
+               std::invalid_argument);
+  EXPECT_THROW(make_tets_inside(everywhere, Vec3::Zero(), Vec3::Ones(), -0.1),
+               std::invalid_argument);
   EXPECT_THROW(make_tets_inside(nowhere, Vec3::Zero(), Vec3::Ones(), 0.1), std::invalid_argument);
-  EXPECT_THROW(make_tets_inside(everywhere, Vec3::Ones(), Vec3::Zero(), 0.1), std::invalid_argument);
+  EXPECT_THROW(make_tets_inside(everywhere, Vec3::Ones(), Vec3::Zero(), 0.1),
+               std::invalid_argument);
   try {
     make_tets_inside(nowhere, Vec3::Zero(), Vec3::Ones(), 0.1);
   } catch (const std::invalid_argument& error) {

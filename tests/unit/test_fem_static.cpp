@@ -1,13 +1,12 @@
-#include "physics/fem/static_solve.hpp"
-#include "physics/fem/tet_mesh.hpp"
-
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-
 #include <array>
 #include <cmath>
 #include <stdexcept>
+
+#include "physics/fem/static_solve.hpp"
+#include "physics/fem/tet_mesh.hpp"
 
 namespace incise::physics {
 namespace {
@@ -20,7 +19,8 @@ std::vector<uint8_t> surface_nodes(const Vector& rest) {
   for (size_t node = 0; node < mask.size(); ++node) {
     const Vec3 x = rest.segment<3>(3 * static_cast<Eigen::Index>(node));
     for (int axis = 0; axis < 3; ++axis) {
-      if (std::abs(x[axis] - box_min[axis]) < 1e-12 || std::abs(x[axis] - box_max[axis]) < 1e-12) mask[node] = 1;
+      if (std::abs(x[axis] - box_min[axis]) < 1e-12 || std::abs(x[axis] - box_max[axis]) < 1e-12)
+        mask[node] = 1;
     }
   }
   return mask;
@@ -71,7 +71,8 @@ void distort_interior(Vector& rest, const std::vector<uint8_t>& boundary, const 
     if (boundary[node]) continue;
     const Eigen::Index offset = 3 * static_cast<Eigen::Index>(node);
     const Vec3 x = rest.segment<3>(offset);
-    const Vec3 wobble(std::sin(91 * x.x() + 37 * x.y() + 13 * x.z()), std::sin(17 * x.x() - 71 * x.y() + 29 * x.z() + 1),
+    const Vec3 wobble(std::sin(91 * x.x() + 37 * x.y() + 13 * x.z()),
+                      std::sin(17 * x.x() - 71 * x.y() + 29 * x.z() + 1),
                       std::sin(53 * x.x() + 11 * x.y() - 43 * x.z() + 2));
     rest.segment<3>(offset) += 0.1 * wobble.cwiseProduct(cell_size);
   }
@@ -94,8 +95,9 @@ QuadraticTetMesh distorted_quadratic_mesh() {
   distort_interior(mesh.rest, keep, (box_max - box_min) / 3);
   for (const auto& tet : mesh.tets) {
     for (int e = 0; e < 6; ++e) {
-      mesh.rest.segment<3>(3 * tet[4 + e]) = 0.5 * (mesh.rest.segment<3>(3 * tet[quadratic_tet_edges[e][0]]) +
-                                                    mesh.rest.segment<3>(3 * tet[quadratic_tet_edges[e][1]]));
+      mesh.rest.segment<3>(3 * tet[4 + e]) =
+          0.5 * (mesh.rest.segment<3>(3 * tet[quadratic_tet_edges[e][0]]) +
+                 mesh.rest.segment<3>(3 * tet[quadratic_tet_edges[e][1]]));
     }
   }
   return mesh;
@@ -104,7 +106,8 @@ QuadraticTetMesh distorted_quadratic_mesh() {
 template <class Field>
 Vector sample(const Vector& rest, const Field& field) {
   Vector u(rest.size());
-  for (Eigen::Index node = 0; node < rest.size() / 3; ++node) u.segment<3>(3 * node) = field(Vec3(rest.segment<3>(3 * node)));
+  for (Eigen::Index node = 0; node < rest.size() / 3; ++node)
+    u.segment<3>(3 * node) = field(Vec3(rest.segment<3>(3 * node)));
   return u;
 }
 
@@ -118,7 +121,8 @@ TEST(StaticPatch, LinearTetsReproduceAffineField) {
     if (boundary[node]) continue;
     ++interior;
     const Eigen::Index offset = 3 * static_cast<Eigen::Index>(node);
-    EXPECT_LE((u.segment<3>(offset) - exact.segment<3>(offset)).norm(), 1e-10 * exact.cwiseAbs().maxCoeff())
+    EXPECT_LE((u.segment<3>(offset) - exact.segment<3>(offset)).norm(),
+              1e-10 * exact.cwiseAbs().maxCoeff())
         << "node " << node;
   }
   EXPECT_EQ(interior, 8);
@@ -137,13 +141,15 @@ TEST(StaticPatch, QuadraticTetsReproduceQuadraticFieldUnderItsBodyForce) {
     if (boundary[node]) continue;
     ++interior;
     const Eigen::Index offset = 3 * static_cast<Eigen::Index>(node);
-    EXPECT_LE((u.segment<3>(offset) - exact.segment<3>(offset)).norm(), 1e-9 * exact.cwiseAbs().maxCoeff())
+    EXPECT_LE((u.segment<3>(offset) - exact.segment<3>(offset)).norm(),
+              1e-9 * exact.cwiseAbs().maxCoeff())
         << "node " << node;
   }
   EXPECT_EQ(interior, 5 * 5 * 5);  // corners and midpoints inside the 7x7x7 node grid
 
   // Without the body force the same boundary data gives a different interior: the load matters.
-  const Vector unloaded = solve_static_quadratic(mesh, material, boundary, exact, Vec3::Zero(), Vector());
+  const Vector unloaded =
+      solve_static_quadratic(mesh, material, boundary, exact, Vec3::Zero(), Vector());
   EXPECT_GT((unloaded - exact).cwiseAbs().maxCoeff(), 1e-3 * exact.cwiseAbs().maxCoeff());
 }
 
@@ -153,7 +159,8 @@ TEST(StaticPatch, LinearTetsFailTheQuadraticPatch) {
   const TetMesh mesh = distorted_linear_mesh();
   const QuadraticField field;
   const Vector exact = sample(mesh.rest, field);
-  const Vector u = solve_static_linear(mesh, material, surface_nodes(mesh.rest), exact, field.body_force(material), Vector());
+  const Vector u = solve_static_linear(mesh, material, surface_nodes(mesh.rest), exact,
+                                       field.body_force(material), Vector());
   EXPECT_GT((u - exact).cwiseAbs().maxCoeff(), 1e-6 * exact.cwiseAbs().maxCoeff());
 }
 
@@ -167,7 +174,8 @@ void expect_rigid_kernel(const Mesh& mesh) {
     Vector u(mesh.rest.size());
     for (Eigen::Index node = 0; node < nodes; ++node) {
       const Vec3 x = mesh.rest.template segment<3>(3 * node);
-      u.segment<3>(3 * node) = mode < 3 ? Vec3(Vec3::Unit(mode)) : Vec3(Vec3::Unit(mode - 3).cross(x));
+      u.segment<3>(3 * node) =
+          mode < 3 ? Vec3(Vec3::Unit(mode)) : Vec3(Vec3::Unit(mode - 3).cross(x));
     }
     EXPECT_LE((k * u).norm(), 1e-10 * k.norm() * u.norm()) << "rigid mode " << mode;
   }

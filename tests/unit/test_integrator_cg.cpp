@@ -1,14 +1,13 @@
-#include "physics/core/cg.hpp"
-
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
-
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>
+
+#include "physics/core/cg.hpp"
 
 namespace incise::physics {
 namespace {
@@ -97,34 +96,36 @@ TEST(ConjugateGradient, RespectsFixedMask) {
   Vector x = Vector::Constant(size, 7.0);  // fixed entries must be overwritten with zero
   CgSettings settings;
   settings.tolerance = 1e-12;
-  const CgResult result = conjugate_gradient(dense_operator(a), b, a.diagonal(), fixed, x, settings);
+  const CgResult result =
+      conjugate_gradient(dense_operator(a), b, a.diagonal(), fixed, x, settings);
   ASSERT_TRUE(result.converged);
 
-  std::vector<int> free_dofs;
-  for (int dof = 0; dof < size; ++dof) {
-    if (fixed[dof / 3]) {
-      EXPECT_EQ(x[dof], 0.0) << "dof " << dof;
+  std::vector<int> free_components;
+  for (int component = 0; component < size; ++component) {
+    if (fixed[component / 3]) {
+      EXPECT_EQ(x[component], 0.0) << "component " << component;
     } else {
-      free_dofs.push_back(dof);
+      free_components.push_back(component);
     }
   }
-  const int free_count = static_cast<int>(free_dofs.size());
+  const int free_count = static_cast<int>(free_components.size());
   Dense reduced(free_count, free_count);
   Vector reduced_b(free_count);
   for (int i = 0; i < free_count; ++i) {
-    reduced_b[i] = b[free_dofs[i]];
-    for (int j = 0; j < free_count; ++j) reduced(i, j) = a(free_dofs[i], free_dofs[j]);
+    reduced_b[i] = b[free_components[i]];
+    for (int j = 0; j < free_count; ++j) reduced(i, j) = a(free_components[i], free_components[j]);
   }
   const Vector reference = reduced.llt().solve(reduced_b);
   for (int i = 0; i < free_count; ++i) {
-    EXPECT_NEAR(x[free_dofs[i]], reference[i], 1e-9 * reference.cwiseAbs().maxCoeff());
+    EXPECT_NEAR(x[free_components[i]], reference[i], 1e-9 * reference.cwiseAbs().maxCoeff());
   }
 }
 
 TEST(ConjugateGradient, ZeroRightHandSideGivesZero) {
   const Dense a = make_spd(9, 7);
   Vector x = Vector::Constant(9, 3.0);
-  const CgResult result = conjugate_gradient(dense_operator(a), Vector::Zero(9), a.diagonal(), {}, x);
+  const CgResult result =
+      conjugate_gradient(dense_operator(a), Vector::Zero(9), a.diagonal(), {}, x);
   EXPECT_TRUE(result.converged);
   EXPECT_EQ(result.iterations, 0);
   EXPECT_EQ(x, Vector::Zero(9));

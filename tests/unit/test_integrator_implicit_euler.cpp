@@ -1,12 +1,12 @@
-#include "physics/core/implicit_euler.hpp"
-#include "physics/fem/corotational_fem.hpp"
-#include "physics/fem/tet_mesh.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
 #include <vector>
+
+#include "physics/core/implicit_euler.hpp"
+#include "physics/fem/corotational_fem.hpp"
+#include "physics/fem/tet_mesh.hpp"
 
 namespace incise::physics {
 namespace {
@@ -14,7 +14,8 @@ namespace {
 // Point masses with no elasticity: the springs alone drive them.
 class PointMasses final : public DeformableModel {
  public:
-  explicit PointMasses(Vector masses) : masses_(std::move(masses)), rest_(Vector::Zero(3 * masses_.size())) {}
+  explicit PointMasses(Vector masses)
+      : masses_(std::move(masses)), rest_(Vector::Zero(3 * masses_.size())) {}
   int node_count() const override { return static_cast<int>(masses_.size()); }
   const Vector& rest_positions() const override { return rest_; }
   const Vector& lumped_masses() const override { return masses_; }
@@ -41,16 +42,19 @@ State deformed_state(const Vector& rest, const Vec3& uniform_velocity) {
   for (Eigen::Index node = 0; node < rest.size() / 3; ++node) {
     const Vec3 x = rest.segment<3>(3 * node);
     state.positions.segment<3>(3 * node) +=
-        0.01 * Vec3(std::sin(40 * x.y()), std::cos(30 * x.z()) * x.x() * 10, 0.5 * std::sin(20 * x.x() + 10 * x.y()));
+        0.01 * Vec3(std::sin(40 * x.y()), std::cos(30 * x.z()) * x.x() * 10,
+                    0.5 * std::sin(20 * x.x() + 10 * x.y()));
     state.velocities.segment<3>(3 * node) =
-        uniform_velocity + 0.2 * Vec3(std::cos(25 * x.z()), std::sin(35 * x.x()), std::cos(15 * x.y()));
+        uniform_velocity +
+        0.2 * Vec3(std::cos(25 * x.z()), std::sin(35 * x.x()), std::cos(15 * x.y()));
   }
   return state;
 }
 
 Vec3 momentum(const Vector& masses, const Vector& velocities) {
   Vec3 total = Vec3::Zero();
-  for (Eigen::Index node = 0; node < masses.size(); ++node) total += masses[node] * velocities.segment<3>(3 * node);
+  for (Eigen::Index node = 0; node < masses.size(); ++node)
+    total += masses[node] * velocities.segment<3>(3 * node);
   return total;
 }
 
@@ -73,13 +77,16 @@ TEST(ImplicitEuler, SpringMassMatchesBackwardEulerAmplitudeDecay) {
   state.positions = anchor + Vec3(0.05, 0.02, -0.03);
   state.velocities = Vec3(0.0, 0.4, 0.1);
   const auto amplitude = [&](const State& s) {
-    return std::sqrt(omega * omega * (s.positions - anchor).squaredNorm() + s.velocities.squaredNorm());
+    return std::sqrt(omega * omega * (s.positions - anchor).squaredNorm() +
+                     s.velocities.squaredNorm());
   };
   const double initial = amplitude(state);
   const int steps = 50;
   for (int step = 0; step < steps; ++step) {
-    const NodalSpring spring{0, -stiffness * (Vec3(state.positions) - anchor), stiffness * Mat3::Identity()};
-    const StepReport report = implicit_euler_step(model, state, {}, Vector::Zero(3), {&spring, 1}, tight_settings(dt));
+    const NodalSpring spring{0, -stiffness * (Vec3(state.positions) - anchor),
+                             stiffness * Mat3::Identity()};
+    const StepReport report =
+        implicit_euler_step(model, state, {}, Vector::Zero(3), {&spring, 1}, tight_settings(dt));
     ASSERT_FALSE(report.nonfinite);
     ASSERT_TRUE(report.cg.converged);
   }
@@ -94,7 +101,8 @@ TEST(ImplicitEuler, FreeBodyKeepsMomentum) {
   const Vec3 initial = momentum(model.lumped_masses(), state.velocities);
   const Vector no_forces = Vector::Zero(state.positions.size());
   for (int step = 0; step < 30; ++step) {
-    const StepReport report = implicit_euler_step(model, state, {}, no_forces, {}, tight_settings(1e-3));
+    const StepReport report =
+        implicit_euler_step(model, state, {}, no_forces, {}, tight_settings(1e-3));
     ASSERT_FALSE(report.nonfinite);
   }
   const Vec3 final_momentum = momentum(model.lumped_masses(), state.velocities);
@@ -103,7 +111,10 @@ TEST(ImplicitEuler, FreeBodyKeepsMomentum) {
   // so momentum changes only by the CG residual.
   EXPECT_LE((final_momentum - initial).norm() / total_mass, 1e-9);
   // The body did deform: the velocities are no longer the initial ones.
-  EXPECT_GT((state.velocities - deformed_state(model.rest_positions(), Vec3(0.3, -0.2, 0.1)).velocities).norm(), 1e-3);
+  EXPECT_GT(
+      (state.velocities - deformed_state(model.rest_positions(), Vec3(0.3, -0.2, 0.1)).velocities)
+          .norm(),
+      1e-3);
 }
 
 TEST(ImplicitEuler, FreeFallFollowsGravityExactly) {
@@ -119,7 +130,8 @@ TEST(ImplicitEuler, FreeFallFollowsGravityExactly) {
   // Backward Euler: v_n = n dt g, x_n = X + dt^2 g n (n + 1) / 2, uniformly (no strain arises).
   for (Eigen::Index node = 0; node < model.node_count(); ++node) {
     EXPECT_LE((state.velocities.segment<3>(3 * node) - steps * dt * g).norm(), 1e-12);
-    const Vec3 expected = model.rest_positions().segment<3>(3 * node) + dt * dt * g * steps * (steps + 1) / 2.0;
+    const Vec3 expected =
+        model.rest_positions().segment<3>(3 * node) + dt * dt * g * steps * (steps + 1) / 2.0;
     EXPECT_LE((state.positions.segment<3>(3 * node) - expected).norm(), 1e-12);
   }
 }
@@ -154,11 +166,13 @@ TEST(ImplicitEuler, DampingDissipatesEnergy) {
 TEST(ImplicitEuler, FixedNodesStayPutWithZeroVelocity) {
   CorotationalTetFem model(small_cube(), soft);
   State state = deformed_state(model.rest_positions(), Vec3(0.1, 0, 0));
-  const std::vector<uint8_t> fixed = nodes_in_box(model.rest_positions(), Vec3::Constant(-1), Vec3(1e-9, 1, 1));
+  const std::vector<uint8_t> fixed =
+      nodes_in_box(model.rest_positions(), Vec3::Constant(-1), Vec3(1e-9, 1, 1));
   const Vector start = state.positions;
   const Vector gravity = gravity_forces(model.lumped_masses(), Vec3(0, 0, -9.81));
   for (int step = 0; step < 5; ++step) {
-    ASSERT_FALSE(implicit_euler_step(model, state, fixed, gravity, {}, tight_settings(1e-3)).nonfinite);
+    ASSERT_FALSE(
+        implicit_euler_step(model, state, fixed, gravity, {}, tight_settings(1e-3)).nonfinite);
   }
   int fixed_count = 0;
   for (int node = 0; node < model.node_count(); ++node) {
@@ -182,8 +196,8 @@ TEST(ImplicitEuler, NonFiniteInputLeavesStateUnchanged) {
   EXPECT_EQ(state.velocities, before.velocities);
 
   NodalSpring spring{3, Vec3::Zero(), Mat3::Identity() * std::numeric_limits<double>::infinity()};
-  const StepReport spring_report =
-      implicit_euler_step(model, state, {}, Vector::Zero(forces.size()), {&spring, 1}, tight_settings(1e-3));
+  const StepReport spring_report = implicit_euler_step(
+      model, state, {}, Vector::Zero(forces.size()), {&spring, 1}, tight_settings(1e-3));
   EXPECT_TRUE(spring_report.nonfinite);
   EXPECT_EQ(state.positions, before.positions);
   EXPECT_EQ(state.velocities, before.velocities);
@@ -196,7 +210,9 @@ TEST(ImplicitEuler, SpringIsImplicitAndStableForStiffPenalty) {
   State state{Vec3(0, 0, -0.01), Vector::Zero(3)};
   for (int step = 0; step < 20; ++step) {
     const NodalSpring spring{0, -stiffness * Vec3(state.positions), stiffness * Mat3::Identity()};
-    ASSERT_FALSE(implicit_euler_step(model, state, {}, Vector::Zero(3), {&spring, 1}, tight_settings(dt)).nonfinite);
+    ASSERT_FALSE(
+        implicit_euler_step(model, state, {}, Vector::Zero(3), {&spring, 1}, tight_settings(dt))
+            .nonfinite);
   }
   EXPECT_LT(state.positions.norm(), 1e-6);
 }
@@ -210,7 +226,8 @@ TEST(ImplicitEuler, IsBitwiseDeterministic) {
     settings.rayleigh_mass = 1;
     settings.rayleigh_stiffness = 1e-3;
     const Vector gravity = gravity_forces(model.lumped_masses(), Vec3(0, 0, -9.81));
-    for (int step = 0; step < 10; ++step) implicit_euler_step(model, state, {}, gravity, {}, settings);
+    for (int step = 0; step < 10; ++step)
+      implicit_euler_step(model, state, {}, gravity, {}, settings);
     return state;
   };
   const State first = run(), second = run();
@@ -221,10 +238,12 @@ TEST(ImplicitEuler, IsBitwiseDeterministic) {
 TEST(ImplicitEuler, RejectsMismatchedSizes) {
   CorotationalTetFem model(small_cube(), soft);
   State state{model.rest_positions(), Vector::Zero(model.rest_positions().size())};
-  EXPECT_THROW(implicit_euler_step(model, state, {}, Vector::Zero(3), {}, {}), std::invalid_argument);
-  NodalSpring spring{model.node_count(), Vec3::Zero(), Mat3::Zero()};
-  EXPECT_THROW(implicit_euler_step(model, state, {}, Vector::Zero(state.positions.size()), {&spring, 1}, {}),
+  EXPECT_THROW(implicit_euler_step(model, state, {}, Vector::Zero(3), {}, {}),
                std::invalid_argument);
+  NodalSpring spring{model.node_count(), Vec3::Zero(), Mat3::Zero()};
+  EXPECT_THROW(
+      implicit_euler_step(model, state, {}, Vector::Zero(state.positions.size()), {&spring, 1}, {}),
+      std::invalid_argument);
 }
 
 }  // namespace

@@ -1,0 +1,196 @@
+// Corotated element-free Galerkin (EFG) model on a background grid: Magnoux 2020, chapters 4
+// and 6, with the corotation of Brunet, Magnoux et al. 2019. Every equation and the fixed
+// typos are in seed-004 §1.
+//
+// - Integration grid: cubes of side a, one integration point at each centre (one-point
+//   quadrature); each cube's volume V_e is the part inside the body, estimated by sampling.
+// - Particles (the degrees of freedom) on every other grid vertex, 2a apart; each integration
+//   point takes the corners of its particle cell as neighbours (8, or the 4 nearest).
+// - Linear MLS shape functions with the quartic spline, computed once in the rest shape.
+// - Per element, a rotation R_e from shape matching over its neighbours, frozen between
+//   update_rotations calls; with it (Algorithm 3 made corotational):
+//     grad u_e = sum_n (R_e^T x_n - X_n) (x) grad phi_n,   sigma = 2 mu eps + lambda tr(eps) I,
+//     f_n += -V_e R_e sigma grad phi_n,   K p likewise with R_e^T p_n and no rest term.
+//
+// Storage follows Magnoux ch. 6: per-element rows of a fixed stride (ELL) for the neighbour
+// indices, phi, grad phi and the shape matching coefficients, with a row-length vector, so a
+// GPU backend can take the same arrays. Neighbourhoods stay editable (set_neighbourhood);
+// particles are never added.
+//
+// Element loops run on `threads` threads. Each element writes its per-neighbour contributions
+// to its own slots; each particle then sums its slots in a fixed order (element, then slot).
+// The result is therefore bitwise the same for any thread count. The const methods use
+// internal scratch memory: one call at a time per model.
+#pragma once
+
+#include "physics/core/model.hpp"
+#include "physics/fem/material.hpp"
+
+#include <Eigen/Geometry>
+
+#include <array>
+#include <functional>
+#include <memory>
+#include <span>
+#include <vector>
+
+namespace incise::physics {
+
+class WorkerPool;
+
+// A zero-thickness planar cut: the parallelogram corner + s edge_u + t edge_v, s, t in [0, 1].
+// A point exactly on its plane counts as lying on the side edge_u x edge_v points to.
+struct CutRectangle {
+  Vec3 corner = Vec3::Zero();
+  Vec3 edge_u = Vec3::Zero();
+  Vec3 edge_v = Vec3::Zero();
+
+  // True if the segment from `from` to `to` passes through the parallelogram.
+  bool blocks(const Vec3& from, const Vec3& to) const;
+};
+
+struct EfgSettings {
+  double spacing = 0.005;        // a, side of the integration cubes (m); particles are 2a apart
+  int neighbours = 8;            // per integration point: 8 (cell corners) or 4 (nearest corners)
+  double support_factor = 3.0;   // h = support_factor x distance to the farthest neighbour, > 1
+  int samples_per_axis = 4;      // volume estimation: samples_per_axis^3 points per cube
+  bool estimate_volumes = true;  // false: a cube with any sample inside counts a full a^3
+  int threads = 2;               // threads of the element loops (results do not depend on it)
+  int row_capacity = 0;          // stride of the rows; 0 = the longest row at build
+  // Cuts made at build time: a neighbour whose link to the integration point crosses a cut is
+  // replaced by the nearest particles whose links cross none (the visibility criterion),
+  // until the neighbourhood has `neighbours` particles that span 3 dimensions.
+  std::vector<CutRectangle> cuts;
+};
+
+// Each render-surface vertex follows one integration point: x_v = sum_i w_i x_i with the MLS
+// shape functions of that point's neighbourhood evaluated at the vertex (seed-004 §2.6).
+// Rows of a fixed stride, like the model's.
+struct SurfaceEmbedding {
+  int stride = 0;
+  std::vector<int> elements;     // per vertex: the nearest integration point
+  std::vector<int> row_lengths;  // per vertex
+  std::vector<int> particles;    // vertex * stride + k
+  std::vector<double> weights;   // vertex * stride + k
+  int vertex_count() const { return static_cast<int>(elements.size()); }
+};
+
+class CorotationalEfg final : public DeformableModel {
+ public:
+  // The body is {X in [box_min, box_max] : inside(X)}; the grids start at box_min.
+  // Throws std::invalid_argument on bad settings or material, if nothing is inside, if an
+  // integration point has no valid neighbourhood, or if a particle's lumped mass is not
+  // positive (the message names the element or the particle).
+  CorotationalEfg(const std::function<bool(const Vec3&)>& inside, Vec3 box_min, Vec3 box_max,
+                  const Material& material, const EfgSettings& settings);
+  // The box itself.
+  CorotationalEfg(Vec3 box_min, Vec3 box_max, const Material& material,
+                  const EfgSettings& settings);
+  ~CorotationalEfg() override;
+  CorotationalEfg(CorotationalEfg&&) noexcept;
+  CorotationalEfg& operator=(CorotationalEfg&&) noexcept;
+
+  // DeformableModel.
+  int node_count() const override { return static_cast<int>(masses_.size()); }
+  const Vector& rest_positions() const override { return rest_; }
+  const Vector& lumped_masses() const override { return masses_; }
+  void update_rotations(const Vector& x) override;
+  void add_elastic_forces(const Vector& x, Vector& f) const override;
+  void add_stiffness_product(const Vector& p, Vector& out) const override;
+  void add_stiffness_diagonal(Vector& diagonal) const override;
+  // With rotations extracted from x itself, so it is invariant under rigid motions of x.
+  double elastic_energy(const Vector& x) const override;
+
+  // Threads of the element loops (>= 1).
+  int thread_count() const;
+  void set_thread_count(int threads);
+
+  // Topology. Rows: element * row_stride() + k for k < row_lengths()[element].
+  int element_count() const { return static_cast<int>(volumes_.size()); }
+  int row_stride() const { return stride_; }
+  const std::vector<int>& row_lengths() const { return row_lengths_; }
+  const std::vector<int>& neighbours() const { return neighbours_; }
+  const std::vector<double>& shape_values() const { return shape_values_; }        // phi_n(x_e)
+  const std::vector<Vec3>& shape_gradients() const { return shape_gradients_; }    // grad phi_n(x_e)
+  // c_n with F_e = sum_n x_n (x) c_n the least-squares linear fit of the neighbourhood.
+  const std::vector<Vec3>& matching_coefficients() const { return matching_coefficients_; }
+  const std::vector<Vec3>& element_centres() const { return centres_; }
+  const std::vector<double>& element_volumes() const { return volumes_; }
+  const std::vector<double>& element_supports() const { return supports_; }  // h per element
+  const std::vector<Mat3>& rotations() const { return rotations_; }
+  // Grid coordinates (i, j, k) of each particle (position box_min + 2a (i, j, k)) and of each
+  // element's cube (centre box_min + a (i + 1/2, j + 1/2, k + 1/2)).
+  const std::vector<std::array<int, 3>>& particle_grid_coordinates() const { return particle_cells_; }
+  const std::vector<std::array<int, 3>>& element_grid_coordinates() const { return element_cubes_; }
+  double spacing() const { return settings_.spacing; }
+  const EfgSettings& settings() const { return settings_; }
+  const Material& material() const { return material_; }
+  double total_volume() const;  // sum of V_e
+
+  // Replaces an element's neighbourhood (existing particle indices, at least 4, distinct,
+  // spanning 3 dimensions), recomputes its shape functions in the rest shape and moves its
+  // mass rho V_e to the new neighbours (seed-004 §2.4 steps 3 and 4). Grows the row stride if
+  // needed. Throws std::invalid_argument, leaving the model unchanged, if the neighbourhood is
+  // invalid or a particle's mass would become non-positive.
+  void set_neighbourhood(int element, std::span<const int> particles);
+
+  // Surface embedding (seed-004 §2.6): each vertex (3n rest positions) maps to its nearest
+  // integration point (ties to the lower index) and that point's neighbourhood, with the MLS
+  // shape functions evaluated at the vertex.
+  SurfaceEmbedding embed_surface(const Vector& rest_vertices) const;
+  // out (resized to 3 x vertices) = the embedded vertex positions for particle positions x.
+  static void surface_positions(const SurfaceEmbedding& embedding, const Vector& particle_positions,
+                                Vector& out);
+
+ private:
+  void build(const std::function<bool(const Vec3&)>& inside, Vec3 box_min, Vec3 box_max);
+  // Recomputes phi, grad phi, the matching coefficients, the rest gradient and the support of
+  // an element from its row; throws naming the element if the moment matrix is singular.
+  void compute_element(int element);
+  void rebuild_particle_slots();
+  void restride(int stride);
+  Eigen::Quaterniond element_rotation(const Vector& x, int element,
+                                      const Eigen::Quaterniond& start) const;
+  // Runs the per-element contribution loop, then adds each particle's slots to out (3n).
+  void gather(Vector& out) const;
+
+  Material material_;
+  EfgSettings settings_;
+  double lambda_ = 0;
+  double mu_ = 0;
+  Vec3 origin_ = Vec3::Zero();
+  std::array<int, 3> cube_counts_{};
+
+  // Particles.
+  Vector rest_;
+  Vector masses_;
+  std::vector<std::array<int, 3>> particle_cells_;
+  // Slots that hold each particle's contributions (compressed rows, element order).
+  std::vector<int> particle_slot_offsets_;
+  std::vector<int> particle_slots_;
+
+  // Elements.
+  std::vector<Vec3> centres_;
+  std::vector<double> volumes_;
+  std::vector<double> supports_;
+  std::vector<std::array<int, 3>> element_cubes_;
+  std::vector<int> element_of_cube_;  // cube index -> element, -1 for empty cubes
+  std::vector<Mat3> rest_gradients_;  // sum_n X_n (x) grad phi_n, the identity up to rounding
+  std::vector<Mat3> rotations_;
+  std::vector<Eigen::Quaterniond> orientations_;  // the same rotations, warm starts
+
+  // Rows (ELL).
+  int stride_ = 0;
+  std::vector<int> row_lengths_;
+  std::vector<int> neighbours_;
+  std::vector<double> shape_values_;
+  std::vector<Vec3> shape_gradients_;
+  std::vector<Vec3> matching_coefficients_;
+
+  // Scratch of the element loops: one vector per slot, and one energy per element.
+  mutable std::vector<Vec3> contributions_;
+  mutable std::vector<double> element_energies_;
+  std::unique_ptr<WorkerPool> pool_;
+};
+
+}  // namespace incise::physics

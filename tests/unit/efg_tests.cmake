@@ -1,0 +1,9 @@
+# Tests of the corotated EFG model (physics/efg). Included from tests/CMakeLists.txt, which
+# has already run find_package(GTest) and include(GoogleTest).
+add_executable(test_efg
+  ${CMAKE_CURRENT_LIST_DIR}/test_efg_mls.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_efg_model.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_efg_cantilever.cpp
+)
+target_link_libraries(test_efg PRIVATE incise_physics GTest::gtest_main)
+gtest_discover_tests(test_efg DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
