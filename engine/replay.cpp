@@ -123,6 +123,18 @@ class Capture {
   std::vector<double> render_ms_;
 };
 
+Json guards_json(const World& world) {
+  Json events = Json::array();
+  for (const auto& e : world.guard_events())
+    events.push_back({{"step", e.step}, {"time_s", e.time}, {"body", e.body}, {"kind", e.kind}, {"detail", e.detail}});
+  const auto& c = world.guard_counts();
+  return {{"nonfinite_retries", c.nonfinite_retries},
+          {"cg_not_converged", c.cg_not_converged},
+          {"energy_growth", c.energy_growth},
+          {"events", events},
+          {"events_logged_max", World::kGuardLogLimit}};
+}
+
 }  // namespace
 
 std::optional<double> metric_value(const Json& metrics, const std::string& path) {
@@ -308,6 +320,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
       {"cg_residual_max", cg_residual_max},
       {"cg_not_converged_steps", not_converged},
       {"nonfinite_events", nonfinite},
+      {"guards", guards_json(world)},
       {"energy_J", {{"elastic", last.elastic_energy}, {"kinetic", last.kinetic_energy}}},
       {"positions_digest", {{"centroid", centroid},
                             {"mean_displacement", mean_displacement},

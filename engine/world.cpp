@@ -136,6 +136,7 @@ Body build_body(const BodySpec& spec, const SolverSpec& solver) {
   const int n = model->node_count();
   body.state.positions = model->rest_positions();
   body.state.velocities = physics::Vector::Zero(3 * n);
+  body.velocity_change = physics::Vector::Zero(3 * n);
   body.fixed.assign(n, 0);
   for (const auto& box : spec.fixed) {
     auto in = physics::nodes_in_box(model->rest_positions(), vec(box.min), vec(box.max));
@@ -260,6 +261,7 @@ void World::solve_body(Body& body, const std::vector<physics::NodalSpring>& spri
       for (int c = 0; c < 3; ++c) external[3 * i + c] += share * force[c];
     }
   }
+  const physics::Vector positions_before = body.state.positions;
   // Non-finite guard: a step that produces a non-finite value leaves the state untouched
   // and is retried as 2, 4, ... sub-steps (dt halved each time) before giving up.
   for (int attempt = 0; attempt <= scene_.solver.max_retries; ++attempt) {
@@ -267,24 +269,64 @@ void World::solve_body(Body& body, const std::vector<physics::NodalSpring>& spri
     physics::ImplicitEulerSettings settings = body.integrator;
     settings.dt = body.integrator.dt / substeps;
     physics::State saved = body.state;
+    physics::Vector saved_velocity_change = body.velocity_change;
     bool failed = false;
+    physics::StepReport report;
     for (int s = 0; s < substeps && !failed; ++s) {
-      auto report = physics::implicit_euler_step(*body.model, body.state, body.fixed, external,
-                                                 springs, settings);
+      report = physics::implicit_euler_step(*body.model, body.state, body.fixed, external, springs,
+                                            settings, &body.velocity_change);
       stats.cg_iterations += report.cg.iterations;
       stats.cg_residual = std::max(stats.cg_residual, report.cg.relative_residual);
-      stats.cg_converged = stats.cg_converged && report.cg.converged;
-      stats.elastic_energy += report.elastic_energy;
-      stats.kinetic_energy += report.kinetic_energy;
+      if (!report.cg.converged && !report.nonfinite) {
+        stats.cg_converged = false;
+        guard_counts_.cg_not_converged++;
+        log_guard(body.name, "cg_not_converged",
+                  "relative residual " + std::to_string(report.cg.relative_residual) + " after " +
+                      std::to_string(report.cg.iterations) + " iterations (tolerance " +
+                      std::to_string(settings.cg.tolerance) + ")");
+      }
       failed = report.nonfinite;
     }
-    if (!failed) return;
+    if (!failed) {
+      stats.elastic_energy += report.elastic_energy;
+      stats.kinetic_energy += report.kinetic_energy;
+      // Energy watchdog: implicit Euler dissipates, so the energy may grow only by the work
+      // of the external and contact forces over the step. A clear excess is the signature
+      // of an instability (or of a step far outside the linearisation) and is reported.
+      double work = external.dot(body.state.positions - positions_before);
+      for (const auto& spring : springs)
+        work += spring.force.dot(body.state.positions.segment<3>(3 * spring.node) -
+                                 positions_before.segment<3>(3 * spring.node));
+      const double energy = report.elastic_energy + report.kinetic_energy;
+      const double excess = energy - body.last_energy - std::max(work, 0.0);
+      if (excess > 0.5 * body.last_energy + 1e-9) {
+        stats.energy_growth_events++;
+        guard_counts_.energy_growth++;
+        log_guard(body.name, "energy_growth",
+                  "energy " + std::to_string(body.last_energy) + " -> " + std::to_string(energy) +
+                      " J with " + std::to_string(work) + " J of external work");
+      }
+      body.last_energy = energy;
+      if (attempt > 0)
+        log_guard(body.name, "nonfinite_retry",
+                  "recovered with " + std::to_string(substeps) + " sub-steps of " +
+                      std::to_string(settings.dt) + " s");
+      return;
+    }
     body.state = std::move(saved);
+    body.velocity_change = std::move(saved_velocity_change);
     stats.nonfinite_events++;
+    guard_counts_.nonfinite_retries++;
   }
+  log_guard(body.name, "nonfinite_retry", "gave up after " + std::to_string(scene_.solver.max_retries) + " halvings");
   throw NonFiniteError("step " + std::to_string(steps_ + 1) + " (t = " + std::to_string(end_time) +
                        " s), body '" + body.name + "': non-finite values after " +
                        std::to_string(scene_.solver.max_retries) + " retries with halved dt");
+}
+
+void World::log_guard(const std::string& body, const std::string& kind, const std::string& detail) {
+  if (guard_events_.size() >= kGuardLogLimit) return;
+  guard_events_.push_back({steps_ + 1, static_cast<double>(steps_ + 1) * scene_.solver.dt, body, kind, detail});
 }
 
 StepStats World::step() {
@@ -322,6 +364,7 @@ std::uint64_t World::state_hash() const {
   for (const auto& body : bodies_) {
     mix(body.state.positions);
     mix(body.state.velocities);
+    mix(body.velocity_change);
   }
   return hash;
 }

@@ -33,6 +33,8 @@ struct Body {
   std::string name;
   std::unique_ptr<physics::DeformableModel> model;
   physics::State state;
+  double last_energy = 0;            // elastic + kinetic after the last step (energy watchdog)
+  physics::Vector velocity_change;  // last step's dv: the CG warm start (part of the state hash)
   std::vector<std::uint8_t> fixed;                 // per node
   std::vector<std::array<int, 3>> surface;         // boundary triangles (node indices)
   std::vector<int> surface_nodes;                  // nodes on the surface, increasing
@@ -56,10 +58,26 @@ struct StepStats {
   double cg_residual = 0;  // worst relative residual over bodies
   bool cg_converged = true;
   int nonfinite_events = 0;  // steps that produced a non-finite value and were retried
+  int energy_growth_events = 0;
   int contacts = 0;
   std::array<double, 3> tool_force{};  // force of the tissue on the tool, N
   double elastic_energy = 0;
   double kinetic_energy = 0;
+};
+
+// A guard that fired: always counted, and logged with the step and the body.
+struct GuardEvent {
+  std::uint64_t step = 0;
+  double time = 0;
+  std::string body;
+  std::string kind;    // "nonfinite_retry", "cg_not_converged", "energy_growth"
+  std::string detail;  // figures: residual, energies, dt
+};
+
+struct GuardCounts {
+  long nonfinite_retries = 0;
+  long cg_not_converged = 0;
+  long energy_growth = 0;
 };
 
 struct ToolState {
@@ -83,6 +101,10 @@ class World {
   const Scene& scene() const { return scene_; }
   const std::vector<Body>& bodies() const { return bodies_; }
   const ToolState& tool() const { return tool_; }
+  const GuardCounts& guard_counts() const { return guard_counts_; }
+  // The first kGuardLogLimit events; guard_counts() has them all.
+  const std::vector<GuardEvent>& guard_events() const { return guard_events_; }
+  static constexpr std::size_t kGuardLogLimit = 200;
 
   // FNV-1a over the bytes of every body's positions and velocities, in body order.
   std::uint64_t state_hash() const;
@@ -104,6 +126,9 @@ class World {
   double time_ = 0;
   std::uint64_t steps_ = 0;
   std::array<double, 3> bounds_min_{}, bounds_max_{};
+  GuardCounts guard_counts_;
+  std::vector<GuardEvent> guard_events_;
+  void log_guard(const std::string& body, const std::string& kind, const std::string& detail);
 };
 
 // Build one body from its spec (generator or mesh file -> tetrahedra -> model).

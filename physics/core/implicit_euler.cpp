@@ -74,7 +74,8 @@ double kinetic_energy(const Vector& lumped_masses, const Vector& velocities) {
 StepReport implicit_euler_step(DeformableModel& model, State& state,
                                const std::vector<uint8_t>& fixed_nodes,
                                const Vector& external_forces, std::span<const NodalSpring> springs,
-                               const ImplicitEulerSettings& settings) {
+                               const ImplicitEulerSettings& settings,
+                               Vector* velocity_change_guess) {
   check_inputs(model, state, fixed_nodes, external_forces, springs, settings);
   StepReport report;
   const Index size = state.positions.size();
@@ -128,6 +129,8 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   }
 
   Vector velocity_change = Vector::Zero(size);
+  if (velocity_change_guess && velocity_change_guess->size() == size && velocity_change_guess->allFinite())
+    velocity_change = *velocity_change_guess;
   report.cg = conjugate_gradient(apply, right_hand_side, diagonal, fixed_nodes, velocity_change,
                                  settings.cg);
   if (report.cg.nonfinite) {
@@ -152,6 +155,7 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
     }
   }
 
+  if (velocity_change_guess) *velocity_change_guess = velocity_change;
   state.positions.swap(positions);
   state.velocities.swap(velocities);
   report.elastic_energy = model.elastic_energy(state.positions);

@@ -36,10 +36,14 @@ struct StepReport {
 // - `external_forces`: 3n (gravity, loads).
 // - If anything non-finite arises the State is left unchanged and nonfinite is set.
 // - A CG that stops unconverged (max iterations) still advances the state; see report.cg.
+// - `velocity_change` (optional, 3n): CG starts from it and receives the new dv. Passing the
+//   previous step's dv warm-starts CG (motion changes little between steps); it is as
+//   deterministic as a zero start. Left unchanged when the step is rejected.
 StepReport implicit_euler_step(DeformableModel& model, State& state,
                                const std::vector<uint8_t>& fixed_nodes,
                                const Vector& external_forces, std::span<const NodalSpring> springs,
-                               const ImplicitEulerSettings& settings);
+                               const ImplicitEulerSettings& settings,
+                               Vector* velocity_change = nullptr);
 
 // m_i g at every node (3n).
 Vector gravity_forces(const Vector& lumped_masses, const Vec3& g);

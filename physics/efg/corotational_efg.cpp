@@ -365,26 +365,92 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
     for (int e = begin; e < end; ++e) compute_element(e);
   });
 
-  // Lumped mass m_i = sum_e phi_i(x_e) rho V_e (seed-004 §1.5). phi may be negative for far
-  // corners, so positivity is checked rather than assumed.
-  masses_ = Vector::Zero(particles);
-  for (int e = 0; e < elements; ++e) {
-    const size_t base = static_cast<size_t>(e) * stride_;
-    for (int k = 0; k < row_lengths_[e]; ++k) {
-      masses_[neighbours_[base + k]] += shape_values_[base + k] * material_.density * volumes_[e];
+  // Lumped mass m_i = sum_e phi_i(x_e) rho V_e (seed-004 §1.5). phi is negative for far
+  // corners, so a particle outside the body that only some elements reach as a far corner
+  // can get a negative mass. Such particles are taken out of those neighbourhoods (as if they
+  // influenced nothing) and the elements recomputed, until every mass is positive.
+  std::vector<uint8_t> excluded(particles, 0);
+  for (int round = 0;; ++round) {
+    compute_masses();
+    std::vector<uint8_t> used(node_count(), 0), negative(node_count(), 0);
+    for (int e = 0; e < elements; ++e) {
+      const size_t base = static_cast<size_t>(e) * stride_;
+      for (int k = 0; k < row_lengths_[e]; ++k) used[neighbours_[base + k]] = 1;
     }
-  }
-  for (int p = 0; p < particles; ++p) {
-    if (!(masses_[p] > 0)) {
-      const auto& cell = particle_cells_[p];
-      fail("particle " + std::to_string(p) + " (grid " + std::to_string(cell[0]) + ", " +
-           std::to_string(cell[1]) + ", " + std::to_string(cell[2]) + ", at " +
-           format_point(rest_.segment<3>(3 * p)) + ") has lumped mass " +
-           std::to_string(masses_[p]) +
-           " <= 0: the shape functions of its elements are negative there; try another "
-           "spacing or more neighbours");
+    int negative_count = 0;
+    for (int p = 0; p < node_count(); ++p) {
+      if (used[p] && !(masses_[p] > 0)) {
+        negative[p] = 1;
+        ++negative_count;
+      }
     }
+    if (negative_count == 0) break;
+    const auto first_negative = static_cast<int>(std::find(negative.begin(), negative.end(), 1) - negative.begin());
+    const auto cell = particle_cells_[first_negative];
+    const std::string culprit =
+        "particle " + std::to_string(first_negative) + " (grid " + std::to_string(cell[0]) + ", " +
+        std::to_string(cell[1]) + ", " + std::to_string(cell[2]) + ", at " +
+        format_point(rest_.segment<3>(3 * first_negative)) + ") has lumped mass " +
+        std::to_string(masses_[first_negative]) + " <= 0";
+    if (round == 8) fail(culprit + " and removing such particles does not settle");
+    for (int p = 0; p < node_count(); ++p) excluded[p] = excluded[p] || negative[p];
+    std::vector<int> changed;
+    for (int e = 0; e < elements; ++e) {
+      const size_t base = static_cast<size_t>(e) * stride_;
+      int kept = 0;
+      positions.clear();
+      for (int k = 0; k < row_lengths_[e]; ++k) {
+        const int p = neighbours_[base + k];
+        if (negative[p]) continue;
+        neighbours_[base + kept++] = p;
+        positions.push_back(rest_.segment<3>(3 * p));
+      }
+      if (kept == row_lengths_[e]) continue;
+      if (kept < 4 || !spans_three_dimensions(positions)) {
+        // Too few left (with 4 neighbours, any loss): refill to the former length with the
+        // nearest particles that are allowed and visible (ties to the lower index).
+        const int target = row_lengths_[e];
+        const auto& cube = element_cubes_[e];
+        std::vector<std::pair<double, int>> candidates;
+        for (int k = std::max(0, cube[2] / 2 - 2); k <= std::min(particle_counts[2] - 1, cube[2] / 2 + 3); ++k) {
+          for (int j = std::max(0, cube[1] / 2 - 2); j <= std::min(particle_counts[1] - 1, cube[1] / 2 + 3); ++j) {
+            for (int i = std::max(0, cube[0] / 2 - 2); i <= std::min(particle_counts[0] - 1, cube[0] / 2 + 3); ++i) {
+              const int p = particle_of_grid[grid_particle(i, j, k)];
+              if (p < 0 || excluded[p] ||
+                  std::find(neighbours_.begin() + base, neighbours_.begin() + base + kept, p) !=
+                      neighbours_.begin() + base + kept ||
+                  is_blocked(centres_[e], rest_.segment<3>(3 * p))) {
+                continue;
+              }
+              candidates.push_back({(rest_.segment<3>(3 * p) - centres_[e]).squaredNorm(), p});
+            }
+          }
+        }
+        std::sort(candidates.begin(), candidates.end());
+        std::vector<int> row(neighbours_.begin() + base, neighbours_.begin() + base + kept);
+        for (const auto& candidate : candidates) {
+          if (static_cast<int>(row.size()) >= target && spans_three_dimensions(positions)) break;
+          if (static_cast<int>(row.size()) >= longest_row) break;
+          row.push_back(candidate.second);
+          positions.push_back(rest_.segment<3>(3 * candidate.second));
+        }
+        if (!spans_three_dimensions(positions)) {
+          fail(culprit + ", and element " + std::to_string(e) + " at " +
+               format_point(centres_[e]) + " cannot do without it");
+        }
+        if (static_cast<int>(row.size()) > stride_) restride(static_cast<int>(row.size()));
+        const size_t new_base = static_cast<size_t>(e) * stride_;
+        std::copy(row.begin(), row.end(), neighbours_.begin() + new_base);
+        kept = static_cast<int>(row.size());
+      }
+      row_lengths_[e] = kept;
+      changed.push_back(e);
+    }
+    pool_->run(static_cast<int>(changed.size()), [&](int begin, int end) {
+      for (int c = begin; c < end; ++c) compute_element(changed[c]);
+    });
   }
+  drop_unused_particles();
   rebuild_particle_slots();
 }
 
@@ -437,6 +503,41 @@ void CorotationalEfg::compute_element(int element) {
     rest_gradient += positions[k] * shape_gradients_[base + k].transpose();
   }
   rest_gradients_[element] = rest_gradient;
+}
+
+void CorotationalEfg::compute_masses() {
+  masses_ = Vector::Zero(rest_.size() / 3);
+  for (int e = 0; e < element_count(); ++e) {
+    const size_t base = static_cast<size_t>(e) * stride_;
+    const double element_mass = material_.density * volumes_[e];
+    for (int k = 0; k < row_lengths_[e]; ++k) {
+      masses_[neighbours_[base + k]] += shape_values_[base + k] * element_mass;
+    }
+  }
+}
+
+void CorotationalEfg::drop_unused_particles() {
+  std::vector<int> new_index(node_count(), -1);
+  for (int e = 0; e < element_count(); ++e) {
+    const size_t base = static_cast<size_t>(e) * stride_;
+    for (int k = 0; k < row_lengths_[e]; ++k) new_index[neighbours_[base + k]] = 0;
+  }
+  int kept = 0;
+  for (int p = 0; p < node_count(); ++p) {
+    if (new_index[p] < 0) continue;
+    new_index[p] = kept;
+    rest_.segment<3>(3 * kept) = rest_.segment<3>(3 * p);
+    masses_[kept] = masses_[p];
+    particle_cells_[kept] = particle_cells_[p];
+    ++kept;
+  }
+  rest_.conservativeResize(3 * static_cast<Index>(kept));
+  masses_.conservativeResize(kept);
+  particle_cells_.resize(kept);
+  for (int e = 0; e < element_count(); ++e) {
+    const size_t base = static_cast<size_t>(e) * stride_;
+    for (int k = 0; k < row_lengths_[e]; ++k) neighbours_[base + k] = new_index[neighbours_[base + k]];
+  }
 }
 
 void CorotationalEfg::rebuild_particle_slots() {

@@ -147,6 +147,9 @@ class CorotationalEfg final : public DeformableModel {
   // Recomputes phi, grad phi, the matching coefficients, the rest gradient and the support of
   // an element from its row; throws naming the element if the moment matrix is singular.
   void compute_element(int element);
+  void compute_masses();
+  // Removes the particles no row refers to (their masses must be zero) and renumbers.
+  void drop_unused_particles();
   void rebuild_particle_slots();
   void restride(int stride);
   Eigen::Quaterniond element_rotation(const Vector& x, int element,

@@ -150,3 +150,30 @@ TEST(World, ExpectationsAreChecked) {
   EXPECT_FALSE(results[3].passed);
   EXPECT_FALSE(results[3].value.has_value());
 }
+
+TEST(World, GuardsAreCountedAndLoggedWithStepAndBody) {
+  TempDir dir("incise_world_guards");
+  Json json = block_scene(true);
+  json["solver"]["max_iterations"] = 2;  // far too few: CG cannot converge
+  json["solver"]["tolerance"] = 1e-12;
+  Scene scene = write_scene(dir, json);
+  World world(scene, read_trajectory(dir.path / "poke.traj"));
+  for (int k = 0; k < 5; ++k) world.step();
+  EXPECT_EQ(world.guard_counts().cg_not_converged, 5);
+  ASSERT_FALSE(world.guard_events().empty());
+  const auto& first = world.guard_events().front();
+  EXPECT_EQ(first.step, 1u);
+  EXPECT_EQ(first.body, "block");
+  EXPECT_EQ(first.kind, "cg_not_converged");
+  EXPECT_NE(first.detail.find("after 2 iterations"), std::string::npos) << first.detail;
+}
+
+TEST(World, EnergyWatchdogStaysQuietOnAHealthyRun) {
+  TempDir dir("incise_world_quiet");
+  Scene scene = write_scene(dir, block_scene(true));
+  World world(scene, read_trajectory(dir.path / "poke.traj"));
+  for (int k = 0; k < 30; ++k) world.step();
+  EXPECT_EQ(world.guard_counts().energy_growth, 0);
+  EXPECT_EQ(world.guard_counts().nonfinite_retries, 0);
+  EXPECT_EQ(world.guard_counts().cg_not_converged, 0);
+}
