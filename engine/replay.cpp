@@ -358,6 +358,20 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     }
     metrics["expect"] = expect;
   }
+  {
+    // One row per step for plots and review: where time went and what the tool felt.
+    std::ofstream steps_csv(options.out_dir / "steps.csv");
+    steps_csv << "step,time_s,ms_total,ms_tool_input,ms_contact,ms_solve,ms_surface,cg_iterations,"
+                 "cg_residual,contacts,tool_force_x,tool_force_y,tool_force_z,elastic_energy_J,kinetic_energy_J\n";
+    for (std::size_t k = 0; k < stats.size(); ++k) {
+      const auto& s = stats[k];
+      steps_csv << (k + 1) << ',' << static_cast<double>(k + 1) * scene.solver.dt << ',' << s.ms_total << ','
+                << s.ms_tool_input << ',' << s.ms_contact << ',' << s.ms_solve << ',' << s.ms_surface << ','
+                << s.cg_iterations << ',' << s.cg_residual << ',' << s.contacts << ',' << s.tool_force[0]
+                << ',' << s.tool_force[1] << ',' << s.tool_force[2] << ',' << s.elastic_energy << ','
+                << s.kinetic_energy << '\n';
+    }
+  }
   std::ofstream out(options.out_dir / "metrics.json");
   out << metrics.dump(2) << "\n";
   if (!out) throw std::runtime_error((options.out_dir / "metrics.json").string() + ": cannot write");

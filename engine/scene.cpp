@@ -310,6 +310,7 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
       s.gravity = sr.point("gravity", false, {0, 0, -9.81}, -1e4, 1e4);
       s.duration = sr.number("duration", true, 1, 0, 1e5, true);
       s.max_retries = sr.integer("max_retries", false, 3, 0, 20);
+      s.start = sr.text("start", false, "rest", {"rest", "settled"});
     }
 
     if (const Json* loads = r.get("loads", false)) {

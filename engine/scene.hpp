@@ -75,6 +75,7 @@ struct SolverSpec {
   Point gravity{0, 0, -9.81};
   double duration = 0;  // s of simulated time for a replay
   int max_retries = 3;  // halvings of dt after a non-finite step
+  std::string start = "rest";  // "rest", or "settled": start from static equilibrium under gravity
 };
 
 struct LoadEvent {

@@ -1,7 +1,9 @@
 #include "engine/world.hpp"
 
 #include "engine/mesh_import.hpp"
+#include "physics/core/contact.hpp"
 #include "physics/fem/corotational_fem.hpp"
+#include "physics/fem/static_solve.hpp"
 #include "physics/fem/surface_snap.hpp"
 #include "physics/fem/tet_mesh.hpp"
 
@@ -143,6 +145,17 @@ Body build_body(const BodySpec& spec, const SolverSpec& solver) {
     for (int i = 0; i < n; ++i) body.fixed[i] |= in[i];
   }
   body.gravity = physics::gravity_forces(model->lumped_masses(), vec(solver.gravity));
+  if (solver.start == "settled") {
+    // Start from static equilibrium under gravity (small-strain solve, exact enough for the
+    // sag of a supported organ), so a replay does not begin with the body dropping.
+    try {
+      body.state.positions += physics::solve_static_linear(mesh, material, body.fixed,
+                                                           spec.material.density * vec(solver.gravity));
+    } catch (const std::exception& e) {
+      throw std::runtime_error(where + ": solver.start 'settled' needs a body held in place by its "
+                               "fixed regions: " + e.what());
+    }
+  }
 
   std::vector<int> surface_index(n, -1);
   for (const auto& t : body.surface)
@@ -218,35 +231,11 @@ void World::take_tool_input(double time) {
 }
 
 std::vector<physics::NodalSpring> World::contact(const Body& body, StepStats& stats) const {
-  std::vector<physics::NodalSpring> springs;
-  if (!tool_.present) return springs;
-  const double k = scene_.tool->stiffness;
-  const physics::Vec3 a = vec(tool_.tip), b = vec(tool_.tail);
-  const physics::Vec3 ab = b - a;
-  const double ab2 = ab.squaredNorm();
-  const auto& x = body.state.positions;
-  for (int node : body.surface_nodes) {
-    if (body.fixed[node]) continue;
-    physics::Vec3 p = x.segment<3>(3 * node);
-    double s = ab2 > 0 ? std::clamp((p - a).dot(ab) / ab2, 0.0, 1.0) : 0.0;
-    physics::Vec3 closest = a + s * ab;
-    physics::Vec3 d = p - closest;
-    double distance = d.norm();
-    double depth = tool_.radius - distance;
-    if (depth <= 0) continue;
-    // A node exactly on the axis has no defined normal: push it up, away from the handle.
-    physics::Vec3 normal = distance > 1e-12 ? physics::Vec3(d / distance) : physics::Vec3(0, 0, -1);
-    physics::NodalSpring spring;
-    spring.node = node;
-    spring.force = k * depth * normal;
-    // Penalty stiffness along the normal only: the tangential part of the exact Jacobian
-    // is negative near the axis and would make the system indefinite.
-    spring.stiffness = k * normal * normal.transpose();
-    springs.push_back(spring);
-    for (int i = 0; i < 3; ++i) stats.tool_force[i] -= spring.force[i];
-  }
-  stats.contacts += static_cast<int>(springs.size());
-  return springs;
+  if (!tool_.present) return {};
+  auto contact = physics::probe_contact(body.state.positions, body.surface, body.fixed, vec(tool_.tip),
+                                        vec(tool_.tail), tool_.radius, scene_.tool->stiffness);
+  stats.contacts += contact.triangles_touched;
+  return std::move(contact.springs);
 }
 
 void World::solve_body(Body& body, const std::vector<physics::NodalSpring>& springs,
@@ -294,9 +283,16 @@ void World::solve_body(Body& body, const std::vector<physics::NodalSpring>& spri
       // of the external and contact forces over the step. A clear excess is the signature
       // of an instability (or of a step far outside the linearisation) and is reported.
       double work = external.dot(body.state.positions - positions_before);
-      for (const auto& spring : springs)
-        work += spring.force.dot(body.state.positions.segment<3>(3 * spring.node) -
-                                 positions_before.segment<3>(3 * spring.node));
+      for (const auto& spring : springs) {
+        const physics::Vec3 moved = body.state.positions.segment<3>(3 * spring.node) -
+                                    positions_before.segment<3>(3 * spring.node);
+        work += spring.force.dot(moved);
+        // The contact force the implicit step applied is the linearised one at the end of
+        // the step, f - K dx: that is what the tissue pushes the tool with, not the larger
+        // penetration force at the start of the step.
+        const physics::Vec3 applied = spring.force - spring.stiffness * moved;
+        for (int i = 0; i < 3; ++i) stats.tool_force[i] -= applied[i];
+      }
       const double energy = report.elastic_energy + report.kinetic_energy;
       const double excess = energy - body.last_energy - std::max(work, 0.0);
       if (excess > 0.5 * body.last_energy + 1e-9) {

@@ -45,7 +45,7 @@ std::string format_point(const Vec3& p) {
 // if it has not settled.
 Quaternion extract_rotation(const Mat3& f, Quaternion q) {
   if (!f.allFinite()) return q;
-  for (int iteration = 0; iteration < 40; ++iteration) {
+  for (int iteration = 0; iteration < 16; ++iteration) {
     const Mat3 r = q.toRotationMatrix();
     const Vec3 torque =
         r.col(0).cross(f.col(0)) + r.col(1).cross(f.col(1)) + r.col(2).cross(f.col(2));
@@ -87,8 +87,10 @@ bool CutRectangle::blocks(const Vec3& from, const Vec3& to) const {
   const double determinant = uu * vv - uv * uv;
   const double s = (ru * vv - rv * uv) / determinant;
   const double r = (rv * uu - ru * uv) / determinant;
-  constexpr double tolerance = 1e-12;  // the rim belongs to the cut
-  return s >= -tolerance && s <= 1 + tolerance && r >= -tolerance && r <= 1 + tolerance;
+  // Open parallelogram: a link through the rim is not cut, so particles on the crack front
+  // stay shared by both sides, like the nodes of a conforming FEM cut.
+  constexpr double tolerance = 1e-12;
+  return s > tolerance && s < 1 - tolerance && r > tolerance && r < 1 - tolerance;
 }
 
 CorotationalEfg::CorotationalEfg(const std::function<bool(const Vec3&)>& inside, Vec3 box_min,
@@ -146,7 +148,6 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
   lambda_ = lame_lambda(material_);
   mu_ = lame_mu(material_);
   pool_ = std::make_unique<WorkerPool>(s.threads);
-  origin_ = box_min;
 
   // Grids: an even number of cubes per axis, so the particle grid (every other vertex)
   // covers them; the small shrink keeps an exact multiple of a from gaining a cube.
@@ -158,6 +159,9 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
     cubes += cubes % 2;
     cube_counts_[axis] = cubes;
     cube_total *= cubes;
+    // Centred on the box: a symmetric body gets a symmetric grid, and when the extent is a
+    // multiple of 2a the particles lie on the box faces (where clamps usually are).
+    origin_[axis] = 0.5 * (box_min[axis] + box_max[axis]) - 0.5 * cubes * a;
   }
   if (cube_total > 100'000'000) fail("spacing " + std::to_string(a) + " gives too many cubes");
   const std::array<int, 3> particle_counts{cube_counts_[0] / 2 + 1, cube_counts_[1] / 2 + 1,
@@ -254,41 +258,43 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
     };
     if (std::all_of(rows[e].begin(), rows[e].end(), visible)) continue;
 
-    // A cut hides some corners. Take the corners of the nearest particle cell (among the 27
-    // around the element's own) that the element sees entirely: the neighbourhood keeps the
-    // shape of a cell, on the element's side of the cut.
-    double best_distance = std::numeric_limits<double>::infinity();
-    std::vector<int> best_row, candidate_row;
-    for (int dz = -1; dz <= 1; ++dz) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dx = -1; dx <= 1; ++dx) {
-          const std::array<int, 3> shifted{cell[0] + dx, cell[1] + dy, cell[2] + dz};
-          bool in_grid = true;
-          for (int axis = 0; axis < 3; ++axis) {
-            in_grid = in_grid && shifted[axis] >= 0 && shifted[axis] + 1 < particle_counts[axis];
-          }
-          if (!in_grid) continue;
-          const Vec3 cell_centre = origin_ + 2.0 * a * (Vec3(shifted[0], shifted[1], shifted[2]) +
-                                                        Vec3::Constant(0.5));
-          const double distance = (cell_centre - centres_[e]).squaredNorm();
-          if (!(distance < best_distance)) continue;
-          nearest_corners(centres_[e], shifted, 8, candidate_row);
-          if (!std::all_of(candidate_row.begin(), candidate_row.end(), visible)) continue;
+    // A cut hides some corners. The visible ones stay (they carry the coupling across the
+    // uncut part, e.g. below a crack front), and each hidden corner is replaced by the particle
+    // one step beyond its neighbour in the cell along an axis (the nearest such one that is
+    // visible and new). An element whose cell the cut cuts off entirely thus gets the
+    // neighbouring cell on its own side, keeping a cell-shaped, well-conditioned neighbourhood.
+    const auto grid_coordinates = [&](int index) {
+      return std::array<int, 3>{index % particle_counts[0],
+                                (index / particle_counts[0]) % particle_counts[1],
+                                index / (particle_counts[0] * particle_counts[1])};
+    };
+    std::vector<int> kept;
+    std::vector<int> hidden;
+    for (int index : rows[e]) (visible(index) ? kept : hidden).push_back(index);
+    for (int index : hidden) {
+      const std::array<int, 3> corner = grid_coordinates(index);
+      double best_distance = std::numeric_limits<double>::infinity();
+      int best = -1;
+      for (int axis = 0; axis < 3; ++axis) {
+        // The in-cell neighbour is one step towards the cell's other face on this axis.
+        const int step = corner[axis] == cell[axis] ? 1 : -1;
+        std::array<int, 3> beyond = corner;
+        beyond[axis] += 2 * step;
+        if (beyond[axis] < 0 || beyond[axis] >= particle_counts[axis]) continue;
+        const int candidate = grid_particle(beyond[0], beyond[1], beyond[2]);
+        if (std::find(kept.begin(), kept.end(), candidate) != kept.end() || !visible(candidate)) {
+          continue;
+        }
+        const double distance = (grid_particle_position(candidate) - centres_[e]).squaredNorm();
+        if (distance < best_distance || (distance == best_distance && candidate < best)) {
           best_distance = distance;
-          nearest_corners(centres_[e], shifted, s.neighbours, best_row);
+          best = candidate;
         }
       }
+      if (best >= 0) kept.push_back(best);
     }
-    if (!best_row.empty()) {
-      rows[e] = best_row;
-      continue;
-    }
-    // No whole cell is visible: keep the visible corners and add the nearest visible
-    // particles (ties to the lower index) until there are enough spanning 3 dimensions.
-    std::vector<int> kept;
-    for (int index : rows[e]) {
-      if (visible(index)) kept.push_back(index);
-    }
+    // Still too few, or coplanar: add the nearest visible particles (ties to the lower index)
+    // until there are enough spanning 3 dimensions.
     std::vector<std::pair<double, int>> candidates;
     for (int k = std::max(0, cell[2] - 2); k <= std::min(particle_counts[2] - 1, cell[2] + 3); ++k) {
       for (int j = std::max(0, cell[1] - 2); j <= std::min(particle_counts[1] - 1, cell[1] + 3); ++j) {
@@ -348,7 +354,6 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
   shape_values_.assign(slots, 0.0);
   shape_gradients_.assign(slots, Vec3::Zero());
   matching_coefficients_.assign(slots, Vec3::Zero());
-  contributions_.assign(slots, Vec3::Zero());
   for (int e = 0; e < elements; ++e) {
     row_lengths_[e] = static_cast<int>(rows[e].size());
     for (int k = 0; k < row_lengths_[e]; ++k) {
@@ -451,7 +456,6 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
     });
   }
   drop_unused_particles();
-  rebuild_particle_slots();
 }
 
 void CorotationalEfg::compute_element(int element) {
@@ -540,25 +544,6 @@ void CorotationalEfg::drop_unused_particles() {
   }
 }
 
-void CorotationalEfg::rebuild_particle_slots() {
-  const int particles = node_count();
-  particle_slot_offsets_.assign(static_cast<size_t>(particles) + 1, 0);
-  for (int e = 0; e < element_count(); ++e) {
-    const size_t base = static_cast<size_t>(e) * stride_;
-    for (int k = 0; k < row_lengths_[e]; ++k) ++particle_slot_offsets_[neighbours_[base + k] + 1];
-  }
-  for (int p = 0; p < particles; ++p) particle_slot_offsets_[p + 1] += particle_slot_offsets_[p];
-  particle_slots_.assign(particle_slot_offsets_.back(), 0);
-  std::vector<int> cursor(particle_slot_offsets_.begin(), particle_slot_offsets_.end() - 1);
-  // Element order, then slot order: the fixed summation order of every gather.
-  for (int e = 0; e < element_count(); ++e) {
-    const size_t base = static_cast<size_t>(e) * stride_;
-    for (int k = 0; k < row_lengths_[e]; ++k) {
-      particle_slots_[cursor[neighbours_[base + k]]++] = static_cast<int>(base + k);
-    }
-  }
-}
-
 void CorotationalEfg::restride(int stride) {
   const int elements = element_count();
   const size_t slots = static_cast<size_t>(elements) * stride;
@@ -580,7 +565,6 @@ void CorotationalEfg::restride(int stride) {
   shape_values_.swap(values);
   shape_gradients_.swap(gradients);
   matching_coefficients_.swap(coefficients);
-  contributions_.assign(slots, Vec3::Zero());
   stride_ = stride;
 }
 
@@ -655,7 +639,6 @@ void CorotationalEfg::set_neighbourhood(int element, std::span<const int> partic
   masses_.swap(masses);
   rotations_[element] = Mat3::Identity();
   orientations_[element] = Quaternion::Identity();
-  rebuild_particle_slots();
 }
 
 Quaternion CorotationalEfg::element_rotation(const Vector& x, int element,
@@ -678,75 +661,85 @@ void CorotationalEfg::update_rotations(const Vector& x) {
   });
 }
 
-void CorotationalEfg::gather(Vector& out) const {
+template <typename ElementTerm>
+void CorotationalEfg::accumulate(Vector& out, const ElementTerm& term) const {
+  const int elements = element_count();
+  const Index size = 3 * static_cast<Index>(node_count());
+  // Fixed partitions of the elements, each scattering into its own buffer in element order;
+  // the buffers are then added in partition order. Neither depends on the thread count.
+  pool_->run(partition_count, [&](int begin, int end) {
+    for (int part = begin; part < end; ++part) {
+      Vector& buffer = partition_buffers_[part];
+      if (buffer.size() != size) buffer.resize(size);
+      buffer.setZero();
+      const int first = static_cast<int>(static_cast<long long>(elements) * part / partition_count);
+      const int last = static_cast<int>(static_cast<long long>(elements) * (part + 1) / partition_count);
+      for (int e = first; e < last; ++e) term(e, buffer);
+    }
+  });
   pool_->run(node_count(), [&](int begin, int end) {
-    for (int p = begin; p < end; ++p) {
-      Vec3 sum = Vec3::Zero();
-      for (int s = particle_slot_offsets_[p]; s < particle_slot_offsets_[p + 1]; ++s) {
-        sum += contributions_[particle_slots_[s]];
-      }
-      out.segment<3>(3 * static_cast<Index>(p)) += sum;
+    for (Index i = 3 * static_cast<Index>(begin); i < 3 * static_cast<Index>(end); ++i) {
+      double sum = partition_buffers_[0][i];
+      for (int part = 1; part < partition_count; ++part) sum += partition_buffers_[part][i];
+      out[i] += sum;
     }
   });
 }
 
 void CorotationalEfg::add_elastic_forces(const Vector& x, Vector& f) const {
-  pool_->run(element_count(), [&](int begin, int end) {
-    for (int e = begin; e < end; ++e) {
-      const size_t base = static_cast<size_t>(e) * stride_;
-      const int length = row_lengths_[e];
-      Mat3 gradient = Mat3::Zero();
-      for (int k = 0; k < length; ++k) {
-        gradient += x.segment<3>(3 * static_cast<Index>(neighbours_[base + k])) *
-                    shape_gradients_[base + k].transpose();
-      }
-      // grad u = sum_n (R^T x_n - X_n) (x) grad phi_n = R^T sum_n x_n (x) grad phi_n - G0.
-      const Mat3& rotation = rotations_[e];
-      const StrainStress local =
-          hooke(rotation.transpose() * gradient - rest_gradients_[e], lambda_, mu_);
-      const Mat3 scaled = -volumes_[e] * rotation * local.stress;
-      for (int k = 0; k < length; ++k) contributions_[base + k] = scaled * shape_gradients_[base + k];
+  accumulate(f, [&](int e, Vector& buffer) {
+    const size_t base = static_cast<size_t>(e) * stride_;
+    const int length = row_lengths_[e];
+    Mat3 gradient = Mat3::Zero();
+    for (int k = 0; k < length; ++k) {
+      gradient.noalias() += x.segment<3>(3 * static_cast<Index>(neighbours_[base + k])) *
+                            shape_gradients_[base + k].transpose();
+    }
+    // grad u = sum_n (R^T x_n - X_n) (x) grad phi_n = R^T sum_n x_n (x) grad phi_n - G0.
+    const Mat3& rotation = rotations_[e];
+    const StrainStress local =
+        hooke(rotation.transpose() * gradient - rest_gradients_[e], lambda_, mu_);
+    const Mat3 scaled = -volumes_[e] * rotation * local.stress;
+    for (int k = 0; k < length; ++k) {
+      buffer.segment<3>(3 * static_cast<Index>(neighbours_[base + k])).noalias() +=
+          scaled * shape_gradients_[base + k];
     }
   });
-  gather(f);
 }
 
 void CorotationalEfg::add_stiffness_product(const Vector& p, Vector& out) const {
-  pool_->run(element_count(), [&](int begin, int end) {
-    for (int e = begin; e < end; ++e) {
-      const size_t base = static_cast<size_t>(e) * stride_;
-      const int length = row_lengths_[e];
-      Mat3 gradient = Mat3::Zero();
-      for (int k = 0; k < length; ++k) {
-        gradient += p.segment<3>(3 * static_cast<Index>(neighbours_[base + k])) *
-                    shape_gradients_[base + k].transpose();
-      }
-      const Mat3& rotation = rotations_[e];
-      const StrainStress local = hooke(rotation.transpose() * gradient, lambda_, mu_);
-      const Mat3 scaled = volumes_[e] * rotation * local.stress;
-      for (int k = 0; k < length; ++k) contributions_[base + k] = scaled * shape_gradients_[base + k];
+  accumulate(out, [&](int e, Vector& buffer) {
+    const size_t base = static_cast<size_t>(e) * stride_;
+    const int length = row_lengths_[e];
+    Mat3 gradient = Mat3::Zero();
+    for (int k = 0; k < length; ++k) {
+      gradient.noalias() += p.segment<3>(3 * static_cast<Index>(neighbours_[base + k])) *
+                            shape_gradients_[base + k].transpose();
+    }
+    const Mat3& rotation = rotations_[e];
+    const StrainStress local = hooke(rotation.transpose() * gradient, lambda_, mu_);
+    const Mat3 scaled = volumes_[e] * rotation * local.stress;
+    for (int k = 0; k < length; ++k) {
+      buffer.segment<3>(3 * static_cast<Index>(neighbours_[base + k])).noalias() +=
+          scaled * shape_gradients_[base + k];
     }
   });
-  gather(out);
 }
 
 void CorotationalEfg::add_stiffness_diagonal(Vector& diagonal) const {
-  pool_->run(element_count(), [&](int begin, int end) {
-    for (int e = begin; e < end; ++e) {
-      const size_t base = static_cast<size_t>(e) * stride_;
-      const Mat3& rotation = rotations_[e];
-      for (int k = 0; k < row_lengths_[e]; ++k) {
-        // K_nn = V R (lambda g g^T + mu g g^T + mu |g|^2 I) R^T (tet_element.hpp's block with
-        // a = b), whose diagonal needs only R g.
-        const Vec3& g = shape_gradients_[base + k];
-        const Vec3 turned = rotation * g;
-        contributions_[base + k] =
-            volumes_[e] * ((lambda_ + mu_) * turned.cwiseProduct(turned) +
-                           Vec3::Constant(mu_ * g.squaredNorm()));
-      }
+  accumulate(diagonal, [&](int e, Vector& buffer) {
+    const size_t base = static_cast<size_t>(e) * stride_;
+    const Mat3& rotation = rotations_[e];
+    for (int k = 0; k < row_lengths_[e]; ++k) {
+      // K_nn = V R (lambda g g^T + mu g g^T + mu |g|^2 I) R^T (tet_element.hpp's block with
+      // a = b), whose diagonal needs only R g.
+      const Vec3& g = shape_gradients_[base + k];
+      const Vec3 turned = rotation * g;
+      buffer.segment<3>(3 * static_cast<Index>(neighbours_[base + k])) +=
+          volumes_[e] * ((lambda_ + mu_) * turned.cwiseProduct(turned) +
+                         Vec3::Constant(mu_ * g.squaredNorm()));
     }
   });
-  gather(diagonal);
 }
 
 double CorotationalEfg::elastic_energy(const Vector& x) const {

@@ -17,10 +17,11 @@
 // GPU backend can take the same arrays. Neighbourhoods stay editable (set_neighbourhood);
 // particles are never added.
 //
-// Element loops run on `threads` threads. Each element writes its per-neighbour contributions
-// to its own slots; each particle then sums its slots in a fixed order (element, then slot).
-// The result is therefore bitwise the same for any thread count. The const methods use
-// internal scratch memory: one call at a time per model.
+// Element loops run on `threads` threads over 4 fixed partitions of the elements: each
+// partition scatters into its own buffer in element order, and the buffers are added in
+// partition order. The result is therefore bitwise the same for any thread count (more than 4
+// threads would idle). The const methods use internal scratch memory: one call at a time per
+// model.
 #pragma once
 
 #include "physics/core/model.hpp"
@@ -38,8 +39,9 @@ namespace incise::physics {
 
 class WorkerPool;
 
-// A zero-thickness planar cut: the parallelogram corner + s edge_u + t edge_v, s, t in [0, 1].
-// A point exactly on its plane counts as lying on the side edge_u x edge_v points to.
+// A zero-thickness planar cut: the open parallelogram corner + s edge_u + t edge_v, s, t in
+// (0, 1). A point exactly on its plane counts as lying on the side edge_u x edge_v points to;
+// a segment through the rim is not cut.
 struct CutRectangle {
   Vec3 corner = Vec3::Zero();
   Vec3 edge_u = Vec3::Zero();
@@ -77,7 +79,9 @@ struct SurfaceEmbedding {
 
 class CorotationalEfg final : public DeformableModel {
  public:
-  // The body is {X in [box_min, box_max] : inside(X)}; the grids start at box_min.
+  // The body is {X in [box_min, box_max] : inside(X)}. The grids are centred on the box, with
+  // an even number of cubes of side a per axis covering it: when an extent is a multiple of
+  // 2a, particles lie on both faces.
   // Throws std::invalid_argument on bad settings or material, if nothing is inside, if an
   // integration point has no valid neighbourhood, or if a particle's lumped mass is not
   // positive (the message names the element or the particle).
@@ -118,11 +122,12 @@ class CorotationalEfg final : public DeformableModel {
   const std::vector<double>& element_volumes() const { return volumes_; }
   const std::vector<double>& element_supports() const { return supports_; }  // h per element
   const std::vector<Mat3>& rotations() const { return rotations_; }
-  // Grid coordinates (i, j, k) of each particle (position box_min + 2a (i, j, k)) and of each
-  // element's cube (centre box_min + a (i + 1/2, j + 1/2, k + 1/2)).
+  // Grid coordinates (i, j, k) of each particle (position grid_origin() + 2a (i, j, k)) and of
+  // each element's cube (centre grid_origin() + a (i + 1/2, j + 1/2, k + 1/2)).
   const std::vector<std::array<int, 3>>& particle_grid_coordinates() const { return particle_cells_; }
   const std::vector<std::array<int, 3>>& element_grid_coordinates() const { return element_cubes_; }
   double spacing() const { return settings_.spacing; }
+  const Vec3& grid_origin() const { return origin_; }
   const EfgSettings& settings() const { return settings_; }
   const Material& material() const { return material_; }
   double total_volume() const;  // sum of V_e
@@ -150,12 +155,13 @@ class CorotationalEfg final : public DeformableModel {
   void compute_masses();
   // Removes the particles no row refers to (their masses must be zero) and renumbers.
   void drop_unused_particles();
-  void rebuild_particle_slots();
   void restride(int stride);
   Eigen::Quaterniond element_rotation(const Vector& x, int element,
                                       const Eigen::Quaterniond& start) const;
-  // Runs the per-element contribution loop, then adds each particle's slots to out (3n).
-  void gather(Vector& out) const;
+  // out (3n) += the sum over elements of term(element, buffer), which adds the element's
+  // contributions to buffer (3n); see the file comment for the summation order.
+  template <typename ElementTerm>
+  void accumulate(Vector& out, const ElementTerm& term) const;
 
   Material material_;
   EfgSettings settings_;
@@ -168,9 +174,6 @@ class CorotationalEfg final : public DeformableModel {
   Vector rest_;
   Vector masses_;
   std::vector<std::array<int, 3>> particle_cells_;
-  // Slots that hold each particle's contributions (compressed rows, element order).
-  std::vector<int> particle_slot_offsets_;
-  std::vector<int> particle_slots_;
 
   // Elements.
   std::vector<Vec3> centres_;
@@ -190,8 +193,10 @@ class CorotationalEfg final : public DeformableModel {
   std::vector<Vec3> shape_gradients_;
   std::vector<Vec3> matching_coefficients_;
 
-  // Scratch of the element loops: one vector per slot, and one energy per element.
-  mutable std::vector<Vec3> contributions_;
+  // Scratch of the element loops: one accumulation buffer per partition of the elements, and
+  // one energy per element.
+  static constexpr int partition_count = 4;
+  mutable std::array<Vector, partition_count> partition_buffers_;
   mutable std::vector<double> element_energies_;
   std::unique_ptr<WorkerPool> pool_;
 };

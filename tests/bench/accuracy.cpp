@@ -1,2 +1,815 @@
+// The error-against-run-time report (issue 3; Magnoux 2020 Table 4.1 with our dimensions).
+//
+// Cases: a beam of regular hexagonal section (circumradius 15 mm, vertices on +-y), 0.2 m
+// along +x, clamped at x = 0, E = 10 MPa, nu = 0.3, rho = 1000, under a body force of 9.81
+// m/s^2 along -z (`bend`) or +x (`stretch`); the `_cut` cases add a zero-thickness planar cut
+// at x = 0.1 m from the top (z max) down to z = 0 across the whole width; `b1` is the square
+// beam 0.2 x 0.02 x 0.02 under its own weight.
+//
+// The cut exists only as geometry, built in before any solve (the cutter is a later issue):
+// - EFG (variant suffix `_geomcut`): integration-point-to-particle links that cross the cut
+//   rectangle are removed and the neighbourhood re-selected on the element's own side
+//   (EfgSettings::cuts);
+// - FEM (suffix `_geomcut`): a conforming mesh whose nodes on the cut (x = 0.1, z > 0) are
+//   duplicated for the tets on the x < 0.1 side.
+//
+// Error: |mean tip displacement - reference| / |reference| x 100, the mean taken over the tip
+// face x = L (area-weighted: exact face integrals for the tets; for EFG, the MLS displacement
+// at the centroids of a fine triangulation of the face, through the surface embedding).
+// Reference: 10-node tets solved statically on the finest mesh of a refinement sequence
+// printed in the progress and written to references.json.
+//
+// Equilibrium: each model's linear static solution (sparse direct solve of its stiffness at
+// rest), i.e. the small-strain problem the reference solves. ms_per_step: the mean wall time
+// of implicit Euler steps at dt = 1/60 from rest under the load, with the scene-like CG
+// (tolerance 1e-6, Jacobi preconditioner), and cg_iterations their mean iteration count.
 #include "tests/bench/accuracy.hpp"
-namespace incise::bench { int run_accuracy_bench(bool, const std::filesystem::path&, std::ostream&) { return 1; } }
+
+#include "physics/core/implicit_euler.hpp"
+#include "physics/efg/corotational_efg.hpp"
+#include "physics/efg/efg_static.hpp"
+#include "physics/fem/corotational_fem.hpp"
+#include "physics/fem/static_solve.hpp"
+#include "physics/fem/tet_mesh.hpp"
+
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <iomanip>
+#include <map>
+#include <memory>
+#include <numbers>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace incise::bench {
+
+namespace {
+
+using physics::CorotationalEfg;
+using physics::CorotationalTetFem;
+using physics::DeformableModel;
+using physics::EfgSettings;
+using physics::Material;
+using physics::QuadraticTetMesh;
+using physics::SparseMatrix;
+using physics::TetMesh;
+using physics::Vec3;
+using physics::Vector;
+using Index = Eigen::Index;
+using Clock = std::chrono::steady_clock;
+
+constexpr double beam_length = 0.2;
+constexpr double hexagon_radius = 0.015;
+constexpr double square_half_side = 0.01;
+constexpr double cut_x = 0.1;
+constexpr double gravity = 9.81;
+const Material beam_material{10e6, 0.3, 1000};
+// Euler-Bernoulli q L^4 / (8 E I) plus the Timoshenko shear term, as in the FEM tests.
+constexpr double b1_beam_theory_tip = 5.947e-3;
+
+double hexagon_half_height() { return hexagon_radius * std::sqrt(3.0) / 2; }
+
+enum class Shape { hexagon, square };
+
+struct Case {
+  std::string name;
+  Shape shape;
+  Vec3 acceleration;
+  bool cut;
+};
+
+std::vector<Case> all_cases() {
+  return {{"bend", Shape::hexagon, Vec3(0, 0, -gravity), false},
+          {"stretch", Shape::hexagon, Vec3(gravity, 0, 0), false},
+          {"bend_cut", Shape::hexagon, Vec3(0, 0, -gravity), true},
+          {"stretch_cut", Shape::hexagon, Vec3(gravity, 0, 0), true},
+          {"b1", Shape::square, Vec3(0, 0, -gravity), false}};
+}
+
+bool inside_shape(Shape shape, const Vec3& p) {
+  if (p.x() < 0 || p.x() > beam_length) return false;
+  if (shape == Shape::square) {
+    return std::abs(p.y()) <= square_half_side && std::abs(p.z()) <= square_half_side;
+  }
+  // Regular hexagon with vertices (+-R, 0) and (+-R/2, +-R sqrt(3)/2).
+  const double y = std::abs(p.y()), z = std::abs(p.z());
+  return z <= hexagon_half_height() && std::sqrt(3.0) * y + z <= std::sqrt(3.0) * hexagon_radius;
+}
+
+Vec3 box_min(Shape shape) {
+  return shape == Shape::square ? Vec3(0, -square_half_side, -square_half_side)
+                                : Vec3(0, -hexagon_radius, -hexagon_half_height());
+}
+
+Vec3 box_max(Shape shape) {
+  return shape == Shape::square ? Vec3(beam_length, square_half_side, square_half_side)
+                                : Vec3(beam_length, hexagon_radius, hexagon_half_height());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sections and meshes.
+
+struct Section {
+  std::vector<Eigen::Vector2d> points;  // (y, z)
+  std::vector<std::array<int, 3>> triangles;
+};
+
+// The hexagon filled with a triangular lattice of spacing R / m: lattice point (i, j) at
+// R/m (i + j/2, j sqrt(3)/2) for |i|, |j|, |i + j| <= m. Its lines j = const include z = 0,
+// where the cut ends, and its border is exactly the hexagon.
+Section hexagon_section(int m) {
+  Section section;
+  std::map<std::pair<int, int>, int> index;
+  for (int j = -m; j <= m; ++j) {
+    for (int i = -m; i <= m; ++i) {
+      if (std::abs(i + j) > m) continue;
+      index[{i, j}] = static_cast<int>(section.points.size());
+      section.points.emplace_back(hexagon_radius / m * (i + 0.5 * j),
+                                  hexagon_radius / m * (std::sqrt(3.0) / 2 * j));
+    }
+  }
+  const auto find = [&](int i, int j) {
+    const auto it = index.find({i, j});
+    return it == index.end() ? -1 : it->second;
+  };
+  for (int j = -m; j < m; ++j) {
+    for (int i = -m; i < m; ++i) {
+      const int a = find(i, j), b = find(i + 1, j), c = find(i, j + 1), d = find(i + 1, j + 1);
+      if (a >= 0 && b >= 0 && c >= 0) section.triangles.push_back({a, b, c});
+      if (b >= 0 && d >= 0 && c >= 0) section.triangles.push_back({b, d, c});
+    }
+  }
+  return section;
+}
+
+// The square section as a grid of cells x cells squares, two triangles each.
+Section square_section(int cells) {
+  Section section;
+  const double step = 2 * square_half_side / cells;
+  for (int j = 0; j <= cells; ++j) {
+    for (int i = 0; i <= cells; ++i) {
+      section.points.emplace_back(-square_half_side + i * step, -square_half_side + j * step);
+    }
+  }
+  for (int j = 0; j < cells; ++j) {
+    for (int i = 0; i < cells; ++i) {
+      const int a = i + (cells + 1) * j, b = a + 1, c = a + cells + 1, d = c + 1;
+      section.triangles.push_back({a, b, d});
+      section.triangles.push_back({a, d, c});
+    }
+  }
+  return section;
+}
+
+double triangle_area(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
+  const Eigen::Vector2d u = b - a, v = c - a;
+  return 0.5 * std::abs(u.x() * v.y() - u.y() * v.x());
+}
+
+// Grades the hexagon towards z = 0, where the cut ends: z' = H sign(z) |z / H|^power, and y
+// scaled so that the border stays the hexagon's (|y| <= R - |z| / sqrt 3). Lattice lines of
+// constant z stay straight, so z = 0 remains a line of the mesh.
+Section graded_towards_crack_front(Section section, double power) {
+  const double h = hexagon_half_height();
+  for (Eigen::Vector2d& point : section.points) {
+    const double z = point.y();
+    const double graded = std::copysign(h * std::pow(std::abs(z) / h, power), z);
+    point.x() *= (hexagon_radius - std::abs(graded) / std::sqrt(3.0)) /
+                 (hexagon_radius - std::abs(z) / std::sqrt(3.0));
+    point.y() = graded;
+  }
+  return section;
+}
+
+// Layer positions along x: uniform, or (for the cut) graded towards x = cut_x from both sides
+// with the same power law, `layers` even so that x = cut_x is a layer.
+std::vector<double> layer_positions(int layers, bool towards_cut, double power) {
+  std::vector<double> x(layers + 1);
+  for (int k = 0; k <= layers; ++k) {
+    if (!towards_cut) {
+      x[k] = beam_length * k / layers;
+      continue;
+    }
+    const int half = layers / 2;
+    if (k <= half) {
+      x[k] = cut_x * (1 - std::pow(1 - static_cast<double>(k) / half, power));
+    } else {
+      x[k] = cut_x + (beam_length - cut_x) * std::pow(static_cast<double>(k - half) / half, power);
+    }
+  }
+  return x;
+}
+
+// The section extruded into slabs along x, each triangular prism split into 3 tets by the
+// usual rule on sorted corner indices (the quad faces get the same diagonal from both sides,
+// so the mesh is conforming).
+TetMesh extrude(const Section& section, const std::vector<double>& layer_x) {
+  TetMesh mesh;
+  const int count = static_cast<int>(section.points.size());
+  const int layers = static_cast<int>(layer_x.size()) - 1;
+  mesh.rest.resize(3 * static_cast<Index>(count) * (layers + 1));
+  for (int k = 0; k <= layers; ++k) {
+    for (int s = 0; s < count; ++s) {
+      mesh.rest.segment<3>(3 * (s + static_cast<Index>(count) * k)) =
+          Vec3(layer_x[k], section.points[s].x(), section.points[s].y());
+    }
+  }
+  for (int k = 0; k < layers; ++k) {
+    for (auto triangle : section.triangles) {
+      std::sort(triangle.begin(), triangle.end());
+      const int bottom = count * k, top = count * (k + 1);
+      const int a0 = triangle[0] + bottom, b0 = triangle[1] + bottom, c0 = triangle[2] + bottom;
+      const int a1 = triangle[0] + top, b1 = triangle[1] + top, c1 = triangle[2] + top;
+      for (std::array<int, 4> tet : {std::array{a0, b0, c0, a1}, std::array{b0, c0, a1, b1},
+                                     std::array{c0, a1, b1, c1}}) {
+        physics::Mat3 shape;
+        for (int c = 0; c < 3; ++c) {
+          shape.col(c) = mesh.rest.segment<3>(3 * tet[c + 1]) - mesh.rest.segment<3>(3 * tet[0]);
+        }
+        if (shape.determinant() < 0) std::swap(tet[1], tet[2]);
+        mesh.tets.push_back(tet);
+      }
+    }
+  }
+  return mesh;
+}
+
+// 10-node tets from 4-node ones: a midpoint node per edge, shared between tets.
+struct QuadraticMesh {
+  QuadraticTetMesh mesh;
+  std::map<std::pair<int, int>, int> midpoints;  // sorted corner pair -> node
+};
+
+QuadraticMesh make_quadratic(const TetMesh& linear) {
+  QuadraticMesh result;
+  std::vector<Vec3> nodes;
+  for (Index n = 0; n < linear.rest.size() / 3; ++n) nodes.push_back(linear.rest.segment<3>(3 * n));
+  for (const auto& tet : linear.tets) {
+    std::array<int, 10> quadratic{};
+    for (int c = 0; c < 4; ++c) quadratic[c] = tet[c];
+    for (int e = 0; e < 6; ++e) {
+      const int a = tet[physics::quadratic_tet_edges[e][0]];
+      const int b = tet[physics::quadratic_tet_edges[e][1]];
+      const std::pair<int, int> key{std::min(a, b), std::max(a, b)};
+      auto it = result.midpoints.find(key);
+      if (it == result.midpoints.end()) {
+        it = result.midpoints.emplace(key, static_cast<int>(nodes.size())).first;
+        nodes.push_back(0.5 * (nodes[a] + nodes[b]));
+      }
+      quadratic[4 + e] = it->second;
+    }
+    result.mesh.tets.push_back(quadratic);
+  }
+  result.mesh.rest.resize(3 * static_cast<Index>(nodes.size()));
+  for (size_t n = 0; n < nodes.size(); ++n) result.mesh.rest.segment<3>(3 * n) = nodes[n];
+  return result;
+}
+
+// Opens the cut: nodes on x = cut_x with z > 0 get a twin used by the tets on the x < cut_x
+// side. Nodes at z = 0 stay shared: they are the crack front.
+template <size_t corners>
+void open_cut(Vector& rest, std::vector<std::array<int, corners>>& tets) {
+  std::map<int, int> twin;
+  std::vector<Vec3> added;
+  const Index original = rest.size() / 3;
+  for (auto& tet : tets) {
+    double centroid_x = 0;
+    for (int c = 0; c < 4; ++c) centroid_x += rest[3 * tet[c]] / 4;
+    if (centroid_x >= cut_x) continue;
+    for (int& node : tet) {
+      const Vec3 p = rest.segment<3>(3 * node);
+      if (std::abs(p.x() - cut_x) > 1e-12 || p.z() <= 1e-12) continue;
+      auto it = twin.find(node);
+      if (it == twin.end()) {
+        it = twin.emplace(node, static_cast<int>(original + added.size())).first;
+        added.push_back(p);
+      }
+      node = it->second;
+    }
+  }
+  rest.conservativeResize(3 * (original + static_cast<Index>(added.size())));
+  for (size_t n = 0; n < added.size(); ++n) rest.segment<3>(3 * (original + n)) = added[n];
+}
+
+// Triangles of the tip face (x = L) of a linear mesh, with their areas.
+std::vector<std::pair<std::array<int, 3>, double>> tip_triangles(const TetMesh& mesh) {
+  std::vector<std::pair<std::array<int, 3>, double>> result;
+  for (const auto& triangle : physics::boundary_triangles(mesh.tets)) {
+    bool on_tip = true;
+    for (int node : triangle) on_tip = on_tip && std::abs(mesh.rest[3 * node] - beam_length) < 1e-12;
+    if (!on_tip) continue;
+    const Vec3 a = mesh.rest.segment<3>(3 * triangle[0]), b = mesh.rest.segment<3>(3 * triangle[1]),
+               c = mesh.rest.segment<3>(3 * triangle[2]);
+    result.push_back({triangle, 0.5 * (b - a).cross(c - a).norm()});
+  }
+  return result;
+}
+
+// Area-weighted mean over the tip face of a linear field (the mean of the corners per
+// triangle) or of a quadratic one (the 6-node triangle integrates to the mean of its
+// midpoints: its corner functions integrate to zero).
+Vec3 tip_mean(const TetMesh& linear, const Vector& u, const QuadraticMesh* quadratic) {
+  Vec3 sum = Vec3::Zero();
+  double area = 0;
+  for (const auto& [triangle, triangle_area] : tip_triangles(linear)) {
+    Vec3 mean = Vec3::Zero();
+    for (int e = 0; e < 3; ++e) {
+      if (quadratic != nullptr) {
+        const int a = triangle[e], b = triangle[(e + 1) % 3];
+        mean += u.segment<3>(3 * quadratic->midpoints.at({std::min(a, b), std::max(a, b)})) / 3;
+      } else {
+        mean += u.segment<3>(3 * triangle[e]) / 3;
+      }
+    }
+    sum += triangle_area * mean;
+    area += triangle_area;
+  }
+  return sum / area;
+}
+
+std::vector<uint8_t> clamped_nodes(const Vector& rest) {
+  return physics::nodes_in_box(rest, Vec3::Constant(-1), Vec3(1e-9, 1, 1));
+}
+
+// A tet mesh of a case's body at a resolution: `section` lattice subdivisions (hexagon) or
+// cells per side (square), `layers` along x. `graded`: refined towards the crack front of the
+// cut cases (used for their references; the real-time tet4 rows stay uniform).
+constexpr double grading_power = 2.0;
+TetMesh case_mesh(const Case& c, int section, int layers, bool graded = false) {
+  if (c.shape == Shape::square) return extrude(square_section(section), layer_positions(layers, false, 1));
+  const bool grade = graded && c.cut;
+  const Section hexagon = grade ? graded_towards_crack_front(hexagon_section(section), grading_power)
+                                : hexagon_section(section);
+  return extrude(hexagon, layer_positions(layers, grade, grading_power));
+}
+
+// ---------------------------------------------------------------------------------------------
+// A linear model from an assembled stiffness (the 10-node tets have no corotational model):
+// drives the same implicit Euler integrator for the timing of the tet10 rows.
+
+class AssembledLinearModel final : public DeformableModel {
+ public:
+  AssembledLinearModel(SparseMatrix stiffness, Vector rest, Vector masses)
+      : stiffness_(std::move(stiffness)), rest_(std::move(rest)), masses_(std::move(masses)) {}
+  int node_count() const override { return static_cast<int>(masses_.size()); }
+  const Vector& rest_positions() const override { return rest_; }
+  const Vector& lumped_masses() const override { return masses_; }
+  void update_rotations(const Vector&) override {}
+  void add_elastic_forces(const Vector& x, Vector& f) const override { f -= stiffness_ * (x - rest_); }
+  void add_stiffness_product(const Vector& p, Vector& out) const override { out += stiffness_ * p; }
+  void add_stiffness_diagonal(Vector& diagonal) const override { diagonal += stiffness_.diagonal(); }
+  double elastic_energy(const Vector& x) const override {
+    const Vector u = x - rest_;
+    return 0.5 * u.dot(stiffness_ * u);
+  }
+
+ private:
+  SparseMatrix stiffness_;
+  Vector rest_;
+  Vector masses_;
+};
+
+// HRZ lumping of the 10-node tet (the row sums give negative corner masses): the consistent
+// diagonal, integral N_a^2 = V/70 (corner) and 8V/105 (midpoint), scaled to the element mass,
+// gives rho V/36 per corner and 4 rho V/27 per midpoint.
+Vector quadratic_lumped_masses(const QuadraticTetMesh& mesh, double density) {
+  Vector masses = Vector::Zero(mesh.rest.size() / 3);
+  for (const auto& tet : mesh.tets) {
+    physics::Mat3 shape;
+    for (int c = 0; c < 3; ++c) {
+      shape.col(c) = mesh.rest.segment<3>(3 * tet[c + 1]) - mesh.rest.segment<3>(3 * tet[0]);
+    }
+    const double mass = density * shape.determinant() / 6;
+    for (int c = 0; c < 4; ++c) masses[tet[c]] += mass / 36;
+    for (int e = 4; e < 10; ++e) masses[tet[e]] += 4 * mass / 27;
+  }
+  return masses;
+}
+
+struct Timing {
+  double ms_per_step = 0;
+  double cg_iterations = 0;
+  bool converged = true;
+};
+
+// Implicit Euler from rest under the load at dt = 1/60 with the scene-like CG.
+Timing time_steps(DeformableModel& model, const std::vector<uint8_t>& fixed, const Vector& load,
+                  int steps) {
+  physics::State state{model.rest_positions(), Vector::Zero(model.rest_positions().size())};
+  physics::ImplicitEulerSettings settings;
+  settings.dt = 1.0 / 60;
+  settings.rayleigh_mass = 2;  // the scenes' default damping
+  settings.cg.tolerance = 1e-6;
+  settings.cg.max_iterations = 2000;
+  Timing timing;
+  const auto start = Clock::now();
+  for (int step = 0; step < steps; ++step) {
+    const physics::StepReport report =
+        physics::implicit_euler_step(model, state, fixed, load, {}, settings);
+    timing.cg_iterations += report.cg.iterations;
+    timing.converged = timing.converged && report.cg.converged && !report.nonfinite;
+  }
+  const std::chrono::duration<double, std::milli> elapsed = Clock::now() - start;
+  timing.ms_per_step = elapsed.count() / steps;
+  timing.cg_iterations /= steps;
+  return timing;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output.
+
+struct Row {
+  std::string case_name, model, variant;
+  std::string resolution;
+  long long dofs = 0, elements = 0;
+  double ms_per_step = 0, cg_iterations = 0, error_pct = 0;
+  bool converged = true;
+};
+
+struct Reference {
+  Vec3 tip = Vec3::Zero();
+  std::string element;
+  struct Level {
+    std::string mesh;
+    long long dofs = 0;
+    Vec3 tip = Vec3::Zero();
+    double change_pct = 0;  // against the previous level
+  };
+  std::vector<Level> levels;
+};
+
+class Progress {
+ public:
+  Progress(std::ostream& stream, int total) : stream_(stream), total_(total) {}
+  void step(const std::string& what) {
+    ++done_;
+    draw(what);
+  }
+  void draw(const std::string& what) {
+    constexpr int width = 30;
+    const int filled = total_ > 0 ? width * done_ / total_ : width;
+    std::string line = "\r[" + std::string(filled, '#') + std::string(width - filled, '.') + "] " +
+                       std::to_string(done_) + "/" + std::to_string(total_) + " " + what;
+    if (line.size() < last_length_) line += std::string(last_length_ - line.size(), ' ');
+    last_length_ = line.size();
+    stream_ << line << std::flush;
+  }
+  // A full line above the bar.
+  void note(const std::string& text) {
+    stream_ << "\r" << text;
+    if (text.size() + 1 < last_length_) stream_ << std::string(last_length_ - text.size() - 1, ' ');
+    stream_ << "\n";
+    last_length_ = 0;
+  }
+  void finish() { stream_ << "\n"; }
+
+ private:
+  std::ostream& stream_;
+  int total_;
+  int done_ = 0;
+  size_t last_length_ = 0;
+};
+
+std::string format(double value, int precision = 4) {
+  std::ostringstream stream;
+  stream << std::setprecision(precision) << value;
+  return stream.str();
+}
+
+std::string json_vector(const Vec3& v) {
+  std::ostringstream stream;
+  stream << std::setprecision(10) << "[" << v.x() << ", " << v.y() << ", " << v.z() << "]";
+  return stream.str();
+}
+
+void write_csv(const std::filesystem::path& path, const std::vector<Row>& rows) {
+  std::ofstream csv(path);
+  csv << "case,model,variant,resolution,dofs,elements,ms_per_step,cg_iterations,error_pct\n";
+  for (const Row& row : rows) {
+    csv << row.case_name << "," << row.model << "," << row.variant << "," << row.resolution << ","
+        << row.dofs << "," << row.elements << "," << std::fixed << std::setprecision(3)
+        << row.ms_per_step << "," << std::setprecision(1) << row.cg_iterations << ","
+        << std::setprecision(4) << row.error_pct << std::defaultfloat << "\n";
+  }
+}
+
+void write_references(const std::filesystem::path& path, const std::vector<Case>& cases,
+                      const std::map<std::string, Reference>& references) {
+  std::ofstream json(path);
+  json << "{\n  \"units\": \"metres\",\n  \"tip\": \"area-weighted mean displacement over the face x = 0.2\",\n"
+       << "  \"cases\": {\n";
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const Reference& reference = references.at(cases[i].name);
+    json << "    \"" << cases[i].name << "\": {\n      \"element\": \"" << reference.element
+         << "\",\n      \"reference_tip_displacement\": " << json_vector(reference.tip) << ",\n";
+    if (cases[i].name == "b1") {
+      json << "      \"beam_theory_tip_z\": " << -b1_beam_theory_tip << ",\n";
+    }
+    json << "      \"meshes\": [\n";
+    for (size_t l = 0; l < reference.levels.size(); ++l) {
+      const auto& level = reference.levels[l];
+      json << "        {\"mesh\": \"" << level.mesh << "\", \"dofs\": " << level.dofs
+           << ", \"tip_displacement\": " << json_vector(level.tip)
+           << ", \"change_from_previous_pct\": " << format(level.change_pct) << "}"
+           << (l + 1 < reference.levels.size() ? "," : "") << "\n";
+    }
+    json << "      ]\n    }" << (i + 1 < cases.size() ? "," : "") << "\n";
+  }
+  json << "  }\n}\n";
+}
+
+// gnuplot script with the data inline: one panel per case, one series per model and variant.
+void write_plot_script(const std::filesystem::path& path, const std::filesystem::path& png,
+                       const std::vector<Case>& cases, const std::vector<Row>& rows) {
+  std::ofstream script(path);
+  std::vector<std::string> series;
+  for (const Row& row : rows) {
+    std::string key = row.model + " " + row.variant;
+    // The cut cases carry the cut in the variant; plot them under the same series names.
+    const size_t suffix = key.find("_geomcut");
+    if (suffix != std::string::npos) key.erase(suffix);
+    if (std::find(series.begin(), series.end(), key) == series.end()) series.push_back(key);
+  }
+  script << "# Written by incise bench accuracy: error against time per step, log-log.\n"
+         << "set terminal pngcairo size 1500,950 font ',10'\n"
+         << "set output '" << png.filename().string() << "'\n"
+         << "set logscale xy\nset grid\nset key bottom left font ',8'\n"
+         << "set xlabel 'ms per implicit Euler step (dt = 1/60, CG 1e-6)'\n"
+         << "set ylabel 'tip error %'\n";
+  for (const Case& c : cases) {
+    for (size_t s = 0; s < series.size(); ++s) {
+      script << "$" << c.name << "_" << s << " << EOD\n";
+      for (const Row& row : rows) {
+        std::string key = row.model + " " + row.variant;
+        const size_t suffix = key.find("_geomcut");
+        if (suffix != std::string::npos) key.erase(suffix);
+        if (row.case_name != c.name || key != series[s] || row.ms_per_step <= 0) continue;
+        // Log axes: errors below 1e-3 % are drawn at 1e-3 %.
+        script << row.ms_per_step << " " << std::max(row.error_pct, 1e-3) << "\n";
+      }
+      script << "EOD\n";
+    }
+  }
+  script << "set multiplot layout 2,3 title 'incise accuracy: tip error against run time (Magnoux Table 4.1 cases)'\n";
+  for (const Case& c : cases) {
+    script << "set title '" << c.name << (c.cut ? " (geometry cut)" : "") << "'\n" << "plot ";
+    for (size_t s = 0; s < series.size(); ++s) {
+      script << "$" << c.name << "_" << s << " using 1:2 with linespoints lw 1.5 pt " << (s % 10) + 1
+             << " title '" << series[s] << "'" << (s + 1 < series.size() ? ", \\\n     " : "\n");
+    }
+  }
+  script << "unset multiplot\n";
+}
+
+}  // namespace
+
+int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress_stream) {
+  try {
+    std::filesystem::create_directories(out_dir);
+    const auto bench_start = Clock::now();
+    const std::vector<Case> cases = all_cases();
+    const int timed_steps = quick ? 2 : 4;
+
+    // Resolutions. Reference levels (10-node tets): hexagon (lattice m, layers), square (cells
+    // per side, layers); the last is the reference, the refinement check compares the last two.
+    const std::vector<std::pair<int, int>> hexagon_levels =
+        quick ? std::vector<std::pair<int, int>>{{1, 10}, {2, 20}, {3, 30}}
+              : std::vector<std::pair<int, int>>{{1, 10}, {2, 20}, {3, 30}, {4, 40}};
+    const std::vector<std::pair<int, int>> square_levels =
+        quick ? std::vector<std::pair<int, int>>{{2, 10}, {4, 20}, {6, 30}}
+              : std::vector<std::pair<int, int>>{{2, 10}, {4, 20}, {6, 30}, {8, 40}};
+    // Linear tets (the real-time baseline), about 1k, 3k and 10k dofs (more in the full run).
+    const std::vector<std::pair<int, int>> hexagon_linear =
+        quick ? std::vector<std::pair<int, int>>{{2, 20}, {3, 30}, {4, 50}}
+              : std::vector<std::pair<int, int>>{{2, 20}, {3, 30}, {4, 50}, {6, 80}};
+    const std::vector<std::pair<int, int>> square_linear =
+        quick ? std::vector<std::pair<int, int>>{{2, 20}, {4, 40}, {6, 60}}
+              : std::vector<std::pair<int, int>>{{2, 20}, {4, 40}, {6, 60}, {10, 100}};
+    // EFG: particle cells along the beam (spacing a = L / (2 cells)).
+    const std::vector<int> efg_cells = quick ? std::vector<int>{20, 30, 50}
+                                             : std::vector<int>{20, 30, 50, 70};
+    struct EfgVariant {
+      std::string name;
+      int neighbours;
+      bool estimate_volumes;
+      double support_factor;
+    };
+    const std::vector<EfgVariant> efg_variants{{"nb8", 8, true, 3.0},
+                                               {"nb4", 4, true, 3.0},
+                                               {"novolume", 8, false, 3.0},
+                                               {"nb8_support1.2", 8, true, 1.2}};
+
+    // Work items for the progress bar.
+    int total = 0;
+    for (const Case& c : cases) {
+      const size_t levels = c.shape == Shape::hexagon ? hexagon_levels.size() : square_levels.size();
+      const size_t linear = c.shape == Shape::hexagon ? hexagon_linear.size() : square_linear.size();
+      total += static_cast<int>(levels + linear + efg_cells.size() * efg_variants.size());
+    }
+    Progress progress(progress_stream, total);
+    progress.note(std::string("incise bench accuracy") + (quick ? " --quick" : "") + ": " +
+                  std::to_string(cases.size()) + " cases, output in " + out_dir.string());
+
+    std::vector<Row> rows;
+    std::map<std::string, Reference> references;
+    const auto relative_error_pct = [](const Vec3& tip, const Vec3& reference) {
+      return 100 * (tip - reference).norm() / reference.norm();
+    };
+    const auto mm = [](const Vec3& v) {
+      std::ostringstream stream;
+      stream << std::fixed << std::setprecision(4) << "(" << 1e3 * v.x() << ", " << 1e3 * v.y()
+             << ", " << 1e3 * v.z() << ") mm";
+      return stream.str();
+    };
+    for (const Case& c : cases) {
+      const auto case_start = Clock::now();
+      const Vec3 body_force = beam_material.density * c.acceleration;
+      const bool hexagon = c.shape == Shape::hexagon;
+      const auto describe = [&](int section, int layers, bool graded = false) {
+        return hexagon ? "hexagon_lattice" + std::to_string(section) + "_x" + std::to_string(layers) +
+                             (c.cut && graded ? "_graded" : "")
+                       : "square_" + std::to_string(section) + "x" + std::to_string(section) + "_x" +
+                             std::to_string(layers);
+      };
+
+      // Reference: 10-node tets on a refinement sequence; the finest is the reference.
+      Reference reference;
+      reference.element = c.cut ? "tet10 static, conforming cut (nodes duplicated on x = 0.1, z > 0)"
+                                : "tet10 static";
+      struct Level {
+        QuadraticMesh quadratic;
+        TetMesh linear;
+        std::vector<uint8_t> fixed;
+        Vec3 tip;
+        std::string name;
+      };
+      std::vector<Level> levels;
+      for (const auto& [section, layers] : hexagon ? hexagon_levels : square_levels) {
+        progress.draw(c.name + " reference tet10 " + describe(section, layers, true));
+        Level level;
+        level.name = describe(section, layers, true);
+        level.linear = case_mesh(c, section, layers, true);
+        level.quadratic = make_quadratic(level.linear);
+        if (c.cut) open_cut(level.quadratic.mesh.rest, level.quadratic.mesh.tets);
+        level.fixed = clamped_nodes(level.quadratic.mesh.rest);
+        const Vector u = physics::solve_static_quadratic(level.quadratic.mesh, beam_material,
+                                                         level.fixed, body_force);
+        level.tip = tip_mean(level.linear, u, &level.quadratic);
+        Reference::Level entry{level.name, 3 * static_cast<long long>(level.quadratic.mesh.rest.size() / 3),
+                               level.tip, 0};
+        if (!levels.empty()) entry.change_pct = relative_error_pct(levels.back().tip, level.tip);
+        reference.levels.push_back(entry);
+        levels.push_back(std::move(level));
+        progress.step(c.name + " reference tet10 " + describe(section, layers, true));
+      }
+      reference.tip = levels.back().tip;
+      for (const auto& level : reference.levels) {
+        progress.note("  " + c.name + " reference tet10 " + level.mesh + " (" +
+                      std::to_string(level.dofs) + " dofs): tip " + mm(level.tip) +
+                      (level.change_pct > 0 ? ", change from the coarser mesh " + format(level.change_pct, 3) + " %" : ""));
+      }
+      const double last_change = reference.levels.back().change_pct;
+      progress.note("  " + c.name + " reference: " + (last_change < 0.5 ? "converged" : "NOT converged") +
+                    " (the two finest differ by " + format(last_change, 3) + " %" +
+                    (c.name == "b1" ? "; beam theory " + format(1e3 * b1_beam_theory_tip, 4) + " mm" : "") + ")");
+      references[c.name] = reference;
+      const std::string cut_suffix = c.cut ? "_geomcut" : "";
+
+      // tet10 rows: the coarser reference levels, timed with the assembled linear model.
+      for (size_t l = 0; l + 1 < levels.size(); ++l) {
+        const Level& level = levels[l];
+        const QuadraticTetMesh& mesh = level.quadratic.mesh;
+        AssembledLinearModel model(physics::assemble_stiffness(mesh, beam_material), mesh.rest,
+                                   quadratic_lumped_masses(mesh, beam_material.density));
+        const Timing timing = time_steps(model, level.fixed, physics::assemble_body_load(mesh, body_force),
+                                         timed_steps);
+        rows.push_back({c.name, "fem", "tet10" + cut_suffix, level.name,
+                        3 * static_cast<long long>(mesh.rest.size() / 3),
+                        static_cast<long long>(mesh.tets.size()), timing.ms_per_step,
+                        timing.cg_iterations, relative_error_pct(level.tip, reference.tip),
+                        timing.converged});
+      }
+
+      // tet4 rows: the corotational linear tets.
+      for (const auto& [section, layers] : hexagon ? hexagon_linear : square_linear) {
+        progress.draw(c.name + " fem tet4 " + describe(section, layers));
+        TetMesh mesh = case_mesh(c, section, layers);
+        if (c.cut) open_cut(mesh.rest, mesh.tets);
+        const std::vector<uint8_t> fixed = clamped_nodes(mesh.rest);
+        const Vector u = physics::solve_static_linear(mesh, beam_material, fixed, body_force);
+        const Vec3 tip = tip_mean(mesh, u, nullptr);
+        CorotationalTetFem model(mesh, beam_material);
+        const Timing timing = time_steps(
+            model, fixed, physics::gravity_forces(model.lumped_masses(), c.acceleration), timed_steps);
+        rows.push_back({c.name, "fem", "tet4" + cut_suffix, describe(section, layers),
+                        3 * static_cast<long long>(mesh.rest.size() / 3),
+                        static_cast<long long>(mesh.tets.size()), timing.ms_per_step,
+                        timing.cg_iterations, relative_error_pct(tip, reference.tip), timing.converged});
+        progress.step(c.name + " fem tet4 " + describe(section, layers));
+      }
+
+      // EFG rows. The tip face is sampled at the centroids of a fine triangulation.
+      const Section face = hexagon ? hexagon_section(8) : square_section(10);
+      std::vector<double> face_weights;
+      Vector face_points(3 * static_cast<Index>(face.triangles.size()));
+      double face_area = 0;
+      for (size_t t = 0; t < face.triangles.size(); ++t) {
+        const auto& tri = face.triangles[t];
+        const Eigen::Vector2d centroid =
+            (face.points[tri[0]] + face.points[tri[1]] + face.points[tri[2]]) / 3;
+        face_points.segment<3>(3 * static_cast<Index>(t)) = Vec3(beam_length, centroid.x(), centroid.y());
+        face_weights.push_back(triangle_area(face.points[tri[0]], face.points[tri[1]], face.points[tri[2]]));
+        face_area += face_weights.back();
+      }
+      for (int cells : efg_cells) {
+        for (const EfgVariant& variant : efg_variants) {
+          const double spacing = beam_length / (2 * cells);
+          const std::string resolution = "a" + format(1e3 * spacing, 3) + "mm";
+          progress.draw(c.name + " efg " + variant.name + " " + resolution);
+          EfgSettings settings;
+          settings.spacing = spacing;
+          settings.neighbours = variant.neighbours;
+          settings.estimate_volumes = variant.estimate_volumes;
+          settings.support_factor = variant.support_factor;
+          if (c.cut) {
+            // From the top down to z = 0 across the whole width; particles on the plane count
+            // on the +x side.
+            settings.cuts.push_back({Vec3(cut_x, -1, 0), Vec3(0, 2, 0), Vec3(0, 0, 1)});
+          }
+          const Shape shape = c.shape;
+          CorotationalEfg model([shape](const Vec3& p) { return inside_shape(shape, p); },
+                                box_min(shape), box_max(shape), beam_material, settings);
+          model.update_rotations(model.rest_positions());
+          const std::vector<uint8_t> fixed = clamped_nodes(model.rest_positions());
+          const Vector load = physics::gravity_forces(model.lumped_masses(), c.acceleration);
+          const Vector u = physics::solve_static(physics::assemble_stiffness(model), load, fixed);
+          const physics::SurfaceEmbedding embedding = model.embed_surface(face_points);
+          Vector moved;
+          CorotationalEfg::surface_positions(embedding, model.rest_positions() + u, moved);
+          Vec3 tip = Vec3::Zero();
+          for (size_t t = 0; t < face_weights.size(); ++t) {
+            tip += face_weights[t] / face_area *
+                   (moved.segment<3>(3 * static_cast<Index>(t)) - face_points.segment<3>(3 * static_cast<Index>(t)));
+          }
+          const Timing timing = time_steps(model, fixed, load, timed_steps);
+          rows.push_back({c.name, "efg", variant.name + cut_suffix, resolution,
+                          3 * static_cast<long long>(model.node_count()), model.element_count(),
+                          timing.ms_per_step, timing.cg_iterations,
+                          relative_error_pct(tip, reference.tip), timing.converged});
+          progress.step(c.name + " efg " + variant.name + " " + resolution);
+        }
+      }
+      const std::chrono::duration<double> case_time = Clock::now() - case_start;
+      progress.note("  " + c.name + " done in " + format(case_time.count(), 3) + " s");
+      write_csv(out_dir / "accuracy.csv", rows);  // partial results survive an interruption
+    }
+    progress.finish();
+
+    write_csv(out_dir / "accuracy.csv", rows);
+    write_references(out_dir / "references.json", cases, references);
+    int unconverged = 0;
+    for (const Row& row : rows) unconverged += row.converged ? 0 : 1;
+    if (unconverged > 0) {
+      progress_stream << unconverged << " rows had a CG that stopped at its iteration limit (2000) "
+                      << "in a timed step: their ms_per_step is a lower bound\n";
+    }
+    const std::filesystem::path script = out_dir / "accuracy.gnuplot";
+    const std::filesystem::path png = out_dir / "accuracy.png";
+    write_plot_script(script, png, cases, rows);
+    if (std::system("command -v gnuplot > /dev/null 2>&1") != 0) {
+      progress_stream << "gnuplot is not installed: " << png.string()
+                      << " not written (the CSV and " << script.filename().string() << " are)\n";
+    } else {
+      std::string quoted;
+      for (char ch : std::filesystem::absolute(out_dir).string()) {
+        quoted += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+      }
+      const std::string command = "cd '" + quoted + "' && gnuplot accuracy.gnuplot";
+      if (std::system(command.c_str()) != 0) {
+        progress_stream << "gnuplot failed on " << script.string() << "\n";
+      }
+    }
+    const std::chrono::duration<double> elapsed = Clock::now() - bench_start;
+    progress_stream << "wrote " << (out_dir / "accuracy.csv").string() << " (" << rows.size()
+                    << " rows), references.json and accuracy.png in " << format(elapsed.count(), 3)
+                    << " s\n";
+    return 0;
+  } catch (const std::exception& error) {
+    progress_stream << "\nbench accuracy failed: " << error.what() << "\n";
+    return 1;
+  }
+}
+
+}  // namespace incise::bench

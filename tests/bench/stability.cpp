@@ -1,0 +1,688 @@
+// The numerical stability sweep (issue 7): where each model and integrator breaks on stiff
+// and extreme settings, as a map anyone can rerun.
+//
+// Cases (all under gravity, 9.81 m/s^2 along -z, rho = 1000 kg/m^3):
+// - beam_gravity: B1, the beam 0.2 x 0.02 x 0.02 m along +x clamped at x = 0, from rest;
+// - compression_release: a 0.04 m cube on a clamped base (z = 0), its nodes starting at 10 %
+//   of their height (z -> 0.1 z, a prescribed squeezed state) and at rest, then released;
+// - inverted_start: the same cube at rest with three top nodes flipped, so that some elements
+//   start inverted (FEM: each node reflected through the face opposite it in its first
+//   tetrahedron; EFG: each particle reflected through the plane of the particle layer below).
+// `fast_blade` and `thin_slice` need cutting, which does not exist yet: they are left out.
+//
+// Models: `fem`, CorotationalTetFem (beam 10 x 2 x 2 cells, cube 4 x 4 x 4 cells, 6 tets per
+// cell) with implicit Euler and the five explicit integrators; `efg`, CorotationalEfg (grid
+// spacing a = 5 mm, particles 10 mm apart) with implicit Euler. Damping: Rayleigh mass
+// damping alpha = 1/s for every integrator; implicit Euler's CG: tolerance 1e-6, at most 500
+// iterations, warm started from the previous step's velocity change, as in the engine.
+//
+// Each run, at the nominal dt, applies the engine's non-finite guard: a step that produces a
+// non-finite value is rolled back and retried as 2, 4, 8 sub-steps; guard_events counts the
+// steps that needed it. Outcomes, the first that applies:
+// - nonfinite: a step stayed non-finite after 3 halvings (the run stops there);
+// - diverged: the elastic + kinetic energy exceeded 100 x E_ref, E_ref the larger of the
+//   initial elastic + kinetic energy and the work gravity would do on the whole body falling
+//   freely for the run's duration T (M g^2 T^2 / 2), or a node moved more than 10 x the body
+//   size (the largest side of its rest bounding box); the run stops at the first such step;
+// - cg_not_converged: implicit Euler's CG hit its 500-iteration cap in more than 10 % of the
+//   steps;
+// - stable otherwise.
+// Runs are T = 1 s (beam) or 0.5 s (cubes) of simulated time; 0.25 s in quick mode.
+#include "tests/bench/stability.hpp"
+
+#include "physics/core/explicit_integrators.hpp"
+#include "physics/core/implicit_euler.hpp"
+#include "physics/efg/corotational_efg.hpp"
+#include "physics/fem/corotational_fem.hpp"
+#include "physics/fem/tet_mesh.hpp"
+
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace incise::bench {
+
+namespace {
+
+using physics::CorotationalEfg;
+using physics::CorotationalTetFem;
+using physics::DeformableModel;
+using physics::ExplicitScheme;
+using physics::Material;
+using physics::State;
+using physics::TetMesh;
+using physics::Vec3;
+using physics::Vector;
+using Index = Eigen::Index;
+
+constexpr double density = 1000;
+const Vec3 gravity(0, 0, -9.81);
+constexpr double rayleigh_mass = 1.0;  // 1/s
+constexpr double cg_tolerance = 1e-6;
+constexpr int cg_max_iterations = 500;
+constexpr int max_halvings = 3;
+constexpr double energy_bound = 100;          // x E_ref
+constexpr double displacement_bound = 10;     // x body size
+constexpr double cg_capped_fraction = 0.1;    // of the steps
+constexpr double beam_length = 0.2;
+constexpr double beam_half_side = 0.01;
+constexpr double cube_side = 0.04;
+constexpr double squeeze = 0.1;               // compression_release starts at 10 % height
+constexpr double efg_spacing = 0.005;
+constexpr int flipped_nodes = 3;
+
+enum class Outcome { stable, diverged, nonfinite, cg_not_converged };
+constexpr std::array<Outcome, 4> all_outcomes{Outcome::stable, Outcome::diverged,
+                                              Outcome::nonfinite, Outcome::cg_not_converged};
+
+const char* outcome_name(Outcome outcome) {
+  switch (outcome) {
+    case Outcome::stable: return "stable";
+    case Outcome::diverged: return "diverged";
+    case Outcome::nonfinite: return "nonfinite";
+    case Outcome::cg_not_converged: return "cg_not_converged";
+  }
+  return "unknown";
+}
+
+// Colours of the outcome map (RGB).
+int outcome_colour(Outcome outcome) {
+  switch (outcome) {
+    case Outcome::stable: return 0x2ca02c;
+    case Outcome::diverged: return 0xd62728;
+    case Outcome::nonfinite: return 0x222222;
+    case Outcome::cg_not_converged: return 0xf0b400;
+  }
+  return 0xffffff;
+}
+
+struct Integrator {
+  std::string name;
+  bool implicit = false;
+  ExplicitScheme scheme = ExplicitScheme::explicit_euler;
+};
+
+struct ModelKind {
+  std::string name;
+  std::vector<Integrator> integrators;
+};
+
+// One case at one material for one model: the static set-up of a run.
+struct Body {
+  std::unique_ptr<DeformableModel> model;
+  State initial;
+  std::vector<uint8_t> fixed;
+  Vector external;
+  double size = 0;      // largest side of the rest bounding box, m
+  int inverted = 0;     // elements inverted in the initial state
+};
+
+struct Run {
+  std::string model;
+  std::string integrator;
+  std::string case_name;
+  double youngs_modulus = 0;
+  double poisson_ratio = 0;
+  double dt = 0;
+  Outcome outcome = Outcome::stable;
+  double max_energy_ratio = 0;
+  double max_displacement = 0;
+  int steps = 0;
+  int guard_events = 0;
+};
+
+struct Sweep {
+  std::vector<double> youngs_moduli;
+  std::vector<double> poisson_ratios;
+  std::vector<double> time_steps;
+  std::vector<std::string> cases;
+  double beam_duration = 0;
+  double cube_duration = 0;
+};
+
+Sweep make_sweep(bool quick) {
+  if (quick) {
+    return {{10e3, 10e6, 1e9}, {0.3, 0.499}, {1e-3, 33e-3}, {"beam_gravity", "inverted_start"},
+            0.25, 0.25};
+  }
+  return {{1e3, 10e3, 100e3, 1e6, 10e6, 100e6, 1e9},
+          {0.3, 0.45, 0.49, 0.499},
+          {0.5e-3, 1e-3, 4e-3, 16.7e-3, 33e-3},
+          {"beam_gravity", "compression_release", "inverted_start"},
+          1.0,
+          0.5};
+}
+
+std::vector<ModelKind> model_kinds() {
+  std::vector<Integrator> fem{{"implicit_euler", true}};
+  for (ExplicitScheme scheme : {ExplicitScheme::explicit_euler, ExplicitScheme::midpoint,
+                                ExplicitScheme::runge_kutta4, ExplicitScheme::verlet,
+                                ExplicitScheme::velocity_verlet}) {
+    fem.push_back({std::string(physics::explicit_scheme_name(scheme)), false, scheme});
+  }
+  // The EFG model offers implicit Euler only (issue 7: explicit integrators "where a model
+  // offers them"); any DeformableModel would take the explicit steps as well.
+  return {{"fem", fem}, {"efg", {{"implicit_euler", true}}}};
+}
+
+std::string format(double value, int precision = 6) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "%.*g", precision, value);
+  return buffer;
+}
+
+// ---- Cases -------------------------------------------------------------------------------
+
+bool is_beam(const std::string& case_name) { return case_name == "beam_gravity"; }
+
+Vec3 case_min(const std::string& case_name) {
+  return is_beam(case_name) ? Vec3(0, -beam_half_side, -beam_half_side) : Vec3::Zero();
+}
+Vec3 case_max(const std::string& case_name) {
+  return is_beam(case_name) ? Vec3(beam_length, beam_half_side, beam_half_side)
+                            : Vec3::Constant(cube_side);
+}
+
+// Beam: clamped at x = 0; cubes: clamped at z = 0.
+std::vector<uint8_t> clamped_nodes(const std::string& case_name, const Vector& rest) {
+  if (is_beam(case_name)) return physics::nodes_in_box(rest, Vec3::Constant(-1), Vec3(1e-9, 1, 1));
+  return physics::nodes_in_box(rest, Vec3::Constant(-1), Vec3(1, 1, 1e-9));
+}
+
+// The nodes flipped by inverted_start: top-face nodes away from the cube's sides, three of
+// them spread over the face (at a quarter, half and three quarters of their index order).
+std::vector<int> nodes_to_flip(const Vector& rest) {
+  std::vector<int> top;
+  constexpr double tolerance = 1e-9;
+  for (Index node = 0; node < rest.size() / 3; ++node) {
+    const Vec3 x = rest.segment<3>(3 * node);
+    const bool on_top = x.z() > cube_side - tolerance;
+    const bool inside_face = x.x() > tolerance && x.x() < cube_side - tolerance &&
+                             x.y() > tolerance && x.y() < cube_side - tolerance;
+    if (on_top && inside_face) top.push_back(static_cast<int>(node));
+  }
+  std::vector<int> chosen;
+  if (top.empty()) return chosen;
+  for (int k = 1; k <= flipped_nodes; ++k) {
+    const int node = top[static_cast<size_t>(k * top.size() / (flipped_nodes + 1))];
+    if (std::find(chosen.begin(), chosen.end(), node) == chosen.end()) chosen.push_back(node);
+  }
+  return chosen;
+}
+
+double signed_volume(const Vector& x, const std::array<int, 4>& tet) {
+  const Vec3 a = x.segment<3>(3 * tet[0]);
+  Eigen::Matrix3d edges;
+  edges << x.segment<3>(3 * tet[1]) - a, x.segment<3>(3 * tet[2]) - a, x.segment<3>(3 * tet[3]) - a;
+  return edges.determinant() / 6.0;
+}
+
+void squeeze_heights(Vector& positions) {
+  for (Index node = 0; node < positions.size() / 3; ++node) positions[3 * node + 2] *= squeeze;
+}
+
+// Common completion: state at rest, gravity, size.
+void finish_body(Body& body, const std::string& case_name) {
+  const Vector& rest = body.model->rest_positions();
+  if (body.initial.positions.size() == 0) body.initial.positions = rest;
+  body.initial.velocities = Vector::Zero(rest.size());
+  body.fixed = clamped_nodes(case_name, rest);
+  body.external = physics::gravity_forces(body.model->lumped_masses(), gravity);
+  body.size = (case_max(case_name) - case_min(case_name)).maxCoeff();
+}
+
+Body make_fem_body(const std::string& case_name, const Material& material) {
+  const std::array<int, 3> cells = is_beam(case_name) ? std::array<int, 3>{10, 2, 2}
+                                                      : std::array<int, 3>{4, 4, 4};
+  const TetMesh mesh = physics::make_box_tets(case_min(case_name), case_max(case_name), cells);
+  Body body;
+  auto model = std::make_unique<CorotationalTetFem>(mesh, material);
+  Vector positions = mesh.rest;
+  if (case_name == "compression_release") squeeze_heights(positions);
+  if (case_name == "inverted_start") {
+    for (int node : nodes_to_flip(mesh.rest)) {
+      // The first tetrahedron that holds the node; reflecting the node through the plane of
+      // the opposite face negates that tetrahedron's signed volume.
+      for (const auto& tet : mesh.tets) {
+        const auto corner = std::find(tet.begin(), tet.end(), node);
+        if (corner == tet.end()) continue;
+        std::array<Vec3, 3> face;
+        int k = 0;
+        for (int other : tet) {
+          if (other != node) face[static_cast<size_t>(k++)] = positions.segment<3>(3 * other);
+        }
+        const Vec3 normal = (face[1] - face[0]).cross(face[2] - face[0]).normalized();
+        const Vec3 x = positions.segment<3>(3 * node);
+        positions.segment<3>(3 * node) = x - 2.0 * (x - face[0]).dot(normal) * normal;
+        break;
+      }
+    }
+    for (const auto& tet : mesh.tets) body.inverted += signed_volume(positions, tet) < 0 ? 1 : 0;
+  }
+  body.initial.positions = positions;
+  body.model = std::move(model);
+  finish_body(body, case_name);
+  return body;
+}
+
+Body make_efg_body(const std::string& case_name, const Material& material) {
+  physics::EfgSettings settings;
+  settings.spacing = efg_spacing;
+  settings.threads = 1;  // the sweep shares the machine; results do not depend on it
+  auto model = std::make_unique<CorotationalEfg>(case_min(case_name), case_max(case_name),
+                                                 material, settings);
+  Body body;
+  Vector positions = model->rest_positions();
+  if (case_name == "compression_release") squeeze_heights(positions);
+  if (case_name == "inverted_start") {
+    // Particles are 2a apart in z: the layer below a top particle is 2a lower.
+    for (int node : nodes_to_flip(model->rest_positions())) positions[3 * node + 2] -= 4.0 * efg_spacing;
+    // Inverted integration points: det of the shape-matching fit F_e = sum_n x_n (x) c_n.
+    for (int element = 0; element < model->element_count(); ++element) {
+      Eigen::Matrix3d fit = Eigen::Matrix3d::Zero();
+      for (int k = 0; k < model->row_lengths()[static_cast<size_t>(element)]; ++k) {
+        const size_t slot = static_cast<size_t>(element * model->row_stride() + k);
+        const int particle = model->neighbours()[slot];
+        fit += positions.segment<3>(3 * particle) * model->matching_coefficients()[slot].transpose();
+      }
+      body.inverted += fit.determinant() < 0 ? 1 : 0;
+    }
+  }
+  body.initial.positions = positions;
+  body.model = std::move(model);
+  finish_body(body, case_name);
+  return body;
+}
+
+Body make_body(const std::string& model_name, const std::string& case_name,
+               const Material& material) {
+  if (model_name == "fem") return make_fem_body(case_name, material);
+  if (model_name == "efg") return make_efg_body(case_name, material);
+  throw std::invalid_argument("stability bench: unknown model " + model_name);
+}
+
+// ---- Runs --------------------------------------------------------------------------------
+
+double max_node_displacement(const Vector& positions, const Vector& rest) {
+  double largest = 0;
+  for (Index node = 0; node < rest.size() / 3; ++node) {
+    largest = std::max(largest, (positions.segment<3>(3 * node) - rest.segment<3>(3 * node)).norm());
+  }
+  return largest;
+}
+
+Run simulate(Body& body, const Integrator& integrator, double dt, double duration) {
+  DeformableModel& model = *body.model;
+  Run run;
+  run.dt = dt;
+  State state = body.initial;
+  physics::VerletHistory history;
+  Vector velocity_change = Vector::Zero(state.positions.size());
+  const Vector& rest = model.rest_positions();
+
+  const double total_mass = model.lumped_masses().sum();
+  const double initial_energy = model.elastic_energy(state.positions) +
+                                physics::kinetic_energy(model.lumped_masses(), state.velocities);
+  const double free_fall_work = 0.5 * total_mass * gravity.squaredNorm() * duration * duration;
+  const double reference_energy = std::max(initial_energy, free_fall_work);
+  run.max_displacement = max_node_displacement(state.positions, rest);
+  run.max_energy_ratio = initial_energy / reference_energy;
+
+  const int steps = std::max(1, static_cast<int>(std::lround(duration / dt)));
+  int capped_steps = 0;
+  for (int step = 0; step < steps; ++step) {
+    bool accepted = false;
+    bool capped = false;
+    double energy = 0;
+    for (int attempt = 0; attempt <= max_halvings && !accepted; ++attempt) {
+      const int substeps = 1 << attempt;
+      const double sub_dt = dt / substeps;
+      const State saved_state = state;
+      const physics::VerletHistory saved_history = history;
+      const Vector saved_change = velocity_change;
+      bool failed = false;
+      capped = false;
+      for (int sub = 0; sub < substeps && !failed; ++sub) {
+        if (integrator.implicit) {
+          physics::ImplicitEulerSettings settings;
+          settings.dt = sub_dt;
+          settings.rayleigh_mass = rayleigh_mass;
+          settings.cg.tolerance = cg_tolerance;
+          settings.cg.max_iterations = cg_max_iterations;
+          const physics::StepReport report = physics::implicit_euler_step(
+              model, state, body.fixed, body.external, {}, settings, &velocity_change);
+          failed = report.nonfinite;
+          capped = capped || (!report.nonfinite && !report.cg.converged);
+          energy = report.elastic_energy + report.kinetic_energy;
+        } else {
+          const physics::ExplicitSettings settings{sub_dt, rayleigh_mass};
+          const physics::ExplicitStepReport report = physics::explicit_step(
+              integrator.scheme, model, state, body.fixed, body.external, settings, &history);
+          failed = report.nonfinite;
+          energy = report.elastic_energy + report.kinetic_energy;
+        }
+      }
+      if (failed) {
+        state = saved_state;
+        history = saved_history;
+        velocity_change = saved_change;
+        if (attempt == 0) ++run.guard_events;
+        continue;
+      }
+      accepted = true;
+    }
+    if (!accepted) {
+      run.outcome = Outcome::nonfinite;
+      return run;
+    }
+    run.steps = step + 1;
+    capped_steps += capped ? 1 : 0;
+    run.max_energy_ratio = std::max(run.max_energy_ratio, energy / reference_energy);
+    run.max_displacement = std::max(run.max_displacement, max_node_displacement(state.positions, rest));
+    if (run.max_energy_ratio > energy_bound || run.max_displacement > displacement_bound * body.size) {
+      run.outcome = Outcome::diverged;
+      return run;
+    }
+  }
+  if (capped_steps > cg_capped_fraction * steps) run.outcome = Outcome::cg_not_converged;
+  return run;
+}
+
+// ---- Output ------------------------------------------------------------------------------
+
+class Progress {
+ public:
+  Progress(std::ostream& stream, int total) : stream_(stream), total_(total) {}
+  void draw(const std::string& what) {
+    constexpr int width = 30;
+    const int filled = total_ > 0 ? width * done_ / total_ : width;
+    std::string line = "\r[" + std::string(static_cast<size_t>(filled), '#') +
+                       std::string(static_cast<size_t>(width - filled), '.') + "] " +
+                       std::to_string(done_) + "/" + std::to_string(total_) + " " + what;
+    if (line.size() < last_length_) line += std::string(last_length_ - line.size(), ' ');
+    last_length_ = line.size();
+    stream_ << line << std::flush;
+  }
+  void advance() { ++done_; }
+  void finish() {
+    stream_ << "\n";
+    last_length_ = 0;
+  }
+
+ private:
+  std::ostream& stream_;
+  int total_;
+  int done_ = 0;
+  size_t last_length_ = 0;
+};
+
+std::string csv_header() {
+  return "model,integrator,case,E,nu,dt,outcome,max_energy_ratio,max_displacement,steps,guard_events";
+}
+
+std::string csv_row(const Run& run) {
+  return run.model + "," + run.integrator + "," + run.case_name + "," + format(run.youngs_modulus) +
+         "," + format(run.poisson_ratio) + "," + format(run.dt) + "," + outcome_name(run.outcome) +
+         "," + format(run.max_energy_ratio, 4) + "," + format(run.max_displacement, 4) + "," +
+         std::to_string(run.steps) + "," + std::to_string(run.guard_events);
+}
+
+std::string short_modulus(double pascals) {
+  if (pascals >= 1e9) return format(pascals / 1e9) + " GPa";
+  if (pascals >= 1e6) return format(pascals / 1e6) + " MPa";
+  if (pascals >= 1e3) return format(pascals / 1e3) + " kPa";
+  return format(pascals) + " Pa";
+}
+
+size_t index_of(const std::vector<double>& values, double value) {
+  return static_cast<size_t>(std::find(values.begin(), values.end(), value) - values.begin());
+}
+
+// One panel per model + integrator (rows) and case (columns); inside a panel, E upwards and
+// dt to the right, one block of dt columns per nu; each cell coloured by its outcome.
+void write_plot_script(const std::filesystem::path& path, const std::filesystem::path& png,
+                       const Sweep& sweep, const std::vector<ModelKind>& kinds,
+                       const std::vector<Run>& runs) {
+  std::ofstream script(path);
+  const size_t block = sweep.time_steps.size() + 1;  // dt columns and a gap per nu
+  const size_t columns = block * sweep.poisson_ratios.size() - 1;
+  int rows = 0;
+  for (const ModelKind& kind : kinds) rows += static_cast<int>(kind.integrators.size());
+  const int cases = static_cast<int>(sweep.cases.size());
+  const int panel_width = static_cast<int>(std::max<size_t>(360, 22 * columns + 120));
+  const int panel_height = static_cast<int>(std::max<size_t>(200, 26 * sweep.youngs_moduli.size() + 110));
+  script << "# Written by incise bench stability: the outcome map of stability.csv.\n"
+         << "set terminal pngcairo size " << panel_width * cases << "," << panel_height * rows + 90
+         << " font ',9'\n"
+         << "set output '" << png.filename().string() << "'\n"
+         << "unset key\nset tics scale 0\nset border 0\n"
+         << "set xrange [-0.6:" << columns - 0.4 << "]\n"
+         << "set yrange [-0.6:" << sweep.youngs_moduli.size() - 0.4 << "]\n"
+         << "set bmargin 4.5\nset tmargin 2.2\n";
+  script << "set ytics (";
+  for (size_t e = 0; e < sweep.youngs_moduli.size(); ++e) {
+    script << (e ? ", " : "") << "'" << short_modulus(sweep.youngs_moduli[e]) << "' " << e;
+  }
+  script << ")\nset xtics rotate by 90 right font ',7' (";
+  bool first = true;
+  for (size_t p = 0; p < sweep.poisson_ratios.size(); ++p) {
+    for (size_t d = 0; d < sweep.time_steps.size(); ++d) {
+      script << (first ? "" : ", ") << "'" << format(1e3 * sweep.time_steps[d], 3) << "' "
+             << p * block + d;
+      first = false;
+    }
+  }
+  script << ")\n";
+  for (size_t p = 0; p < sweep.poisson_ratios.size(); ++p) {
+    const double centre = static_cast<double>(p * block) + 0.5 * (sweep.time_steps.size() - 1);
+    script << "set label " << p + 1 << " 'nu " << format(sweep.poisson_ratios[p]) << "' at "
+           << centre << ", graph 1.04 center font ',8'\n";
+  }
+  script << "set xlabel 'dt (ms), one block per Poisson ratio' font ',8' offset 0,0.6\n";
+  int panel = 0;
+  for (const ModelKind& kind : kinds) {
+    for (const Integrator& integrator : kind.integrators) {
+      for (const std::string& case_name : sweep.cases) {
+        script << "$panel" << panel << " << EOD\n";
+        for (const Run& run : runs) {
+          if (run.model != kind.name || run.integrator != integrator.name || run.case_name != case_name)
+            continue;
+          const size_t column = index_of(sweep.poisson_ratios, run.poisson_ratio) * block +
+                                index_of(sweep.time_steps, run.dt);
+          script << column << " " << index_of(sweep.youngs_moduli, run.youngs_modulus) << " "
+                 << outcome_colour(run.outcome) << "\n";
+        }
+        script << "EOD\n";
+        ++panel;
+      }
+    }
+  }
+  script << "set multiplot layout " << rows << "," << cases
+         << " title \"incise stability sweep: green stable, red diverged, black nonfinite, gold "
+            "cg\\\\_not\\\\_converged (white: not run)\\n"
+            "diverged = energy > 100 x max(initial, free-fall work of gravity) or displacement > "
+            "10 x body size\" font ',11'\n";
+  panel = 0;
+  for (const ModelKind& kind : kinds) {
+    for (const Integrator& integrator : kind.integrators) {
+      for (const std::string& case_name : sweep.cases) {
+        std::string title = kind.name + " " + integrator.name + ", " + case_name;
+        std::string escaped;
+        for (char c : title) {
+          if (c == '_') escaped += "\\\\";
+          escaped += c;
+        }
+        script << "set title \"" << escaped << "\" font ',10' offset 0,0.6\n"
+               << "plot $panel" << panel
+               << " using 1:2:(0.46):(0.46):3 with boxxyerror fill solid 1.0 noborder lc rgb variable\n";
+        ++panel;
+      }
+    }
+  }
+  script << "unset multiplot\n";
+}
+
+void draw_plot(const std::filesystem::path& out_dir, std::ostream& progress) {
+  const std::filesystem::path png = out_dir / "stability.png";
+  if (std::system("command -v gnuplot > /dev/null 2>&1") != 0) {
+    progress << "gnuplot is not installed: " << png.string()
+             << " not drawn (stability.csv and stability.gnuplot are written)\n";
+    return;
+  }
+  std::string quoted;
+  for (char c : out_dir.string()) {
+    if (c == '\'') quoted += "'\\''";
+    else quoted += c;
+  }
+  const std::string command = "cd '" + quoted + "' && gnuplot stability.gnuplot";
+  if (std::system(command.c_str()) != 0) {
+    progress << "gnuplot failed on " << (out_dir / "stability.gnuplot").string() << "\n";
+  }
+}
+
+std::string counts_table(const std::vector<ModelKind>& kinds, const std::vector<Run>& runs) {
+  std::ostringstream table;
+  char line[160];
+  std::snprintf(line, sizeof line, "%-24s %8s %9s %10s %17s\n", "model/integrator", "stable",
+                "diverged", "nonfinite", "cg_not_converged");
+  table << line;
+  for (const ModelKind& kind : kinds) {
+    for (const Integrator& integrator : kind.integrators) {
+      std::map<Outcome, int> counts;
+      for (const Run& run : runs) {
+        if (run.model == kind.name && run.integrator == integrator.name) ++counts[run.outcome];
+      }
+      const std::string name = kind.name + "/" + integrator.name;
+      std::snprintf(line, sizeof line, "%-24s %8d %9d %10d %17d\n", name.c_str(),
+                    counts[Outcome::stable], counts[Outcome::diverged], counts[Outcome::nonfinite],
+                    counts[Outcome::cg_not_converged]);
+      table << line;
+    }
+  }
+  return table.str();
+}
+
+std::string bounds_text(const Sweep& sweep) {
+  std::ostringstream text;
+  text << "Outcomes (the first that applies): nonfinite = a step stayed non-finite after "
+       << max_halvings << " halvings of dt; diverged = elastic + kinetic energy > " << energy_bound
+       << " x E_ref (E_ref = max(initial elastic + kinetic energy, M g^2 T^2 / 2, the work of "
+          "gravity on the body falling freely for the run's duration T)) or a node displacement > "
+       << displacement_bound << " x the body size (largest side of its rest bounding box); "
+       << "cg_not_converged = implicit Euler's CG hit its " << cg_max_iterations
+       << "-iteration cap (tolerance " << format(cg_tolerance) << ") in more than "
+       << 100 * cg_capped_fraction << " % of the steps; stable otherwise.\n"
+       << "guard_events = steps that produced a non-finite value and were retried with dt "
+          "halved (2, 4, 8 sub-steps).\n"
+       << "Runs: T = " << format(sweep.beam_duration) << " s (beam_gravity), "
+       << format(sweep.cube_duration)
+       << " s (cubes) of simulated time, stopped at the first divergence; Rayleigh mass damping "
+       << format(rayleigh_mass) << "/s; gravity 9.81 m/s^2 along -z; rho " << format(density)
+       << " kg/m^3.\n"
+       << "Not run: fast_blade and thin_slice (they need cutting, which does not exist yet).\n";
+  return text.str();
+}
+
+}  // namespace
+
+int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress_stream) {
+  try {
+    std::filesystem::create_directories(out_dir);
+    const Sweep sweep = make_sweep(quick);
+    const std::vector<ModelKind> kinds = model_kinds();
+    std::ofstream csv(out_dir / "stability.csv");
+    if (!csv) {
+      progress_stream << "cannot write " << (out_dir / "stability.csv").string() << "\n";
+      return 1;
+    }
+    csv << csv_header() << "\n";
+
+    int total = 0;
+    for (const ModelKind& kind : kinds) {
+      total += static_cast<int>(kind.integrators.size() * sweep.cases.size() *
+                                sweep.youngs_moduli.size() * sweep.poisson_ratios.size() *
+                                sweep.time_steps.size());
+    }
+    progress_stream << "stability sweep" << (quick ? " (quick)" : "") << ": " << total << " runs\n"
+                    << bounds_text(sweep);
+    const auto start = std::chrono::steady_clock::now();
+    Progress progress(progress_stream, total);
+    std::vector<Run> runs;
+    std::vector<std::string> set_up_notes;
+    for (const std::string& case_name : sweep.cases) {
+      const double duration = is_beam(case_name) ? sweep.beam_duration : sweep.cube_duration;
+      for (const ModelKind& kind : kinds) {
+        for (double youngs_modulus : sweep.youngs_moduli) {
+          for (double poisson_ratio : sweep.poisson_ratios) {
+            const Material material{youngs_modulus, poisson_ratio, density};
+            Body body = make_body(kind.name, case_name, material);
+            if (youngs_modulus == sweep.youngs_moduli.front() &&
+                poisson_ratio == sweep.poisson_ratios.front()) {
+              set_up_notes.push_back(kind.name + " " + case_name + ": " +
+                                     std::to_string(body.model->node_count()) + " nodes" +
+                                     (case_name == "inverted_start"
+                                          ? ", " + std::to_string(body.inverted) +
+                                                " elements inverted at the start"
+                                          : ""));
+            }
+            for (const Integrator& integrator : kind.integrators) {
+              for (double dt : sweep.time_steps) {
+                progress.draw(kind.name + " " + integrator.name + " " + case_name + " E " +
+                              short_modulus(youngs_modulus) + " nu " + format(poisson_ratio) +
+                              " dt " + format(1e3 * dt, 3) + " ms");
+                Run run = simulate(body, integrator, dt, duration);
+                run.model = kind.name;
+                run.integrator = integrator.name;
+                run.case_name = case_name;
+                run.youngs_modulus = youngs_modulus;
+                run.poisson_ratio = poisson_ratio;
+                csv << csv_row(run) << "\n" << std::flush;
+                runs.push_back(std::move(run));
+                progress.advance();
+              }
+            }
+          }
+        }
+      }
+    }
+    progress.draw("done");
+    progress.finish();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+    const std::string counts = counts_table(kinds, runs);
+    progress_stream << "outcome counts (" << runs.size() << " runs, " << format(seconds, 3)
+                    << " s):\n"
+                    << counts;
+    std::ofstream summary(out_dir / "stability_summary.txt");
+    summary << "incise bench stability" << (quick ? " --quick" : "") << "\n\n"
+            << bounds_text(sweep) << "\nSet-up:\n";
+    for (const std::string& note : set_up_notes) summary << "  " << note << "\n";
+    summary << "\nOutcome counts (" << runs.size() << " runs, " << format(seconds, 3) << " s):\n"
+            << counts;
+
+    write_plot_script(out_dir / "stability.gnuplot", out_dir / "stability.png", sweep, kinds, runs);
+    draw_plot(out_dir, progress_stream);
+    progress_stream << "wrote " << (out_dir / "stability.csv").string() << "\n";
+    return 0;
+  } catch (const std::exception& error) {
+    progress_stream << "\nstability bench failed: " << error.what() << "\n";
+    return 1;
+  }
+}
+
+}  // namespace incise::bench

@@ -1,0 +1,19 @@
+// The numerical stability sweep (issue 7): `incise bench stability [--quick] --out DIR`.
+#pragma once
+
+#include <filesystem>
+#include <ostream>
+
+namespace incise::bench {
+
+// Runs every model x integrator x case x E x nu x dt of the sweep (a representative subset
+// with `quick`) and writes
+//   DIR/stability.csv          model,integrator,case,E,nu,dt,outcome,max_energy_ratio,
+//                              max_displacement,steps,guard_events (one row per run);
+//   DIR/stability_summary.txt  the outcome bounds, the cases' set-up and the outcome counts;
+//   DIR/stability.gnuplot and, with gnuplot installed, DIR/stability.png (the outcome map).
+// A carriage-return progress line, then the outcome counts per model and integrator, go to
+// `progress`. Returns 0 on success, 1 on failure (with a message on `progress`).
+int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress);
+
+}  // namespace incise::bench
