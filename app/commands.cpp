@@ -9,18 +9,16 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
-#include <regex>
 
 namespace incise::app {
 
 namespace {
 
 std::pair<int, int> parse_size(const std::string& text) {
-  static const std::regex pattern(R"((\d{2,5})x(\d{2,5}))");
-  std::smatch m;
-  if (!std::regex_match(text, m, pattern))
+  int w = 0, h = 0;
+  char extra = 0;
+  if (std::sscanf(text.c_str(), "%5dx%5d%c", &w, &h, &extra) != 2)
     throw std::runtime_error("--size: '" + text + "' is not WxH (e.g. 640x480)");
-  int w = std::stoi(m[1]), h = std::stoi(m[2]);
   if (w < 16 || h < 16 || w > 8192 || h > 8192)
     throw std::runtime_error("--size: " + text + " must be within 16x16 and 8192x8192");
   return {w, h};
