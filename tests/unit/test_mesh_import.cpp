@@ -75,3 +75,31 @@ TEST(MeshImport, GarbageAndMissingFilesAreErrors) {
   EXPECT_THROW(import_surface("no/such/mesh.stl"), MeshError);
   std::filesystem::remove(path);
 }
+
+TEST(MeshImport, StlAndPlyAreReadToo) {
+  // The same unit cube as ASCII STL (facets repeat their vertices) and ASCII PLY.
+  const int faces[12][3] = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}, {0, 1, 5}, {0, 5, 4},
+                            {1, 2, 6}, {1, 6, 5}, {2, 3, 7}, {2, 7, 6}, {3, 0, 4}, {3, 4, 7}};
+  const double v[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+  std::string stl = "solid cube\n";
+  for (const auto& f : faces) {
+    stl += "facet normal 0 0 0\nouter loop\n";
+    for (int k : f)
+      stl += "vertex " + std::to_string(v[k][0]) + " " + std::to_string(v[k][1]) + " " + std::to_string(v[k][2]) + "\n";
+    stl += "endloop\nendfacet\n";
+  }
+  stl += "endsolid cube\n";
+  std::string ply = "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\nproperty float z\n"
+                    "element face 12\nproperty list uchar int vertex_indices\nend_header\n";
+  for (const auto& p : v) ply += std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + "\n";
+  for (const auto& f : faces) ply += "3 " + std::to_string(f[0]) + " " + std::to_string(f[1]) + " " + std::to_string(f[2]) + "\n";
+  for (const auto& [name, text] : {std::pair{"incise_cube.stl", stl}, std::pair{"incise_cube.ply", ply}}) {
+    SCOPED_TRACE(name);
+    auto path = write_file(name, text);
+    auto soup = import_surface(path);
+    EXPECT_EQ(soup.vertices.size(), 8u);  // coincident STL corners merged
+    EXPECT_EQ(soup.triangles.size(), 12u);
+    EXPECT_NEAR(std::abs(winding_number(soup, {0.5, 0.5, 0.5})), 1.0, 1e-9);
+    std::filesystem::remove(path);
+  }
+}
