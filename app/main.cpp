@@ -1,5 +1,7 @@
 // The `incise` command: replay (headless), check, run (window), trajectory tools.
 #include "app/commands.hpp"
+#include "tests/bench/accuracy.hpp"
+#include "tests/bench/stability.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -53,6 +55,17 @@ int main(int argc, char** argv) {
   synth_cmd->add_option("--stroke", synth.stroke, "Lateral stroke while pressed x,y,z (m)")->delimiter(',');
   synth_cmd->add_option("--rate", synth.rate_hz, "Samples per second")->capture_default_str();
 
+  auto* bench_cmd = app.add_subcommand("bench", "Benchmarks that print figures and write reports (CSV, PNG)");
+  bench_cmd->require_subcommand(1);
+  bool accuracy_quick = false, stability_quick = false;
+  std::string accuracy_out = "out/bench/accuracy", stability_out = "out/bench/stability";
+  auto* accuracy_cmd = bench_cmd->add_subcommand("accuracy", "Error against run time per step, per model, variant and resolution");
+  accuracy_cmd->add_flag("--quick", accuracy_quick, "A smaller sweep (about 3 minutes here)");
+  accuracy_cmd->add_option("--out", accuracy_out, "Output folder (accuracy.csv, accuracy.png, references.json)")->capture_default_str();
+  auto* stability_cmd = bench_cmd->add_subcommand("stability", "Stiff and extreme cases: outcome per model, integrator, case, E, nu, dt");
+  stability_cmd->add_flag("--quick", stability_quick, "A representative subset (within 3 minutes here)");
+  stability_cmd->add_option("--out", stability_out, "Output folder (stability.csv, stability.png)")->capture_default_str();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -66,6 +79,8 @@ int main(int argc, char** argv) {
     if (*export_cmd) return incise::app::trajectory_export(export_file, export_out);
     if (*info_cmd) return incise::app::trajectory_info(info_file);
     if (*synth_cmd) return incise::app::trajectory_synth(synth);
+    if (*accuracy_cmd) return incise::bench::run_accuracy_bench(accuracy_quick, accuracy_out, std::cerr);
+    if (*stability_cmd) return incise::bench::run_stability_bench(stability_quick, stability_out, std::cerr);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "incise: %s\n", e.what());
     return 1;

@@ -1,5 +1,6 @@
 #include "physics/efg/worker_pool.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 
@@ -25,13 +26,15 @@ WorkerPool::~WorkerPool() {
   for (std::thread& thread : threads_) thread.join();
 }
 
-std::pair<int, int> WorkerPool::range(int index, int count) const {
-  const long long threads = thread_count();
-  return {static_cast<int>(count * index / threads), static_cast<int>(count * (index + 1) / threads)};
+std::pair<int, int> WorkerPool::range(int index, int count, int threads) const {
+  return {static_cast<int>(static_cast<long long>(count) * index / threads),
+          static_cast<int>(static_cast<long long>(count) * (index + 1) / threads)};
 }
 
-void WorkerPool::run(int count, const std::function<void(int, int)>& task) {
-  if (threads_.empty()) {
+void WorkerPool::run(int count, const std::function<void(int, int)>& task, int minimum_per_thread) {
+  const int useful = std::max(1, count / std::max(1, minimum_per_thread));
+  const int used = std::min(thread_count(), useful);
+  if (used == 1) {
     task(0, count);
     return;
   }
@@ -39,14 +42,15 @@ void WorkerPool::run(int count, const std::function<void(int, int)>& task) {
     std::lock_guard lock(mutex_);
     task_ = &task;
     count_ = count;
-    pending_ = static_cast<int>(threads_.size());
+    used_ = used;
+    pending_ = used - 1;
     error_ = nullptr;
     ++generation_;
   }
   start_.notify_all();
   std::exception_ptr own_error;
   try {
-    const auto [begin, end] = range(0, count);
+    const auto [begin, end] = range(0, count, used);
     task(begin, end);
   } catch (...) {
     own_error = std::current_exception();
@@ -62,7 +66,7 @@ void WorkerPool::work(int index) {
   uint64_t seen = 0;
   for (;;) {
     const std::function<void(int, int)>* task = nullptr;
-    int count = 0;
+    int count = 0, used = 0;
     {
       std::unique_lock lock(mutex_);
       start_.wait(lock, [&] { return stopping_ || generation_ != seen; });
@@ -70,10 +74,12 @@ void WorkerPool::work(int index) {
       seen = generation_;
       task = task_;
       count = count_;
+      used = used_;
     }
+    if (index >= used) continue;  // not needed in this run
     std::exception_ptr error;
     try {
-      const auto [begin, end] = range(index, count);
+      const auto [begin, end] = range(index, count, used);
       (*task)(begin, end);
     } catch (...) {
       error = std::current_exception();

@@ -17,12 +17,19 @@
 // face x = L (area-weighted: exact face integrals for the tets; for EFG, the MLS displacement
 // at the centroids of a fine triangulation of the face, through the surface embedding).
 // Reference: 10-node tets solved statically on the finest mesh of a refinement sequence
-// printed in the progress and written to references.json.
+// graded towards the clamp and the crack front, printed in the progress and written to
+// references.json.
+//
+// Rows: efg nb8 (the thesis's default: 8 cell corners, support factor 3), nb4, novolume (nb8
+// with every touched cube counted whole), nb8_support1.2 (support factor 1.2); fem tet4 (the
+// corotational real-time baseline) and tet10 (the coarser reference meshes; timed with their
+// assembled linear stiffness and HRZ-lumped masses, as no dynamic tet10 model exists).
 //
 // Equilibrium: each model's linear static solution (sparse direct solve of its stiffness at
 // rest), i.e. the small-strain problem the reference solves. ms_per_step: the mean wall time
-// of implicit Euler steps at dt = 1/60 from rest under the load, with the scene-like CG
-// (tolerance 1e-6, Jacobi preconditioner), and cg_iterations their mean iteration count.
+// of implicit Euler steps at dt = 1/60 from rest under the load (Rayleigh mass damping 2/s),
+// with the scene-like CG (tolerance 1e-6, Jacobi preconditioner, at most 2000 iterations);
+// cg_iterations is their mean iteration count.
 #include "tests/bench/accuracy.hpp"
 
 #include "physics/core/implicit_euler.hpp"
@@ -33,24 +40,20 @@
 #include "physics/fem/tet_mesh.hpp"
 
 #include <Eigen/LU>
+#include <Eigen/SparseCholesky>
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <fstream>
-#include <functional>
 #include <iomanip>
 #include <map>
-#include <memory>
-#include <numbers>
-#include <optional>
-#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace incise::bench {
@@ -193,21 +196,24 @@ Section graded_towards_crack_front(Section section, double power) {
   return section;
 }
 
-// Layer positions along x: uniform, or (for the cut) graded towards x = cut_x from both sides
-// with the same power law, `layers` even so that x = cut_x is a layer.
-std::vector<double> layer_positions(int layers, bool towards_cut, double power) {
+// Layer positions along x, graded with the power law `power` towards the singular lines: the
+// clamped end x = 0 and, for the cut, both sides of x = cut_x (`layers` even, so that x = cut_x
+// is a layer). On an interval graded at both ends, x = t^p / (t^p + (1 - t)^p).
+std::vector<double> layer_positions(int layers, bool cut, double power) {
   std::vector<double> x(layers + 1);
+  const auto towards_start = [power](double t) { return std::pow(t, power); };
+  const auto towards_both = [power](double t) {
+    return std::pow(t, power) / (std::pow(t, power) + std::pow(1 - t, power));
+  };
   for (int k = 0; k <= layers; ++k) {
-    if (!towards_cut) {
-      x[k] = beam_length * k / layers;
+    if (!cut) {
+      // Milder: only the clamp is singular.
+      x[k] = beam_length * std::pow(static_cast<double>(k) / layers, std::sqrt(power));
       continue;
     }
     const int half = layers / 2;
-    if (k <= half) {
-      x[k] = cut_x * (1 - std::pow(1 - static_cast<double>(k) / half, power));
-    } else {
-      x[k] = cut_x + (beam_length - cut_x) * std::pow(static_cast<double>(k - half) / half, power);
-    }
+    x[k] = k <= half ? cut_x * towards_both(static_cast<double>(k) / half)
+                     : cut_x + (beam_length - cut_x) * towards_start(static_cast<double>(k - half) / half);
   }
   return x;
 }
@@ -348,11 +354,13 @@ std::vector<uint8_t> clamped_nodes(const Vector& rest) {
 // cut cases (used for their references; the real-time tet4 rows stay uniform).
 constexpr double grading_power = 2.0;
 TetMesh case_mesh(const Case& c, int section, int layers, bool graded = false) {
-  if (c.shape == Shape::square) return extrude(square_section(section), layer_positions(layers, false, 1));
-  const bool grade = graded && c.cut;
-  const Section hexagon = grade ? graded_towards_crack_front(hexagon_section(section), grading_power)
-                                : hexagon_section(section);
-  return extrude(hexagon, layer_positions(layers, grade, grading_power));
+  const double power = graded ? grading_power : 1.0;
+  if (c.shape == Shape::square) {
+    return extrude(square_section(section), layer_positions(layers, false, power));
+  }
+  const Section hexagon = graded && c.cut ? graded_towards_crack_front(hexagon_section(section), power)
+                                          : hexagon_section(section);
+  return extrude(hexagon, layer_positions(layers, c.cut, power));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -396,6 +404,44 @@ Vector quadratic_lumped_masses(const QuadraticTetMesh& mesh, double density) {
     for (int e = 4; e < 10; ++e) masses[tet[e]] += 4 * mass / 27;
   }
   return masses;
+}
+
+// Solves K u = load for several loads with one factorisation, u = 0 on the fixed nodes.
+std::vector<Vector> solve_static_loads(const SparseMatrix& stiffness, const std::vector<Vector>& loads,
+                                       const std::vector<uint8_t>& fixed) {
+  std::vector<Index> free_of(stiffness.rows(), -1);
+  Index free_count = 0;
+  for (Index i = 0; i < stiffness.rows(); ++i) {
+    if (fixed[i / 3] == 0) free_of[i] = free_count++;
+  }
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(stiffness.nonZeros());
+  for (Index column = 0; column < stiffness.outerSize(); ++column) {
+    for (SparseMatrix::InnerIterator it(stiffness, column); it; ++it) {
+      if (free_of[it.row()] >= 0 && free_of[it.col()] >= 0) {
+        triplets.emplace_back(free_of[it.row()], free_of[it.col()], it.value());
+      }
+    }
+  }
+  SparseMatrix reduced(free_count, free_count);
+  reduced.setFromTriplets(triplets.begin(), triplets.end());
+  const Eigen::SimplicialLDLT<SparseMatrix> factor(reduced);
+  if (factor.info() != Eigen::Success) throw std::runtime_error("static solve: factorisation failed");
+  std::vector<Vector> solutions;
+  for (const Vector& load : loads) {
+    Vector reduced_load(free_count);
+    for (Index i = 0; i < stiffness.rows(); ++i) {
+      if (free_of[i] >= 0) reduced_load[free_of[i]] = load[i];
+    }
+    const Vector reduced_solution = factor.solve(reduced_load);
+    Vector u = Vector::Zero(stiffness.rows());
+    for (Index i = 0; i < stiffness.rows(); ++i) {
+      if (free_of[i] >= 0) u[i] = reduced_solution[free_of[i]];
+    }
+    if (!u.allFinite()) throw std::runtime_error("static solve: the solution is not finite");
+    solutions.push_back(std::move(u));
+  }
+  return solutions;
 }
 
 struct Timing {
@@ -544,6 +590,7 @@ void write_plot_script(const std::filesystem::path& path, const std::filesystem:
   }
   script << "# Written by incise bench accuracy: error against time per step, log-log.\n"
          << "set terminal pngcairo size 1500,950 font ',10'\n"
+         << "set termoption noenhanced\n"
          << "set output '" << png.filename().string() << "'\n"
          << "set logscale xy\nset grid\nset key bottom left font ',8'\n"
          << "set xlabel 'ms per implicit Euler step (dt = 1/60, CG 1e-6)'\n"
@@ -580,23 +627,20 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
     std::filesystem::create_directories(out_dir);
     const auto bench_start = Clock::now();
     const std::vector<Case> cases = all_cases();
-    const int timed_steps = quick ? 2 : 4;
+    const int timed_steps = quick ? 1 : 4;
 
     // Resolutions. Reference levels (10-node tets): hexagon (lattice m, layers), square (cells
-    // per side, layers); the last is the reference, the refinement check compares the last two.
-    const std::vector<std::pair<int, int>> hexagon_levels =
-        quick ? std::vector<std::pair<int, int>>{{1, 10}, {2, 20}, {3, 30}}
-              : std::vector<std::pair<int, int>>{{1, 10}, {2, 20}, {3, 30}, {4, 40}};
-    const std::vector<std::pair<int, int>> square_levels =
-        quick ? std::vector<std::pair<int, int>>{{2, 10}, {4, 20}, {6, 30}}
-              : std::vector<std::pair<int, int>>{{2, 10}, {4, 20}, {6, 30}, {8, 40}};
-    // Linear tets (the real-time baseline), about 1k, 3k and 10k dofs (more in the full run).
-    const std::vector<std::pair<int, int>> hexagon_linear =
-        quick ? std::vector<std::pair<int, int>>{{2, 20}, {3, 30}, {4, 50}}
-              : std::vector<std::pair<int, int>>{{2, 20}, {3, 30}, {4, 50}, {6, 80}};
-    const std::vector<std::pair<int, int>> square_linear =
-        quick ? std::vector<std::pair<int, int>>{{2, 20}, {4, 40}, {6, 60}}
-              : std::vector<std::pair<int, int>>{{2, 20}, {4, 40}, {6, 60}, {10, 100}};
+    // per side, layers); the finest is the reference, the refinement check compares the last two.
+    using Levels = std::vector<std::pair<int, int>>;
+    const Levels hexagon_levels = quick ? Levels{{1, 10}, {2, 20}, {3, 30}}
+                                        : Levels{{1, 10}, {2, 20}, {3, 30}, {4, 40}};
+    const Levels square_levels = quick ? Levels{{2, 10}, {3, 15}, {4, 20}}
+                                       : Levels{{2, 10}, {4, 20}, {6, 30}, {8, 40}};
+    // Linear tets (the real-time baseline), uniform, about 1k, 3k and 10k dofs (more in full).
+    const Levels hexagon_linear = quick ? Levels{{2, 20}, {3, 30}, {4, 50}}
+                                        : Levels{{2, 20}, {3, 30}, {4, 50}, {6, 80}};
+    const Levels square_linear = quick ? Levels{{2, 20}, {4, 40}, {6, 60}}
+                                       : Levels{{2, 20}, {4, 40}, {6, 60}, {10, 100}};
     // EFG: particle cells along the beam (spacing a = L / (2 cells)).
     const std::vector<int> efg_cells = quick ? std::vector<int>{20, 30, 50}
                                              : std::vector<int>{20, 30, 50, 70};
@@ -611,12 +655,28 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
                                                {"novolume", 8, false, 3.0},
                                                {"nb8_support1.2", 8, true, 1.2}};
 
-    // Work items for the progress bar.
-    int total = 0;
+    // Cases sharing a body share meshes, models and factorisations.
+    struct Body {
+      Shape shape;
+      bool cut;
+      std::vector<Case> cases;
+    };
+    std::vector<Body> bodies;
     for (const Case& c : cases) {
-      const size_t levels = c.shape == Shape::hexagon ? hexagon_levels.size() : square_levels.size();
-      const size_t linear = c.shape == Shape::hexagon ? hexagon_linear.size() : square_linear.size();
-      total += static_cast<int>(levels + linear + efg_cells.size() * efg_variants.size());
+      auto it = std::find_if(bodies.begin(), bodies.end(),
+                             [&](const Body& b) { return b.shape == c.shape && b.cut == c.cut; });
+      if (it == bodies.end()) {
+        bodies.push_back({c.shape, c.cut, {}});
+        it = bodies.end() - 1;
+      }
+      it->cases.push_back(c);
+    }
+    int total = 0;
+    for (const Body& body : bodies) {
+      const bool hexagon = body.shape == Shape::hexagon;
+      total += static_cast<int>((hexagon ? hexagon_levels : square_levels).size() +
+                                (hexagon ? hexagon_linear : square_linear).size() +
+                                efg_cells.size() * efg_variants.size());
     }
     Progress progress(progress_stream, total);
     progress.note(std::string("incise bench accuracy") + (quick ? " --quick" : "") + ": " +
@@ -629,63 +689,74 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
     };
     const auto mm = [](const Vec3& v) {
       std::ostringstream stream;
-      stream << std::fixed << std::setprecision(4) << "(" << 1e3 * v.x() << ", " << 1e3 * v.y()
+      stream << std::fixed << std::setprecision(5) << "(" << 1e3 * v.x() << ", " << 1e3 * v.y()
              << ", " << 1e3 * v.z() << ") mm";
       return stream.str();
     };
-    for (const Case& c : cases) {
-      const auto case_start = Clock::now();
-      const Vec3 body_force = beam_material.density * c.acceleration;
-      const bool hexagon = c.shape == Shape::hexagon;
-      const auto describe = [&](int section, int layers, bool graded = false) {
+
+    for (const Body& body : bodies) {
+      const auto body_start = Clock::now();
+      const bool hexagon = body.shape == Shape::hexagon;
+      const Case& first = body.cases.front();
+      const std::string body_name = std::string(hexagon ? "hexagon" : "square") + (body.cut ? " cut" : "");
+      const std::string cut_suffix = body.cut ? "_geomcut" : "";
+      const auto describe = [&](int section, int layers, bool graded) {
         return hexagon ? "hexagon_lattice" + std::to_string(section) + "_x" + std::to_string(layers) +
-                             (c.cut && graded ? "_graded" : "")
+                             (graded ? "_graded" : "")
                        : "square_" + std::to_string(section) + "x" + std::to_string(section) + "_x" +
-                             std::to_string(layers);
+                             std::to_string(layers) + (graded ? "_graded" : "");
       };
 
-      // Reference: 10-node tets on a refinement sequence; the finest is the reference.
-      Reference reference;
-      reference.element = c.cut ? "tet10 static, conforming cut (nodes duplicated on x = 0.1, z > 0)"
-                                : "tet10 static";
+      // References: 10-node tets on a refinement sequence graded towards the singular lines
+      // (clamp, crack front); the finest is the reference.
       struct Level {
         QuadraticMesh quadratic;
         TetMesh linear;
         std::vector<uint8_t> fixed;
-        Vec3 tip;
+        std::vector<Vec3> tips;  // per case
         std::string name;
       };
       std::vector<Level> levels;
       for (const auto& [section, layers] : hexagon ? hexagon_levels : square_levels) {
-        progress.draw(c.name + " reference tet10 " + describe(section, layers, true));
         Level level;
         level.name = describe(section, layers, true);
-        level.linear = case_mesh(c, section, layers, true);
+        progress.draw(body_name + " reference tet10 " + level.name);
+        level.linear = case_mesh(first, section, layers, true);
         level.quadratic = make_quadratic(level.linear);
-        if (c.cut) open_cut(level.quadratic.mesh.rest, level.quadratic.mesh.tets);
+        if (body.cut) open_cut(level.quadratic.mesh.rest, level.quadratic.mesh.tets);
         level.fixed = clamped_nodes(level.quadratic.mesh.rest);
-        const Vector u = physics::solve_static_quadratic(level.quadratic.mesh, beam_material,
-                                                         level.fixed, body_force);
-        level.tip = tip_mean(level.linear, u, &level.quadratic);
-        Reference::Level entry{level.name, 3 * static_cast<long long>(level.quadratic.mesh.rest.size() / 3),
-                               level.tip, 0};
-        if (!levels.empty()) entry.change_pct = relative_error_pct(levels.back().tip, level.tip);
-        reference.levels.push_back(entry);
+        std::vector<Vector> loads;
+        for (const Case& c : body.cases) {
+          loads.push_back(physics::assemble_body_load(level.quadratic.mesh, beam_material.density * c.acceleration));
+        }
+        const std::vector<Vector> solutions = solve_static_loads(
+            physics::assemble_stiffness(level.quadratic.mesh, beam_material), loads, level.fixed);
+        for (const Vector& u : solutions) level.tips.push_back(tip_mean(level.linear, u, &level.quadratic));
         levels.push_back(std::move(level));
-        progress.step(c.name + " reference tet10 " + describe(section, layers, true));
+        progress.step(body_name + " reference tet10 " + levels.back().name);
       }
-      reference.tip = levels.back().tip;
-      for (const auto& level : reference.levels) {
-        progress.note("  " + c.name + " reference tet10 " + level.mesh + " (" +
-                      std::to_string(level.dofs) + " dofs): tip " + mm(level.tip) +
-                      (level.change_pct > 0 ? ", change from the coarser mesh " + format(level.change_pct, 3) + " %" : ""));
+      for (size_t i = 0; i < body.cases.size(); ++i) {
+        const Case& c = body.cases[i];
+        Reference reference;
+        reference.element = body.cut ? "tet10 static, conforming cut (nodes on x = 0.1, z > 0 duplicated)"
+                                     : "tet10 static";
+        for (size_t l = 0; l < levels.size(); ++l) {
+          Reference::Level entry{levels[l].name,
+                                 3 * static_cast<long long>(levels[l].quadratic.mesh.rest.size() / 3),
+                                 levels[l].tips[i], 0};
+          if (l > 0) entry.change_pct = relative_error_pct(levels[l - 1].tips[i], levels[l].tips[i]);
+          reference.levels.push_back(entry);
+          progress.note("  " + c.name + " reference tet10 " + entry.mesh + " (" + std::to_string(entry.dofs) +
+                        " dofs): tip " + mm(entry.tip) +
+                        (l > 0 ? ", change from the coarser mesh " + format(entry.change_pct, 3) + " %" : ""));
+        }
+        reference.tip = levels.back().tips[i];
+        const double last_change = reference.levels.back().change_pct;
+        progress.note("  " + c.name + " reference: " + (last_change < 0.5 ? "converged" : "NOT converged") +
+                      " to 0.5 % (the two finest differ by " + format(last_change, 3) + " %)" +
+                      (c.name == "b1" ? "; beam theory tip z " + format(-1e3 * b1_beam_theory_tip, 4) + " mm" : ""));
+        references[c.name] = reference;
       }
-      const double last_change = reference.levels.back().change_pct;
-      progress.note("  " + c.name + " reference: " + (last_change < 0.5 ? "converged" : "NOT converged") +
-                    " (the two finest differ by " + format(last_change, 3) + " %" +
-                    (c.name == "b1" ? "; beam theory " + format(1e3 * b1_beam_theory_tip, 4) + " mm" : "") + ")");
-      references[c.name] = reference;
-      const std::string cut_suffix = c.cut ? "_geomcut" : "";
 
       // tet10 rows: the coarser reference levels, timed with the assembled linear model.
       for (size_t l = 0; l + 1 < levels.size(); ++l) {
@@ -693,31 +764,41 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
         const QuadraticTetMesh& mesh = level.quadratic.mesh;
         AssembledLinearModel model(physics::assemble_stiffness(mesh, beam_material), mesh.rest,
                                    quadratic_lumped_masses(mesh, beam_material.density));
-        const Timing timing = time_steps(model, level.fixed, physics::assemble_body_load(mesh, body_force),
-                                         timed_steps);
-        rows.push_back({c.name, "fem", "tet10" + cut_suffix, level.name,
-                        3 * static_cast<long long>(mesh.rest.size() / 3),
-                        static_cast<long long>(mesh.tets.size()), timing.ms_per_step,
-                        timing.cg_iterations, relative_error_pct(level.tip, reference.tip),
-                        timing.converged});
+        for (size_t i = 0; i < body.cases.size(); ++i) {
+          const Case& c = body.cases[i];
+          const Timing timing = time_steps(
+              model, level.fixed, physics::assemble_body_load(mesh, beam_material.density * c.acceleration),
+              timed_steps);
+          rows.push_back({c.name, "fem", "tet10" + cut_suffix, level.name,
+                          3 * static_cast<long long>(mesh.rest.size() / 3),
+                          static_cast<long long>(mesh.tets.size()), timing.ms_per_step,
+                          timing.cg_iterations, relative_error_pct(level.tips[i], references[c.name].tip),
+                          timing.converged});
+        }
       }
 
-      // tet4 rows: the corotational linear tets.
+      // tet4 rows: the corotational linear tets on uniform meshes.
       for (const auto& [section, layers] : hexagon ? hexagon_linear : square_linear) {
-        progress.draw(c.name + " fem tet4 " + describe(section, layers));
-        TetMesh mesh = case_mesh(c, section, layers);
-        if (c.cut) open_cut(mesh.rest, mesh.tets);
+        const std::string name = describe(section, layers, false);
+        progress.draw(body_name + " fem tet4 " + name);
+        TetMesh mesh = case_mesh(first, section, layers, false);
+        if (body.cut) open_cut(mesh.rest, mesh.tets);
         const std::vector<uint8_t> fixed = clamped_nodes(mesh.rest);
-        const Vector u = physics::solve_static_linear(mesh, beam_material, fixed, body_force);
-        const Vec3 tip = tip_mean(mesh, u, nullptr);
         CorotationalTetFem model(mesh, beam_material);
-        const Timing timing = time_steps(
-            model, fixed, physics::gravity_forces(model.lumped_masses(), c.acceleration), timed_steps);
-        rows.push_back({c.name, "fem", "tet4" + cut_suffix, describe(section, layers),
-                        3 * static_cast<long long>(mesh.rest.size() / 3),
-                        static_cast<long long>(mesh.tets.size()), timing.ms_per_step,
-                        timing.cg_iterations, relative_error_pct(tip, reference.tip), timing.converged});
-        progress.step(c.name + " fem tet4 " + describe(section, layers));
+        std::vector<Vector> loads;
+        for (const Case& c : body.cases) loads.push_back(physics::gravity_forces(model.lumped_masses(), c.acceleration));
+        const std::vector<Vector> solutions =
+            solve_static_loads(physics::assemble_stiffness(mesh, beam_material), loads, fixed);
+        for (size_t i = 0; i < body.cases.size(); ++i) {
+          const Case& c = body.cases[i];
+          const Timing timing = time_steps(model, fixed, loads[i], timed_steps);
+          rows.push_back({c.name, "fem", "tet4" + cut_suffix, name,
+                          3 * static_cast<long long>(mesh.rest.size() / 3),
+                          static_cast<long long>(mesh.tets.size()), timing.ms_per_step, timing.cg_iterations,
+                          relative_error_pct(tip_mean(mesh, solutions[i], nullptr), references[c.name].tip),
+                          timing.converged});
+        }
+        progress.step(body_name + " fem tet4 " + name);
       }
 
       // EFG rows. The tip face is sampled at the centroids of a fine triangulation.
@@ -726,85 +807,95 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
       Vector face_points(3 * static_cast<Index>(face.triangles.size()));
       double face_area = 0;
       for (size_t t = 0; t < face.triangles.size(); ++t) {
-        const auto& tri = face.triangles[t];
+        const auto& corners = face.triangles[t];
         const Eigen::Vector2d centroid =
-            (face.points[tri[0]] + face.points[tri[1]] + face.points[tri[2]]) / 3;
+            (face.points[corners[0]] + face.points[corners[1]] + face.points[corners[2]]) / 3;
         face_points.segment<3>(3 * static_cast<Index>(t)) = Vec3(beam_length, centroid.x(), centroid.y());
-        face_weights.push_back(triangle_area(face.points[tri[0]], face.points[tri[1]], face.points[tri[2]]));
+        face_weights.push_back(
+            triangle_area(face.points[corners[0]], face.points[corners[1]], face.points[corners[2]]));
         face_area += face_weights.back();
       }
       for (int cells : efg_cells) {
         for (const EfgVariant& variant : efg_variants) {
           const double spacing = beam_length / (2 * cells);
           const std::string resolution = "a" + format(1e3 * spacing, 3) + "mm";
-          progress.draw(c.name + " efg " + variant.name + " " + resolution);
+          progress.draw(body_name + " efg " + variant.name + " " + resolution);
           EfgSettings settings;
           settings.spacing = spacing;
           settings.neighbours = variant.neighbours;
           settings.estimate_volumes = variant.estimate_volumes;
           settings.support_factor = variant.support_factor;
-          if (c.cut) {
-            // From the top down to z = 0 across the whole width; particles on the plane count
-            // on the +x side.
+          if (body.cut) {
+            // From the top down to z = 0 across the whole width. Particles on the plane count on
+            // the +x side; links through the rim z = 0 stay (the crack front is shared).
             settings.cuts.push_back({Vec3(cut_x, -1, 0), Vec3(0, 2, 0), Vec3(0, 0, 1)});
           }
-          const Shape shape = c.shape;
+          const Shape shape = body.shape;
           CorotationalEfg model([shape](const Vec3& p) { return inside_shape(shape, p); },
                                 box_min(shape), box_max(shape), beam_material, settings);
           model.update_rotations(model.rest_positions());
           const std::vector<uint8_t> fixed = clamped_nodes(model.rest_positions());
-          const Vector load = physics::gravity_forces(model.lumped_masses(), c.acceleration);
-          const Vector u = physics::solve_static(physics::assemble_stiffness(model), load, fixed);
+          std::vector<Vector> loads;
+          for (const Case& c : body.cases) loads.push_back(physics::gravity_forces(model.lumped_masses(), c.acceleration));
+          const std::vector<Vector> solutions =
+              solve_static_loads(physics::assemble_stiffness(model), loads, fixed);
           const physics::SurfaceEmbedding embedding = model.embed_surface(face_points);
-          Vector moved;
-          CorotationalEfg::surface_positions(embedding, model.rest_positions() + u, moved);
-          Vec3 tip = Vec3::Zero();
-          for (size_t t = 0; t < face_weights.size(); ++t) {
-            tip += face_weights[t] / face_area *
-                   (moved.segment<3>(3 * static_cast<Index>(t)) - face_points.segment<3>(3 * static_cast<Index>(t)));
+          for (size_t i = 0; i < body.cases.size(); ++i) {
+            const Case& c = body.cases[i];
+            Vector moved;
+            CorotationalEfg::surface_positions(embedding, model.rest_positions() + solutions[i], moved);
+            Vec3 tip = Vec3::Zero();
+            for (size_t t = 0; t < face_weights.size(); ++t) {
+              const Index at = 3 * static_cast<Index>(t);
+              tip += face_weights[t] / face_area * (moved.segment<3>(at) - face_points.segment<3>(at));
+            }
+            const Timing timing = time_steps(model, fixed, loads[i], timed_steps);
+            rows.push_back({c.name, "efg", variant.name + cut_suffix, resolution,
+                            3 * static_cast<long long>(model.node_count()), model.element_count(),
+                            timing.ms_per_step, timing.cg_iterations,
+                            relative_error_pct(tip, references[c.name].tip), timing.converged});
           }
-          const Timing timing = time_steps(model, fixed, load, timed_steps);
-          rows.push_back({c.name, "efg", variant.name + cut_suffix, resolution,
-                          3 * static_cast<long long>(model.node_count()), model.element_count(),
-                          timing.ms_per_step, timing.cg_iterations,
-                          relative_error_pct(tip, reference.tip), timing.converged});
-          progress.step(c.name + " efg " + variant.name + " " + resolution);
+          progress.step(body_name + " efg " + variant.name + " " + resolution);
         }
       }
-      const std::chrono::duration<double> case_time = Clock::now() - case_start;
-      progress.note("  " + c.name + " done in " + format(case_time.count(), 3) + " s");
-      write_csv(out_dir / "accuracy.csv", rows);  // partial results survive an interruption
+      const std::chrono::duration<double> body_time = Clock::now() - body_start;
+      progress.note("  " + body_name + " body done in " + format(body_time.count(), 3) + " s");
     }
     progress.finish();
 
+    // Rows in case order, then model, variant and size.
+    const auto case_index = [&](const std::string& name) {
+      return std::find_if(cases.begin(), cases.end(), [&](const Case& c) { return c.name == name; }) - cases.begin();
+    };
+    std::stable_sort(rows.begin(), rows.end(), [&](const Row& left, const Row& right) {
+      return std::make_tuple(case_index(left.case_name), left.model, left.variant, left.dofs) <
+             std::make_tuple(case_index(right.case_name), right.model, right.variant, right.dofs);
+    });
     write_csv(out_dir / "accuracy.csv", rows);
     write_references(out_dir / "references.json", cases, references);
     int unconverged = 0;
     for (const Row& row : rows) unconverged += row.converged ? 0 : 1;
     if (unconverged > 0) {
-      progress_stream << unconverged << " rows had a CG that stopped at its iteration limit (2000) "
-                      << "in a timed step: their ms_per_step is a lower bound\n";
+      progress_stream << unconverged << " rows had a timed step whose CG stopped at its iteration "
+                      << "limit (2000): their ms_per_step is a lower bound\n";
     }
     const std::filesystem::path script = out_dir / "accuracy.gnuplot";
     const std::filesystem::path png = out_dir / "accuracy.png";
     write_plot_script(script, png, cases, rows);
     if (std::system("command -v gnuplot > /dev/null 2>&1") != 0) {
-      progress_stream << "gnuplot is not installed: " << png.string()
-                      << " not written (the CSV and " << script.filename().string() << " are)\n";
+      progress_stream << "gnuplot is not installed: " << png.string() << " not written (the CSV and "
+                      << script.filename().string() << " are)\n";
     } else {
       std::string quoted;
       for (char ch : std::filesystem::absolute(out_dir).string()) {
         quoted += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
       }
       const std::string command = "cd '" + quoted + "' && gnuplot accuracy.gnuplot";
-      if (std::system(command.c_str()) != 0) {
-        progress_stream << "gnuplot failed on " << script.string() << "\n";
-      }
+      if (std::system(command.c_str()) != 0) progress_stream << "gnuplot failed on " << script.string() << "\n";
     }
     const std::chrono::duration<double> elapsed = Clock::now() - bench_start;
     progress_stream << "wrote " << (out_dir / "accuracy.csv").string() << " (" << rows.size()
-                    << " rows), references.json and accuracy.png in " << format(elapsed.count(), 3)
-                    << " s\n";
+                    << " rows), references.json and accuracy.png in " << format(elapsed.count(), 3) << " s\n";
     return 0;
   } catch (const std::exception& error) {
     progress_stream << "\nbench accuracy failed: " << error.what() << "\n";

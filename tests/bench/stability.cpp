@@ -128,7 +128,9 @@ struct Body {
   std::vector<uint8_t> fixed;
   Vector external;
   double size = 0;      // largest side of the rest bounding box, m
-  int inverted = 0;     // elements inverted in the initial state
+  // Elements inverted at positions x (inverted_start only, else empty).
+  std::function<int(const Vector&)> count_inverted;
+  int inverted = 0;     // in the initial state
 };
 
 struct Run {
@@ -143,6 +145,7 @@ struct Run {
   double max_displacement = 0;
   int steps = 0;
   int guard_events = 0;
+  int inverted_at_end = -1;  // elements still inverted when the run ended (-1: not counted)
 };
 
 struct Sweep {
@@ -271,7 +274,12 @@ Body make_fem_body(const std::string& case_name, const Material& material) {
         break;
       }
     }
-    for (const auto& tet : mesh.tets) body.inverted += signed_volume(positions, tet) < 0 ? 1 : 0;
+    body.count_inverted = [tets = mesh.tets](const Vector& x) {
+      int inverted = 0;
+      for (const auto& tet : tets) inverted += signed_volume(x, tet) < 0 ? 1 : 0;
+      return inverted;
+    };
+    body.inverted = body.count_inverted(positions);
   }
   body.initial.positions = positions;
   body.model = std::move(model);
@@ -292,15 +300,22 @@ Body make_efg_body(const std::string& case_name, const Material& material) {
     // Particles are 2a apart in z: the layer below a top particle is 2a lower.
     for (int node : nodes_to_flip(model->rest_positions())) positions[3 * node + 2] -= 4.0 * efg_spacing;
     // Inverted integration points: det of the shape-matching fit F_e = sum_n x_n (x) c_n.
-    for (int element = 0; element < model->element_count(); ++element) {
-      Eigen::Matrix3d fit = Eigen::Matrix3d::Zero();
-      for (int k = 0; k < model->row_lengths()[static_cast<size_t>(element)]; ++k) {
-        const size_t slot = static_cast<size_t>(element * model->row_stride() + k);
-        const int particle = model->neighbours()[slot];
-        fit += positions.segment<3>(3 * particle) * model->matching_coefficients()[slot].transpose();
+    const CorotationalEfg* efg = model.get();
+    body.count_inverted = [efg](const Vector& x) {
+      int inverted = 0;
+      for (int element = 0; element < efg->element_count(); ++element) {
+        Eigen::Matrix3d fit = Eigen::Matrix3d::Zero();
+        for (int k = 0; k < efg->row_lengths()[static_cast<size_t>(element)]; ++k) {
+          const size_t slot = static_cast<size_t>(element) * static_cast<size_t>(efg->row_stride()) +
+                              static_cast<size_t>(k);
+          fit += x.segment<3>(3 * static_cast<Index>(efg->neighbours()[slot])) *
+                 efg->matching_coefficients()[slot].transpose();
+        }
+        inverted += fit.determinant() < 0 ? 1 : 0;
       }
-      body.inverted += fit.determinant() < 0 ? 1 : 0;
-    }
+      return inverted;
+    };
+    body.inverted = body.count_inverted(positions);
   }
   body.initial.positions = positions;
   body.model = std::move(model);
@@ -387,7 +402,7 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
     }
     if (!accepted) {
       run.outcome = Outcome::nonfinite;
-      return run;
+      break;
     }
     run.steps = step + 1;
     capped_steps += capped ? 1 : 0;
@@ -395,10 +410,13 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
     run.max_displacement = std::max(run.max_displacement, max_node_displacement(state.positions, rest));
     if (run.max_energy_ratio > energy_bound || run.max_displacement > displacement_bound * body.size) {
       run.outcome = Outcome::diverged;
-      return run;
+      break;
     }
   }
-  if (capped_steps > cg_capped_fraction * steps) run.outcome = Outcome::cg_not_converged;
+  if (run.outcome == Outcome::stable && capped_steps > cg_capped_fraction * steps) {
+    run.outcome = Outcome::cg_not_converged;
+  }
+  if (body.count_inverted) run.inverted_at_end = body.count_inverted(state.positions);
   return run;
 }
 
@@ -452,10 +470,22 @@ size_t index_of(const std::vector<double>& values, double value) {
   return static_cast<size_t>(std::find(values.begin(), values.end(), value) - values.begin());
 }
 
+// gnuplot wants underscores escaped in enhanced-text strings (inside double quotes: "\\_").
+std::string gnuplot_text(const std::string& text) {
+  std::string escaped;
+  for (char c : text) {
+    if (c == '_') escaped += "\\\\";
+    escaped += c;
+  }
+  return escaped;
+}
+
 // One panel per model + integrator (rows) and case (columns); inside a panel, E upwards and
-// dt to the right, one block of dt columns per nu; each cell coloured by its outcome.
+// dt to the right, one block of dt columns per nu; each cell coloured by its outcome. The
+// panels are placed in pixels (multiplot margins and spacing), so that the three-line title,
+// the panel titles and the rotated dt labels never overlap whatever the sweep's size.
 void write_plot_script(const std::filesystem::path& path, const std::filesystem::path& png,
-                       const Sweep& sweep, const std::vector<ModelKind>& kinds,
+                       bool quick, const Sweep& sweep, const std::vector<ModelKind>& kinds,
                        const std::vector<Run>& runs) {
   std::ofstream script(path);
   const size_t block = sweep.time_steps.size() + 1;  // dt columns and a gap per nu
@@ -463,21 +493,26 @@ void write_plot_script(const std::filesystem::path& path, const std::filesystem:
   int rows = 0;
   for (const ModelKind& kind : kinds) rows += static_cast<int>(kind.integrators.size());
   const int cases = static_cast<int>(sweep.cases.size());
-  const int panel_width = static_cast<int>(std::max<size_t>(360, 22 * columns + 120));
-  const int panel_height = static_cast<int>(std::max<size_t>(200, 26 * sweep.youngs_moduli.size() + 110));
+  // Pixels: the plot area of a panel, and the room around it.
+  const int area_width = std::max(260, 24 * static_cast<int>(columns));
+  const int area_height = std::max(90, 24 * static_cast<int>(sweep.youngs_moduli.size()));
+  constexpr int left = 70, right = 20, header = 80, above = 40, below = 75, between = 80;
+  const int width = left + cases * area_width + (cases - 1) * between + right;
+  const int height = header + above + rows * area_height + (rows - 1) * (above + below) + below;
+  auto fraction_x = [&](int pixels) { return format(static_cast<double>(pixels) / width, 5); };
+  auto fraction_y = [&](int pixels) { return format(static_cast<double>(pixels) / height, 5); };
+
   script << "# Written by incise bench stability: the outcome map of stability.csv.\n"
-         << "set terminal pngcairo size " << panel_width * cases << "," << panel_height * rows + 90
-         << " font ',9'\n"
+         << "set terminal pngcairo size " << width << "," << height << " font ',9'\n"
          << "set output '" << png.filename().string() << "'\n"
          << "unset key\nset tics scale 0\nset border 0\n"
          << "set xrange [-0.6:" << columns - 0.4 << "]\n"
-         << "set yrange [-0.6:" << sweep.youngs_moduli.size() - 0.4 << "]\n"
-         << "set bmargin 4.5\nset tmargin 2.2\n";
+         << "set yrange [-0.6:" << sweep.youngs_moduli.size() - 0.4 << "]\n";
   script << "set ytics (";
   for (size_t e = 0; e < sweep.youngs_moduli.size(); ++e) {
     script << (e ? ", " : "") << "'" << short_modulus(sweep.youngs_moduli[e]) << "' " << e;
   }
-  script << ")\nset xtics rotate by 90 right font ',7' (";
+  script << ")\nset xtics rotate by 90 right font ',8' (";
   bool first = true;
   for (size_t p = 0; p < sweep.poisson_ratios.size(); ++p) {
     for (size_t d = 0; d < sweep.time_steps.size(); ++d) {
@@ -490,9 +525,9 @@ void write_plot_script(const std::filesystem::path& path, const std::filesystem:
   for (size_t p = 0; p < sweep.poisson_ratios.size(); ++p) {
     const double centre = static_cast<double>(p * block) + 0.5 * (sweep.time_steps.size() - 1);
     script << "set label " << p + 1 << " 'nu " << format(sweep.poisson_ratios[p]) << "' at "
-           << centre << ", graph 1.04 center font ',8'\n";
+           << centre << ", graph 1.06 center font ',8'\n";
   }
-  script << "set xlabel 'dt (ms), one block per Poisson ratio' font ',8' offset 0,0.6\n";
+  script << "set xlabel 'dt (ms), a block per Poisson ratio' font ',8' offset 0,0.2\n";
   int panel = 0;
   for (const ModelKind& kind : kinds) {
     for (const Integrator& integrator : kind.integrators) {
@@ -511,22 +546,21 @@ void write_plot_script(const std::filesystem::path& path, const std::filesystem:
       }
     }
   }
-  script << "set multiplot layout " << rows << "," << cases
-         << " title \"incise stability sweep: green stable, red diverged, black nonfinite, gold "
-            "cg\\\\_not\\\\_converged (white: not run)\\n"
-            "diverged = energy > 100 x max(initial, free-fall work of gravity) or displacement > "
-            "10 x body size\" font ',11'\n";
+  const std::string title =
+      std::string("incise stability sweep") + (quick ? " (quick)" : "") +
+      "\\ngreen stable, red diverged, black nonfinite, gold cg_not_converged, white not run" +
+      "\\ndiverged: energy > " + format(energy_bound) + " x E_ref or displacement > " +
+      format(displacement_bound) + " x body size (stability_summary.txt)";
+  script << "set multiplot layout " << rows << "," << cases << " margins " << fraction_x(left)
+         << "," << fraction_x(width - right) << "," << fraction_y(below) << ","
+         << fraction_y(height - header - above) << " spacing " << fraction_x(between) << ","
+         << fraction_y(above + below) << " title \"" << gnuplot_text(title) << "\" font ',11'\n";
   panel = 0;
   for (const ModelKind& kind : kinds) {
     for (const Integrator& integrator : kind.integrators) {
       for (const std::string& case_name : sweep.cases) {
-        std::string title = kind.name + " " + integrator.name + ", " + case_name;
-        std::string escaped;
-        for (char c : title) {
-          if (c == '_') escaped += "\\\\";
-          escaped += c;
-        }
-        script << "set title \"" << escaped << "\" font ',10' offset 0,0.6\n"
+        script << "set title \"" << gnuplot_text(kind.name + " " + integrator.name + ", " + case_name)
+               << "\" font ',10' offset 0,0.9\n"
                << "plot $panel" << panel
                << " using 1:2:(0.46):(0.46):3 with boxxyerror fill solid 1.0 noborder lc rgb variable\n";
         ++panel;
@@ -570,6 +604,32 @@ std::string counts_table(const std::vector<ModelKind>& kinds, const std::vector<
       std::snprintf(line, sizeof line, "%-24s %8d %9d %10d %17d\n", name.c_str(),
                     counts[Outcome::stable], counts[Outcome::diverged], counts[Outcome::nonfinite],
                     counts[Outcome::cg_not_converged]);
+      table << line;
+    }
+  }
+  return table.str();
+}
+
+// inverted_start: of the runs that ended stable, how many still had inverted elements (a
+// corotational model can settle into an inverted equilibrium instead of recovering).
+std::string inverted_table(const std::vector<ModelKind>& kinds, const std::vector<Run>& runs) {
+  std::ostringstream table;
+  char line[160];
+  for (const ModelKind& kind : kinds) {
+    for (const Integrator& integrator : kind.integrators) {
+      int stable = 0;
+      int still_inverted = 0;
+      for (const Run& run : runs) {
+        if (run.model != kind.name || run.integrator != integrator.name || run.inverted_at_end < 0 ||
+            run.outcome != Outcome::stable)
+          continue;
+        ++stable;
+        still_inverted += run.inverted_at_end > 0 ? 1 : 0;
+      }
+      if (stable == 0) continue;
+      const std::string name = kind.name + "/" + integrator.name;
+      std::snprintf(line, sizeof line, "%-24s %d of %d stable inverted_start runs ended with inverted elements\n",
+                    name.c_str(), still_inverted, stable);
       table << line;
     }
   }
@@ -667,15 +727,17 @@ int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::o
     const std::string counts = counts_table(kinds, runs);
     progress_stream << "outcome counts (" << runs.size() << " runs, " << format(seconds, 3)
                     << " s):\n"
-                    << counts;
+                    << counts << inverted_table(kinds, runs);
     std::ofstream summary(out_dir / "stability_summary.txt");
     summary << "incise bench stability" << (quick ? " --quick" : "") << "\n\n"
             << bounds_text(sweep) << "\nSet-up:\n";
     for (const std::string& note : set_up_notes) summary << "  " << note << "\n";
     summary << "\nOutcome counts (" << runs.size() << " runs, " << format(seconds, 3) << " s):\n"
-            << counts;
+            << counts << "\nInverted elements at the end of the stable inverted_start runs:\n"
+            << inverted_table(kinds, runs);
 
-    write_plot_script(out_dir / "stability.gnuplot", out_dir / "stability.png", sweep, kinds, runs);
+    write_plot_script(out_dir / "stability.gnuplot", out_dir / "stability.png", quick, sweep, kinds,
+                      runs);
     draw_plot(out_dir, progress_stream);
     progress_stream << "wrote " << (out_dir / "stability.csv").string() << "\n";
     return 0;

@@ -116,24 +116,27 @@ TEST(EfgCantileverB1, ImplicitEulerSettlesToTheStaticSolution) {
 
   State state{model.rest_positions(), Vector::Zero(model.rest_positions().size())};
   ImplicitEulerSettings integrator;
-  integrator.dt = 0.01;
-  integrator.rayleigh_mass = 20;
-  integrator.cg.tolerance = 1e-9;
+  // Large steps and strong damping: the equilibrium, not the motion, is under test.
+  integrator.dt = 0.05;
+  integrator.rayleigh_mass = 40;
+  integrator.cg.tolerance = 1e-8;
   integrator.cg.max_iterations = 2000;
   const auto start = std::chrono::steady_clock::now();
   double tip = 0, previous = 0;
-  int steps = 0;
-  for (; steps < 400; ++steps) {
+  int steps = 0, iterations = 0;
+  for (; steps < 200; ++steps) {
     const StepReport report = implicit_euler_step(model, state, clamped, weight, {}, integrator);
     ASSERT_FALSE(report.nonfinite) << "step " << steps;
     ASSERT_TRUE(report.cg.converged) << "step " << steps;
+    iterations += report.cg.iterations;
     previous = tip;
     tip = efg_tip_mm(model, state.positions - model.rest_positions());
-    if (steps > 20 && std::abs(tip - previous) < 1e-7 * std::abs(tip)) break;
+    if (steps > 5 && std::abs(tip - previous) < 1e-6 * std::abs(tip)) break;
   }
   const std::chrono::duration<double> elapsed = std::chrono::steady_clock::now() - start;
-  std::printf("B1 EFG dynamic a = 0.005: tip %.4f mm after %d steps (%.2f s), static %.4f mm\n", tip,
-              steps, elapsed.count(), static_tip);
+  std::printf("B1 EFG dynamic a = 0.005: tip %.4f mm after %d steps, %d CG iterations (%.2f s), "
+              "static %.4f mm\n",
+              tip, steps, iterations, elapsed.count(), static_tip);
   // Corotation makes the dynamic equilibrium differ from the linear static one by the
   // geometric non-linearity only (tip rotation about 0.04 rad here).
   EXPECT_NEAR(tip / static_tip, 1.0, 0.01);

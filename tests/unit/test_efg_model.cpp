@@ -25,6 +25,7 @@ EfgSettings settings_with(int neighbours, int threads = 2) {
   settings.spacing = 0.005;
   settings.neighbours = neighbours;
   settings.threads = threads;
+  settings.threaded_elements = 0;  // small test bodies still use every thread
   return settings;
 }
 
