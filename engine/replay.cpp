@@ -290,8 +290,27 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     nodes += static_cast<std::size_t>(n);
     int fixed = 0;
     for (auto f : body.fixed) fixed += f;
+    // What the user sees moved: the surface vertices (nodes of a tetrahedral body; embedded
+    // vertices of a meshless one, whose particles may lie outside the body).
+    double surface_max = 0;
+    std::size_t surface_vertices = 0;
+    if (body.embedding) {
+      physics::Vector rest_vertices;
+      physics::CorotationalEfg::surface_positions(*body.embedding, rest, rest_vertices);
+      surface_vertices = static_cast<std::size_t>(body.embedding->vertex_count());
+      for (std::size_t v = 0; v < surface_vertices; ++v) {
+        const auto at = static_cast<Eigen::Index>(3 * v);
+        surface_max = std::max(surface_max, (body.surface_positions.segment<3>(at) - rest_vertices.segment<3>(at)).norm());
+      }
+    } else {
+      surface_vertices = body.surface_nodes.size();
+      for (int node : body.surface_nodes)
+        surface_max = std::max(surface_max, (x.segment<3>(3 * node) - rest.segment<3>(3 * node)).norm());
+    }
     bodies.push_back({{"name", body.name},
-                      {"model", "fem_corotational_tet4"},
+                      {"model", body.embedding ? "efg_corotated" : "fem_corotational_tet4"},
+                      {"surface_vertices", surface_vertices},
+                      {"surface_max_displacement", surface_max},
                       {"nodes", n},
                       {"dofs", 3 * n},
                       {"elements", body.elements},

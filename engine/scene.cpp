@@ -202,7 +202,7 @@ BodySpec read_body(const Json& node, const std::string& path, const std::filesys
   BodySpec b;
   b.name = r.text("name", true, "");
   if (r.has("name") && b.name.empty()) r.error(r.child("name"), "must not be empty");
-  b.model = r.text("model", true, "fem", {"fem"});
+  b.model = r.text("model", true, "fem", {"fem", "efg"});
   if (const Json* mesh = r.get("mesh", false)) {
     if (!mesh->is_string()) {
       r.error(r.child("mesh"), "must be a file path (string)");
@@ -229,6 +229,23 @@ BodySpec read_body(const Json& node, const std::string& path, const std::filesys
     } else {
       for (std::size_t i = 0; i < fixed->size(); ++i)
         b.fixed.push_back(read_box((*fixed)[i], r.child("fixed") + "[" + std::to_string(i) + "]", errors));
+    }
+  }
+  if (const Json* e = r.get("efg", false)) {
+    if (b.model != "efg") {
+      r.error(r.child("efg"), "only bodies with model 'efg' take efg settings");
+    } else {
+      Reader er(*e, r.child("efg"), errors);
+      b.efg.neighbours = er.integer("neighbours", false, 8, 4, 8);
+      if (b.efg.neighbours != 4 && b.efg.neighbours != 8)
+        er.error(er.child("neighbours"), "must be 4 or 8");
+      if (er.has("support_factor"))
+        b.efg.support_factor = er.number("support_factor", false, 3, 1, 10, true);
+      b.efg.samples_per_axis = er.integer("samples_per_axis", false, 4, 1, 64);
+      b.efg.estimate_volumes = er.boolean("estimate_volumes", true);
+      b.efg.threads = er.integer("threads", false, 2, 1, 64);
+      if (er.has("surface_resolution"))
+        b.efg.surface_resolution = er.number("surface_resolution", false, 0.005, 1e-4, 10, true);
     }
   }
   if (const Json* d = r.get("damping", false)) {

@@ -46,13 +46,24 @@ struct GeneratorSpec {
   Point radii{};     // ellipsoid, organ
 };
 
+// Settings of the meshless model (bodies with model "efg"); see physics/efg/corotational_efg.hpp.
+struct EfgSpec {
+  int neighbours = 8;            // 8 (the particle cell's corners) or 4 (the nearest corners)
+  std::optional<double> support_factor;  // h = factor x farthest neighbour; default: the model's
+  int samples_per_axis = 4;      // volume estimation: samples^3 points per integration cube
+  bool estimate_volumes = true;  // false: every touched cube counts a full a^3
+  int threads = 2;               // element loop threads (results do not depend on it)
+  std::optional<double> surface_resolution;  // render surface cell size (generated bodies), m
+};
+
 struct BodySpec {
   std::string name;
-  std::string model;                      // "fem" (corotational linear tetrahedra)
+  std::string model;                      // "fem" (corotational linear tetrahedra) or "efg"
   std::optional<std::filesystem::path> mesh;  // resolved against the scene's folder
   double mesh_scale = 1;
   std::optional<GeneratorSpec> generator;
-  double resolution = 0;  // element (cell) size, m
+  double resolution = 0;  // fem: tetrahedra cell size; efg: integration cube side a (particles 2a apart), m
+  EfgSpec efg;            // model "efg" only
   MaterialSpec material;
   std::vector<Box> fixed;  // nodes inside any box are fixed
   double damping_mass = 0;       // Rayleigh alpha, 1/s

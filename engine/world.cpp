@@ -2,6 +2,7 @@
 
 #include "engine/mesh_import.hpp"
 #include "physics/core/contact.hpp"
+#include "physics/efg/efg_static.hpp"
 #include "physics/fem/corotational_fem.hpp"
 #include "physics/fem/static_solve.hpp"
 #include "physics/fem/surface_snap.hpp"
@@ -88,47 +89,88 @@ std::array<double, 3> load_force_at(const LoadSpec& load, double time) {
           a.force[2] + s * (b.force[2] - a.force[2])};
 }
 
-Body build_body(const BodySpec& spec, const SolverSpec& solver) {
-  Body body;
-  body.name = spec.name;
-  const std::string where = "body '" + spec.name + "'";
+namespace {
 
+// What the body occupies: an inside test and its bounding box.
+struct BodyShape {
   std::function<bool(const physics::Vec3&)> inside;
   physics::Vec3 lo, hi;
-  std::shared_ptr<TriangleSoup> soup;
+};
+
+BodyShape body_shape(const BodySpec& spec) {
+  BodyShape shape;
   if (spec.generator) {
     const auto& g = *spec.generator;
-    inside = inside_test(g);
+    shape.inside = inside_test(g);
     if (g.type == "box") {
-      lo = vec(g.box.min);
-      hi = vec(g.box.max);
+      shape.lo = vec(g.box.min);
+      shape.hi = vec(g.box.max);
     } else {
-      lo = vec(g.center) - vec(g.radii);
-      hi = vec(g.center) + vec(g.radii);
+      shape.lo = vec(g.center) - vec(g.radii);
+      shape.hi = vec(g.center) + vec(g.radii);
     }
   } else {
-    soup = std::make_shared<TriangleSoup>(import_surface(*spec.mesh, spec.mesh_scale));
-    inside = [soup](const physics::Vec3& p) {
+    auto soup = std::make_shared<TriangleSoup>(import_surface(*spec.mesh, spec.mesh_scale));
+    shape.inside = [soup](const physics::Vec3& p) {
       return winding_number(*soup, {p.x(), p.y(), p.z()}) > 0.5;
     };
-    lo = vec(soup->min);
-    hi = vec(soup->max);
+    shape.lo = vec(soup->min);
+    shape.hi = vec(soup->max);
   }
-  physics::TetMesh mesh;
+  return shape;
+}
+
+// Tetrahedra filling the shape with cells of about `resolution`: a box exactly, anything
+// else by voxels whose boundary nodes are snapped onto the true surface.
+physics::TetMesh fill_with_tets(const BodySpec& spec, const BodyShape& shape, double resolution,
+                                physics::SnapReport* snap) {
   if (spec.generator && spec.generator->type == "box") {
-    // A box is meshed exactly, with as many cells as fit the resolution on each side.
     std::array<int, 3> cells{};
     for (int i = 0; i < 3; ++i)
-      cells[i] = std::max(1, static_cast<int>(std::lround((hi[i] - lo[i]) / spec.resolution)));
-    mesh = physics::make_box_tets(lo, hi, cells);
-  } else {
-    try {
-      mesh = physics::make_tets_inside(inside, lo, hi, spec.resolution);
-      // Voxel boundaries are staircases of one cell; the surgeon should see the organ's shape.
-      body.snap = physics::snap_boundary_to_surface(mesh, inside, 1.5 * spec.resolution, 0.1);
-    } catch (const std::exception& e) {
-      throw std::runtime_error(where + ": " + e.what());
-    }
+      cells[i] = std::max(1, static_cast<int>(std::lround((shape.hi[i] - shape.lo[i]) / resolution)));
+    return physics::make_box_tets(shape.lo, shape.hi, cells);
+  }
+  physics::TetMesh mesh = physics::make_tets_inside(shape.inside, shape.lo, shape.hi, resolution);
+  // Voxel boundaries are staircases of one cell; the surgeon should see the organ's shape.
+  const physics::SnapReport report =
+      physics::snap_boundary_to_surface(mesh, shape.inside, 1.5 * resolution, 0.1);
+  if (snap) *snap = report;
+  return mesh;
+}
+
+void fix_nodes(Body& body, const BodySpec& spec, const physics::Vector& rest) {
+  const int n = static_cast<int>(rest.size() / 3);
+  body.fixed.assign(n, 0);
+  for (const auto& box : spec.fixed) {
+    auto in = physics::nodes_in_box(rest, vec(box.min), vec(box.max));
+    for (int i = 0; i < n; ++i) body.fixed[i] |= in[i];
+  }
+}
+
+void set_integrator(Body& body, const BodySpec& spec, const SolverSpec& solver) {
+  body.integrator.dt = solver.dt;
+  body.integrator.rayleigh_mass = spec.damping_mass;
+  body.integrator.rayleigh_stiffness = spec.damping_stiffness;
+  body.integrator.cg.tolerance = solver.tolerance;
+  body.integrator.cg.max_iterations = solver.max_iterations;
+}
+
+void start_at_rest(Body& body, int n) {
+  body.state.positions = body.model->rest_positions();
+  body.state.velocities = physics::Vector::Zero(3 * n);
+  body.velocity_change = physics::Vector::Zero(3 * n);
+}
+
+Body build_fem_body(const BodySpec& spec, const SolverSpec& solver, const BodyShape& shape) {
+  Body body;
+  body.name = spec.name;
+  body.model_name = spec.model;
+  const std::string where = "body '" + spec.name + "'";
+  physics::TetMesh mesh;
+  try {
+    mesh = fill_with_tets(spec, shape, spec.resolution, &body.snap);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(where + ": " + e.what());
   }
   body.elements = mesh.tets.size();
   physics::Material material{spec.material.youngs_modulus, spec.material.poisson_ratio,
@@ -136,15 +178,10 @@ Body build_body(const BodySpec& spec, const SolverSpec& solver) {
   body.surface = physics::boundary_triangles(mesh.tets);
   auto model = std::make_unique<physics::CorotationalTetFem>(mesh, material);
   const int n = model->node_count();
-  body.state.positions = model->rest_positions();
-  body.state.velocities = physics::Vector::Zero(3 * n);
-  body.velocity_change = physics::Vector::Zero(3 * n);
-  body.fixed.assign(n, 0);
-  for (const auto& box : spec.fixed) {
-    auto in = physics::nodes_in_box(model->rest_positions(), vec(box.min), vec(box.max));
-    for (int i = 0; i < n; ++i) body.fixed[i] |= in[i];
-  }
-  body.gravity = physics::gravity_forces(model->lumped_masses(), vec(solver.gravity));
+  body.model = std::move(model);
+  start_at_rest(body, n);
+  fix_nodes(body, spec, body.model->rest_positions());
+  body.gravity = physics::gravity_forces(body.model->lumped_masses(), vec(solver.gravity));
   if (solver.start == "settled") {
     // Start from static equilibrium under gravity (small-strain solve, exact enough for the
     // sag of a supported organ), so a replay does not begin with the body dropping.
@@ -168,13 +205,114 @@ Body build_body(const BodySpec& spec, const SolverSpec& solver) {
   body.render_triangles.reserve(body.surface.size() * 3);
   for (const auto& t : body.surface)
     for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(surface_index[v]));
+  set_integrator(body, spec, solver);
+  return body;
+}
 
-  body.integrator.dt = solver.dt;
-  body.integrator.rayleigh_mass = spec.damping_mass;
-  body.integrator.rayleigh_stiffness = spec.damping_stiffness;
-  body.integrator.cg.tolerance = solver.tolerance;
-  body.integrator.cg.max_iterations = solver.max_iterations;
+// The render surface of a meshless body: the imported mesh itself, or (generated bodies) the
+// boundary of a voxel fill at surface_resolution (default a / 2, finer than the integration
+// grid as seed-004 §2.6 requires), snapped onto the true surface.
+void make_render_surface(Body& body, const BodySpec& spec, const BodyShape& shape,
+                         physics::Vector& rest_vertices) {
+  if (spec.mesh) {
+    const TriangleSoup soup = import_surface(*spec.mesh, spec.mesh_scale);
+    rest_vertices.resize(3 * static_cast<Eigen::Index>(soup.vertices.size()));
+    for (std::size_t v = 0; v < soup.vertices.size(); ++v)
+      for (int c = 0; c < 3; ++c) rest_vertices[3 * static_cast<Eigen::Index>(v) + c] = soup.vertices[v][c];
+    body.surface = soup.triangles;
+  } else {
+    const double resolution = spec.efg.surface_resolution.value_or(0.5 * spec.resolution);
+    const physics::TetMesh mesh = fill_with_tets(spec, shape, resolution, &body.snap);
+    const auto boundary = physics::boundary_triangles(mesh.tets);
+    std::vector<int> vertex_of(mesh.rest.size() / 3, -1);
+    int vertices = 0;
+    for (const auto& t : boundary)
+      for (int node : t)
+        if (vertex_of[node] < 0) vertex_of[node] = 0;
+    for (std::size_t node = 0; node < vertex_of.size(); ++node)
+      if (vertex_of[node] == 0) vertex_of[node] = vertices++;
+    rest_vertices.resize(3 * vertices);
+    for (std::size_t node = 0; node < vertex_of.size(); ++node)
+      if (vertex_of[node] >= 0)
+        rest_vertices.segment<3>(3 * vertex_of[node]) = mesh.rest.segment<3>(3 * static_cast<Eigen::Index>(node));
+    body.surface.clear();
+    for (const auto& t : boundary) body.surface.push_back({vertex_of[t[0]], vertex_of[t[1]], vertex_of[t[2]]});
+  }
+  body.render_triangles.clear();
+  for (const auto& t : body.surface)
+    for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
+}
+
+Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodyShape& shape) {
+  Body body;
+  body.name = spec.name;
+  body.model_name = spec.model;
+  const std::string where = "body '" + spec.name + "'";
+  physics::Material material{spec.material.youngs_modulus, spec.material.poisson_ratio,
+                             spec.material.density};
+  physics::EfgSettings settings;
+  settings.spacing = spec.resolution;
+  settings.neighbours = spec.efg.neighbours;
+  if (spec.efg.support_factor) settings.support_factor = *spec.efg.support_factor;
+  settings.samples_per_axis = spec.efg.samples_per_axis;
+  settings.estimate_volumes = spec.efg.estimate_volumes;
+  settings.threads = spec.efg.threads;
+  std::unique_ptr<physics::CorotationalEfg> model;
+  physics::Vector rest_vertices;
+  try {
+    model = std::make_unique<physics::CorotationalEfg>(shape.inside, shape.lo, shape.hi, material, settings);
+    make_render_surface(body, spec, shape, rest_vertices);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(where + ": " + e.what());
+  }
+  body.elements = static_cast<std::size_t>(model->element_count());
+  body.embedding = model->embed_surface(rest_vertices);
+  const int n = model->node_count();
+  const physics::CorotationalEfg& efg = *model;
   body.model = std::move(model);
+  start_at_rest(body, n);
+  fix_nodes(body, spec, body.model->rest_positions());
+  body.gravity = physics::gravity_forces(body.model->lumped_masses(), vec(solver.gravity));
+  if (solver.start == "settled") {
+    try {
+      body.state.positions += physics::solve_static(physics::assemble_stiffness(efg), body.gravity, body.fixed);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(where + ": solver.start 'settled' needs a body held in place by its "
+                               "fixed regions: " + e.what());
+    }
+  }
+  // A vertex moved only by fixed particles is fixed: the tool cannot push it.
+  const auto& embedding = *body.embedding;
+  body.fixed_vertices.assign(static_cast<std::size_t>(embedding.vertex_count()), 1);
+  for (int v = 0; v < embedding.vertex_count(); ++v)
+    for (int k = 0; k < embedding.row_lengths[v]; ++k)
+      if (!body.fixed[embedding.particles[static_cast<std::size_t>(v) * embedding.stride + k]])
+        body.fixed_vertices[v] = 0;
+  physics::CorotationalEfg::surface_positions(embedding, body.state.positions, body.surface_positions);
+  set_integrator(body, spec, solver);
+  return body;
+}
+
+}  // namespace
+
+Body build_body(const BodySpec& spec, const SolverSpec& solver) {
+  BodyShape shape;
+  try {
+    shape = body_shape(spec);
+  } catch (const std::exception& e) {
+    throw std::runtime_error("body '" + spec.name + "': " + e.what());
+  }
+  Body body = spec.model == "efg" ? build_efg_body(spec, solver, shape) : build_fem_body(spec, solver, shape);
+  // The energy watchdog compares each step with the one before; a settled start begins with
+  // the elastic energy of the sag, not zero.
+  body.last_energy = body.model->elastic_energy(body.state.positions) +
+                     physics::kinetic_energy(body.model->lumped_masses(), body.state.velocities);
+  for (std::size_t i = 0; i < spec.fixed.size(); ++i) {
+    const auto in = physics::nodes_in_box(body.model->rest_positions(), vec(spec.fixed[i].min), vec(spec.fixed[i].max));
+    if (std::find(in.begin(), in.end(), 1) == in.end())
+      throw std::runtime_error("body '" + spec.name + "': fixed[" + std::to_string(i) + "] contains no " +
+                               (spec.model == "efg" ? "particle" : "node") + " of the body");
+  }
   return body;
 }
 
@@ -187,7 +325,9 @@ World::World(const Scene& scene, std::optional<Trajectory> trajectory)
   bounds_max_ = {-1e300, -1e300, -1e300};
   for (const auto& spec : scene_.bodies) {
     bodies_.push_back(build_body(spec, scene_.solver));
-    const auto& x = bodies_.back().state.positions;
+    // Particles of a meshless body can lie outside it: frame what is seen.
+    const Body& built = bodies_.back();
+    const auto& x = built.embedding ? built.surface_positions : built.state.positions;
     for (Eigen::Index i = 0; i < x.size(); ++i) {
       bounds_min_[i % 3] = std::min(bounds_min_[i % 3], x[i]);
       bounds_max_[i % 3] = std::max(bounds_max_[i % 3], x[i]);
@@ -232,10 +372,46 @@ void World::take_tool_input(double time) {
 
 std::vector<physics::NodalSpring> World::contact(const Body& body, StepStats& stats) const {
   if (!tool_.present) return {};
-  auto contact = physics::probe_contact(body.state.positions, body.surface, body.fixed, vec(tool_.tip),
-                                        vec(tool_.tail), tool_.radius, scene_.tool->stiffness);
+  if (!body.embedding) {
+    auto contact = physics::probe_contact(body.state.positions, body.surface, body.fixed, vec(tool_.tip),
+                                          vec(tool_.tail), tool_.radius, scene_.tool->stiffness);
+    stats.contacts += contact.triangles_touched;
+    return std::move(contact.springs);
+  }
+  // Embedded surface: the contact acts on surface vertices, and a vertex force f_v goes to the
+  // particles with the vertex's weights, f_i = w_i f_v (seed-004 §2.6), so the total force is
+  // unchanged (the weights sum to 1). The exact stiffness W^T K_v W couples the particles;
+  // each particle takes |w_i| K_v instead (the row sums of W^T K_v W, made positive
+  // semi-definite: the MLS weights of far corners are negative), which keeps the implicit
+  // system symmetric positive definite.
+  auto contact = physics::probe_contact(body.surface_positions, body.surface, body.fixed_vertices,
+                                        vec(tool_.tip), vec(tool_.tail), tool_.radius,
+                                        scene_.tool->stiffness);
   stats.contacts += contact.triangles_touched;
-  return std::move(contact.springs);
+  const auto& embedding = *body.embedding;
+  std::vector<int> slot(static_cast<std::size_t>(body.model->node_count()), -1);
+  std::vector<physics::NodalSpring> springs;
+  for (const auto& vertex_spring : contact.springs) {
+    const std::size_t row = static_cast<std::size_t>(vertex_spring.node) * embedding.stride;
+    for (int k = 0; k < embedding.row_lengths[vertex_spring.node]; ++k) {
+      const int particle = embedding.particles[row + k];
+      if (body.fixed[particle]) continue;
+      const double weight = embedding.weights[row + k];
+      if (slot[particle] < 0) {
+        slot[particle] = static_cast<int>(springs.size());
+        springs.push_back({particle, physics::Vec3::Zero(), physics::Mat3::Zero()});
+      }
+      auto& spring = springs[slot[particle]];
+      spring.force += weight * vertex_spring.force;
+      spring.stiffness += std::abs(weight) * vertex_spring.stiffness;
+    }
+  }
+  return springs;
+}
+
+void World::update_surface(Body& body) const {
+  if (!body.embedding) return;  // the surface vertices are nodes
+  physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
 }
 
 void World::solve_body(Body& body, const std::vector<physics::NodalSpring>& springs,
@@ -339,9 +515,9 @@ StepStats World::step() {
   phase = Clock::now();
   for (std::size_t b = 0; b < bodies_.size(); ++b) solve_body(bodies_[b], springs[b], end_time, stats);
   stats.ms_solve = ms_since(phase);
-  // update_surface: the surface is the boundary of the volume mesh, so its vertices are
-  // nodes and there is nothing to map until bodies become cuttable (issue 4).
-  stats.ms_surface = 0;
+  phase = Clock::now();
+  for (auto& body : bodies_) update_surface(body);
+  stats.ms_surface = ms_since(phase);
   ++steps_;
   time_ = end_time;
   stats.ms_total = ms_since(start);
@@ -370,11 +546,17 @@ void World::fill_frame(render::Frame& frame, int width, int height) const {
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const auto& body = bodies_[b];
     auto& mesh = frame.meshes[b];
-    mesh.positions.resize(body.surface_nodes.size() * 3);
-    const auto& x = body.state.positions;
-    for (std::size_t i = 0; i < body.surface_nodes.size(); ++i)
-      for (int c = 0; c < 3; ++c)
-        mesh.positions[3 * i + c] = static_cast<float>(x[3 * body.surface_nodes[i] + c]);
+    if (body.embedding) {
+      const auto& x = body.surface_positions;
+      mesh.positions.resize(static_cast<std::size_t>(x.size()));
+      for (Eigen::Index i = 0; i < x.size(); ++i) mesh.positions[i] = static_cast<float>(x[i]);
+    } else {
+      mesh.positions.resize(body.surface_nodes.size() * 3);
+      const auto& x = body.state.positions;
+      for (std::size_t i = 0; i < body.surface_nodes.size(); ++i)
+        for (int c = 0; c < 3; ++c)
+          mesh.positions[3 * i + c] = static_cast<float>(x[3 * body.surface_nodes[i] + c]);
+    }
     mesh.normals.clear();
     if (mesh.triangles.size() != body.render_triangles.size()) mesh.triangles = body.render_triangles;
   }

@@ -11,6 +11,7 @@
 #include "engine/trajectory.hpp"
 #include "physics/core/model.hpp"
 #include "physics/core/implicit_euler.hpp"
+#include "physics/efg/corotational_efg.hpp"
 #include "physics/fem/surface_snap.hpp"
 #include "render/frame.hpp"
 
@@ -35,10 +36,19 @@ struct Body {
   physics::State state;
   double last_energy = 0;            // elastic + kinetic after the last step (energy watchdog)
   physics::Vector velocity_change;  // last step's dv: the CG warm start (part of the state hash)
+  std::string model_name;                          // "fem" or "efg"
   std::vector<std::uint8_t> fixed;                 // per node
-  std::vector<std::array<int, 3>> surface;         // boundary triangles (node indices)
-  std::vector<int> surface_nodes;                  // nodes on the surface, increasing
-  std::vector<std::uint32_t> render_triangles;     // surface triangles in surface_nodes numbering
+  // The surface the user sees and the tool touches. Tetrahedral bodies: the boundary of the
+  // volume mesh, in node indices, its vertices the nodes `surface_nodes`. Meshless bodies
+  // (`embedding` set): a mesh of its own, in vertex indices, each vertex moved by the MLS
+  // weights of one integration point (seed-004 §2.6), so its resolution is independent of
+  // the particles'.
+  std::vector<std::array<int, 3>> surface;
+  std::vector<int> surface_nodes;                  // tetrahedral: nodes on the surface, increasing
+  std::vector<std::uint32_t> render_triangles;     // surface triangles in render-vertex numbering
+  std::optional<physics::SurfaceEmbedding> embedding;
+  physics::Vector surface_positions;               // embedded: 3 x vertices, after the last step
+  std::vector<std::uint8_t> fixed_vertices;        // embedded: vertices moved by fixed particles only
   physics::Vector gravity;                         // 3n, constant
   physics::ImplicitEulerSettings integrator;
   std::vector<std::vector<int>> load_nodes;        // per scene load aimed at this body
@@ -116,6 +126,7 @@ class World {
  private:
   void take_tool_input(double time);
   std::vector<physics::NodalSpring> contact(const Body& body, StepStats& stats) const;
+  void update_surface(Body& body) const;
   void solve_body(Body& body, const std::vector<physics::NodalSpring>& springs, double end_time,
                   StepStats& stats);
 

@@ -77,7 +77,21 @@ TEST(Scene, BrokenScenesAreRefusedWithTheFieldNamed) {
       {"unknown top-level key", [](Json& s) { s["solvr"] = Json::object(); }, "solvr: unknown key"},
       {"missing solver", [](Json& s) { s.erase("solver"); }, "solver: is required"},
       {"dt as string", [](Json& s) { s["solver"]["dt"] = "fast"; }, "solver.dt: must be a number, not string"},
-      {"unknown model", [](Json& s) { s["bodies"][0]["model"] = "sph"; }, "bodies[0].model: 'sph' is not one of: fem"},
+      {"unknown model", [](Json& s) { s["bodies"][0]["model"] = "sph"; }, "bodies[0].model: 'sph' is not one of: fem, efg"},
+      {"efg settings on a fem body", [](Json& s) { s["bodies"][0]["efg"] = {{"neighbours", 8}}; },
+       "bodies[0].efg: only bodies with model 'efg' take efg settings"},
+      {"efg with 6 neighbours", [](Json& s) {
+         s["bodies"][0]["model"] = "efg";
+         s["bodies"][0]["efg"] = {{"neighbours", 6}};
+       }, "bodies[0].efg.neighbours: must be 4 or 8"},
+      {"efg support factor 1", [](Json& s) {
+         s["bodies"][0]["model"] = "efg";
+         s["bodies"][0]["efg"] = {{"support_factor", 1.0}};
+       }, "bodies[0].efg.support_factor: 1 must be in (1, 10]"},
+      {"efg unknown setting", [](Json& s) {
+         s["bodies"][0]["model"] = "efg";
+         s["bodies"][0]["efg"] = {{"kernel", "gauss"}};
+       }, "bodies[0].efg.kernel: unknown key"},
       {"unknown backend", [](Json& s) { s["solver"]["backend"] = "cuda"; }, "solver.backend: 'cuda' is not one of: cpu, gpu"},
       {"no bodies", [](Json& s) { s["bodies"] = Json::array(); }, "bodies: must be a non-empty array"},
       {"mesh and generator", [](Json& s) { s["bodies"][0]["mesh"] = "../meshes/cube.obj"; },

@@ -8,9 +8,12 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 using namespace incise::engine;
+namespace physics = incise::physics;
 using Json = nlohmann::json;
 
 namespace {
@@ -176,4 +179,89 @@ TEST(World, EnergyWatchdogStaysQuietOnAHealthyRun) {
   EXPECT_EQ(world.guard_counts().energy_growth, 0);
   EXPECT_EQ(world.guard_counts().nonfinite_retries, 0);
   EXPECT_EQ(world.guard_counts().cg_not_converged, 0);
+}
+
+// The meshless body in the engine: the B1 cantilever settled by the static solve, its
+// embedded render surface, the probe pushing it through that surface.
+namespace {
+
+Json efg_beam_scene() {
+  return Json::parse(R"({
+    "name": "efg_b1",
+    "bodies": [{
+      "name": "beam", "model": "efg",
+      "generator": {"type": "box", "min": [0, -0.01, -0.01], "max": [0.2, 0.01, 0.01]},
+      "resolution": 0.0025,
+      "efg": {"neighbours": 8, "support_factor": 1.2, "surface_resolution": 0.005},
+      "material": {"E": 1e7, "nu": 0.3, "rho": 1000},
+      "fixed": [{"min": [-1, -1, -1], "max": [0.0001, 1, 1]}]
+    }],
+    "solver": {"dt": 0.01, "duration": 0.1, "start": "settled", "tolerance": 1e-8, "max_iterations": 2000}
+  })");
+}
+
+}  // namespace
+
+TEST(World, EfgBeamSettlesAtTheCantileverDeflectionAndStaysThere) {
+  TempDir dir("incise_world_efg_beam");
+  Scene scene = parse_scene(efg_beam_scene().dump(), dir.path / "scene.json");
+  World world(scene, std::nullopt);
+  const Body& body = world.bodies()[0];
+  ASSERT_TRUE(body.embedding.has_value());
+  // Mean z displacement of the tip face's surface vertices (x = L), against the converged
+  // 10-node tetrahedra of B1 (5.888 mm, tests/unit/test_fem_cantilever.cpp; beam theory 5.947).
+  const auto tip_deflection = [&] {
+    physics::Vector rest;
+    physics::CorotationalEfg::surface_positions(*body.embedding, body.model->rest_positions(), rest);
+    double sum = 0;
+    int count = 0;
+    for (int v = 0; v < body.embedding->vertex_count(); ++v) {
+      if (std::abs(rest[3 * v] - 0.2) > 1e-9) continue;
+      sum += body.surface_positions[3 * v + 2] - rest[3 * v + 2];
+      ++count;
+    }
+    EXPECT_GT(count, 8);
+    return -sum / count;
+  };
+  const double settled = tip_deflection();
+  std::printf("EFG B1 in the engine: settled tip %.4f mm\n", 1e3 * settled);
+  EXPECT_NEAR(settled, 5.888e-3, 0.03 * 5.888e-3);
+  // Starting at equilibrium, the dynamic steps keep it there (gravity balances elasticity).
+  for (int k = 0; k < 10; ++k) world.step();
+  EXPECT_NEAR(tip_deflection(), settled, 0.002 * settled);
+  // The clamped face does not move.
+  for (int i = 0; i < body.model->node_count(); ++i)
+    if (body.fixed[i]) EXPECT_EQ(body.state.positions.segment<3>(3 * i), body.model->rest_positions().segment<3>(3 * i));
+}
+
+TEST(World, ProbePushesAnEfgBodyThroughItsEmbeddedSurface) {
+  TempDir dir("incise_world_efg_probe");
+  Json json = block_scene(true);
+  json["bodies"][0]["model"] = "efg";
+  json["bodies"][0]["resolution"] = 0.0025;
+  json["bodies"][0]["efg"] = {{"support_factor", 1.2}};
+  Scene scene = write_scene(dir, json);
+  Trajectory trajectory = read_trajectory(dir.path / "poke.traj");
+  World world(scene, trajectory);
+  const Body& body = world.bodies()[0];
+  // The surface vertex at the top of the probe's path (rest (0.03, 0, 0.02)).
+  int under = -1;
+  {
+    physics::Vector rest;
+    physics::CorotationalEfg::surface_positions(*body.embedding, body.model->rest_positions(), rest);
+    double best = 1;
+    for (int v = 0; v < body.embedding->vertex_count(); ++v) {
+      const double d = (rest.segment<3>(3 * v) - physics::Vec3(0.03, 0, 0.02)).norm();
+      if (d < best) best = d, under = v;
+    }
+    ASSERT_LT(best, 1e-6);
+  }
+  double deepest = 1, max_up_force = 0;
+  for (int k = 0; k < 20; ++k) {
+    auto stats = world.step();
+    max_up_force = std::max(max_up_force, stats.tool_force[2]);
+    deepest = std::min(deepest, body.surface_positions[3 * under + 2]);
+  }
+  EXPECT_LT(deepest, 0.02 - 0.001);  // the seen surface is pressed at least 1 mm
+  EXPECT_GT(max_up_force, 0.0);      // and pushes the tool back
 }
