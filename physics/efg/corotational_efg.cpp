@@ -196,11 +196,15 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
       for (int i = 0; i < cube_counts_[0]; ++i) {
         const Vec3 cube_min = origin_ + a * Vec3(i, j, k);
         int inside_count = 0;
+        Vec3 sample_sum = Vec3::Zero();  // in sample units from cube_min, exact in doubles
         for (int w = 0; w < samples; ++w) {
           for (int v = 0; v < samples; ++v) {
             for (int u = 0; u < samples; ++u) {
               const Vec3 sample = cube_min + a / samples * Vec3(u + 0.5, v + 0.5, w + 0.5);
-              if (inside(sample)) ++inside_count;
+              if (inside(sample)) {
+                ++inside_count;
+                sample_sum += Vec3(u + 0.5, v + 0.5, w + 0.5);
+              }
             }
           }
         }
@@ -208,7 +212,10 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
         element_of_cube_[i + static_cast<size_t>(cube_counts_[0]) * (j + cube_counts_[1] * k)] =
             static_cast<int>(volumes_.size());
         element_cubes_.push_back({i, j, k});
-        centres_.push_back(cube_min + Vec3::Constant(0.5 * a));
+        // A full cube's centroid is its centre exactly (the sums are exact in doubles).
+        centres_.push_back(s.centroid_points && s.estimate_volumes
+                               ? Vec3(cube_min + a * sample_sum / (static_cast<double>(inside_count) * samples))
+                               : Vec3(cube_min + Vec3::Constant(0.5 * a)));
         volumes_.push_back(s.estimate_volumes ? inside_count * sample_volume : a * a * a);
       }
     }
@@ -791,9 +798,9 @@ SurfaceEmbedding CorotationalEfg::embed_surface(const Vector& rest_vertices) con
   for (Index v = 0; v < vertices; ++v) {
     const Vec3 vertex = rest_vertices.segment<3>(3 * v);
     if (!vertex.allFinite()) fail("embed_surface: vertex " + std::to_string(v) + " is not finite");
-    // The nearest element centre, searched in shells of cubes around the vertex's cube: every
-    // centre in shell r lies at least (r - 1/2) a away, so the search stops once the best found
-    // is nearer than the next shell can be.
+    // The nearest integration point, searched in shells of cubes around the vertex's cube:
+    // every point lies in its cube, so one in shell r lies at least (r - 1) a away and the
+    // search stops once the best found is nearer than the next shell can be.
     std::array<long long, 3> cube;
     long long nearest_shell = 0, farthest_shell = 0;  // Chebyshev distances to the grid's cubes
     for (int axis = 0; axis < 3; ++axis) {
@@ -823,7 +830,7 @@ SurfaceEmbedding CorotationalEfg::embed_surface(const Vector& rest_vertices) con
           }
         }
       }
-      const double next_shell = (static_cast<double>(r) + 0.5) * a;
+      const double next_shell = static_cast<double>(r) * a;
       if (best >= 0 && std::sqrt(best_distance) < next_shell) break;
     }
     if (best < 0) fail("embed_surface: no integration point found for vertex " + std::to_string(v));

@@ -5,7 +5,8 @@
 // - Integration grid: cubes of side a, one integration point at each centre (one-point
 //   quadrature); each cube's volume V_e is the part inside the body, estimated by sampling.
 // - Particles (the degrees of freedom) on every other grid vertex, 2a apart; each integration
-//   point takes the corners of its particle cell as neighbours (8, or the 4 nearest).
+//   point takes the corners of its particle cell as neighbours (8, or the 4 nearest). In a
+//   partial cube the point sits at the centroid of the part inside (EfgSettings::centroid_points).
 // - Linear MLS shape functions with the quartic spline, computed once in the rest shape.
 // - Per element, a rotation R_e from shape matching over its neighbours, frozen between
 //   update_rotations calls (the least-squares linear fit of the neighbours' motion, its polar
@@ -60,12 +61,28 @@ struct EfgSettings {
   double spacing = 0.005;        // a, side of the integration cubes (m); particles are 2a apart
   int neighbours = 8;            // per integration point: 8 (cell corners) or 4 (nearest corners)
   // h = support_factor x the distance to the farthest neighbour (> 1, so that every neighbour
-  // weighs). 3 is the thesis's constant, on a base radius the thesis leaves undefined. With
-  // 8 corners at factor 3 the weights are nearly flat, the fit ignores the cell's bilinear
-  // modes and coarse beams come out soft (B1: +6 % at 3k dofs); 1.2 gives +0.1 %.
-  double support_factor = 3.0;
-  int samples_per_axis = 4;      // volume estimation: samples_per_axis^3 points per cube
+  // weighs). The thesis's constant is 3, on a "radius of the region of influence" it leaves
+  // undefined (seed-004 §1.4). Read as 3 x the farthest corner (h = 7.8 a) the weights are
+  // nearly flat, the fit ignores the cells' bilinear modes and the model is far too soft:
+  // the square beam B1 comes out +29 % at 0.6k dofs, +11 % at 1.5k (accuracy bench, b1
+  // nb8_support3). Read as 3 x the integration cube side a, h = 3 a, which for a cell-centred
+  // point is 2/sqrt(3) = 1.1547 x the farthest corner (2.598 a): B1 -0.4 % and -0.3 % at the
+  // same sizes, the most accurate of the factors 1.05 to 3 measured. Stating it relative to
+  // the farthest neighbour keeps every neighbour weighing for off-centre points and cut
+  // neighbourhoods.
+  double support_factor = 1.1547005383792515;
+  // Volume estimation: samples_per_axis^3 points per cube (the thesis gives no count). 4 puts
+  // the sampled boundary up to a/8 off the true one, which moves a beam's second moment of area
+  // by several % (the hexagon's top z = 13 mm sampled as 12.5 mm at a = 5 mm: -7 %).
+  int samples_per_axis = 8;
   bool estimate_volumes = true;  // false: a cube with any sample inside counts a full a^3
+  // Where a partial cube's integration point sits. The thesis puts it at the cube centre
+  // (false), which may lie outside the body: the one-point rule then weighs the strain at the
+  // wrong place, and the hexagon beam's second moment of area comes out +9 % (a = 5 mm), -0.4 %
+  // (3.3 mm), +1.4 % (2 mm), a bending error that does not decrease monotonically. At the
+  // centroid of the inside samples (true) the rule integrates linear fields exactly on the
+  // part that is inside. Full cubes are unaffected.
+  bool centroid_points = true;
   int threads = 2;               // threads of the element loops (results do not depend on it)
   // Models with fewer elements run their loops on the calling thread only: handing a
   // sub-millisecond loop to another thread costs more than it saves, and far more when the
@@ -137,7 +154,8 @@ class CorotationalEfg final : public DeformableModel {
   const std::vector<double>& element_supports() const { return supports_; }  // h per element
   const std::vector<Mat3>& rotations() const { return rotations_; }
   // Grid coordinates (i, j, k) of each particle (position grid_origin() + 2a (i, j, k)) and of
-  // each element's cube (centre grid_origin() + a (i + 1/2, j + 1/2, k + 1/2)).
+  // each element's cube (centre grid_origin() + a (i + 1/2, j + 1/2, k + 1/2); the element's
+  // integration point, element_centres(), lies in that cube).
   const std::vector<std::array<int, 3>>& particle_grid_coordinates() const { return particle_cells_; }
   const std::vector<std::array<int, 3>>& element_grid_coordinates() const { return element_cubes_; }
   double spacing() const { return settings_.spacing; }

@@ -234,6 +234,43 @@ TEST(EfgModelVolume, SampledVolumeOfASphereConverges) {
   EXPECT_GT(whole.total_volume(), 1.2 * exact);
 }
 
+TEST(EfgModelVolume, PartialCubesIntegrateAtTheCentroidOfTheirInsidePart) {
+  // A slab z <= 0.013 in a grid of 4 mm cubes from z = -0.016: the top cubes span [0.012,
+  // 0.016] and are 1/4 inside, exactly 2 of the 8 sample rows. Their points sit at the middle
+  // of the inside part, z = 0.0125 (the cube centre is outside, at 0.014), and then
+  // sum_e V_e z_e is the slab's exact first moment.
+  const auto slab = [](const Vec3& p) { return p.z() <= 0.013; };
+  EfgSettings settings;
+  settings.spacing = 0.004;
+  settings.samples_per_axis = 8;
+  const CorotationalEfg model(slab, Vec3(0, 0, -0.016), Vec3(0.016, 0.016, 0.016), tissue, settings);
+  double first_moment = 0;
+  for (int e = 0; e < model.element_count(); ++e) {
+    const Vec3& point = model.element_centres()[e];
+    const double volume = model.element_volumes()[e];
+    if (volume < 0.999 * std::pow(0.004, 3)) {
+      EXPECT_NEAR(point.z(), 0.0125, 1e-15) << "element " << e;
+      EXPECT_NEAR(volume, 0.25 * std::pow(0.004, 3), 1e-20);
+    } else {
+      const auto& cube = model.element_grid_coordinates()[e];
+      const Vec3 centre = model.grid_origin() + 0.004 * Vec3(cube[0] + 0.5, cube[1] + 0.5, cube[2] + 0.5);
+      EXPECT_LT((point - centre).norm(), 1e-15) << "element " << e;
+    }
+    first_moment += volume * point.z();
+  }
+  const double area = 0.016 * 0.016;
+  const double exact = area * (0.013 * 0.013 - 0.016 * 0.016) / 2;
+  EXPECT_NEAR(first_moment, exact, 1e-12 * std::abs(exact));
+  // The thesis's placement, at the cube centre, for comparison: the first moment is off.
+  settings.centroid_points = false;
+  const CorotationalEfg centred(slab, Vec3(0, 0, -0.016), Vec3(0.016, 0.016, 0.016), tissue, settings);
+  double centred_moment = 0;
+  for (int e = 0; e < centred.element_count(); ++e) {
+    centred_moment += centred.element_volumes()[e] * centred.element_centres()[e].z();
+  }
+  EXPECT_GT(std::abs(centred_moment - exact), 0.01 * std::abs(exact));
+}
+
 TEST_P(EfgModel, OneAndTwoThreadsGiveBitwiseIdenticalResults) {
   struct Results {
     Vector masses, forces, product, diagonal;
