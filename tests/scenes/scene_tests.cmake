@@ -21,3 +21,13 @@ add_test(NAME replay_default_smoke
          COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/replay_smoke.sh $<TARGET_FILE:incise>
                  ${PROJECT_SOURCE_DIR}/assets/scenes/default.json ${CMAKE_CURRENT_BINARY_DIR}/replay_smoke)
 set_tests_properties(replay_default_smoke PROPERTIES TIMEOUT 600)
+
+# The quick stability sweep (issue 7). Not under the sanitizers: it is a minute of pure
+# arithmetic in Release and would take most of CI's budget instrumented; the physics it runs
+# is covered by the unit tests there.
+if(INCISE_SANITIZE STREQUAL "")
+  add_test(NAME bench_stability_quick
+           COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/bench_stability_quick.sh $<TARGET_FILE:incise>
+                   ${CMAKE_CURRENT_BINARY_DIR}/bench_stability_quick)
+  set_tests_properties(bench_stability_quick PROPERTIES TIMEOUT 600 LABELS "bench")
+endif()

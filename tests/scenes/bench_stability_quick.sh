@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# The stability sweep in its quick form (issue 7), as CI runs it: it must complete, write its
+# report, and meet the target: implicit Euler (fem and efg) stable in every case for
+# E <= 100 MPa, nu <= 0.49, dt <= 33 ms. What fails beyond is reported, not asserted.
+# Usage: bench_stability_quick.sh INCISE WORKDIR
+set -euo pipefail
+incise=$1 work=$2
+rm -rf "$work"
+"$incise" bench stability --quick --out "$work" 2> "$work.log" || { cat "$work.log"; exit 1; }
+csv="$work/stability.csv"
+header='model,integrator,case,E,nu,dt,outcome,max_energy_ratio,max_displacement,steps,guard_events'
+[ "$(head -1 "$csv")" = "$header" ] || { echo "unexpected header: $(head -1 "$csv")"; exit 1; }
+rows=$(($(wc -l < "$csv") - 1))
+[ "$rows" -ge 100 ] || { echo "only $rows rows"; exit 1; }
+# Every outcome is one of the four; a crash would have stopped the sweep.
+bad=$(awk -F, 'NR > 1 && $7 != "stable" && $7 != "diverged" && $7 != "nonfinite" && $7 != "cg_not_converged"' "$csv")
+[ -z "$bad" ] || { echo "unknown outcomes:"; echo "$bad"; exit 1; }
+cases=$(awk -F, 'NR > 1 { print $3 }' "$csv" | sort -u | tr '\n' ' ')
+for c in beam_gravity compression_release inverted_start; do
+  case " $cases " in *" $c "*) ;; *) echo "case $c not run (ran: $cases)"; exit 1 ;; esac
+done
+failed=$(awk -F, 'NR > 1 && $2 == "implicit_euler" && $4 + 0 <= 1e8 && $5 + 0 <= 0.49 && $6 + 0 <= 0.0331 && $7 != "stable"' "$csv")
+[ -z "$failed" ] || { echo "implicit Euler not stable inside the target:"; echo "$failed"; exit 1; }
+inside=$(awk -F, 'NR > 1 && $2 == "implicit_euler" && $4 + 0 <= 1e8 && $5 + 0 <= 0.49 && $6 + 0 <= 0.0331' "$csv" | wc -l)
+[ "$inside" -ge 24 ] || { echo "only $inside implicit runs inside the target"; exit 1; }
+if command -v gnuplot > /dev/null 2>&1; then
+  [ -s "$work/stability.png" ] || { echo "stability.png not written"; exit 1; }
+fi
+echo "ok: $rows runs, $inside implicit runs inside the target all stable"
+awk -F, 'NR > 1 { n[$1 "/" $2 " " $7]++ } END { for (k in n) print "  " k, n[k] }' "$csv" | sort
