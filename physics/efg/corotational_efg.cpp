@@ -291,9 +291,21 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
     for (int index : rows[e]) (visible(index) ? kept : hidden).push_back(index);
     for (int index : hidden) {
       const std::array<int, 3> corner = grid_coordinates(index);
+      // The axis nearest the normal of the cut that hides the corner: stepping along it moves
+      // away from the cut on the element's side, rather than around the crack front.
+      int normal_axis = -1;
+      if (s.replace_along_cut_normal) {
+        for (const CutRectangle& cut : s.cuts) {
+          if (!cut.blocks(centres_[e], grid_particle_position(index))) continue;
+          const Vec3 normal = cut.edge_u.cross(cut.edge_v).cwiseAbs();
+          normal.maxCoeff(&normal_axis);
+          break;
+        }
+      }
       double best_distance = std::numeric_limits<double>::infinity();
       int best = -1;
-      for (int axis = 0; axis < 3; ++axis) {
+      for (int pass = 0; pass < 2 && best < 0; ++pass) for (int axis = 0; axis < 3; ++axis) {
+        if (pass == 0 && normal_axis >= 0 && axis != normal_axis) continue;
         // The in-cell neighbour is one step towards the cell's other face on this axis.
         const int step = corner[axis] == cell[axis] ? 1 : -1;
         std::array<int, 3> beyond = corner;

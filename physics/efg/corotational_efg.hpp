@@ -94,6 +94,8 @@ struct EfgSettings {
   // beyond the hidden corner's neighbour in the cell along an axis, else by the nearest
   // visible particles, until there are `neighbours` particles spanning 3 dimensions.
   std::vector<CutRectangle> cuts;
+  // true: a hidden corner is replaced along the axis nearest the hiding cut's normal first.
+  bool replace_along_cut_normal = true;
 };
 
 // Each render-surface vertex follows one integration point: x_v = sum_i w_i x_i with the MLS

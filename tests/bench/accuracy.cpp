@@ -649,11 +649,16 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
       int neighbours;
       bool estimate_volumes;
       double support_factor;
+      bool centroid_points;
+      int samples_per_axis;
     };
-    const std::vector<EfgVariant> efg_variants{{"nb8", 8, true, 3.0},
-                                               {"nb4", 4, true, 3.0},
-                                               {"novolume", 8, false, 3.0},
-                                               {"nb8_support1.2", 8, true, 1.2}};
+    const EfgSettings defaults;
+    const std::vector<EfgVariant> efg_variants{
+        {"nb8", 8, true, defaults.support_factor, true, defaults.samples_per_axis},
+        {"nb4", 4, true, defaults.support_factor, true, defaults.samples_per_axis},
+        {"novolume", 8, false, defaults.support_factor, true, defaults.samples_per_axis},
+        {"nb8_support3", 8, true, 3.0, true, defaults.samples_per_axis},
+        {"nb8_thesis", 8, true, 3.0, false, 4}};
 
     // Cases sharing a body share meshes, models and factorisations.
     struct Body {
@@ -674,7 +679,7 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
     int total = 0;
     for (const Body& body : bodies) {
       const bool hexagon = body.shape == Shape::hexagon;
-      total += static_cast<int>((hexagon ? hexagon_levels : square_levels).size() +
+      total += static_cast<int>((hexagon ? hexagon_levels : square_levels).size() + (quick && body.cut ? 1 : 0) +
                                 (hexagon ? hexagon_linear : square_linear).size() +
                                 efg_cells.size() * efg_variants.size());
     }
@@ -715,11 +720,17 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
         std::vector<uint8_t> fixed;
         std::vector<Vec3> tips;  // per case
         std::string name;
+        int section = 0;  // the mesh size is proportional to 1 / section
       };
       std::vector<Level> levels;
-      for (const auto& [section, layers] : hexagon ? hexagon_levels : square_levels) {
+      // The cut references get one more level in the quick run: their crack front converges
+      // slowest, and the issue asks the two finest to agree within 0.2 %.
+      Levels reference_levels = hexagon ? hexagon_levels : square_levels;
+      if (quick && body.cut) reference_levels.push_back({4, 40});
+      for (const auto& [section, layers] : reference_levels) {
         Level level;
         level.name = describe(section, layers, true);
+        level.section = section;
         progress.draw(body_name + " reference tet10 " + level.name);
         level.linear = case_mesh(first, section, layers, true);
         level.quadratic = make_quadratic(level.linear);
@@ -752,8 +763,37 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
         }
         reference.tip = levels.back().tips[i];
         const double last_change = reference.levels.back().change_pct;
-        progress.note("  " + c.name + " reference: " + (last_change < 0.5 ? "converged" : "NOT converged") +
-                      " to 0.5 % (the two finest differ by " + format(last_change, 3) + " %)" +
+        if (levels.size() >= 3) {
+          // Richardson: the three finest levels along the finest tip's direction, s(h) = s0 + C h^p
+          // with h = 1 / section; the observed rate p by bisection.
+          const size_t n = levels.size();
+          const Vec3 direction = levels[n - 1].tips[i].normalized();
+          const double s1 = levels[n - 3].tips[i].dot(direction), s2 = levels[n - 2].tips[i].dot(direction),
+                       s3 = levels[n - 1].tips[i].dot(direction);
+          const double h1 = 1.0 / levels[n - 3].section, h2 = 1.0 / levels[n - 2].section,
+                       h3 = 1.0 / levels[n - 1].section;
+          const double ratio = (s2 - s1) / (s3 - s2);
+          const auto model_ratio = [&](double p) {
+            return (std::pow(h1, p) - std::pow(h2, p)) / (std::pow(h2, p) - std::pow(h3, p));
+          };
+          if (ratio > model_ratio(0.25) && ratio < model_ratio(8.0)) {
+            double low = 0.25, high = 8.0;
+            for (int it = 0; it < 100; ++it) {
+              const double mid = 0.5 * (low + high);
+              (model_ratio(mid) < ratio ? low : high) = mid;
+            }
+            const double p = 0.5 * (low + high);
+            const double extrapolated = s3 + (s3 - s2) * std::pow(h3, p) / (std::pow(h2, p) - std::pow(h3, p));
+            progress.note("  " + c.name + " reference Richardson (three finest, observed rate " + format(p, 3) +
+                          "): extrapolated tip " + format(1e3 * extrapolated, 6) + " mm along the finest tip; the finest differs from it by " +
+                          format(100 * std::abs(s3 / extrapolated - 1), 3) + " %");
+          } else {
+            progress.note("  " + c.name + " reference Richardson: the three finest levels do not converge monotonically at a rate in [0.25, 8] (ratio " +
+                          format(ratio, 3) + ")");
+          }
+        }
+        progress.note("  " + c.name + " reference: " + (last_change < 0.2 ? "converged" : "NOT converged") +
+                      " to 0.2 % (the two finest differ by " + format(last_change, 3) + " %)" +
                       (c.name == "b1" ? "; beam theory tip z " + format(-1e3 * b1_beam_theory_tip, 4) + " mm" : ""));
         references[c.name] = reference;
       }
@@ -825,14 +865,28 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
           settings.neighbours = variant.neighbours;
           settings.estimate_volumes = variant.estimate_volumes;
           settings.support_factor = variant.support_factor;
+          settings.centroid_points = variant.centroid_points;
+          settings.samples_per_axis = variant.samples_per_axis;
           if (body.cut) {
             // From the top down to z = 0 across the whole width. Particles on the plane count on
             // the +x side; links through the rim z = 0 stay (the crack front is shared).
             settings.cuts.push_back({Vec3(cut_x, -1, 0), Vec3(0, 2, 0), Vec3(0, 0, 1)});
           }
           const Shape shape = body.shape;
+          Vec3 grid_min = box_min(shape), grid_max = box_max(shape);
+          if (body.cut) {
+            // The grid's z extent widened to a multiple of 4a, so that a row of particles lies on
+            // the crack front z = 0 (shared by both sides, like the conforming FEM's front nodes).
+            // Otherwise the front falls mid-cell at every other resolution and the effective
+            // crack depth jumps by about a between sizes (stretch_cut: +220 %, -28 %, +46 % at
+            // a = 5, 3.3, 2 mm against -37 %, -28 % aligned).
+            const int cubes = static_cast<int>(std::ceil((grid_max.z() - grid_min.z()) / spacing * (1 - 1e-12)));
+            const int aligned = (cubes + 3) / 4 * 4;
+            grid_min.z() = -0.5 * aligned * spacing;
+            grid_max.z() = 0.5 * aligned * spacing;
+          }
           CorotationalEfg model([shape](const Vec3& p) { return inside_shape(shape, p); },
-                                box_min(shape), box_max(shape), beam_material, settings);
+                                grid_min, grid_max, beam_material, settings);
           model.update_rotations(model.rest_positions());
           const std::vector<uint8_t> fixed = clamped_nodes(model.rest_positions());
           std::vector<Vector> loads;
