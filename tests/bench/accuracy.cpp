@@ -20,8 +20,12 @@
 // graded towards the clamp and the crack front, printed in the progress and written to
 // references.json.
 //
-// Rows: efg nb8 (the thesis's default: 8 cell corners, support factor 3), nb4, novolume (nb8
-// with every touched cube counted whole), nb8_support1.2 (support factor 1.2); fem tet4 (the
+// Rows: efg nb8 (8 cell corners with the model's defaults: h = 3 a, 8^3 volume samples,
+// partial-cube points at the inside centroid; corotational_efg.hpp says why), nb4, novolume
+// (nb8 with every touched cube counted whole), nb8_support3 (h = 3 x the farthest corner, the
+// literal reading of the thesis's constant) and nb8_thesis (that support, cube-centre points
+// and 4^3 samples: the model as first built); for the cut cases the EFG grid's z extent is
+// widened so that a particle row lies on the crack front; fem tet4 (the
 // corotational real-time baseline) and tet10 (the coarser reference meshes; timed with their
 // assembled linear stiffness and HRZ-lumped masses, as no dynamic tet10 model exists).
 //
