@@ -1,12 +1,13 @@
-# Cutting (physics/cut): the continuous collision layer of progressive cutting (seed 004
-# §2.2-2.3). Included by physics/CMakeLists.txt after add_library(incise_physics ...); the
-# top level has already run find_package(PkgConfig).
+# Cutting (physics/cut): continuous collision, its broad phase, and volume cutting of the
+# EFG model (seed 004 §2.1-2.4). Included by physics/CMakeLists.txt after
+# add_library(incise_physics ...); the top level has already run find_package(PkgConfig).
 #
 # Its own library because the broad phase uses Bullet's btDbvt (STYLE.md: use it rather
 # than writing another AABB tree); the rest of physics stays Eigen only.
 add_library(incise_cut STATIC
   ${CMAKE_CURRENT_LIST_DIR}/continuous_collision.cpp
   ${CMAKE_CURRENT_LIST_DIR}/broad_phase.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/volume_cut.cpp
 )
 target_link_libraries(incise_cut PUBLIC incise_physics)
 target_compile_features(incise_cut PUBLIC cxx_std_20)

@@ -1,8 +1,9 @@
-# Tests of the cutting library (physics/cut): the continuous edge-edge test and its broad
-# phase. Included from tests/CMakeLists.txt, which has already run find_package(GTest) and
+# Tests of the cutting library (physics/cut): the continuous edge-edge test, its broad
+# phase, and volume cutting. Included from tests/CMakeLists.txt, which has already run find_package(GTest) and
 # include(GoogleTest).
 add_executable(test_cut
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_ccd.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_cut_volume.cpp
 )
 target_link_libraries(test_cut PRIVATE incise_cut GTest::gtest_main)
 gtest_discover_tests(test_cut DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")

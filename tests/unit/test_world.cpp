@@ -231,7 +231,9 @@ TEST(World, EfgBeamSettlesAtTheCantileverDeflectionAndStaysThere) {
   EXPECT_NEAR(tip_deflection(), settled, 0.002 * settled);
   // The clamped face does not move.
   for (int i = 0; i < body.model->node_count(); ++i)
-    if (body.fixed[i]) EXPECT_EQ(body.state.positions.segment<3>(3 * i), body.model->rest_positions().segment<3>(3 * i));
+    if (body.fixed[i]) {
+      EXPECT_EQ(body.state.positions.segment<3>(3 * i), body.model->rest_positions().segment<3>(3 * i));
+    }
 }
 
 TEST(World, ProbePushesAnEfgBodyThroughItsEmbeddedSurface) {

@@ -1,0 +1,102 @@
+// Volume cutting of the meshless model: the topology graph, its continuous collision with the
+// blade, and the re-selection of the neighbourhoods it breaks (seed 004 §2.1, §2.3, §2.4).
+//
+// The graph has two kinds of links (§2.1): particle-particle links, 6-connectivity on the
+// particle grid, and integration point-particle links, which are the elements'
+// neighbourhoods (the model's rows). Over a step, the blade polyline moves linearly from its
+// pose at t = 0 to its pose at t = 1, and so does every link endpoint, from the positions
+// before the last solve to the positions after it (user input is taken to happen during the
+// previous step's motion, §2.7). A link the blade touches during the step (Provot's test,
+// continuous_collision.hpp; candidates from the btDbvt broad phase) is severed:
+// - a particle-particle link no longer joins its particles in the graph distances below;
+// - an integration point-particle link takes the particle out of the element's neighbourhood.
+// Each element that lost a neighbour is re-selected in the rest configuration (§2.4): its
+// still-linked neighbours are kept, and candidates are added in order of graph distance from
+// them over the particle-particle links that remain, nearest (rest distance to the
+// integration point) first within a distance, skipping any candidate whose link to the
+// integration point the blade crosses this step, until the neighbourhood has its nominal size
+// and spans three dimensions (more are added while it is coplanar, §2.4 "extra neighbours").
+// CorotationalEfg::set_neighbourhood then recomputes its MLS values and gradients and moves
+// its mass. Particles are never added or removed: the DOF count does not change.
+//
+// The thesis's failure cases are detected and counted, not hidden (§2.8): an element left
+// with no linked neighbour (several cuts inside one element, or the blade through its
+// integration point) keeps a neighbourhood found from its nearest particles on the side of
+// its first surviving neighbour, or, failing that, its old one (counted as isolated); a
+// re-selection the model refuses (a particle's lumped mass would not stay positive) keeps
+// the old neighbourhood minus nothing and is counted as a failure.
+#pragma once
+
+#include "physics/cut/broad_phase.hpp"
+#include "physics/efg/corotational_efg.hpp"
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace incise::physics {
+
+struct VolumeCutReport {
+  int candidates = 0;              // links the broad phase returned for the narrow test
+  int particle_links_severed = 0;
+  int element_links_severed = 0;   // integration point-particle links
+  int elements_reselected = 0;
+  int elements_isolated = 0;       // left with no linked neighbour (thesis §4.3.3 failure)
+  int reselection_failures = 0;    // the model refused the new neighbourhood
+  std::vector<int> changed_elements;  // increasing: rows to re-upload, vertices to remap
+  // Where the links were cut, in the rest configuration (the hit's fraction along the link,
+  // applied to its rest endpoints, §2.3), in the order found.
+  std::vector<Vec3> rest_hits;
+  bool any() const { return particle_links_severed + element_links_severed > 0; }
+};
+
+class VolumeCutter {
+ public:
+  // The graph of `model` as built (its current neighbourhoods). The model must outlive the
+  // cutter; its neighbourhoods are edited only through cut(). `margin` grows the broad-phase
+  // boxes (m; at least the CCD touching distance), `slack` keeps boxes fat between refits.
+  VolumeCutter(CorotationalEfg& model, double margin, double slack);
+
+  // One step: the blade polyline at t = 0 and t = 1 (same point count, >= 2) and the particle
+  // positions at t = 0 and t = 1 (3n each). Severs what the blade touches and re-selects
+  // the broken neighbourhoods. Throws std::invalid_argument on inconsistent sizes or
+  // non-finite input (naming it), before anything changes.
+  VolumeCutReport cut(std::span<const Vec3> blade_start, std::span<const Vec3> blade_end,
+                      const Vector& particles_start, const Vector& particles_end);
+
+  // Particle-particle links (a < b) and which are severed.
+  const std::vector<std::array<int, 2>>& particle_links() const { return particle_links_; }
+  const std::vector<std::uint8_t>& particle_link_severed() const { return particle_link_severed_; }
+  int severed_particle_links() const;
+  long total_links_severed() const { return total_links_severed_; }
+
+  // Connected pieces: elements are joined when they share a particle. piece[e] numbers the
+  // pieces from 0 in order of their lowest element; returns the count.
+  int pieces(std::vector<int>& piece) const;
+
+  // Deformed integration-point positions (the MLS interpolation at each element's point).
+  void integration_points(const Vector& particles, std::vector<Vec3>& out) const;
+
+ private:
+  int element_link_id(int element, int slot) const;
+  void refit(const std::vector<Vec3>& points_start, const std::vector<Vec3>& points_end,
+             const Vector& particles_start, const Vector& particles_end);
+  std::vector<int> reselect(int element, const std::vector<int>& kept,
+                            std::span<const Vec3> blade_start, std::span<const Vec3> blade_end,
+                            const std::vector<Vec3>& points_start, const std::vector<Vec3>& points_end,
+                            const Vector& particles_start, const Vector& particles_end, bool& isolated);
+
+  CorotationalEfg& model_;
+  EdgeBroadPhase broad_phase_;
+  std::vector<std::array<int, 2>> particle_links_;
+  std::vector<std::uint8_t> particle_link_severed_;
+  std::vector<std::vector<int>> links_of_particle_;  // link indices per particle
+  // Element links in the broad phase: which (element, particle) each slot holds, to remove
+  // exactly what is there when a neighbourhood changes.
+  std::vector<std::vector<int>> element_link_particles_;
+  long total_links_severed_ = 0;
+  std::vector<int> candidates_;  // reused
+};
+
+}  // namespace incise::physics

@@ -1,0 +1,195 @@
+// Volume cutting of the EFG model (physics/cut/volume_cut): what the blade severs, what the
+// re-selected neighbourhoods look like, and the mechanics of the pieces it leaves.
+#include "physics/core/implicit_euler.hpp"
+#include "physics/cut/volume_cut.hpp"
+#include "physics/fem/tet_mesh.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+using namespace incise::physics;
+
+namespace {
+
+constexpr double a = 0.0025;  // integration cube side; particles 5 mm apart
+
+// A beam 0.1 x 0.02 x 0.02 m along +x.
+CorotationalEfg make_beam() {
+  EfgSettings settings;
+  settings.spacing = a;
+  settings.threaded_elements = 0;
+  return CorotationalEfg(Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), Material{1e5, 0.3, 1000}, settings);
+}
+
+// A straight blade along y, wider than the body, at height z.
+std::vector<Vec3> blade_at(double x, double z) { return {Vec3(x, -0.03, z), Vec3(x, 0.03, z)}; }
+
+// Every element's neighbours lie on its own side of the plane x = x_cut.
+int elements_reaching_across(const CorotationalEfg& model, double x_cut) {
+  int across = 0;
+  for (int e = 0; e < model.element_count(); ++e) {
+    const bool left = model.element_centres()[e].x() < x_cut;
+    const size_t base = static_cast<size_t>(e) * model.row_stride();
+    for (int k = 0; k < model.row_lengths()[e]; ++k) {
+      const double px = model.rest_positions()[3 * model.neighbours()[base + k]];
+      if ((px < x_cut) != left) {
+        ++across;
+        break;
+      }
+    }
+  }
+  return across;
+}
+
+}  // namespace
+
+TEST(VolumeCut, ABladeThroughTheWholeSectionSplitsTheBodyInTwo) {
+  CorotationalEfg model = make_beam();
+  const Vector rest = model.rest_positions();
+  const int dofs = 3 * model.node_count();
+  const double mass = model.lumped_masses().sum();
+  VolumeCutter cutter(model, 1e-6, 0.002);
+  std::vector<int> piece;
+  ASSERT_EQ(cutter.pieces(piece), 1);
+  ASSERT_GT(elements_reaching_across(model, 0.051), 0);
+
+  // One step takes the blade from above the beam to below it: a fast stroke, one sweep.
+  const double x_cut = 0.051;  // between particle layers (5 mm apart) and off the cube centres
+  const VolumeCutReport report = cutter.cut(blade_at(x_cut, 0.03), blade_at(x_cut, -0.03), rest, rest);
+  std::printf("full cut: %d candidates, %d particle links and %d element links severed, %d elements "
+              "re-selected, %d isolated, %d failures\n",
+              report.candidates, report.particle_links_severed, report.element_links_severed,
+              report.elements_reselected, report.elements_isolated, report.reselection_failures);
+  // The particle layers either side are 5 x 5 particles: 25 links along x cross the plane.
+  EXPECT_EQ(report.particle_links_severed, 25);
+  EXPECT_GT(report.element_links_severed, 0);
+  EXPECT_EQ(report.elements_isolated, 0);
+  EXPECT_EQ(report.reselection_failures, 0);
+  EXPECT_EQ(elements_reaching_across(model, x_cut), 0);
+  EXPECT_EQ(cutter.pieces(piece), 2);
+  // No DOF added or lost; mass moved, not created.
+  EXPECT_EQ(3 * model.node_count(), dofs);
+  EXPECT_NEAR(model.lumped_masses().sum(), mass, 1e-12 * mass);
+  EXPECT_GT(model.lumped_masses().minCoeff(), 0.0);
+  // Every hit lies on the cut plane, inside the body's section.
+  for (const Vec3& hit : report.rest_hits) {
+    EXPECT_NEAR(hit.x(), x_cut, 1e-9);
+    EXPECT_LE(std::abs(hit.y()), 0.0125);
+  }
+  // A second pass of the same blade finds nothing left to cut.
+  const VolumeCutReport again = cutter.cut(blade_at(x_cut, 0.03), blade_at(x_cut, -0.03), rest, rest);
+  EXPECT_FALSE(again.any());
+}
+
+TEST(VolumeCut, APartialCutLeavesOnePieceJoinedAroundTheCrackFront) {
+  CorotationalEfg model = make_beam();
+  const Vector rest = model.rest_positions();
+  VolumeCutter cutter(model, 1e-6, 0.002);
+  // From the top down to z = 0: half the section.
+  const VolumeCutReport report = cutter.cut(blade_at(0.051, 0.03), blade_at(0.051, 0.0), rest, rest);
+  EXPECT_GT(report.particle_links_severed, 0);
+  EXPECT_LT(report.particle_links_severed, 25);
+  for (const Vec3& hit : report.rest_hits) EXPECT_GE(hit.z(), -1e-9);
+  std::vector<int> piece;
+  EXPECT_EQ(cutter.pieces(piece), 1);
+  // Above the crack front, no element reaches across; below it, the body is whole.
+  for (int e = 0; e < model.element_count(); ++e) {
+    const Vec3 c = model.element_centres()[e];
+    if (c.z() < 0.0026) continue;  // elements whose cells straddle the front may
+    const size_t base = static_cast<size_t>(e) * model.row_stride();
+    for (int k = 0; k < model.row_lengths()[e]; ++k) {
+      const double px = model.rest_positions()[3 * model.neighbours()[base + k]];
+      EXPECT_EQ(px < 0.051, c.x() < 0.051) << "element " << e;
+    }
+  }
+}
+
+TEST(VolumeCut, AStaticBladeCutsABodyMovingOntoIt) {
+  CorotationalEfg model = make_beam();
+  const Vector rest = model.rest_positions();
+  VolumeCutter cutter(model, 1e-6, 0.002);
+  // The blade does not move; the body passes down through it during the step.
+  Vector above = rest, below = rest;
+  for (int i = 0; i < model.node_count(); ++i) above[3 * i + 2] += 0.03, below[3 * i + 2] -= 0.03;
+  const auto blade = blade_at(0.051, 0.0);
+  const VolumeCutReport report = cutter.cut(blade, blade, above, below);
+  EXPECT_EQ(report.particle_links_severed, 25);
+  std::vector<int> piece;
+  EXPECT_EQ(cutter.pieces(piece), 2);
+}
+
+TEST(VolumeCut, ABladeThatMissesTheBodyCutsNothing) {
+  CorotationalEfg model = make_beam();
+  const Vector rest = model.rest_positions();
+  VolumeCutter cutter(model, 1e-6, 0.002);
+  // Beyond the end of the beam, and passing above it.
+  EXPECT_FALSE(cutter.cut(blade_at(0.13, 0.03), blade_at(0.13, -0.03), rest, rest).any());
+  EXPECT_FALSE(cutter.cut(blade_at(0.05, 0.03), blade_at(0.07, 0.02), rest, rest).any());
+}
+
+TEST(VolumeCut, BadInputIsRefusedBeforeAnythingChanges) {
+  CorotationalEfg model = make_beam();
+  Vector rest = model.rest_positions();
+  VolumeCutter cutter(model, 1e-6, 0.002);
+  EXPECT_THROW(cutter.cut(blade_at(0.05, 0.03), {}, rest, rest), std::invalid_argument);
+  Vector broken = rest;
+  broken[7] = std::nan("");
+  EXPECT_THROW(cutter.cut(blade_at(0.05, 0.03), blade_at(0.05, -0.03), rest, broken), std::invalid_argument);
+  EXPECT_EQ(cutter.severed_particle_links(), 0);
+}
+
+// The mechanics after a full cut: the free piece falls as a rigid body, g t^2 / 2, while the
+// clamped piece stays on its clamp. Internal forces of a piece sum to zero (the MLS gradients
+// of a neighbourhood sum to zero), so implicit Euler moves the piece's centre of mass by
+// exactly g dt^2 k (k + 1) / 2 after k steps, which is g t^2 / 2 within 1 / k.
+TEST(VolumeCut, TheSeparatedPieceFallsFreely) {
+  CorotationalEfg model = make_beam();
+  const Vector rest = model.rest_positions();
+  VolumeCutter cutter(model, 1e-6, 0.002);
+  cutter.cut(blade_at(0.051, 0.03), blade_at(0.051, -0.03), rest, rest);
+  std::vector<int> piece;
+  ASSERT_EQ(cutter.pieces(piece), 2);
+
+  const int n = model.node_count();
+  std::vector<uint8_t> fixed = nodes_in_box(rest, Vec3::Constant(-1), Vec3(1e-9, 1, 1));
+  // Particles of the free piece (x > cut): those its elements use.
+  std::vector<uint8_t> free_particle(static_cast<size_t>(n), 0);
+  for (int e = 0; e < model.element_count(); ++e) {
+    if (model.element_centres()[e].x() < 0.051) continue;
+    const size_t base = static_cast<size_t>(e) * model.row_stride();
+    for (int k = 0; k < model.row_lengths()[e]; ++k) free_particle[model.neighbours()[base + k]] = 1;
+  }
+  const Vector& masses = model.lumped_masses();
+  const auto centre_z = [&](const Vector& x) {
+    double weighted = 0, total = 0;
+    for (int i = 0; i < n; ++i)
+      if (free_particle[i]) weighted += masses[i] * x[3 * i + 2], total += masses[i];
+    return weighted / total;
+  };
+  State state{rest, Vector::Zero(3 * n)};
+  const Vector gravity = gravity_forces(masses, Vec3(0, 0, -9.81));
+  ImplicitEulerSettings settings;
+  settings.dt = 0.0025;
+  settings.cg.tolerance = 1e-10;
+  settings.cg.max_iterations = 2000;
+  const double start = centre_z(state.positions);
+  const int steps = 200;
+  for (int k = 0; k < steps; ++k) {
+    const StepReport step = implicit_euler_step(model, state, fixed, gravity, {}, settings);
+    ASSERT_FALSE(step.nonfinite);
+  }
+  const double t = steps * settings.dt;
+  const double fallen = start - centre_z(state.positions);
+  const double analytic = 0.5 * 9.81 * t * t;
+  std::printf("free piece after %.2f s: fell %.5f m, g t^2 / 2 = %.5f m (%.3f %%)\n", t, fallen, analytic,
+              100 * (fallen - analytic) / analytic);
+  EXPECT_NEAR(fallen, analytic, 0.01 * analytic + 1e-9);
+  // The clamped piece hangs on its clamp: it sags a little, it does not fall.
+  double clamped_max = 0;
+  for (int i = 0; i < n; ++i)
+    if (!free_particle[i]) clamped_max = std::max(clamped_max, std::abs(state.positions[3 * i + 2] - rest[3 * i + 2]));
+  EXPECT_LT(clamped_max, 0.02);
+}
