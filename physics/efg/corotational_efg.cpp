@@ -225,9 +225,30 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
 
   // Neighbourhoods in grid-particle indices: the corners of the element's particle cell,
   // nearest first (ties to the lower index), 8 or the 4 nearest (seed-004 §1.3).
+  // (s, r, signed distance) of a point in a cut's frame: corner + s edge_u + r edge_v + d n.
+  const auto cut_frame = [](const CutRectangle& cut, const Vec3& point) {
+    const Vec3 normal = cut.edge_u.cross(cut.edge_v).normalized();
+    const Vec3 relative = point - cut.corner;
+    const double u_squared = cut.edge_u.squaredNorm(), v_squared = cut.edge_v.squaredNorm();
+    const double edges_dot = cut.edge_u.dot(cut.edge_v);
+    const double along_u = relative.dot(cut.edge_u), along_v = relative.dot(cut.edge_v);
+    const double determinant = u_squared * v_squared - edges_dot * edges_dot;
+    return Vec3((along_u * v_squared - along_v * edges_dot) / determinant,
+                (along_v * u_squared - along_u * edges_dot) / determinant, normal.dot(relative));
+  };
   const auto is_blocked = [&](const Vec3& from, const Vec3& to) {
     for (const CutRectangle& cut : s.cuts) {
       if (cut.blocks(from, to)) return true;
+      if (!(s.front_hidden_beyond < std::numeric_limits<double>::infinity())) continue;
+      // A particle on the crack front (the rim edge r = 0), seen from a point on the cut's
+      // negative side and beside the cut (r > 0).
+      const Vec3 particle = cut_frame(cut, to), point = cut_frame(cut, from);
+      const double scale = std::sqrt(cut.edge_v.squaredNorm());
+      if (std::abs(particle.z()) < 1e-9 * scale && std::abs(particle.y()) < 1e-9 &&
+          particle.x() > 0 && particle.x() < 1 && point.z() < 0 &&
+          point.y() * scale > s.front_hidden_beyond) {
+        return true;
+      }
     }
     return false;
   };

@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <vector>
@@ -353,6 +354,33 @@ TEST(EfgModelTopology, CutLinksAreReplacedOnTheSameSide) {
   CorotationalEfg uncut_model = CorotationalEfg(Vec3(0, -0.01, -0.01), Vec3(0.04, 0.01, 0.01), tissue, settings_with(8));
   EXPECT_GT(tip_deflection(cut_model), 1.05 * tip_deflection(uncut_model));
   EXPECT_EQ(uncut.row_stride(), 8);
+}
+
+TEST(EfgModelTopology, FrontParticlesAreHiddenBesideTheCutOnly) {
+  // The cut of the test above; particles 5 mm apart, so a row lies on the front z = 0.
+  EfgSettings settings = settings_with(8);
+  settings.spacing = 0.0025;
+  settings.cuts.push_back({Vec3(0.02, -1, 0.0), Vec3(0, 2, 0), Vec3(0, 0, 1)});
+  const auto count_front_links = [](const CorotationalEfg& model, bool beside) {
+    int links = 0;
+    for (int e = 0; e < model.element_count(); ++e) {
+      const Vec3& point = model.element_centres()[e];
+      if (!(point.x() < 0.02) || (point.z() > 0) != beside) continue;
+      const size_t base = static_cast<size_t>(e) * model.row_stride();
+      for (int k = 0; k < model.row_lengths()[e]; ++k) {
+        const Vec3 particle = model.rest_positions().segment<3>(3 * model.neighbours()[base + k]);
+        if (std::abs(particle.x() - 0.02) < 1e-12 && std::abs(particle.z()) < 1e-12) ++links;
+      }
+    }
+    return links;
+  };
+  const CorotationalEfg strict(Vec3(0, -0.01, -0.01), Vec3(0.04, 0.01, 0.01), tissue, settings);
+  EXPECT_EQ(count_front_links(strict, true), 0);  // beside the cut, on its -x side
+  EXPECT_GT(count_front_links(strict, false), 0);  // below the front: the uncut ligament
+  settings.front_hidden_beyond = std::numeric_limits<double>::infinity();
+  const CorotationalEfg open_rim(Vec3(0, -0.01, -0.01), Vec3(0.04, 0.01, 0.01), tissue, settings);
+  EXPECT_GT(count_front_links(open_rim, true), 0);
+  EXPECT_EQ(count_front_links(open_rim, false), count_front_links(strict, false));
 }
 
 TEST(EfgModelTopology, SetNeighbourhoodKeepsConsistencyAndMass) {
