@@ -1,0 +1,484 @@
+#include "physics/cut/cut_surface.hpp"
+
+#include "physics/core/contact.hpp"
+#include "physics/efg/mls.hpp"
+#include "physics/fem/surface_snap.hpp"
+#include "physics/fem/tet_mesh.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+
+namespace incise::physics {
+
+namespace {
+
+std::array<Vec3, 2> box_of(const RestTriangle& t) {
+  return {t.a.cwiseMin(t.b).cwiseMin(t.c), t.a.cwiseMax(t.b).cwiseMax(t.c)};
+}
+
+bool boxes_overlap(const Vec3& lo_a, const Vec3& hi_a, const Vec3& lo_b, const Vec3& hi_b, double reach) {
+  for (int axis = 0; axis < 3; ++axis) {
+    if (lo_a[axis] > hi_b[axis] + reach || lo_b[axis] > hi_a[axis] + reach) return false;
+  }
+  return true;
+}
+
+// The six tetrahedra of a unit cube around its main diagonal (corner bits x = 1, y = 2, z = 4),
+// all positively oriented: only used to let snap_boundary_to_surface judge element quality.
+constexpr std::array<std::array<int, 4>, 6> cube_tets{{{0, 1, 3, 7}, {0, 3, 2, 7}, {0, 2, 6, 7},
+                                                       {0, 6, 4, 7}, {0, 4, 5, 7}, {0, 5, 1, 7}}};
+
+}  // namespace
+
+std::optional<double> segment_crosses_triangle(const Vec3& p, const Vec3& q, const RestTriangle& t) {
+  // Moller-Trumbore on the closed triangle and the closed segment.
+  const Vec3 direction = q - p;
+  const Vec3 edge_1 = t.b - t.a, edge_2 = t.c - t.a;
+  const Vec3 h = direction.cross(edge_2);
+  const double determinant = edge_1.dot(h);
+  const double scale = edge_1.norm() * edge_2.norm() * direction.norm();
+  if (!(scale > 0) || std::abs(determinant) <= 1e-12 * scale) return std::nullopt;  // parallel or degenerate
+  const double inverse = 1.0 / determinant;
+  const Vec3 s = p - t.a;
+  const double u = inverse * s.dot(h);
+  if (u < 0 || u > 1) return std::nullopt;
+  const Vec3 k = s.cross(edge_1);
+  const double v = inverse * direction.dot(k);
+  if (v < 0 || u + v > 1) return std::nullopt;
+  const double along = inverse * edge_2.dot(k);
+  if (along < 0 || along > 1) return std::nullopt;
+  return along;
+}
+
+void RestCut::add(const RestTriangle& triangle) {
+  triangles_.push_back(triangle);
+  boxes_.push_back(box_of(triangle));
+}
+
+bool RestCut::crosses(const Vec3& p, const Vec3& q) const {
+  const Vec3 lo = p.cwiseMin(q), hi = p.cwiseMax(q);
+  for (size_t t = 0; t < triangles_.size(); ++t) {
+    if (!boxes_overlap(lo, hi, boxes_[t][0], boxes_[t][1], 0)) continue;
+    if (segment_crosses_triangle(p, q, triangles_[t])) return true;
+  }
+  return false;
+}
+
+std::optional<Vec3> RestCut::nearest_point(const Vec3& p, double reach) const {
+  std::optional<Vec3> best;
+  double best_distance = reach;
+  for (size_t t = 0; t < triangles_.size(); ++t) {
+    if (!boxes_overlap(p, p, boxes_[t][0], boxes_[t][1], reach)) continue;
+    const Vec3 closest = closest_point_on_triangle(p, triangles_[t].a, triangles_[t].b, triangles_[t].c);
+    const double distance = (closest - p).norm();
+    if (distance <= best_distance) {
+      best_distance = distance;
+      best = closest;
+    }
+  }
+  return best;
+}
+
+bool RestCut::near_box(const Vec3& lo, const Vec3& hi, double reach) const {
+  for (const auto& box : boxes_) {
+    if (boxes_overlap(lo, hi, box[0], box[1], reach)) return true;
+  }
+  return false;
+}
+
+SurfaceTopology surface_topology(const std::vector<std::array<int, 3>>& triangles) {
+  std::map<std::pair<int, int>, int> uses;
+  for (const auto& t : triangles) {
+    for (int e = 0; e < 3; ++e) {
+      const int a = t[e], b = t[(e + 1) % 3];
+      ++uses[{std::min(a, b), std::max(a, b)}];
+    }
+  }
+  SurfaceTopology topology;
+  for (const auto& [edge, count] : uses) {
+    topology.boundary_edges += count == 1 ? 1 : 0;
+    topology.nonmanifold_edges += count > 2 ? 1 : 0;
+  }
+  return topology;
+}
+
+CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, Vec3 hi, double cell)
+    : cell_(cell) {
+  if (!(cell > 0) || !std::isfinite(cell)) {
+    throw std::invalid_argument("CutSurface: cell must be positive and finite, got " + std::to_string(cell));
+  }
+  // One empty layer of cubes around the box, so that every inside cube has all its faces.
+  origin_ = lo - Vec3::Constant(cell);
+  for (int axis = 0; axis < 3; ++axis) {
+    const double extent = (hi[axis] - lo[axis]) / cell;
+    if (!(extent >= 0) || extent > 4096) {
+      throw std::invalid_argument("CutSurface: the box is empty or holds more than 4096 cells along an axis");
+    }
+    counts_[axis] = static_cast<int>(std::ceil(extent * (1 - 1e-12))) + 2;
+  }
+  const int cubes = counts_[0] * counts_[1] * counts_[2];
+  inside_.assign(static_cast<size_t>(cubes), 0);
+  face_cut_.assign(3 * static_cast<size_t>(cubes), 0);
+  TetMesh mesh;
+  const int nodes = (counts_[0] + 1) * (counts_[1] + 1) * (counts_[2] + 1);
+  mesh.rest.resize(3 * static_cast<Eigen::Index>(nodes));
+  for (int k = 0; k <= counts_[2]; ++k)
+    for (int j = 0; j <= counts_[1]; ++j)
+      for (int i = 0; i <= counts_[0]; ++i)
+        mesh.rest.segment<3>(3 * static_cast<Eigen::Index>(node_index(i, j, k))) = origin_ + cell * Vec3(i, j, k);
+  for (int k = 1; k + 1 < counts_[2]; ++k) {
+    for (int j = 1; j + 1 < counts_[1]; ++j) {
+      for (int i = 1; i + 1 < counts_[0]; ++i) {
+        if (!inside(cube_centre(i, j, k))) continue;
+        inside_[cube_index(i, j, k)] = 1;
+        ++cube_count_;
+        for (const auto& tet : cube_tets) {
+          std::array<int, 4> nodes_of{};
+          for (int c = 0; c < 4; ++c) nodes_of[c] = node_index(i + (tet[c] & 1), j + ((tet[c] >> 1) & 1), k + ((tet[c] >> 2) & 1));
+          mesh.tets.push_back(nodes_of);
+        }
+      }
+    }
+  }
+  if (cube_count_ == 0) throw std::invalid_argument("CutSurface: no cube centre is inside the body");
+  node_rest_.resize(static_cast<size_t>(nodes));
+  for (int n = 0; n < nodes; ++n) node_rest_[n] = mesh.rest.segment<3>(3 * static_cast<Eigen::Index>(n));
+  // Fill the voxel set's pinches first, so that the snapped shape is the final one.
+  for (int pass = 0; pass < 16 && build_surface(true) > 0; ++pass) {
+  }
+  mesh.tets.clear();
+  for (int k = 1; k + 1 < counts_[2]; ++k)
+    for (int j = 1; j + 1 < counts_[1]; ++j)
+      for (int i = 1; i + 1 < counts_[0]; ++i) {
+        if (!inside_[cube_index(i, j, k)]) continue;
+        for (const auto& tet : cube_tets) {
+          std::array<int, 4> nodes_of{};
+          for (int c = 0; c < 4; ++c) nodes_of[c] = node_index(i + (tet[c] & 1), j + ((tet[c] >> 1) & 1), k + ((tet[c] >> 2) & 1));
+          mesh.tets.push_back(nodes_of);
+        }
+      }
+  cube_count_ = static_cast<int>(mesh.tets.size() / cube_tets.size());
+  // The outer nodes onto the true surface, as for the tetrahedral bodies.
+  snap_boundary_to_surface(mesh, inside, 1.5 * cell, 0.1);
+  node_rest_.resize(static_cast<size_t>(nodes));
+  for (int n = 0; n < nodes; ++n) node_rest_[n] = mesh.rest.segment<3>(3 * static_cast<Eigen::Index>(n));
+  rebuild();
+}
+
+Vec3 CutSurface::cube_centre(int i, int j, int k) const {
+  return origin_ + cell_ * Vec3(i + 0.5, j + 0.5, k + 0.5);
+}
+
+int CutSurface::cut(std::span<const RestTriangle> triangles) {
+  int newly = 0;
+  for (const RestTriangle& triangle : triangles) {
+    rest_cut_.add(triangle);
+    const auto [lo, hi] = box_of(triangle);
+    std::array<int, 3> first{}, last{};
+    for (int axis = 0; axis < 3; ++axis) {
+      first[axis] = std::clamp(static_cast<int>(std::floor((lo[axis] - origin_[axis]) / cell_ - 0.5)), 0, counts_[axis] - 1);
+      last[axis] = std::clamp(static_cast<int>(std::floor((hi[axis] - origin_[axis]) / cell_ + 0.5)), 0, counts_[axis] - 1);
+    }
+    for (int k = first[2]; k <= last[2]; ++k) {
+      for (int j = first[1]; j <= last[1]; ++j) {
+        for (int i = first[0]; i <= last[0]; ++i) {
+          const int cube = cube_index(i, j, k);
+          if (!inside_[cube]) continue;
+          const std::array<int, 3> at{i, j, k};
+          for (int axis = 0; axis < 3; ++axis) {
+            std::array<int, 3> next = at;
+            ++next[axis];
+            if (next[axis] >= counts_[axis]) continue;
+            const int other = cube_index(next[0], next[1], next[2]);
+            if (!inside_[other] || face_cut_[3 * static_cast<size_t>(cube) + axis]) continue;
+            if (segment_crosses_triangle(cube_centre(i, j, k), cube_centre(next[0], next[1], next[2]), triangle)) {
+              face_cut_[3 * static_cast<size_t>(cube) + axis] = 1;
+              ++newly;
+            }
+          }
+        }
+      }
+    }
+  }
+  cut_faces_ += newly;
+  return newly;
+}
+
+void CutSurface::rebuild() {
+  for (int pass = 0; pass < 64; ++pass) {
+    const int closed = build_surface(false);
+    pinches_closed_ += closed;
+    if (closed == 0) return;
+  }
+}
+
+int CutSurface::build_surface(bool fill_empty) {
+  // Per grid node, its (up to) 8 cubes grouped by the uncut faces they share around it.
+  // Local cube slot s = dx + 2 dy + 4 dz for the cube (i - 1 + dx, j - 1 + dy, k - 1 + dz).
+  std::unordered_map<int, std::array<std::int8_t, 8>> groups_of_node;
+  const auto groups = [&](int i, int j, int k) -> const std::array<std::int8_t, 8>& {
+    const int node = node_index(i, j, k);
+    auto it = groups_of_node.find(node);
+    if (it != groups_of_node.end()) return it->second;
+    std::array<std::int8_t, 8> label{};
+    std::array<int, 8> cube{};
+    for (int s = 0; s < 8; ++s) {
+      const int ci = i - 1 + (s & 1), cj = j - 1 + ((s >> 1) & 1), ck = k - 1 + ((s >> 2) & 1);
+      const bool valid = ci >= 0 && cj >= 0 && ck >= 0 && ci < counts_[0] && cj < counts_[1] && ck < counts_[2];
+      cube[s] = valid ? cube_index(ci, cj, ck) : -1;
+      label[s] = static_cast<std::int8_t>(cube[s] >= 0 && inside_[cube[s]] ? s : -1);
+    }
+    // Union by smallest slot over the 12 face adjacencies of the 2 x 2 x 2 block.
+    bool changed = true;
+    while (changed) {
+      changed = false;
+      for (int s = 0; s < 8; ++s) {
+        if (label[s] < 0) continue;
+        for (int axis = 0; axis < 3; ++axis) {
+          const int bit = 1 << axis;
+          if (s & bit) continue;
+          const int t = s | bit;
+          if (label[t] < 0) continue;
+          if (face_cut_[3 * static_cast<size_t>(cube[s]) + axis]) continue;  // s's +axis face is t's -axis face
+          const std::int8_t joined = std::min(label[s], label[t]);
+          if (label[s] != joined || label[t] != joined) {
+            // Relabel both groups to the smaller label.
+            const std::int8_t from_s = label[s], from_t = label[t];
+            for (auto& l : label)
+              if (l == from_s || l == from_t) l = joined;
+            changed = true;
+          }
+        }
+      }
+    }
+    return groups_of_node.emplace(node, label).first->second;
+  };
+
+  std::unordered_map<long long, int> vertex_of;  // node * 8 + group -> vertex
+  std::vector<Vec3> positions;
+  anchors_.clear();
+  on_cut_.clear();
+  triangles_.clear();
+  vertex_node_.clear();
+  const auto vertex = [&](int i, int j, int k, int cube_i, int cube_j, int cube_k, bool cut_face) {
+    const int slot = (cube_i - (i - 1)) + 2 * (cube_j - (j - 1)) + 4 * (cube_k - (k - 1));
+    const int group = groups(i, j, k)[slot];
+    const long long key = static_cast<long long>(node_index(i, j, k)) * 8 + group;
+    auto [it, created] = vertex_of.emplace(key, static_cast<int>(positions.size()));
+    if (created) {
+      positions.push_back(node_rest_[node_index(i, j, k)]);
+      vertex_node_.push_back(node_index(i, j, k));
+      anchors_.push_back(cube_centre(cube_i, cube_j, cube_k));
+      on_cut_.push_back(0);
+    }
+    if (cut_face) on_cut_[it->second] = 1;
+    return it->second;
+  };
+
+  for (int k = 1; k + 1 < counts_[2]; ++k) {
+    for (int j = 1; j + 1 < counts_[1]; ++j) {
+      for (int i = 1; i + 1 < counts_[0]; ++i) {
+        const int cube = cube_index(i, j, k);
+        if (!inside_[cube]) continue;
+        const std::array<int, 3> at{i, j, k};
+        for (int axis = 0; axis < 3; ++axis) {
+          for (int side = 0; side < 2; ++side) {  // 0: the -axis face, 1: the +axis face
+            std::array<int, 3> next = at;
+            next[axis] += side ? 1 : -1;
+            const int other = cube_index(next[0], next[1], next[2]);
+            const bool cut_face = inside_[other] &&
+                                  face_cut_[3 * static_cast<size_t>(side ? cube : other) + axis] != 0;
+            if (inside_[other] && !cut_face) continue;
+            // The face's corners, counter-clockwise seen from outside the cube.
+            const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+            std::array<std::array<int, 3>, 4> corners{};
+            const std::array<std::array<int, 2>, 4> square{{{0, 0}, {1, 0}, {1, 1}, {0, 1}}};
+            for (int c = 0; c < 4; ++c) {
+              std::array<int, 3> node = at;
+              node[axis] += side;
+              node[u] += square[c][0];
+              node[v] += square[c][1];
+              corners[c] = node;
+            }
+            if (!side) std::swap(corners[1], corners[3]);
+            std::array<int, 4> ids{};
+            for (int c = 0; c < 4; ++c) ids[c] = vertex(corners[c][0], corners[c][1], corners[c][2], i, j, k, cut_face);
+            triangles_.push_back({ids[0], ids[1], ids[2]});
+            triangles_.push_back({ids[0], ids[2], ids[3]});
+          }
+        }
+      }
+    }
+  }
+  // Pinches: edges used by four triangles. The four cubes around such an edge alternate
+  // full, gap, full, gap; the first gap (in slot order) is closed.
+  {
+    std::map<std::pair<int, int>, int> uses;
+    for (const auto& t : triangles_)
+      for (int e = 0; e < 3; ++e) ++uses[{std::min(t[e], t[(e + 1) % 3]), std::max(t[e], t[(e + 1) % 3])}];
+    int closed = 0;
+    const int nx = counts_[0] + 1, ny = counts_[1] + 1;
+    for (const auto& [edge, count] : uses) {
+      if (count <= 2) continue;
+      const int n1 = std::min(vertex_node_[edge.first], vertex_node_[edge.second]);
+      const int n2 = std::max(vertex_node_[edge.first], vertex_node_[edge.second]);
+      const int i = n1 % nx, j = (n1 / nx) % ny, k = n1 / (nx * ny);
+      const int step = n2 - n1;
+      const int axis = step == 1 ? 0 : step == nx ? 1 : 2;
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      // The cubes around the edge: offsets (0 or -1) along u and v, in cyclic order.
+      const std::array<std::array<int, 2>, 4> around{{{0, 0}, {-1, 0}, {-1, -1}, {0, -1}}};
+      std::array<std::array<int, 3>, 4> cube{};
+      std::array<bool, 4> full{};
+      for (int c = 0; c < 4; ++c) {
+        cube[c] = {i, j, k};
+        cube[c][u] += around[c][0];
+        cube[c][v] += around[c][1];
+        full[c] = inside_[cube_index(cube[c][0], cube[c][1], cube[c][2])] != 0;
+      }
+      for (int c = 0; c < 4; ++c) {
+        const int gap = c, previous = (c + 3) % 4;
+        const int gap_cube = cube_index(cube[gap][0], cube[gap][1], cube[gap][2]);
+        if (!full[gap]) {
+          bool margin = false;
+          for (int d = 0; d < 3; ++d) margin = margin || cube[gap][d] <= 0 || cube[gap][d] >= counts_[d] - 1;
+          if (!fill_empty || margin) continue;
+          inside_[gap_cube] = 1;
+          ++closed;
+          break;
+        }
+        // A full cube cut from its neighbour: restore the face between them.
+        const auto& a = cube[previous];
+        const auto& b = cube[gap];
+        int differ = 0;
+        while (differ < 3 && a[differ] == b[differ]) ++differ;
+        const bool a_lower = a[differ] < b[differ];
+        const auto& lower = a_lower ? a : b;
+        std::uint8_t& flag = face_cut_[3 * static_cast<size_t>(cube_index(lower[0], lower[1], lower[2])) + differ];
+        if (full[previous] && flag) {
+          flag = 0;
+          --cut_faces_;
+          ++closed;
+          break;
+        }
+      }
+    }
+    if (closed > 0) return closed;
+  }
+  // Cut-face vertices onto the cut itself.
+  const double reach = std::sqrt(3.0) * cell_;
+  for (size_t v = 0; v < positions.size(); ++v) {
+    if (!on_cut_[v]) continue;
+    if (const auto nearest = rest_cut_.nearest_point(positions[v], reach)) positions[v] = *nearest;
+  }
+  rest_vertices_.resize(3 * static_cast<Eigen::Index>(positions.size()));
+  for (size_t v = 0; v < positions.size(); ++v) rest_vertices_.segment<3>(3 * static_cast<Eigen::Index>(v)) = positions[v];
+  return 0;
+}
+
+SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& surface,
+                             SurfaceMappingReport& report) {
+  const double a = model.spacing();
+  const Vec3 origin = model.grid_origin();
+  // Elements by integration cube.
+  std::unordered_map<long long, int> element_at;
+  const auto key = [](long long i, long long j, long long k) { return (i * 8192 + j) * 8192 + k; };
+  const auto& cubes = model.element_grid_coordinates();
+  for (int e = 0; e < model.element_count(); ++e) element_at[key(cubes[e][0], cubes[e][1], cubes[e][2])] = e;
+
+  const Vector& rest_vertices = surface.rest_vertices();
+  const RestCut& cut = surface.rest_cut();
+  const int vertices = static_cast<int>(rest_vertices.size() / 3);
+  const int stride = model.row_stride();
+  SurfaceEmbedding embedding;
+  embedding.stride = stride;
+  embedding.elements.resize(static_cast<size_t>(vertices));
+  embedding.row_lengths.resize(static_cast<size_t>(vertices));
+  embedding.particles.assign(static_cast<size_t>(vertices) * stride, 0);
+  embedding.weights.assign(static_cast<size_t>(vertices) * stride, 0.0);
+  constexpr int shells = 3;  // search radius, in integration cubes
+  std::vector<std::pair<double, int>> nearby;
+  std::vector<Vec3> positions;
+  for (int v = 0; v < vertices; ++v) {
+    const Vec3 vertex = rest_vertices.segment<3>(3 * static_cast<Eigen::Index>(v));
+    const Vec3 anchor = surface.anchors()[v];
+    nearby.clear();
+    std::array<long long, 3> cube{};
+    for (int axis = 0; axis < 3; ++axis) cube[axis] = static_cast<long long>(std::floor((vertex[axis] - origin[axis]) / a));
+    for (long long dz = -shells; dz <= shells; ++dz)
+      for (long long dy = -shells; dy <= shells; ++dy)
+        for (long long dx = -shells; dx <= shells; ++dx) {
+          const auto it = element_at.find(key(cube[0] + dx, cube[1] + dy, cube[2] + dz));
+          if (it == element_at.end()) continue;
+          nearby.emplace_back((model.element_centres()[it->second] - vertex).squaredNorm(), it->second);
+        }
+    std::sort(nearby.begin(), nearby.end());
+    int chosen = -1;
+    const bool near_cut = cut.size() > 0 && cut.near_box(vertex.cwiseMin(anchor), vertex.cwiseMax(anchor), (shells + 1) * a);
+    for (const auto& [distance, e] : nearby) {
+      if (!near_cut || !cut.crosses(anchor, model.element_centres()[e])) {
+        chosen = e;
+        break;
+      }
+    }
+    if (chosen < 0) {
+      // Relaxed: the nearest integration point whatever the cut (or, with none nearby, the
+      // nearest of all), counted.
+      ++report.relaxed_fallbacks;
+      if (!nearby.empty()) {
+        chosen = nearby.front().second;
+      } else {
+        double best = 0;
+        for (int e = 0; e < model.element_count(); ++e) {
+          const double d = (model.element_centres()[e] - vertex).squaredNorm();
+          if (chosen < 0 || d < best) chosen = e, best = d;
+        }
+      }
+      if (near_cut && cut.crosses(anchor, model.element_centres()[chosen])) ++report.wrong_side;
+    }
+    // MLS weights of the chosen element's neighbourhood at the vertex, with its support
+    // widened as needed so that every neighbour keeps a positive weight.
+    const size_t base = static_cast<size_t>(chosen) * stride;
+    const int length = model.row_lengths()[chosen];
+    positions.clear();
+    double farthest = 0;
+    for (int k = 0; k < length; ++k) {
+      positions.push_back(model.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(model.neighbours()[base + k])));
+      farthest = std::max(farthest, (positions.back() - vertex).norm());
+    }
+    const double support = std::max(model.element_supports()[chosen], 1.05 * farthest);
+    const size_t row = static_cast<size_t>(v) * stride;
+    if (!mls_shape_functions(vertex, positions, support, a, std::span<double>(&embedding.weights[row], length), {})) {
+      throw std::runtime_error("map_surface: no MLS weights for vertex " + std::to_string(v) +
+                               " on element " + std::to_string(chosen));
+    }
+    embedding.elements[v] = chosen;
+    embedding.row_lengths[v] = length;
+    for (int k = 0; k < length; ++k) embedding.particles[row + k] = model.neighbours()[base + k];
+  }
+  return embedding;
+}
+
+int elements_linked_across(const CorotationalEfg& model, const RestCut& cut) {
+  if (cut.size() == 0) return 0;
+  int across = 0;
+  const int stride = model.row_stride();
+  for (int e = 0; e < model.element_count(); ++e) {
+    const Vec3 centre = model.element_centres()[e];
+    const size_t base = static_cast<size_t>(e) * stride;
+    for (int k = 0; k < model.row_lengths()[e]; ++k) {
+      const Vec3 particle = model.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(model.neighbours()[base + k]));
+      if (cut.crosses(centre, particle)) {
+        ++across;
+        break;
+      }
+    }
+  }
+  return across;
+}
+
+}  // namespace incise::physics

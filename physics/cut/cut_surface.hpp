@@ -1,0 +1,142 @@
+// The render surface of a cuttable body, and its mapping onto the meshless model.
+//
+// Seed 004 §2.5 cuts an explicit triangle mesh: triangles crossed by the blade are split
+// three or four ways, the new vertices come in pairs, and the exposed cut face is meshed by
+// a moving "cutting front". The thesis reports where that breaks: slivers, bad normals and
+// the mapping failures they cause (§4.3.3, §7.1.2), with no guarantee of triangle quality.
+// This file takes another route to the same outcome, a closed 2-manifold surface that opens
+// exactly where the blade passed and stays attached to the right side:
+//
+// - The surface is the boundary of a voxel fill of the body (cubes of side `cell`, finer than
+//   the integration grid as §5.3 requires), its outer nodes snapped onto the true surface.
+// - The cut is kept as triangles in the rest configuration (the blade's sweep, mapped back
+//   through the local deformation of the body; all topology edits happen at rest, §2.3).
+// - Two cubes whose centre-to-centre segment crosses a cut triangle no longer share their
+//   face. Each grid node gets one vertex per group of its cubes still joined through uncut
+//   faces, so the faces either side of the cut have vertices of their own: the cut face of
+//   each side is part of that side's boundary, and the surface is closed by construction.
+//   Where the cut ends inside the body (the crack front), the cubes are joined around it and
+//   the two sides meet in one vertex, closing the pocket.
+// - The vertices of cut faces are projected onto the nearest cut triangle, so both sides'
+//   faces lie on the cut itself (zero thickness at rest, like the thesis's vertex pairs).
+// - Each vertex knows an anchor: the centre of one of its cubes, a point certainly on its
+//   side. It is mapped (seed 004 §2.6: one integration point, MLS weights at the vertex) to
+//   the nearest integration point visible from that anchor, i.e. whose segment to the anchor
+//   crosses no cut triangle (this replaces the thesis's three eligibility criteria, which
+//   need the triangle normals that slivers spoil). When none is visible within reach, the
+//   nearest point is taken and the vertex is counted as a relaxed fallback.
+// The cut advances by cube faces: its resolution is the surface cell (the volume's is
+// about half an integration element, §4.3.1).
+#pragma once
+
+#include "physics/efg/corotational_efg.hpp"
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <span>
+#include <vector>
+
+namespace incise::physics {
+
+struct RestTriangle {
+  Vec3 a = Vec3::Zero();
+  Vec3 b = Vec3::Zero();
+  Vec3 c = Vec3::Zero();
+};
+
+// The parameter along [p, q] where the segment crosses the triangle (closed), or nothing.
+// Degenerate triangles are never crossed.
+std::optional<double> segment_crosses_triangle(const Vec3& p, const Vec3& q, const RestTriangle& triangle);
+
+// The cut surface in the rest configuration: triangles with their boxes, for segment tests.
+class RestCut {
+ public:
+  void add(const RestTriangle& triangle);
+  int size() const { return static_cast<int>(triangles_.size()); }
+  const std::vector<RestTriangle>& triangles() const { return triangles_; }
+  // True if [p, q] crosses any triangle.
+  bool crosses(const Vec3& p, const Vec3& q) const;
+  // The nearest point on the cut to p within `reach`, or nothing.
+  std::optional<Vec3> nearest_point(const Vec3& p, double reach) const;
+  // Whether anything lies within `reach` of the box [lo, hi].
+  bool near_box(const Vec3& lo, const Vec3& hi, double reach) const;
+
+ private:
+  std::vector<RestTriangle> triangles_;
+  std::vector<std::array<Vec3, 2>> boxes_;
+};
+
+// Edges of a triangle mesh used by one triangle (holes) and by more than two (non-manifold).
+struct SurfaceTopology {
+  int boundary_edges = 0;
+  int nonmanifold_edges = 0;
+  bool watertight() const { return boundary_edges == 0 && nonmanifold_edges == 0; }
+};
+SurfaceTopology surface_topology(const std::vector<std::array<int, 3>>& triangles);
+
+class CutSurface {
+ public:
+  // The body {inside} within [lo, hi], filled with cubes of side `cell` whose centres are
+  // inside. Throws std::invalid_argument if the cell is not positive or nothing is inside.
+  CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, Vec3 hi, double cell);
+
+  // Separates the cubes whose centre-to-centre segment crosses one of `triangles` (added to
+  // the cut). Returns the number of faces newly cut; rebuild() makes them visible.
+  int cut(std::span<const RestTriangle> triangles);
+  // Recomputes the vertices and triangles from the cubes and the cut. Where two cubes joined
+  // elsewhere touch along an edge whose other two cubes are empty or cut away (a pinch,
+  // which would make that edge non-manifold), the pinch is closed: an empty cube there is
+  // filled (at build), a cut face there is restored (after a cut; the cut loses one face of
+  // one cube, counted in pinches_closed()).
+  void rebuild();
+  int pinches_closed() const { return pinches_closed_; }
+
+  const Vector& rest_vertices() const { return rest_vertices_; }
+  const std::vector<std::array<int, 3>>& triangles() const { return triangles_; }
+  const std::vector<Vec3>& anchors() const { return anchors_; }  // per vertex, see above
+  const std::vector<std::uint8_t>& on_cut() const { return on_cut_; }  // per vertex
+  const RestCut& rest_cut() const { return rest_cut_; }
+  int cut_faces() const { return cut_faces_; }
+  int cubes() const { return cube_count_; }
+  double cell() const { return cell_; }
+
+ private:
+  int cube_index(int i, int j, int k) const { return i + counts_[0] * (j + counts_[1] * k); }
+  int node_index(int i, int j, int k) const { return i + (counts_[0] + 1) * (j + (counts_[1] + 1) * k); }
+  Vec3 cube_centre(int i, int j, int k) const;
+  // One pass; returns the number of pinches closed (0: the surface is final).
+  int build_surface(bool fill_empty);
+
+  double cell_ = 0;
+  Vec3 origin_ = Vec3::Zero();
+  std::array<int, 3> counts_{};
+  std::vector<std::uint8_t> inside_;         // per cube
+  std::vector<std::uint8_t> face_cut_;       // per cube x 3: its +x, +y, +z face
+  std::vector<Vec3> node_rest_;              // per grid node, snapped onto the surface
+  int cube_count_ = 0;
+  int cut_faces_ = 0;
+  int pinches_closed_ = 0;
+  RestCut rest_cut_;
+  std::vector<int> vertex_node_;  // grid node of each vertex
+
+  Vector rest_vertices_;
+  std::vector<std::array<int, 3>> triangles_;
+  std::vector<Vec3> anchors_;
+  std::vector<std::uint8_t> on_cut_;
+};
+
+// The mapping of a cut surface's vertices onto the model (see the file comment).
+struct SurfaceMappingReport {
+  int relaxed_fallbacks = 0;  // no visible integration point within reach
+  int wrong_side = 0;         // chosen point across the cut from the vertex's anchor
+};
+SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& surface,
+                             SurfaceMappingReport& report);
+
+// Elements with a neighbour across the rest cut (its link to the integration point crosses a
+// cut triangle): zero when the volume cut agrees with the surface's.
+int elements_linked_across(const CorotationalEfg& model, const RestCut& cut);
+
+}  // namespace incise::physics
