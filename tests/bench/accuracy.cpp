@@ -930,6 +930,21 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
              std::make_tuple(case_index(right.case_name), right.model, right.variant, right.dofs);
     });
     write_csv(out_dir / "accuracy.csv", rows);
+    // The figures: efg nb8 at its largest size per case (about 10k dofs in --quick).
+    for (const Case& c : cases) {
+      const Row* largest = nullptr;
+      for (const Row& row : rows) {
+        if (row.case_name == c.name && row.model == "efg" && (row.variant == "nb8" || row.variant == "nb8_geomcut") &&
+            (largest == nullptr || row.dofs > largest->dofs)) {
+          largest = &row;
+        }
+      }
+      if (largest == nullptr) continue;
+      progress_stream << c.name << " efg nb8 at " << largest->dofs << " dofs: " << format(largest->ms_per_step, 4)
+                      << " ms per step (" << format(1000 / largest->ms_per_step, 3) << " steps/s, "
+                      << format(largest->cg_iterations, 4) << " CG iterations), error " << format(largest->error_pct, 3)
+                      << " %\n";
+    }
     write_references(out_dir / "references.json", cases, references);
     int unconverged = 0;
     for (const Row& row : rows) unconverged += row.converged ? 0 : 1;
