@@ -1,0 +1,55 @@
+#include "haptics/contact_model.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace incise::haptics {
+
+namespace {
+void require_finite_vector(const Vector3& v, const std::string& what) {
+  for (int i = 0; i < 3; ++i) require_finite(v[i], what + "[" + std::to_string(i) + "]");
+}
+double dot(const Vector3& a, const Vector3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+}  // namespace
+
+void validate(const ContactModel& model) {
+  if (model.count < 0 || model.count > ContactModel::kCapacity)
+    throw std::invalid_argument("ContactModel.count " + std::to_string(model.count) + " is outside [0, " +
+                                std::to_string(ContactModel::kCapacity) + "]");
+  for (int i = 0; i < model.count; ++i) {
+    const ContactPoint& c = model.contacts[i];
+    const std::string at = "ContactModel.contacts[" + std::to_string(i) + "]";
+    require_finite_vector(c.point, at + ".point");
+    require_finite_vector(c.normal, at + ".normal");
+    require_finite(c.reach, at + ".reach");
+    require_finite(c.stiffness, at + ".stiffness");
+    require_finite(c.compliance, at + ".compliance");
+    const double n = std::sqrt(dot(c.normal, c.normal));
+    if (std::abs(n - 1) > 1e-6) throw std::invalid_argument(at + ".normal is not unit (|n| = " + std::to_string(n) + ")");
+    if (!(c.stiffness > 0)) throw std::invalid_argument(at + ".stiffness " + std::to_string(c.stiffness) + " is not > 0");
+    if (!(c.compliance >= 0))
+      throw std::invalid_argument(at + ".compliance " + std::to_string(c.compliance) + " is not >= 0");
+  }
+  require_finite_vector(model.proxy_position, "ContactModel.proxy_position");
+  require_finite_vector(model.proxy_velocity, "ContactModel.proxy_velocity");
+}
+
+Vector3 contact_force(const ContactModel& model, const Vector3& x, const Vector3& x_dot, double period_s) {
+  Vector3 force{};
+  const int count = model.count < 0 ? 0 : (model.count > ContactModel::kCapacity ? ContactModel::kCapacity : model.count);
+  for (int i = 0; i < count; ++i) {
+    const ContactPoint& c = model.contacts[i];
+    const Vector3 offset{x[0] - c.point[0], x[1] - c.point[1], x[2] - c.point[2]};
+    const double depth = c.reach - dot(offset, c.normal);
+    if (depth <= 0) continue;
+    const double k_eff = 1.0 / (1.0 / c.stiffness + c.compliance);
+    const double normal_velocity = dot(x_dot, c.normal);
+    double magnitude = k_eff * depth - k_eff * period_s * normal_velocity;
+    if (magnitude < 0) magnitude = 0;
+    for (int a = 0; a < 3; ++a) force[a] += magnitude * c.normal[a];
+  }
+  return force;
+}
+
+}  // namespace incise::haptics

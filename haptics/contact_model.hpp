@@ -1,0 +1,67 @@
+// What the physics thread tells the haptic thread each step: a local linearisation of the
+// tool-tissue contact around the tool's current pose, small enough to evaluate at 1 kHz with
+// the device's newest pose between two physics steps (DESIGN.md; seed 004 §7.1.4 proposes
+// penalty or compliance contact forces and extrapolation).
+//
+// Each contact is a half-space: the tissue surface through `point` with outward `normal`. The
+// tool reaches `reach` metres past the device's reference point towards the tissue (a probe's
+// radius, 0 for a point tool), so the penetration at device position x is
+//     depth = reach - (x - point) . normal,
+// and the force on the hand, when depth > 0, is along +normal with magnitude
+//     k_eff * depth,   k_eff = 1 / (1 / stiffness + compliance)
+// i.e. the tool's penalty spring (stiffness, N/m) in series with the tissue's local
+// compliance at that point (m/N: how far the surface yields per newton, from the physics
+// model's own linearisation), so a soft organ feels soft even with a stiff penalty.
+//
+// The model also carries the tool proxy (the tool as physics placed it, with its velocity) for
+// the virtual coupling; the loop extrapolates it from `time_ns` by the velocity (first-order
+// hold, not the zero-order hold at scene rate that makes forces step). When physics rebuilds
+// the model in the step a cut changes the topology, the next tick uses it: no stale
+// pre-cut contact survives a publication.
+//
+// Fixed capacity, trivially copyable: published through TripleBuffer<ContactModel>.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "haptics/device.hpp"
+#include "haptics/triple_buffer.hpp"
+
+namespace incise::haptics {
+
+struct ContactPoint {
+  Vector3 point{};        // m, on the tissue surface, world frame
+  Vector3 normal{0, 0, 1};  // unit, out of the tissue
+  double reach = 0;       // m, tool extent past the device reference point (probe radius)
+  double stiffness = 0;   // N/m, > 0
+  double compliance = 0;  // m/N, >= 0
+};
+
+struct ContactModel {
+  static constexpr int kCapacity = 16;
+  std::array<ContactPoint, kCapacity> contacts{};
+  int count = 0;
+
+  bool has_proxy = false;  // false: no tool proxy yet, the coupling force is zero
+  Vector3 proxy_position{};  // m
+  Vector3 proxy_velocity{};  // m/s
+  std::int64_t time_ns = 0;  // haptic clock time the proxy position refers to
+  std::uint64_t step = 0;    // physics step that built it (for logs and tests)
+};
+
+// Throws std::invalid_argument naming the field (e.g. "contacts[2].normal is not unit
+// (|n| = 0.5)") on a non-finite number, a count outside [0, kCapacity], a non-unit normal,
+// stiffness <= 0 or compliance < 0. Physics calls it before publishing.
+void validate(const ContactModel& model);
+
+// Force on the hand (N) of the model's contacts at device position x, with the velocity x_dot
+// (m/s) and the loop's period T (s) for the contact damping (see haptic_loop.hpp: each active
+// contact's normal force gets a damper of k_eff * T, twice Colgate's bound). The normal force
+// is never negative (tissue pushes, it does not pull).
+Vector3 contact_force(const ContactModel& model, const Vector3& x, const Vector3& x_dot, double period_s);
+
+// The publication channel: physics writes, the haptic loop reads.
+using ContactChannel = TripleBuffer<ContactModel>;
+
+}  // namespace incise::haptics

@@ -1,0 +1,153 @@
+// The replay and virtual devices: interpolation by time, validation with clear errors, and
+// the virtual device's lock-free setter read from another thread.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <thread>
+
+#include "haptics/replay_device.hpp"
+#include "haptics/virtual_device.hpp"
+
+using namespace incise::haptics;
+
+namespace {
+
+DevicePose at(double x, double y, double z, std::uint32_t buttons = 0, Quaternion q = {1, 0, 0, 0}) {
+  DevicePose p;
+  p.position = {x, y, z};
+  p.orientation = q;
+  p.buttons = buttons;
+  return p;
+}
+
+template <typename F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+}  // namespace
+
+TEST(HapticsReplay, InterpolatesLinearlyByTime) {
+  const double h = std::sqrt(0.5);
+  ManualClock clock(5'000'000'000);
+  ReplayDevice device({{1.0, at(0, 0, 0, 0)},
+                       {2.0, at(0.01, -0.02, 0.04, 1, {h, 0, 0, h})},  // 90 degrees about z
+                       {4.0, at(0.03, 0.0, 0.0, 3, {-h, 0, 0, -h})}},   // same rotation, other sign
+                      DeviceLimits{}, clock.clock());
+  // Between samples 0 and 1, a quarter of the way.
+  const DevicePose q = device.pose_at(1.25);
+  EXPECT_DOUBLE_EQ(q.position[0], 0.0025);
+  EXPECT_DOUBLE_EQ(q.position[1], -0.005);
+  EXPECT_DOUBLE_EQ(q.position[2], 0.01);
+  EXPECT_EQ(q.buttons, 0u);  // held from the earlier sample
+  const double n = std::hypot(0.75 + 0.25 * h, 0.25 * h);
+  EXPECT_NEAR(q.orientation[0], (0.75 + 0.25 * h) / n, 1e-15);
+  EXPECT_NEAR(q.orientation[3], 0.25 * h / n, 1e-15);
+  // Between 1 and 2: the sign flip is taken as the same rotation (no swing through identity).
+  const DevicePose r = device.pose_at(3.0);
+  EXPECT_DOUBLE_EQ(r.position[0], 0.02);
+  EXPECT_DOUBLE_EQ(r.position[2], 0.02);
+  EXPECT_EQ(r.buttons, 1u);
+  EXPECT_NEAR(r.orientation[0], h, 1e-15);
+  EXPECT_NEAR(r.orientation[3], h, 1e-15);
+  // Exactly at a sample, and held outside the range.
+  EXPECT_EQ(device.pose_at(2.0).position, (Vector3{0.01, -0.02, 0.04}));
+  EXPECT_EQ(device.pose_at(-10).position, (Vector3{0, 0, 0}));
+  EXPECT_EQ(device.pose_at(10).buttons, 3u);
+
+  // Played on the device's clock from open(): playback time = 1.0 s + elapsed.
+  device.open();
+  EXPECT_EQ(device.state(), DeviceState::ok);
+  EXPECT_EQ(device.read_pose().position, (Vector3{0, 0, 0}));
+  for (double elapsed : {0.25, 0.5, 1.0, 1.7, 2.0, 2.999}) {
+    clock.set_ns(5'000'000'000 + static_cast<std::int64_t>(std::llround(elapsed * 1e9)));
+    const DevicePose played = device.read_pose();
+    const DevicePose expected = device.pose_at(1.0 + elapsed);
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(played.position[i], expected.position[i], 1e-15) << elapsed;
+    EXPECT_EQ(played.buttons, expected.buttons);
+    EXPECT_FALSE(device.finished());
+  }
+  clock.set_ns(9'000'000'000);
+  EXPECT_EQ(device.read_pose().position, (Vector3{0.03, 0, 0}));
+  EXPECT_TRUE(device.finished());
+  device.write_force({0, 0, 1});
+  EXPECT_EQ(device.last_force(), (Vector3{0, 0, 1}));
+}
+
+TEST(HapticsReplay, RejectsBadSamplesNamingThem) {
+  EXPECT_EQ(error_of([] { ReplayDevice d({}); }), "replay device: no samples");
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(error_of([&] { ReplayDevice d({{0, at(0, 0, 0)}, {1, at(nan, 0, 0)}}); }),
+            "replay device samples[1].pose.position[0] is not finite (nan)");
+  EXPECT_EQ(error_of([&] { ReplayDevice d({{0, at(0, 0, 0)}, {0, at(0, 0, 0)}}); }),
+            "replay device samples[1].time_s 0.000000 is not after the previous sample's 0.000000");
+  EXPECT_NE(error_of([&] { ReplayDevice d({{0, at(0, 0, 0, 0, {2, 0, 0, 0})}}); }).find("not a unit quaternion"),
+            std::string::npos);
+}
+
+TEST(HapticsVirtual, SetPoseClampsToTheWorkspaceAndRejectsNonFinite) {
+  DeviceLimits limits;
+  limits.workspace_min = {-0.1, -0.1, -0.1};
+  limits.workspace_max = {0.1, 0.1, 0.1};
+  VirtualDevice device(limits);
+  EXPECT_EQ(device.state(), DeviceState::closed);
+  device.open();
+  EXPECT_EQ(device.state(), DeviceState::ok);
+  const DevicePose stored = device.set_pose(at(0.5, -0.05, -0.3, 1, {1.0004, 0, 0, 0}));
+  EXPECT_EQ(stored.position, (Vector3{0.1, -0.05, -0.1}));
+  EXPECT_DOUBLE_EQ(stored.orientation[0], 1.0);
+  const DevicePose read = device.read_pose();
+  EXPECT_EQ(read.position, stored.position);
+  EXPECT_EQ(read.buttons, 1u);
+
+  EXPECT_EQ(error_of([&] { device.set_pose(at(0, std::numeric_limits<double>::infinity(), 0)); }),
+            "virtual device pose.position[1] is not finite (inf)");
+  EXPECT_NE(error_of([&] { device.set_pose(at(0, 0, 0, 0, {0, 0, 0, 0})); }).find("not a unit quaternion (|q| = 0"),
+            std::string::npos);
+  EXPECT_EQ(device.read_pose().position, stored.position);  // rejected poses change nothing
+}
+
+// The window thread sets poses while the haptic thread reads: every read is one whole pose.
+TEST(HapticsVirtual, ReadsWhileTheWindowWritesAreNeverTorn) {
+  DeviceLimits limits;
+  limits.workspace_min = {-1e9, -1e9, -1e9};
+  limits.workspace_max = {1e9, 1e9, 1e9};
+  VirtualDevice device(limits);
+  device.open();
+  constexpr std::uint32_t kWrites = 100'000;
+  std::atomic<bool> finished{false};
+  std::thread window([&] {
+    for (std::uint32_t k = 1; k <= kWrites; ++k) {
+      const double a = 0.5 * k;
+      device.set_pose(at(k, 2.0 * k, 3.0 * k, k, {std::cos(a), 0, std::sin(a), 0}));
+    }
+    finished.store(true);
+  });
+  std::uint64_t reads = 0, changes = 0;
+  double previous = 0;
+  while (!finished.load() || reads == 0) {
+    const DevicePose p = device.read_pose();
+    ++reads;
+    const double k = p.position[0];
+    if (k == 0) continue;  // still the initial centre
+    ASSERT_EQ(p.position[1], 2 * k);
+    ASSERT_EQ(p.position[2], 3 * k);
+    ASSERT_EQ(p.buttons, static_cast<std::uint32_t>(k));
+    ASSERT_NEAR(p.orientation[0], std::cos(0.5 * k), 1e-12);
+    ASSERT_NEAR(p.orientation[2], std::sin(0.5 * k), 1e-12);
+    ASSERT_GE(k, previous);  // never back in time
+    if (k != previous) ++changes;
+    previous = k;
+  }
+  window.join();
+  EXPECT_EQ(device.read_pose().position[0], kWrites);
+  std::printf("virtual device: %llu reads saw %llu distinct poses of %u written, none torn\n",
+              static_cast<unsigned long long>(reads), static_cast<unsigned long long>(changes), kWrites);
+}
