@@ -140,10 +140,15 @@ int trajectory_synth(const SynthArgs& args) {
   if (args.stroke.size() != 3) throw std::runtime_error("--stroke takes x,y,z");
   engine::PokeSpec spec;
   spec.contact_point = {args.contact[0], args.contact[1], args.contact[2]};
-  spec.approach_point = {args.contact[0], args.contact[1], args.contact[2] + 0.04};
+  spec.approach_point = {args.contact[0], args.contact[1], args.contact[2] + args.approach_height};
   spec.depth = args.depth;
   spec.stroke = {args.stroke[0], args.stroke[1], args.stroke[2]};
   spec.rate_hz = args.rate_hz;
+  spec.approach_seconds = args.approach_seconds;
+  spec.press_seconds = args.press_seconds;
+  spec.hold_seconds = args.hold_seconds;
+  spec.stroke_seconds = args.stroke_seconds;
+  spec.release_seconds = args.release_seconds;
   auto samples = engine::synthesize_poke(spec);
   engine::write_trajectory(args.out, samples);
   std::printf("%s: %zu samples, %.3f s\n", args.out.c_str(), samples.size(), samples.back().time);

@@ -31,6 +31,9 @@ struct SynthArgs {
   double depth = 0.008;
   std::vector<double> stroke{0.03, 0, 0};
   double rate_hz = 1000;
+  double approach_seconds = 0.5, press_seconds = 0.3, hold_seconds = 0.2, stroke_seconds = 1.0,
+         release_seconds = 0.5;
+  double approach_height = 0.04;  // m above the contact point
 };
 
 int replay(const ReplayArgs& args);

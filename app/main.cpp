@@ -48,12 +48,18 @@ int main(int argc, char** argv) {
   auto* info_cmd = trajectory_cmd->add_subcommand("info", "Summarise a trajectory file and report damage");
   info_cmd->add_option("file", info_file, "Trajectory file")->required();
   incise::app::SynthArgs synth;
-  auto* synth_cmd = trajectory_cmd->add_subcommand("synth", "Synthesise a probe poke (approach, press, slide, lift)");
+  auto* synth_cmd = trajectory_cmd->add_subcommand("synth", "Synthesise a probe poke or a blade stroke (approach, press, slide, lift)");
   synth_cmd->add_option("--out", synth.out, "Output trajectory file")->required();
   synth_cmd->add_option("--contact", synth.contact, "Contact point on the surface x,y,z (m)")->delimiter(',');
   synth_cmd->add_option("--depth", synth.depth, "Press depth (m)")->capture_default_str();
   synth_cmd->add_option("--stroke", synth.stroke, "Lateral stroke while pressed x,y,z (m)")->delimiter(',');
   synth_cmd->add_option("--rate", synth.rate_hz, "Samples per second")->capture_default_str();
+  synth_cmd->add_option("--approach-height", synth.approach_height, "Start this far above the contact point (m)")->capture_default_str();
+  synth_cmd->add_option("--approach-seconds", synth.approach_seconds, "Duration of the approach")->capture_default_str();
+  synth_cmd->add_option("--press-seconds", synth.press_seconds, "Duration of the press")->capture_default_str();
+  synth_cmd->add_option("--hold-seconds", synth.hold_seconds, "Duration of the hold")->capture_default_str();
+  synth_cmd->add_option("--stroke-seconds", synth.stroke_seconds, "Duration of the stroke")->capture_default_str();
+  synth_cmd->add_option("--release-seconds", synth.release_seconds, "Duration of the release")->capture_default_str();
 
   auto* bench_cmd = app.add_subcommand("bench", "Benchmarks that print figures and write reports (CSV, PNG)");
   bench_cmd->require_subcommand(1);

@@ -193,6 +193,8 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
   }
 
   World world(scene, std::move(trajectory));
+  long dofs_initial = 0;  // counted before any step: cutting must never change it
+  for (const auto& body : world.bodies()) dofs_initial += 3L * body.model->node_count();
   const long steps = options.steps ? *options.steps
                                    : std::lround(scene.solver.duration / scene.solver.dt);
   const int capture_every = options.capture_every ? *options.capture_every : scene.render.capture_every;
@@ -254,12 +256,13 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
   }
 
   // Metrics.
-  std::vector<double> total, tool_input, contact, solve, surface;
+  std::vector<double> total, tool_input, cut_phase, contact, solve, surface;
   double cg_sum = 0, cg_residual_max = 0, max_force = 0;
   int cg_max = 0, nonfinite = 0, not_converged = 0, contacts_max = 0;
   for (const auto& s : stats) {
     total.push_back(s.ms_total);
     tool_input.push_back(s.ms_tool_input);
+    cut_phase.push_back(s.ms_ccd + s.ms_topology);
     contact.push_back(s.ms_contact);
     solve.push_back(s.ms_solve);
     surface.push_back(s.ms_surface);
@@ -320,6 +323,8 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
   for (auto& c : centroid) c /= static_cast<double>(std::max<std::size_t>(nodes, 1));
   mean_displacement /= static_cast<double>(std::max<std::size_t>(nodes, 1));
   const StepStats last = stats.empty() ? StepStats{} : stats.back();
+  long dofs_final = 0;
+  for (const auto& body : world.bodies()) dofs_final += 3L * body.model->node_count();
 
   Json metrics = {
       {"scene", scene.name},
@@ -332,7 +337,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
       {"wall_time_s", wall},
       {"ms_per_step", {{"median", percentile(total, 0.5)}, {"p95", percentile(total, 0.95)},
                        {"max", total.empty() ? 0 : *std::max_element(total.begin(), total.end())}}},
-      {"phases_ms", {{"tool_input", percentile(tool_input, 0.5)}, {"contact", percentile(contact, 0.5)},
+      {"phases_ms", {{"tool_input", percentile(tool_input, 0.5)}, {"cut", percentile(cut_phase, 0.5)}, {"contact", percentile(contact, 0.5)},
                      {"solve", percentile(solve, 0.5)}, {"surface", percentile(surface, 0.5)}}},
       {"cg_iterations", {{"mean", stats.empty() ? 0.0 : cg_sum / static_cast<double>(stats.size())},
                          {"max", cg_max}}},
@@ -347,6 +352,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
       {"state_hash", hex64(world.state_hash())},
       {"bodies", bodies},
       {"tool", {{"max_force_N", max_force}, {"max_contacts", contacts_max}}},
+      {"dofs", {{"initial", dofs_initial}, {"final", dofs_final}}},
       {"trajectory", trajectory_json},
   };
   if (capture) {
@@ -377,18 +383,61 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     }
     metrics["expect"] = expect;
   }
+  bool cuttable = false;
+  for (const auto& body : world.bodies()) cuttable = cuttable || body.cutter != nullptr;
+  if (cuttable) {
+    // Cutting: events, what the CCD and the topology cost on the steps the blade was tested,
+    // the surface after the last event (and the worst over every event), the mapping.
+    std::vector<double> ccd, topology;
+    for (const auto& st : stats)
+      if (st.cut_tested) ccd.push_back(st.ms_ccd), topology.push_back(st.ms_topology);
+    const auto max_of = [](const std::vector<double>& v) { return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end()); };
+    const CutTotals& totals = world.cut_totals();
+    metrics["cut"] = {{"events", totals.events},
+                      {"steps_tested", ccd.size()},
+                      {"links_severed", totals.links_severed},
+                      {"links_severed_at_rest", totals.links_severed_at_rest},
+                      {"elements_reselected", totals.elements_reselected},
+                      {"isolated_elements", totals.isolated_elements},
+                      {"reselection_failures", totals.reselection_failures},
+                      {"elements_linked_across", totals.elements_linked_across},
+                      {"ms_ccd", {{"median", percentile(ccd, 0.5)}, {"max", max_of(ccd)}}},
+                      {"ms_topology", {{"median", percentile(topology, 0.5)}, {"max", max_of(topology)}}}};
+    long vertices = 0, triangles = 0;
+    int boundary = 0, nonmanifold = 0;
+    for (const auto& body : world.bodies()) {
+      vertices += static_cast<long>(body.surface_positions.size() / 3);
+      triangles += static_cast<long>(body.surface.size());
+      const physics::SurfaceTopology topology_now = physics::surface_topology(body.surface);
+      boundary += topology_now.boundary_edges;
+      nonmanifold += topology_now.nonmanifold_edges;
+    }
+    metrics["surface"] = {{"vertices", vertices},
+                          {"triangles", triangles},
+                          {"boundary_edges", boundary},
+                          {"nonmanifold_edges", nonmanifold},
+                          {"watertight", boundary == 0 && nonmanifold == 0},
+                          {"worst_boundary_edges", totals.worst_boundary_edges},
+                          {"worst_nonmanifold_edges", totals.worst_nonmanifold_edges},
+                          {"watertight_after_every_event", totals.worst_boundary_edges == 0 && totals.worst_nonmanifold_edges == 0},
+                          {"pinches_closed", totals.pinches_closed}};
+    metrics["mapping"] = {{"vertices_remapped", totals.vertices_remapped},
+                          {"relaxed_fallbacks", totals.relaxed_fallbacks},
+                          {"wrong_side", totals.wrong_side}};
+  }
   {
     // One row per step for plots and review: where time went and what the tool felt.
     std::ofstream steps_csv(options.out_dir / "steps.csv");
     steps_csv << "step,time_s,ms_total,ms_tool_input,ms_contact,ms_solve,ms_surface,cg_iterations,"
-                 "cg_residual,contacts,tool_force_x,tool_force_y,tool_force_z,elastic_energy_J,kinetic_energy_J\n";
+                 "cg_residual,contacts,tool_force_x,tool_force_y,tool_force_z,elastic_energy_J,kinetic_energy_J,"
+                 "ms_ccd,ms_topology,links_severed\n";
     for (std::size_t k = 0; k < stats.size(); ++k) {
       const auto& s = stats[k];
       steps_csv << (k + 1) << ',' << static_cast<double>(k + 1) * scene.solver.dt << ',' << s.ms_total << ','
                 << s.ms_tool_input << ',' << s.ms_contact << ',' << s.ms_solve << ',' << s.ms_surface << ','
                 << s.cg_iterations << ',' << s.cg_residual << ',' << s.contacts << ',' << s.tool_force[0]
                 << ',' << s.tool_force[1] << ',' << s.tool_force[2] << ',' << s.elastic_energy << ','
-                << s.kinetic_energy << '\n';
+                << s.kinetic_energy << ',' << s.ms_ccd << ',' << s.ms_topology << ',' << s.links_severed << '\n';
     }
   }
   std::ofstream out(options.out_dir / "metrics.json");

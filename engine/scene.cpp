@@ -248,6 +248,8 @@ BodySpec read_body(const Json& node, const std::string& path, const std::filesys
         b.efg.surface_resolution = er.number("surface_resolution", false, 0.005, 1e-4, 10, true);
     }
   }
+  b.cuttable = r.boolean("cuttable", false);
+  if (b.cuttable && b.model != "efg") r.error(r.child("cuttable"), "only 'efg' bodies can be cut");
   if (const Json* d = r.get("damping", false)) {
     Reader dr(*d, r.child("damping"), errors);
     b.damping_mass = dr.number("mass", false, 0, 0, 1e4);
@@ -301,10 +303,36 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
     if (const Json* tool = r.get("tool", false)) {
       Reader tr(*tool, "tool", errors);
       ToolSpec t;
-      t.shape = tr.text("shape", true, "sphere", {"sphere", "capsule"});
-      t.radius = tr.number("radius", true, 0.005, 0, 1, true);
+      t.shape = tr.text("shape", true, "sphere", {"sphere", "capsule", "blade"});
+      const bool blade = t.shape == "blade";
+      t.radius = tr.number("radius", !blade, blade ? 0.0005 : 0.005, 0, 1, true);
       t.length = tr.number("length", t.shape == "capsule", 0, 0, 10);
       t.stiffness = tr.number("stiffness", false, 500, 0, 1e9, true);
+      if (const Json* edge = tr.get("edge", blade)) {
+        if (!blade) {
+          tr.error("tool.edge", "only a blade has a cutting edge");
+        } else if (!edge->is_array() || edge->size() < 2 || edge->size() > 64) {
+          tr.error("tool.edge", "must be an array of 2 to 64 points [x, y, z] (the cutting edge in the tool's frame)");
+        } else {
+          for (std::size_t i = 0; i < edge->size(); ++i) {
+            const Json& point = (*edge)[i];
+            const std::string where = "tool.edge[" + std::to_string(i) + "]";
+            bool ok = point.is_array() && point.size() == 3;
+            for (std::size_t c = 0; ok && c < 3; ++c)
+              ok = point[c].is_number() && std::isfinite(point[c].get<double>()) && std::abs(point[c].get<double>()) <= 1;
+            if (!ok) {
+              tr.error(where, "must be an array of 3 finite numbers within [-1, 1] m");
+              continue;
+            }
+            t.edge.push_back({point[0].get<double>(), point[1].get<double>(), point[2].get<double>()});
+          }
+          for (std::size_t i = 1; i < t.edge.size(); ++i) {
+            double length = 0;
+            for (int c = 0; c < 3; ++c) length += (t.edge[i][c] - t.edge[i - 1][c]) * (t.edge[i][c] - t.edge[i - 1][c]);
+            if (!(length > 1e-12)) tr.error("tool.edge[" + std::to_string(i) + "]", "repeats the point before it");
+          }
+        }
+      }
       if (const Json* traj = tr.get("trajectory", true)) {
         if (!traj->is_string()) {
           tr.error("tool.trajectory", "must be a file path (string)");

@@ -64,6 +64,7 @@ struct BodySpec {
   std::optional<GeneratorSpec> generator;
   double resolution = 0;  // fem: tetrahedra cell size; efg: integration cube side a (particles 2a apart), m
   EfgSpec efg;            // model "efg" only
+  bool cuttable = false;  // efg only: the blade cuts it (topology graph, CCD, cut surface)
   MaterialSpec material;
   std::vector<Box> fixed;  // nodes inside any box are fixed
   double damping_mass = 0;       // Rayleigh alpha, 1/s
@@ -71,11 +72,15 @@ struct BodySpec {
 };
 
 struct ToolSpec {
-  std::string shape;  // "sphere" or "capsule"
+  std::string shape;  // "sphere", "capsule" (probes, penalty contact) or "blade" (cuts, no force)
   double radius = 0;
   double length = 0;  // capsule: along the tool's local -z from the tip... see docs
   double stiffness = 0;  // penalty contact stiffness per surface node, N/m
   std::optional<std::filesystem::path> trajectory;
+  // Blade: the cutting edge, a polyline in the tool's frame (m; the trajectory's position is
+  // the frame's origin). An ideal blade (seed 004 §2.2): no volume, no force, it cuts the
+  // cuttable bodies wherever its edge passes while engaged (trajectory buttons bit 0).
+  std::vector<Point> edge;
 };
 
 struct SolverSpec {

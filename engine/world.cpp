@@ -243,6 +243,16 @@ void make_render_surface(Body& body, const BodySpec& spec, const BodyShape& shap
     for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
 }
 
+// A vertex moved only by fixed particles is fixed: the tool cannot push it.
+void set_fixed_vertices(Body& body) {
+  const auto& embedding = *body.embedding;
+  body.fixed_vertices.assign(static_cast<std::size_t>(embedding.vertex_count()), 1);
+  for (int v = 0; v < embedding.vertex_count(); ++v)
+    for (int k = 0; k < embedding.row_lengths[v]; ++k)
+      if (!body.fixed[embedding.particles[static_cast<std::size_t>(v) * embedding.stride + k]])
+        body.fixed_vertices[v] = 0;
+}
+
 Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodyShape& shape) {
   Body body;
   body.name = spec.name;
@@ -261,12 +271,29 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
   physics::Vector rest_vertices;
   try {
     model = std::make_unique<physics::CorotationalEfg>(shape.inside, shape.lo, shape.hi, material, settings);
-    make_render_surface(body, spec, shape, rest_vertices);
+    if (spec.cuttable) {
+      // The cut surface is a voxel boundary of its own (mesh bodies too: the imported mesh
+      // only gives the shape), separated along the cut as the blade passes.
+      const double resolution = spec.efg.surface_resolution.value_or(0.5 * spec.resolution);
+      body.cut_surface = std::make_unique<physics::CutSurface>(shape.inside, shape.lo, shape.hi, resolution);
+      body.cutter = std::make_unique<physics::VolumeCutter>(*model, 1e-6, 0.5 * spec.resolution);
+      physics::SurfaceMappingReport mapping;
+      body.embedding = physics::map_surface(*model, *body.cut_surface, mapping);
+      body.surface = body.cut_surface->triangles();
+      body.render_triangles.clear();
+      for (const auto& t : body.surface)
+        for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
+    } else {
+      make_render_surface(body, spec, shape, rest_vertices);
+    }
   } catch (const std::exception& e) {
     throw std::runtime_error(where + ": " + e.what());
   }
   body.elements = static_cast<std::size_t>(model->element_count());
-  body.embedding = model->embed_surface(rest_vertices);
+  if (!body.cut_surface) body.embedding = model->embed_surface(rest_vertices);
+  body.efg = model.get();
+  body.surface_min = shape.lo;
+  body.surface_max = shape.hi;
   const int n = model->node_count();
   const physics::CorotationalEfg& efg = *model;
   body.model = std::move(model);
@@ -281,14 +308,9 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
                                "fixed regions: " + e.what());
     }
   }
-  // A vertex moved only by fixed particles is fixed: the tool cannot push it.
-  const auto& embedding = *body.embedding;
-  body.fixed_vertices.assign(static_cast<std::size_t>(embedding.vertex_count()), 1);
-  for (int v = 0; v < embedding.vertex_count(); ++v)
-    for (int k = 0; k < embedding.row_lengths[v]; ++k)
-      if (!body.fixed[embedding.particles[static_cast<std::size_t>(v) * embedding.stride + k]])
-        body.fixed_vertices[v] = 0;
-  physics::CorotationalEfg::surface_positions(embedding, body.state.positions, body.surface_positions);
+  set_fixed_vertices(body);
+  physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
+  body.previous_positions = body.state.positions;
   set_integrator(body, spec, solver);
   return body;
 }
@@ -364,6 +386,35 @@ void World::take_tool_input(double time) {
   tool_.pose = sample_at(trajectory_->samples, time);
   tool_.tip = tool_.pose.position;
   tool_.tail = tool_.tip;
+  if (scene_.tool->shape == "blade") {
+    // The swept path: the pose at the start of the step, every recorded sample inside it,
+    // the pose at its end (seed 004 §2.2: a fast stroke is never skipped).
+    const double dt = scene_.solver.dt;
+    const double start = std::max(0.0, time - dt);
+    std::vector<ToolSample> poses{sample_at(trajectory_->samples, start)};
+    for (const ToolSample& sample : samples_between(trajectory_->samples, start, time))
+      if (sample.time > start && sample.time < time) poses.push_back(sample);
+    poses.push_back(tool_.pose);
+    tool_.blade_poses.clear();
+    tool_.blade_fractions.clear();
+    tool_.blade_active.clear();
+    for (std::size_t j = 0; j < poses.size(); ++j) {
+      std::vector<physics::Vec3> edge;
+      for (const Point& local : scene_.tool->edge) {
+        const auto world = rotate(poses[j].orientation, local);
+        edge.emplace_back(poses[j].position[0] + world[0], poses[j].position[1] + world[1],
+                          poses[j].position[2] + world[2]);
+      }
+      tool_.blade_poses.push_back(std::move(edge));
+      tool_.blade_fractions.push_back(time > start ? std::clamp((poses[j].time - start) / (time - start), 0.0, 1.0) : 0.0);
+      if (j > 0) tool_.blade_active.push_back((poses[j].buttons & kToolButtonEngaged) != 0 && time > start ? 1 : 0);
+    }
+    // sample_at may return the recorded time of the nearest sample: keep the ends exact.
+    tool_.blade_fractions.front() = 0;
+    tool_.blade_fractions.back() = 1;
+    for (std::size_t j = 1; j < tool_.blade_fractions.size(); ++j)
+      tool_.blade_fractions[j] = std::max(tool_.blade_fractions[j], tool_.blade_fractions[j - 1]);
+  }
   if (scene_.tool->shape == "capsule") {
     auto axis = rotate(tool_.pose.orientation, {0, 0, scene_.tool->length});
     for (int i = 0; i < 3; ++i) tool_.tail[i] = tool_.tip[i] + axis[i];
@@ -371,7 +422,7 @@ void World::take_tool_input(double time) {
 }
 
 std::vector<physics::NodalSpring> World::contact(const Body& body, StepStats& stats) const {
-  if (!tool_.present) return {};
+  if (!tool_.present || blade()) return {};  // the ideal blade applies no force (seed 004 §2.2)
   if (!body.embedding) {
     auto contact = physics::probe_contact(body.state.positions, body.surface, body.fixed, vec(tool_.tip),
                                           vec(tool_.tail), tool_.radius, scene_.tool->stiffness);
@@ -409,6 +460,98 @@ std::vector<physics::NodalSpring> World::contact(const Body& body, StepStats& st
   return springs;
 }
 
+void World::rebuild_cut_surface(Body& body) {
+  body.cut_surface->rebuild();
+  physics::SurfaceMappingReport mapping;
+  body.embedding = physics::map_surface(*body.efg, *body.cut_surface, mapping);
+  body.surface = body.cut_surface->triangles();
+  body.render_triangles.clear();
+  body.render_triangles.reserve(3 * body.surface.size());
+  for (const auto& t : body.surface)
+    for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
+  set_fixed_vertices(body);
+  physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
+  const physics::SurfaceTopology topology = physics::surface_topology(body.surface);
+  cut_totals_.worst_boundary_edges = std::max(cut_totals_.worst_boundary_edges, topology.boundary_edges);
+  cut_totals_.worst_nonmanifold_edges = std::max(cut_totals_.worst_nonmanifold_edges, topology.nonmanifold_edges);
+  cut_totals_.vertices_remapped += body.embedding->vertex_count();
+  cut_totals_.relaxed_fallbacks += mapping.relaxed_fallbacks;
+  cut_totals_.wrong_side += mapping.wrong_side;
+  cut_totals_.pinches_closed = body.cut_surface->pinches_closed();
+  cut_totals_.elements_linked_across = physics::elements_linked_across(*body.efg, body.cut_surface->rest_cut());
+}
+
+void World::cut_body(Body& body, StepStats& stats) {
+  if (!body.cutter || !blade()) return;
+  const auto& active = tool_.blade_active;
+  if (std::find(active.begin(), active.end(), 1) == active.end()) return;
+  // Nothing to test when the sweep's box misses the body's (with a particle spacing's margin).
+  physics::Vec3 lo = physics::Vec3::Constant(1e300), hi = physics::Vec3::Constant(-1e300);
+  for (const auto& pose : tool_.blade_poses)
+    for (const auto& p : pose) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  physics::Vec3 body_lo = physics::Vec3::Constant(1e300), body_hi = physics::Vec3::Constant(-1e300);
+  for (Eigen::Index v = 0; v < body.surface_positions.size() / 3; ++v) {
+    body_lo = body_lo.cwiseMin(body.surface_positions.segment<3>(3 * v));
+    body_hi = body_hi.cwiseMax(body.surface_positions.segment<3>(3 * v));
+  }
+  const double margin = 2 * body.efg->spacing();
+  for (int axis = 0; axis < 3; ++axis)
+    if (lo[axis] > body_hi[axis] + margin || hi[axis] < body_lo[axis] - margin) return;
+
+  stats.cut_tested = true;
+  auto topology_start = Clock::now();
+  // The sweep in the rest configuration: each active interval's blade segments, mapped
+  // through the body's local deformation at that moment, as two triangles each.
+  std::vector<physics::RestTriangle> triangles;
+  std::vector<physics::Vec3> rest_a, rest_b;
+  physics::Vector at_fraction;
+  const auto rest_pose = [&](std::size_t j, std::vector<physics::Vec3>& out) {
+    const double f = tool_.blade_fractions[j];
+    at_fraction = body.previous_positions + f * (body.state.positions - body.previous_positions);
+    body.cutter->to_rest(at_fraction, tool_.blade_poses[j], out);
+  };
+  for (std::size_t j = 0; j + 1 < tool_.blade_poses.size(); ++j) {
+    if (!active[j]) continue;
+    rest_pose(j, rest_a);
+    rest_pose(j + 1, rest_b);
+    for (std::size_t i = 0; i + 1 < rest_a.size(); ++i) {
+      triangles.push_back({rest_a[i], rest_a[i + 1], rest_b[i + 1]});
+      triangles.push_back({rest_a[i], rest_b[i + 1], rest_b[i]});
+    }
+  }
+  const int faces = body.cut_surface->cut(triangles);
+  double ms_rest = ms_since(topology_start);
+  // The volume: CCD of the sweep against the links, re-selection kept consistent with the
+  // rest cut around this sweep.
+  physics::VolumeCutter::RestVisibility visibility;
+  const physics::RestCut& rest_cut = body.cut_surface->rest_cut();
+  visibility.blocked = [&rest_cut](const physics::Vec3& a, const physics::Vec3& b) { return rest_cut.crosses(a, b); };
+  visibility.lo = physics::Vec3::Constant(1e300);
+  visibility.hi = physics::Vec3::Constant(-1e300);
+  for (const auto& t : triangles)
+    for (const auto* p : {&t.a, &t.b, &t.c}) visibility.lo = visibility.lo.cwiseMin(*p), visibility.hi = visibility.hi.cwiseMax(*p);
+  visibility.lo -= physics::Vec3::Constant(2 * body.efg->spacing());
+  visibility.hi += physics::Vec3::Constant(2 * body.efg->spacing());
+  const physics::VolumeCutReport report = body.cutter->cut(tool_.blade_poses, tool_.blade_fractions, active,
+                                                           body.previous_positions, body.state.positions,
+                                                           triangles.empty() ? nullptr : &visibility);
+  stats.ms_ccd += report.ms_ccd;
+  topology_start = Clock::now();
+  const bool changed = report.any() || faces > 0;
+  if (changed) rebuild_cut_surface(body);
+  stats.ms_topology += ms_rest + report.ms_topology + ms_since(topology_start);
+  stats.links_severed += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;
+  if (changed) {
+    stats.cut_event = true;
+    cut_totals_.events++;
+    cut_totals_.links_severed += report.particle_links_severed + report.element_links_severed;
+    cut_totals_.links_severed_at_rest += report.links_severed_at_rest;
+    cut_totals_.elements_reselected += report.elements_reselected;
+    cut_totals_.isolated_elements += report.elements_isolated;
+    cut_totals_.reselection_failures += report.reselection_failures;
+  }
+}
+
 void World::update_surface(Body& body) const {
   if (!body.embedding) return;  // the surface vertices are nodes
   physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
@@ -427,6 +570,7 @@ void World::solve_body(Body& body, const std::vector<physics::NodalSpring>& spri
     }
   }
   const physics::Vector positions_before = body.state.positions;
+  if (body.cutter) body.previous_positions = body.state.positions;
   // Non-finite guard: a step that produces a non-finite value leaves the state untouched
   // and is retried as 2, 4, ... sub-steps (dt halved each time) before giving up.
   for (int attempt = 0; attempt <= scene_.solver.max_retries; ++attempt) {
@@ -508,6 +652,8 @@ StepStats World::step() {
   const double end_time = static_cast<double>(steps_ + 1) * scene_.solver.dt;
   take_tool_input(end_time);
   stats.ms_tool_input = ms_since(phase);
+  // detect_cuts -> apply_topology (cuttable bodies and a blade only).
+  for (auto& body : bodies_) cut_body(body, stats);
   std::vector<std::vector<physics::NodalSpring>> springs(bodies_.size());
   phase = Clock::now();
   for (std::size_t b = 0; b < bodies_.size(); ++b) springs[b] = contact(bodies_[b], stats);
@@ -558,10 +704,25 @@ void World::fill_frame(render::Frame& frame, int width, int height) const {
           mesh.positions[3 * i + c] = static_cast<float>(x[3 * body.surface_nodes[i] + c]);
     }
     mesh.normals.clear();
-    if (mesh.triangles.size() != body.render_triangles.size()) mesh.triangles = body.render_triangles;
+    // A cut surface changes its triangles, not always their count.
+    if (body.cut_surface || mesh.triangles.size() != body.render_triangles.size()) mesh.triangles = body.render_triangles;
   }
   frame.tools.clear();
-  if (tool_.present) {
+  if (blade()) {
+    // The cutting edge as thin capsules, red while engaged.
+    const auto& edge = tool_.blade_poses.empty() ? std::vector<physics::Vec3>{} : tool_.blade_poses.back();
+    for (std::size_t i = 0; i + 1 < edge.size(); ++i) {
+      render::ToolShape shape;
+      shape.kind = render::ToolShape::Kind::capsule;
+      for (int c = 0; c < 3; ++c) {
+        shape.a[c] = static_cast<float>(edge[i][c]);
+        shape.b[c] = static_cast<float>(edge[i + 1][c]);
+      }
+      shape.radius = static_cast<float>(tool_.radius);
+      shape.engaged = (tool_.pose.buttons & 1u) != 0;
+      frame.tools.push_back(shape);
+    }
+  } else if (tool_.present) {
     render::ToolShape shape;
     shape.kind = scene_.tool->shape == "capsule" ? render::ToolShape::Kind::capsule
                                                  : render::ToolShape::Kind::sphere;

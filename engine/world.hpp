@@ -11,6 +11,8 @@
 #include "engine/trajectory.hpp"
 #include "physics/core/model.hpp"
 #include "physics/core/implicit_euler.hpp"
+#include "physics/cut/cut_surface.hpp"
+#include "physics/cut/volume_cut.hpp"
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/fem/surface_snap.hpp"
 #include "render/frame.hpp"
@@ -49,6 +51,15 @@ struct Body {
   std::optional<physics::SurfaceEmbedding> embedding;
   physics::Vector surface_positions;               // embedded: 3 x vertices, after the last step
   std::vector<std::uint8_t> fixed_vertices;        // embedded: vertices moved by fixed particles only
+  // Cuttable bodies (seed 004 §2): the topology graph with its cutter, and the cut surface
+  // (physics/cut/cut_surface.hpp), which then is the render surface. `previous_positions` are
+  // the particles before the last solve: the links move from there to state.positions over
+  // the step the blade is tested against (user input happens during the last motion, §2.7).
+  physics::CorotationalEfg* efg = nullptr;         // the model, when it is an EFG one
+  std::unique_ptr<physics::VolumeCutter> cutter;
+  std::unique_ptr<physics::CutSurface> cut_surface;
+  physics::Vector previous_positions;
+  physics::Vec3 surface_min = physics::Vec3::Zero(), surface_max = physics::Vec3::Zero();  // rest box
   physics::Vector gravity;                         // 3n, constant
   physics::ImplicitEulerSettings integrator;
   std::vector<std::vector<int>> load_nodes;        // per scene load aimed at this body
@@ -71,6 +82,12 @@ struct StepStats {
   int energy_growth_events = 0;
   int contacts = 0;
   std::array<double, 3> tool_force{};  // force of the tissue on the tool, N
+  // Cutting (blade tools and cuttable bodies).
+  bool cut_tested = false;   // the blade was engaged near a cuttable body: CCD ran
+  bool cut_event = false;    // the topology changed this step
+  double ms_ccd = 0;         // broad phase, continuous collision
+  double ms_topology = 0;    // neighbourhoods, MLS, masses, surface, mapping
+  int links_severed = 0;
   double elastic_energy = 0;
   double kinetic_energy = 0;
 };
@@ -90,8 +107,30 @@ struct GuardCounts {
   long energy_growth = 0;
 };
 
+// What the cutting steps have done so far (metrics.json `cut`, `surface`, `mapping`).
+struct CutTotals {
+  long events = 0;
+  long links_severed = 0;          // by the CCD
+  long links_severed_at_rest = 0;  // by the agreement with the rest cut
+  long elements_reselected = 0;
+  long isolated_elements = 0;     // thesis failure: several cuts in one element
+  long reselection_failures = 0;
+  long vertices_remapped = 0;
+  long relaxed_fallbacks = 0;
+  long wrong_side = 0;            // over every remapping
+  long elements_linked_across = 0;  // after the last event: volume and surface cuts disagree
+  int worst_boundary_edges = 0;   // over every cut event
+  int worst_nonmanifold_edges = 0;
+  long pinches_closed = 0;
+};
+
 struct ToolState {
   ToolSample pose;
+  // Blade: the edge in the world at every sample of the step's sweep, their fractions of
+  // the step, and whether the blade was engaged over each interval between them.
+  std::vector<std::vector<physics::Vec3>> blade_poses;
+  std::vector<double> blade_fractions;
+  std::vector<std::uint8_t> blade_active;
   std::array<double, 3> tip{};
   std::array<double, 3> tail{};  // capsule end (= tip for a sphere)
   double radius = 0;
@@ -112,6 +151,8 @@ class World {
   const std::vector<Body>& bodies() const { return bodies_; }
   const ToolState& tool() const { return tool_; }
   const GuardCounts& guard_counts() const { return guard_counts_; }
+  const CutTotals& cut_totals() const { return cut_totals_; }
+  bool blade() const { return tool_.present && scene_.tool->shape == "blade"; }
   // The first kGuardLogLimit events; guard_counts() has them all.
   const std::vector<GuardEvent>& guard_events() const { return guard_events_; }
   static constexpr std::size_t kGuardLogLimit = 200;
@@ -127,6 +168,10 @@ class World {
   void take_tool_input(double time);
   std::vector<physics::NodalSpring> contact(const Body& body, StepStats& stats) const;
   void update_surface(Body& body) const;
+  // detect_cuts -> apply_topology for one body (seed 004 §2.7): CCD of the step's blade
+  // sweep against its links, re-selection, the cut surface and its mapping.
+  void cut_body(Body& body, StepStats& stats);
+  void rebuild_cut_surface(Body& body);
   void solve_body(Body& body, const std::vector<physics::NodalSpring>& springs, double end_time,
                   StepStats& stats);
 
@@ -138,6 +183,7 @@ class World {
   std::uint64_t steps_ = 0;
   std::array<double, 3> bounds_min_{}, bounds_max_{};
   GuardCounts guard_counts_;
+  CutTotals cut_totals_;
   std::vector<GuardEvent> guard_events_;
   void log_guard(const std::string& body, const std::string& kind, const std::string& detail);
 };

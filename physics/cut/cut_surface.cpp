@@ -54,40 +54,93 @@ std::optional<double> segment_crosses_triangle(const Vec3& p, const Vec3& q, con
   return along;
 }
 
+namespace {
+
+long long bin_key(long long i, long long j, long long k) {
+  return ((i + (1LL << 20)) << 42) ^ ((j + (1LL << 20)) << 21) ^ (k + (1LL << 20));
+}
+
+}  // namespace
+
+template <typename Visit>
+void RestCut::for_each_near(const Vec3& lo, const Vec3& hi, double reach, const Visit& visit) const {
+  if (triangles_.empty()) return;
+  ++query_;
+  std::array<long long, 3> first{}, last{};
+  for (int axis = 0; axis < 3; ++axis) {
+    first[axis] = static_cast<long long>(std::floor((lo[axis] - reach) / cell_));
+    last[axis] = static_cast<long long>(std::floor((hi[axis] + reach) / cell_));
+  }
+  // A query box much larger than the cut: scan the triangles instead of the cells.
+  const double cells = static_cast<double>(last[0] - first[0] + 1) * (last[1] - first[1] + 1) * (last[2] - first[2] + 1);
+  if (cells > 4.0 * static_cast<double>(triangles_.size())) {
+    for (size_t t = 0; t < triangles_.size(); ++t)
+      if (boxes_overlap(lo, hi, boxes_[t][0], boxes_[t][1], reach) && visit(static_cast<int>(t))) return;
+    return;
+  }
+  for (long long k = first[2]; k <= last[2]; ++k)
+    for (long long j = first[1]; j <= last[1]; ++j)
+      for (long long i = first[0]; i <= last[0]; ++i) {
+        const auto it = bins_.find(bin_key(i, j, k));
+        if (it == bins_.end()) continue;
+        for (int t : it->second) {
+          if (stamp_[t] == query_) continue;
+          stamp_[t] = query_;
+          if (boxes_overlap(lo, hi, boxes_[t][0], boxes_[t][1], reach) && visit(t)) return;
+        }
+      }
+}
+
 void RestCut::add(const RestTriangle& triangle) {
+  const int index = static_cast<int>(triangles_.size());
   triangles_.push_back(triangle);
-  boxes_.push_back(box_of(triangle));
+  const auto box = box_of(triangle);
+  boxes_.push_back(box);
+  stamp_.push_back(0);
+  std::array<long long, 3> first{}, last{};
+  for (int axis = 0; axis < 3; ++axis) {
+    first[axis] = static_cast<long long>(std::floor(box[0][axis] / cell_));
+    last[axis] = static_cast<long long>(std::floor(box[1][axis] / cell_));
+    // A huge triangle (a blade far larger than the body) is clipped to a bounded bin range;
+    // the triangle still gets its box test, so nothing is lost but speed.
+    last[axis] = std::min(last[axis], first[axis] + 256);
+  }
+  for (long long k = first[2]; k <= last[2]; ++k)
+    for (long long j = first[1]; j <= last[1]; ++j)
+      for (long long i = first[0]; i <= last[0]; ++i) bins_[bin_key(i, j, k)].push_back(index);
 }
 
 bool RestCut::crosses(const Vec3& p, const Vec3& q) const {
-  const Vec3 lo = p.cwiseMin(q), hi = p.cwiseMax(q);
-  for (size_t t = 0; t < triangles_.size(); ++t) {
-    if (!boxes_overlap(lo, hi, boxes_[t][0], boxes_[t][1], 0)) continue;
-    if (segment_crosses_triangle(p, q, triangles_[t])) return true;
-  }
-  return false;
+  bool crossed = false;
+  for_each_near(p.cwiseMin(q), p.cwiseMax(q), 0, [&](int t) {
+    crossed = segment_crosses_triangle(p, q, triangles_[t]).has_value();
+    return crossed;
+  });
+  return crossed;
 }
 
 std::optional<Vec3> RestCut::nearest_point(const Vec3& p, double reach) const {
   std::optional<Vec3> best;
   double best_distance = reach;
-  for (size_t t = 0; t < triangles_.size(); ++t) {
-    if (!boxes_overlap(p, p, boxes_[t][0], boxes_[t][1], reach)) continue;
+  int best_index = -1;
+  for_each_near(p, p, reach, [&](int t) {
     const Vec3 closest = closest_point_on_triangle(p, triangles_[t].a, triangles_[t].b, triangles_[t].c);
     const double distance = (closest - p).norm();
-    if (distance <= best_distance) {
+    // Ties to the lower index, so the result does not depend on the bins' order.
+    if (distance < best_distance || (distance == best_distance && best_index >= 0 && t < best_index)) {
       best_distance = distance;
       best = closest;
+      best_index = t;
     }
-  }
+    return false;
+  });
   return best;
 }
 
 bool RestCut::near_box(const Vec3& lo, const Vec3& hi, double reach) const {
-  for (const auto& box : boxes_) {
-    if (boxes_overlap(lo, hi, box[0], box[1], reach)) return true;
-  }
-  return false;
+  bool near = false;
+  for_each_near(lo, hi, reach, [&](int) { return near = true; });
+  return near;
 }
 
 SurfaceTopology surface_topology(const std::vector<std::array<int, 3>>& triangles) {

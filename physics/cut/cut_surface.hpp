@@ -36,6 +36,7 @@
 #include <functional>
 #include <optional>
 #include <span>
+#include <unordered_map>
 #include <vector>
 
 namespace incise::physics {
@@ -53,6 +54,9 @@ std::optional<double> segment_crosses_triangle(const Vec3& p, const Vec3& q, con
 // The cut surface in the rest configuration: triangles with their boxes, for segment tests.
 class RestCut {
  public:
+  // `cell`: the side of the hash grid the triangles are binned in (about the size of the
+  // segments tested: an integration cube).
+  explicit RestCut(double cell = 0.005) : cell_(cell) {}
   void add(const RestTriangle& triangle);
   int size() const { return static_cast<int>(triangles_.size()); }
   const std::vector<RestTriangle>& triangles() const { return triangles_; }
@@ -64,8 +68,15 @@ class RestCut {
   bool near_box(const Vec3& lo, const Vec3& hi, double reach) const;
 
  private:
+  template <typename Visit>
+  void for_each_near(const Vec3& lo, const Vec3& hi, double reach, const Visit& visit) const;
+
+  double cell_;
   std::vector<RestTriangle> triangles_;
   std::vector<std::array<Vec3, 2>> boxes_;
+  std::unordered_map<long long, std::vector<int>> bins_;  // grid cell -> triangles overlapping it
+  mutable std::vector<int> stamp_;                         // per triangle: last query that saw it
+  mutable int query_ = 0;
 };
 
 // Edges of a triangle mesh used by one triangle (holes) and by more than two (non-manifold).

@@ -2,10 +2,13 @@
 
 #include "physics/cut/continuous_collision.hpp"
 
+#include <Eigen/LU>
 #include <Eigen/SVD>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -118,55 +121,102 @@ void VolumeCutter::refit(const std::vector<Vec3>& points_start, const std::vecto
   }
 }
 
+struct VolumeCutter::Sweep {
+  std::span<const std::vector<Vec3>> poses;
+  std::span<const double> fractions;
+  std::span<const std::uint8_t> active;
+};
+
+std::optional<PolylineHit> VolumeCutter::sweep_hit(const Sweep& sweep, const Vec3& a0, const Vec3& b0,
+                                                   const Vec3& a1, const Vec3& b1) const {
+  for (size_t j = 0; j + 1 < sweep.poses.size(); ++j) {
+    if (!sweep.active[j]) continue;
+    const double s0 = sweep.fractions[j], s1 = sweep.fractions[j + 1];
+    const MovingSegment edge{{a0 + s0 * (a1 - a0), b0 + s0 * (b1 - b0)},
+                             {a0 + s1 * (a1 - a0), b0 + s1 * (b1 - b0)}};
+    if (auto hit = first_polyline_hit(sweep.poses[j], sweep.poses[j + 1], edge)) return hit;
+  }
+  return std::nullopt;
+}
+
 VolumeCutReport VolumeCutter::cut(std::span<const Vec3> blade_start, std::span<const Vec3> blade_end,
                                   const Vector& particles_start, const Vector& particles_end) {
+  const std::vector<std::vector<Vec3>> poses{std::vector<Vec3>(blade_start.begin(), blade_start.end()),
+                                             std::vector<Vec3>(blade_end.begin(), blade_end.end())};
+  const std::vector<double> fractions{0.0, 1.0};
+  const std::vector<std::uint8_t> active{1};
+  return cut(poses, fractions, active, particles_start, particles_end);
+}
+
+VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses, std::span<const double> fractions,
+                                  std::span<const std::uint8_t> active, const Vector& particles_start,
+                                  const Vector& particles_end, const RestVisibility* rest_cut) {
   const Eigen::Index size = 3 * static_cast<Eigen::Index>(model_.node_count());
-  if (blade_start.size() < 2 || blade_start.size() != blade_end.size()) {
-    fail("the blade needs the same number (>= 2) of points at the start and the end of the step, got " +
-         std::to_string(blade_start.size()) + " and " + std::to_string(blade_end.size()));
+  if (blade_poses.size() < 2 || fractions.size() != blade_poses.size() || active.size() + 1 != blade_poses.size()) {
+    fail("a sweep needs at least 2 blade poses, one fraction per pose and one active flag per interval, got " +
+         std::to_string(blade_poses.size()) + ", " + std::to_string(fractions.size()) + " and " +
+         std::to_string(active.size()));
+  }
+  for (size_t j = 0; j < blade_poses.size(); ++j) {
+    if (blade_poses[j].size() < 2 || blade_poses[j].size() != blade_poses[0].size()) {
+      fail("blade pose " + std::to_string(j) + " has " + std::to_string(blade_poses[j].size()) +
+           " points; every pose needs the same number, at least 2");
+    }
+    for (size_t i = 0; i < blade_poses[j].size(); ++i) {
+      if (!blade_poses[j][i].allFinite()) fail("blade point " + std::to_string(i) + " of pose " + std::to_string(j) + " is not finite");
+    }
+    if (!std::isfinite(fractions[j]) || fractions[j] < 0 || fractions[j] > 1 || (j > 0 && fractions[j] < fractions[j - 1])) {
+      fail("blade pose fractions must increase within [0, 1]; pose " + std::to_string(j) + " has " + std::to_string(fractions[j]));
+    }
   }
   if (particles_start.size() != size || particles_end.size() != size) {
     fail("particle positions have " + std::to_string(particles_start.size()) + " and " +
          std::to_string(particles_end.size()) + " entries, the model " + std::to_string(size));
   }
-  for (size_t i = 0; i < blade_start.size(); ++i) {
-    if (!blade_start[i].allFinite() || !blade_end[i].allFinite()) fail("blade point " + std::to_string(i) + " is not finite");
-  }
   check_finite(particles_start, "particles at the start of the step");
   check_finite(particles_end, "particles at the end of the step");
 
   VolumeCutReport report;
+  const auto clock_start = std::chrono::steady_clock::now();
+  const Sweep sweep{blade_poses, fractions, active};
   std::vector<Vec3> points_start, points_end;
   integration_points(particles_start, points_start);
   integration_points(particles_end, points_end);
   refit(points_start, points_end, particles_start, particles_end);
-  broad_phase_.query(blade_start, blade_end, candidates_);
-  report.candidates = static_cast<int>(candidates_.size());
 
   const auto particle = [](const Vector& x, int p) { return Vec3(x.segment<3>(3 * static_cast<Eigen::Index>(p))); };
   const int link_count = static_cast<int>(particle_links_.size());
-  // Element -> particles whose link to it was cut this step.
-  std::map<int, std::vector<int>> cut_from;
-  for (int id : candidates_) {
-    MovingSegment edge;
-    Vec3 rest_first, rest_second;
+  // Candidates over every active sub-interval (the boxes cover the whole step).
+  std::vector<int> all;
+  for (size_t j = 0; j + 1 < blade_poses.size(); ++j) {
+    if (!active[j]) continue;
+    broad_phase_.query(blade_poses[j], blade_poses[j + 1], candidates_);
+    all.insert(all.end(), candidates_.begin(), candidates_.end());
+  }
+  std::sort(all.begin(), all.end());
+  all.erase(std::unique(all.begin(), all.end()), all.end());
+  report.candidates = static_cast<int>(all.size());
+
+  std::map<int, std::vector<int>> cut_from;  // element -> particles whose link to it was cut
+  for (int id : all) {
+    Vec3 a0, b0, a1, b1, rest_first, rest_second;
     int element = -1, slot_particle = -1;
     if (id < link_count) {
       const auto [a, b] = particle_links_[id];
-      edge = {{particle(particles_start, a), particle(particles_start, b)},
-              {particle(particles_end, a), particle(particles_end, b)}};
+      a0 = particle(particles_start, a), b0 = particle(particles_start, b);
+      a1 = particle(particles_end, a), b1 = particle(particles_end, b);
       rest_first = particle(model_.rest_positions(), a);
       rest_second = particle(model_.rest_positions(), b);
     } else {
       element = (id - link_count) / slots_per_element;
       const int slot = (id - link_count) % slots_per_element;
       slot_particle = element_link_particles_[element][slot];
-      edge = {{points_start[element], particle(particles_start, slot_particle)},
-              {points_end[element], particle(particles_end, slot_particle)}};
+      a0 = points_start[element], b0 = particle(particles_start, slot_particle);
+      a1 = points_end[element], b1 = particle(particles_end, slot_particle);
       rest_first = model_.element_centres()[element];
       rest_second = particle(model_.rest_positions(), slot_particle);
     }
-    const auto hit = first_polyline_hit(blade_start, blade_end, edge);
+    const auto hit = sweep_hit(sweep, a0, b0, a1, b1);
     if (!hit) continue;
     report.rest_hits.push_back(rest_first + hit->hit.edge_parameter * (rest_second - rest_first));
     if (id < link_count) {
@@ -178,9 +228,37 @@ VolumeCutReport VolumeCutter::cut(std::span<const Vec3> blade_start, std::span<c
       ++report.element_links_severed;
     }
   }
-  total_links_severed_ += report.particle_links_severed + report.element_links_severed;
+  // Agreement with the rest cut near this sweep.
+  if (rest_cut && rest_cut->blocked) {
+    const int stride = model_.row_stride();
+    for (int e = 0; e < model_.element_count(); ++e) {
+      const Vec3& centre = model_.element_centres()[e];
+      bool inside = true;
+      for (int axis = 0; axis < 3; ++axis) inside = inside && centre[axis] >= rest_cut->lo[axis] && centre[axis] <= rest_cut->hi[axis];
+      if (!inside) continue;
+      const size_t base = static_cast<size_t>(e) * stride;
+      for (int k = 0; k < model_.row_lengths()[e]; ++k) {
+        const int p = model_.neighbours()[base + k];
+        auto& severed = cut_from[e];
+        if (std::find(severed.begin(), severed.end(), p) != severed.end()) continue;
+        if (rest_cut->blocked(centre, particle(model_.rest_positions(), p))) {
+          severed.push_back(p);
+          ++report.links_severed_at_rest;
+        }
+      }
+      if (cut_from[e].empty()) cut_from.erase(e);
+    }
+  }
+  total_links_severed_ += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;
+  const auto clock_ccd = std::chrono::steady_clock::now();
+  report.ms_ccd = std::chrono::duration<double, std::milli>(clock_ccd - clock_start).count();
 
   // Re-selection of the broken neighbourhoods, in element order (deterministic).
+  points_start_ = &points_start;
+  points_end_ = &points_end;
+  rest_cut_ = rest_cut;
+  particles_start_ = &particles_start;
+  particles_end_ = &particles_end;
   for (const auto& [element, severed] : cut_from) {
     // The stride grows when a row does (set_neighbourhood), so it is read for each element.
     const size_t base = static_cast<size_t>(element) * model_.row_stride();
@@ -190,8 +268,7 @@ VolumeCutReport VolumeCutter::cut(std::span<const Vec3> blade_start, std::span<c
       if (std::find(severed.begin(), severed.end(), p) == severed.end()) kept.push_back(p);
     }
     bool isolated = false;
-    const std::vector<int> row = reselect(element, kept, blade_start, blade_end, points_start,
-                                          points_end, particles_start, particles_end, isolated);
+    const std::vector<int> row = reselect(element, kept, sweep, isolated);
     report.elements_isolated += isolated ? 1 : 0;
     if (row.empty()) {
       ++report.reselection_failures;
@@ -205,14 +282,14 @@ VolumeCutReport VolumeCutter::cut(std::span<const Vec3> blade_start, std::span<c
       ++report.reselection_failures;
     }
   }
+  points_start_ = points_end_ = nullptr;
+  particles_start_ = particles_end_ = nullptr;
+  rest_cut_ = nullptr;
+  report.ms_topology = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - clock_ccd).count();
   return report;
 }
 
-std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kept,
-                                        std::span<const Vec3> blade_start, std::span<const Vec3> blade_end,
-                                        const std::vector<Vec3>& points_start,
-                                        const std::vector<Vec3>& points_end,
-                                        const Vector& particles_start, const Vector& particles_end,
+std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kept, const Sweep& sweep,
                                         bool& isolated) {
   const Vec3 centre = model_.element_centres()[element];
   const auto rest = [&](int p) { return Vec3(model_.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(p))); };
@@ -223,8 +300,7 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
     // its integration point): nothing tells which side it is on. Its nearest former
     // neighbour decides, which is at least deterministic; counted as isolated.
     isolated = true;
-    const int stride = model_.row_stride();
-    const size_t base = static_cast<size_t>(element) * stride;
+    const size_t base = static_cast<size_t>(element) * model_.row_stride();
     int nearest = -1;
     double best = 0;
     for (int k = 0; k < model_.row_lengths()[element]; ++k) {
@@ -264,16 +340,42 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
   for (const auto& [level, squared, p] : candidates) {
     if (static_cast<int>(row.size()) >= nominal && spans_three_dimensions(positions)) break;
     if (static_cast<int>(row.size()) >= slots_per_element) break;
-    // A new link the blade crosses in this very step would be cut at once.
-    const MovingSegment link{{points_start[element], particle(particles_start, p)},
-                             {points_end[element], particle(particles_end, p)}};
-    if (first_polyline_hit(blade_start, blade_end, link)) continue;
+    // Not across the cut so far (at rest), nor across this very step's sweep.
+    if (rest_cut_ && rest_cut_->blocked && rest_cut_->blocked(centre, rest(p))) continue;
+    if (sweep_hit(sweep, (*points_start_)[element], particle(*particles_start_, p), (*points_end_)[element],
+                  particle(*particles_end_, p))) {
+      continue;
+    }
     row.push_back(p);
     positions.push_back(rest(p));
   }
   if (!spans_three_dimensions(positions)) return {};
   std::sort(row.begin(), row.end());
   return row;
+}
+
+void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world, std::vector<Vec3>& rest) const {
+  std::vector<Vec3> points;
+  integration_points(particles, points);
+  rest.resize(world.size());
+  const int stride = model_.row_stride();
+  for (size_t w = 0; w < world.size(); ++w) {
+    int nearest = 0;
+    double best = std::numeric_limits<double>::infinity();
+    for (int e = 0; e < model_.element_count(); ++e) {
+      const double d = (points[e] - world[w]).squaredNorm();
+      if (d < best) best = d, nearest = e;
+    }
+    Mat3 fit = Mat3::Zero();
+    const size_t base = static_cast<size_t>(nearest) * stride;
+    for (int k = 0; k < model_.row_lengths()[nearest]; ++k) {
+      fit += particles.segment<3>(3 * static_cast<Eigen::Index>(model_.neighbours()[base + k])) *
+             model_.matching_coefficients()[base + k].transpose();
+    }
+    const Eigen::FullPivLU<Mat3> lu(fit);
+    const Vec3 offset = world[w] - points[nearest];
+    rest[w] = model_.element_centres()[nearest] + (lu.isInvertible() ? Vec3(lu.solve(offset)) : offset);
+  }
 }
 
 int VolumeCutter::pieces(std::vector<int>& piece) const {

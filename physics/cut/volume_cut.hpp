@@ -31,7 +31,9 @@
 #include "physics/efg/corotational_efg.hpp"
 
 #include <array>
+#include <optional>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -41,6 +43,7 @@ struct VolumeCutReport {
   int candidates = 0;              // links the broad phase returned for the narrow test
   int particle_links_severed = 0;
   int element_links_severed = 0;   // integration point-particle links
+  int links_severed_at_rest = 0;   // element links dropped by the rest cut (see cut())
   int elements_reselected = 0;
   int elements_isolated = 0;       // left with no linked neighbour (thesis §4.3.3 failure)
   int reselection_failures = 0;    // the model refused the new neighbourhood
@@ -48,7 +51,9 @@ struct VolumeCutReport {
   // Where the links were cut, in the rest configuration (the hit's fraction along the link,
   // applied to its rest endpoints, §2.3), in the order found.
   std::vector<Vec3> rest_hits;
-  bool any() const { return particle_links_severed + element_links_severed > 0; }
+  double ms_ccd = 0;       // broad phase and continuous collision (wall time)
+  double ms_topology = 0;  // re-selection, MLS and masses
+  bool any() const { return particle_links_severed + element_links_severed + links_severed_at_rest > 0; }
 };
 
 class VolumeCutter {
@@ -64,6 +69,28 @@ class VolumeCutter {
   // non-finite input (naming it), before anything changes.
   VolumeCutReport cut(std::span<const Vec3> blade_start, std::span<const Vec3> blade_end,
                       const Vector& particles_start, const Vector& particles_end);
+  // The same over a sampled sweep: the blade at increasing fractions 0 <= s_0 < ... <= 1 of
+  // the step (every tool sample since the last step, seed 004 §2.2), each sub-interval
+  // [s_j, s_j+1] tested with the links' endpoints interpolated at its ends; `active[j]` says
+  // whether the blade cuts during sub-interval j (engaged). One broad-phase refit per call.
+  // `rest_cut`, when given, is the cut surface in the rest configuration (the caller's record
+  // of every sweep so far, this one included): re-selection never takes a particle whose
+  // link it blocks, and the elements whose integration point lies in [lo, hi] (the region of
+  // this step's sweep) drop the neighbours it blocks, so that the volume agrees with the
+  // surface where the CCD's deformed-configuration test and the rest mapping differ by
+  // rounding (counted in links_severed_at_rest).
+  struct RestVisibility {
+    std::function<bool(const Vec3& from, const Vec3& to)> blocked;
+    Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
+  };
+  VolumeCutReport cut(std::span<const std::vector<Vec3>> blade_poses, std::span<const double> fractions,
+                      std::span<const std::uint8_t> active, const Vector& particles_start,
+                      const Vector& particles_end, const RestVisibility* rest_cut = nullptr);
+
+  // Maps world points to the rest configuration through the local deformation of the body:
+  // X = X_e + F_e^-1 (x - x_e), e the integration point nearest to x, F_e its shape-matching
+  // fit (seed 004 §2.3: topology edits are done at rest). Points far outside extrapolate.
+  void to_rest(const Vector& particles, std::span<const Vec3> world, std::vector<Vec3>& rest) const;
 
   // Particle-particle links (a < b) and which are severed.
   const std::vector<std::array<int, 2>>& particle_links() const { return particle_links_; }
@@ -79,13 +106,15 @@ class VolumeCutter {
   void integration_points(const Vector& particles, std::vector<Vec3>& out) const;
 
  private:
+  struct Sweep;  // the sampled sweep of one call
   int element_link_id(int element, int slot) const;
   void refit(const std::vector<Vec3>& points_start, const std::vector<Vec3>& points_end,
              const Vector& particles_start, const Vector& particles_end);
-  std::vector<int> reselect(int element, const std::vector<int>& kept,
-                            std::span<const Vec3> blade_start, std::span<const Vec3> blade_end,
-                            const std::vector<Vec3>& points_start, const std::vector<Vec3>& points_end,
-                            const Vector& particles_start, const Vector& particles_end, bool& isolated);
+  // Whether the blade, over the active sub-intervals, touches the moving segment whose
+  // endpoints go linearly from (a0, b0) at fraction 0 to (a1, b1) at fraction 1.
+  std::optional<PolylineHit> sweep_hit(const Sweep& sweep, const Vec3& a0, const Vec3& b0,
+                                       const Vec3& a1, const Vec3& b1) const;
+  std::vector<int> reselect(int element, const std::vector<int>& kept, const Sweep& sweep, bool& isolated);
 
   CorotationalEfg& model_;
   EdgeBroadPhase broad_phase_;
@@ -97,6 +126,12 @@ class VolumeCutter {
   std::vector<std::vector<int>> element_link_particles_;
   long total_links_severed_ = 0;
   std::vector<int> candidates_;  // reused
+  // The endpoints of the call in progress (valid only inside cut()).
+  const std::vector<Vec3>* points_start_ = nullptr;
+  const std::vector<Vec3>* points_end_ = nullptr;
+  const Vector* particles_start_ = nullptr;
+  const Vector* particles_end_ = nullptr;
+  const RestVisibility* rest_cut_ = nullptr;
 };
 
 }  // namespace incise::physics
