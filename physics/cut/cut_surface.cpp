@@ -176,6 +176,7 @@ CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, 
   const int cubes = counts_[0] * counts_[1] * counts_[2];
   inside_.assign(static_cast<size_t>(cubes), 0);
   face_cut_.assign(3 * static_cast<size_t>(cubes), 0);
+  face_shown_ = face_cut_;
   TetMesh mesh;
   const int nodes = (counts_[0] + 1) * (counts_[1] + 1) * (counts_[2] + 1);
   mesh.rest.resize(3 * static_cast<Eigen::Index>(nodes));
@@ -262,6 +263,10 @@ int CutSurface::cut(std::span<const RestTriangle> triangles) {
 }
 
 void CutSurface::rebuild() {
+  // The faces shown start from every cut face; pinches hide some (until the cut grows around
+  // them), never more than a few passes' worth.
+  face_shown_ = face_cut_;
+  pinches_closed_ = 0;
   for (int pass = 0; pass < 64; ++pass) {
     const int closed = build_surface(false);
     pinches_closed_ += closed;
@@ -296,7 +301,7 @@ int CutSurface::build_surface(bool fill_empty) {
           if (s & bit) continue;
           const int t = s | bit;
           if (label[t] < 0) continue;
-          if (face_cut_[3 * static_cast<size_t>(cube[s]) + axis]) continue;  // s's +axis face is t's -axis face
+          if (face_shown_[3 * static_cast<size_t>(cube[s]) + axis]) continue;  // s's +axis face is t's -axis face
           const std::int8_t joined = std::min(label[s], label[t]);
           if (label[s] != joined || label[t] != joined) {
             // Relabel both groups to the smaller label.
@@ -344,7 +349,7 @@ int CutSurface::build_surface(bool fill_empty) {
             next[axis] += side ? 1 : -1;
             const int other = cube_index(next[0], next[1], next[2]);
             const bool cut_face = inside_[other] &&
-                                  face_cut_[3 * static_cast<size_t>(side ? cube : other) + axis] != 0;
+                                  face_shown_[3 * static_cast<size_t>(side ? cube : other) + axis] != 0;
             if (inside_[other] && !cut_face) continue;
             // The face's corners, counter-clockwise seen from outside the cube.
             const int u = (axis + 1) % 3, v = (axis + 2) % 3;
@@ -360,8 +365,17 @@ int CutSurface::build_surface(bool fill_empty) {
             if (!side) std::swap(corners[1], corners[3]);
             std::array<int, 4> ids{};
             for (int c = 0; c < 4; ++c) ids[c] = vertex(corners[c][0], corners[c][1], corners[c][2], i, j, k, cut_face);
-            triangles_.push_back({ids[0], ids[1], ids[2]});
-            triangles_.push_back({ids[0], ids[2], ids[3]});
+            // The two sides of a cut face share the corners the cut has not separated yet
+            // (a crack of a few faces inside the body has all four shared: a closed pillow
+            // of zero volume). Splitting the two sides' quads along different diagonals keeps
+            // every edge used by exactly two triangles whatever is shared.
+            if (cut_face && side == 0) {
+              triangles_.push_back({ids[1], ids[2], ids[3]});
+              triangles_.push_back({ids[1], ids[3], ids[0]});
+            } else {
+              triangles_.push_back({ids[0], ids[1], ids[2]});
+              triangles_.push_back({ids[0], ids[2], ids[3]});
+            }
           }
         }
       }
@@ -411,10 +425,9 @@ int CutSurface::build_surface(bool fill_empty) {
         while (differ < 3 && a[differ] == b[differ]) ++differ;
         const bool a_lower = a[differ] < b[differ];
         const auto& lower = a_lower ? a : b;
-        std::uint8_t& flag = face_cut_[3 * static_cast<size_t>(cube_index(lower[0], lower[1], lower[2])) + differ];
+        std::uint8_t& flag = face_shown_[3 * static_cast<size_t>(cube_index(lower[0], lower[1], lower[2])) + differ];
         if (full[previous] && flag) {
-          flag = 0;
-          --cut_faces_;
+          flag = 0;  // hidden from the surface for now; the cut itself stays
           ++closed;
           break;
         }

@@ -99,8 +99,10 @@ class CutSurface {
   // Recomputes the vertices and triangles from the cubes and the cut. Where two cubes joined
   // elsewhere touch along an edge whose other two cubes are empty or cut away (a pinch,
   // which would make that edge non-manifold), the pinch is closed: an empty cube there is
-  // filled (at build), a cut face there is restored (after a cut; the cut loses one face of
-  // one cube, counted in pinches_closed()).
+  // filled (at build); a cut face there is not shown (after a cut: a crack one face wide
+  // whose rim is still joined all round, e.g. the first faces the blade enters). The cut
+  // itself is kept, so the face appears once the cut has grown around it;
+  // pinches_closed() counts the faces hidden by the last rebuild.
   void rebuild();
   int pinches_closed() const { return pinches_closed_; }
 
@@ -125,6 +127,7 @@ class CutSurface {
   std::array<int, 3> counts_{};
   std::vector<std::uint8_t> inside_;         // per cube
   std::vector<std::uint8_t> face_cut_;       // per cube x 3: its +x, +y, +z face
+  std::vector<std::uint8_t> face_shown_;     // the cut faces the surface shows (pinches hidden)
   std::vector<Vec3> node_rest_;              // per grid node, snapped onto the surface
   int cube_count_ = 0;
   int cut_faces_ = 0;
