@@ -500,23 +500,63 @@ void World::cut_body(Body& body, StepStats& stats) {
 
   stats.cut_tested = true;
   auto topology_start = Clock::now();
-  // The sweep in the rest configuration: each active interval's blade segments, mapped
-  // through the body's local deformation at that moment, as two triangles each.
+  // The sweep in the rest configuration (seed 004 §2.3: topology edits are done at rest).
+  // The edge is resampled every a / 2 and each point mapped through the body's local
+  // deformation at its moment; poses are kept once the edge has moved a / 2 since the last
+  // kept one (and at the end of each engaged stretch), and consecutive kept poses span quads,
+  // two triangles each. Quads with a corner more than 2a from every integration point lie
+  // outside the body, where the mapping only extrapolates: they are left out.
+  const double a = body.efg->spacing();
   std::vector<physics::RestTriangle> triangles;
-  std::vector<physics::Vec3> rest_a, rest_b;
-  physics::Vector at_fraction;
-  const auto rest_pose = [&](std::size_t j, std::vector<physics::Vec3>& out) {
-    const double f = tool_.blade_fractions[j];
-    at_fraction = body.previous_positions + f * (body.state.positions - body.previous_positions);
-    body.cutter->to_rest(at_fraction, tool_.blade_poses[j], out);
-  };
-  for (std::size_t j = 0; j + 1 < tool_.blade_poses.size(); ++j) {
-    if (!active[j]) continue;
-    rest_pose(j, rest_a);
-    rest_pose(j + 1, rest_b);
-    for (std::size_t i = 0; i + 1 < rest_a.size(); ++i) {
-      triangles.push_back({rest_a[i], rest_a[i + 1], rest_b[i + 1]});
-      triangles.push_back({rest_a[i], rest_b[i + 1], rest_b[i]});
+  {
+    const auto& edge0 = tool_.blade_poses.front();
+    std::vector<int> pieces;
+    for (std::size_t i = 0; i + 1 < edge0.size(); ++i)
+      pieces.push_back(std::max(1, static_cast<int>(std::ceil((edge0[i + 1] - edge0[i]).norm() / (0.5 * a)))));
+    const auto resample = [&](const std::vector<physics::Vec3>& edge) {
+      std::vector<physics::Vec3> points;
+      for (std::size_t i = 0; i + 1 < edge.size(); ++i)
+        for (int k = 0; k < pieces[i]; ++k) points.push_back(edge[i] + (static_cast<double>(k) / pieces[i]) * (edge[i + 1] - edge[i]));
+      points.push_back(edge.back());
+      return points;
+    };
+    physics::Vector at_fraction;
+    const auto map_pose = [&](std::size_t j, std::vector<physics::Vec3>& rest, std::vector<double>& distance) {
+      const double f = tool_.blade_fractions[j];
+      at_fraction = body.previous_positions + f * (body.state.positions - body.previous_positions);
+      body.cutter->to_rest(at_fraction, resample(tool_.blade_poses[j]), rest, &distance);
+    };
+    const auto moved = [&](std::size_t from, std::size_t to) {
+      double most = 0;
+      for (std::size_t i = 0; i < tool_.blade_poses[from].size(); ++i)
+        most = std::max(most, (tool_.blade_poses[to][i] - tool_.blade_poses[from][i]).norm());
+      return most;
+    };
+    std::vector<physics::Vec3> rest_a, rest_b;
+    std::vector<double> far_a, far_b;
+    std::size_t kept = 0;
+    bool open = false;  // rest_a holds the pose `kept`
+    for (std::size_t j = 0; j + 1 < tool_.blade_poses.size(); ++j) {
+      if (!active[j]) {
+        open = false;
+        continue;
+      }
+      if (!open) {
+        kept = j;
+        map_pose(kept, rest_a, far_a);
+        open = true;
+      }
+      const bool stretch_ends = j + 2 >= tool_.blade_poses.size() || !active[j + 1];
+      if (!stretch_ends && moved(kept, j + 1) < 0.5 * a) continue;
+      map_pose(j + 1, rest_b, far_b);
+      for (std::size_t i = 0; i + 1 < rest_a.size(); ++i) {
+        if (std::max({far_a[i], far_a[i + 1], far_b[i], far_b[i + 1]}) > 2 * a) continue;
+        triangles.push_back({rest_a[i], rest_a[i + 1], rest_b[i + 1]});
+        triangles.push_back({rest_a[i], rest_b[i + 1], rest_b[i]});
+      }
+      kept = j + 1;
+      rest_a.swap(rest_b);
+      far_a.swap(far_b);
     }
   }
   const int faces = body.cut_surface->cut(triangles);

@@ -354,10 +354,12 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
   return row;
 }
 
-void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world, std::vector<Vec3>& rest) const {
+void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world, std::vector<Vec3>& rest,
+                           std::vector<double>* distance) const {
   std::vector<Vec3> points;
   integration_points(particles, points);
   rest.resize(world.size());
+  if (distance) distance->resize(world.size());
   const int stride = model_.row_stride();
   for (size_t w = 0; w < world.size(); ++w) {
     int nearest = 0;
@@ -372,6 +374,7 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
       fit += particles.segment<3>(3 * static_cast<Eigen::Index>(model_.neighbours()[base + k])) *
              model_.matching_coefficients()[base + k].transpose();
     }
+    if (distance) (*distance)[w] = std::sqrt(best);
     const Eigen::FullPivLU<Mat3> lu(fit);
     const Vec3 offset = world[w] - points[nearest];
     rest[w] = model_.element_centres()[nearest] + (lu.isInvertible() ? Vec3(lu.solve(offset)) : offset);

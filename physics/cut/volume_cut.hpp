@@ -90,7 +90,10 @@ class VolumeCutter {
   // Maps world points to the rest configuration through the local deformation of the body:
   // X = X_e + F_e^-1 (x - x_e), e the integration point nearest to x, F_e its shape-matching
   // fit (seed 004 §2.3: topology edits are done at rest). Points far outside extrapolate.
-  void to_rest(const Vector& particles, std::span<const Vec3> world, std::vector<Vec3>& rest) const;
+  // `distance`, if given, receives each point's distance to that integration point (far means
+  // outside the body, where the extrapolation means little).
+  void to_rest(const Vector& particles, std::span<const Vec3> world, std::vector<Vec3>& rest,
+               std::vector<double>* distance = nullptr) const;
 
   // Particle-particle links (a < b) and which are severed.
   const std::vector<std::array<int, 2>>& particle_links() const { return particle_links_; }

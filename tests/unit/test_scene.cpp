@@ -88,6 +88,17 @@ TEST(Scene, BrokenScenesAreRefusedWithTheFieldNamed) {
          s["bodies"][0]["model"] = "efg";
          s["bodies"][0]["efg"] = {{"support_factor", 1.0}};
        }, "bodies[0].efg.support_factor: 1 must be in (1, 10]"},
+      {"cuttable fem body", [](Json& s) { s["bodies"][0]["cuttable"] = true; },
+       "bodies[0].cuttable: only 'efg' bodies can be cut"},
+      {"blade without edge", [](Json& s) {
+         s["tool"] = {{"shape", "blade"}, {"trajectory", "../trajectories/default.traj"}};
+       }, "tool.edge: is required"},
+      {"blade edge of one point", [](Json& s) {
+         s["tool"] = {{"shape", "blade"}, {"edge", {{0, 0, 0}}}, {"trajectory", "../trajectories/default.traj"}};
+       }, "tool.edge: must be an array of 2 to 64 points"},
+      {"blade edge repeats a point", [](Json& s) {
+         s["tool"] = {{"shape", "blade"}, {"edge", {{0, 0, 0}, {0, 0, 0}}}, {"trajectory", "../trajectories/default.traj"}};
+       }, "tool.edge[1]: repeats the point before it"},
       {"efg unknown setting", [](Json& s) {
          s["bodies"][0]["model"] = "efg";
          s["bodies"][0]["efg"] = {{"kernel", "gauss"}};
