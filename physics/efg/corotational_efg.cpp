@@ -146,6 +146,10 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
     fail("samples_per_axis must be in [1, 64], got " + std::to_string(s.samples_per_axis));
   }
   if (s.threads < 1) fail("threads must be at least 1, got " + std::to_string(s.threads));
+  if (s.rotation != EfgRotation::shape_matching && s.rotation != EfgRotation::deformation_gradient) {
+    fail("rotation must be shape_matching or deformation_gradient, got " +
+         std::to_string(static_cast<int>(s.rotation)));
+  }
   if (s.threaded_elements < 0) {
     fail("threaded_elements must not be negative, got " + std::to_string(s.threaded_elements));
   }
@@ -695,10 +699,13 @@ void CorotationalEfg::set_neighbourhood(int element, std::span<const int> partic
 Quaternion CorotationalEfg::element_rotation(const Vector& x, int element,
                                              const Quaternion& start) const {
   const size_t base = static_cast<size_t>(element) * stride_;
+  const std::vector<Vec3>& coefficients = settings_.rotation == EfgRotation::shape_matching
+                                              ? matching_coefficients_
+                                              : shape_gradients_;
   Mat3 fit = Mat3::Zero();
   for (int k = 0; k < row_lengths_[element]; ++k) {
     fit += x.segment<3>(3 * static_cast<Index>(neighbours_[base + k])) *
-           matching_coefficients_[base + k].transpose();
+           coefficients[base + k].transpose();
   }
   return extract_rotation(fit, start);
 }
