@@ -6,10 +6,30 @@
 // at x = 0.1 m from the top (z max) down to z = 0 across the whole width; `b1` is the square
 // beam 0.2 x 0.02 x 0.02 under its own weight.
 //
-// The cut exists only as geometry, built in before any solve (the cutter is a later issue):
-// - EFG (variant suffix `_geomcut`): integration-point-to-particle links that cross the cut
-//   rectangle are removed and the neighbourhood re-selected on the element's own side
-//   (EfgSettings::cuts);
+// The cut, made before any solve:
+// - EFG with the cutter (variant suffix `_cutter`; physics/cut/volume_cut.hpp, issue 4): the
+//   uncut model is cut by one step of a straight blade along y, wider than the beam, moving
+//   from above the grid down to the crack front with the particles at rest; the cutter severs
+//   the links the blade touches (continuous collision) and re-selects the broken
+//   neighbourhoods by graph distance. Where the blade runs, relative to the grids: particles
+//   lie on the plane x = 0.1 (a particle layer at every resolution) and the integration points
+//   at 0.1 +- a/2. A blade exactly on the particle layer would touch links at their ends (and
+//   lie along the layer's in-plane links), so which side a particle on the plane falls on would
+//   be decided by the touching tolerance. The blade runs at x = 0.1 - a/4 instead, the middle
+//   of the gap between the particle layer and the integration layer on the clamped side: no
+//   point of either grid is within a/4 of it, every link crossing x = 0.1 is cut as before, and
+//   the particles on the plane count on the +x side, as in the build-time rule (any offset in
+//   (0, a/2) gives the same neighbourhoods; +a/4, which puts them on the clamped side, makes
+//   bend_cut 1.6 to 5.3 % stiffer). The blade's edge stops at z = 1e-3 a, just above the
+//   particle row on the crack front z = 0 (see the grid alignment below): the cell-corner links
+//   from the elements above the front to the front particles on the plane cross the blade a/12
+//   or a/4 above z = 0 and are cut, the links from the elements below it are not, and the row's
+//   own links along x, which a blade ending exactly on z = 0 would touch at t = 1, stay (the
+//   front is shared by both sides, as the reference's front nodes are; the solution is the
+//   same either way, only the severed-link count differs).
+// - EFG with the geometry cut (suffix `_geomcut`), for comparison: integration-point-to-particle
+//   links that cross the cut rectangle are removed at build time and the neighbourhood
+//   re-selected on the element's own side (EfgSettings::cuts);
 // - FEM (suffix `_geomcut`): a conforming mesh whose nodes on the cut (x = 0.1, z > 0) are
 //   duplicated for the tets on the x < 0.1 side.
 //
@@ -24,8 +44,11 @@
 // partial-cube points at the inside centroid; corotational_efg.hpp says why), nb4, novolume
 // (nb8 with every touched cube counted whole), nb8_support3 (h = 3 x the farthest corner, the
 // literal reading of the thesis's constant) and nb8_thesis (that support, cube-centre points
-// and 4^3 samples: the model as first built); for the cut cases the EFG grid's z extent is
-// widened so that a particle row lies on the crack front; fem tet4 (the
+// and 4^3 samples: the model as first built), each `_geomcut` for the cut cases, plus
+// nb8_cutter, nb4_cutter and novolume_cutter; for the cut cases the EFG grid's z extent is
+// widened so that a particle row lies on the crack front (the cutter needs it as much as the
+// geometry cut: with the front mid-cell, between particle rows at z = +-a, nb8_cutter's
+// stretch_cut tip moves by +69 % at a = 5 mm and +21 % at 2 mm); fem tet4 (the
 // corotational real-time baseline) and tet10 (the coarser reference meshes; timed with their
 // assembled linear stiffness and HRZ-lumped masses, as no dynamic tet10 model exists).
 //
@@ -37,6 +60,7 @@
 #include "tests/bench/accuracy.hpp"
 
 #include "physics/core/implicit_euler.hpp"
+#include "physics/cut/volume_cut.hpp"
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/efg/efg_static.hpp"
 #include "physics/fem/corotational_fem.hpp"
@@ -615,10 +639,22 @@ void write_plot_script(const std::filesystem::path& path, const std::filesystem:
   }
   script << "set multiplot layout 2,3 title 'incise accuracy: tip error against run time (Magnoux Table 4.1 cases)'\n";
   for (const Case& c : cases) {
-    script << "set title '" << c.name << (c.cut ? " (geometry cut)" : "") << "'\n" << "plot ";
+    script << "set title '" << c.name << (c.cut ? " (geometry cut; _cutter: the cutter)" : "") << "'\n" << "plot ";
+    // Only the series with rows in this case (the cutter variants exist for the cut cases only).
+    std::vector<size_t> present;
     for (size_t s = 0; s < series.size(); ++s) {
+      const bool any = std::any_of(rows.begin(), rows.end(), [&](const Row& row) {
+        std::string key = row.model + " " + row.variant;
+        const size_t suffix = key.find("_geomcut");
+        if (suffix != std::string::npos) key.erase(suffix);
+        return row.case_name == c.name && key == series[s] && row.ms_per_step > 0;
+      });
+      if (any) present.push_back(s);
+    }
+    for (size_t i = 0; i < present.size(); ++i) {
+      const size_t s = present[i];
       script << "$" << c.name << "_" << s << " using 1:2 with linespoints lw 1.5 pt " << (s % 10) + 1
-             << " title '" << series[s] << "'" << (s + 1 < series.size() ? ", \\\n     " : "\n");
+             << " title '" << series[s] << "'" << (i + 1 < present.size() ? ", \\\n     " : "\n");
     }
   }
   script << "unset multiplot\n";
@@ -663,6 +699,8 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
         {"novolume", 8, false, defaults.support_factor, true, defaults.samples_per_axis},
         {"nb8_support3", 8, true, 3.0, true, defaults.samples_per_axis},
         {"nb8_thesis", 8, true, 3.0, false, 4}};
+    // The cut cases also run these with the cutter (suffix `_cutter`).
+    const std::vector<std::string> cutter_variants{"nb8", "nb4", "novolume"};
 
     // Cases sharing a body share meshes, models and factorisations.
     struct Body {
@@ -685,7 +723,7 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
       const bool hexagon = body.shape == Shape::hexagon;
       total += static_cast<int>((hexagon ? hexagon_levels : square_levels).size() + (quick && body.cut ? 1 : 0) +
                                 (hexagon ? hexagon_linear : square_linear).size() +
-                                efg_cells.size() * efg_variants.size());
+                                efg_cells.size() * (efg_variants.size() + (body.cut ? cutter_variants.size() : 0)));
     }
     Progress progress(progress_stream, total);
     progress.note(std::string("incise bench accuracy") + (quick ? " --quick" : "") + ": " +
@@ -693,6 +731,8 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
 
     std::vector<Row> rows;
     std::map<std::string, Reference> references;
+    // What the cutter did, per variant and resolution ("nb8_cutter a2mm").
+    std::map<std::string, physics::VolumeCutReport> cut_reports;
     const auto relative_error_pct = [](const Vec3& tip, const Vec3& reference) {
       return 100 * (tip - reference).norm() / reference.norm();
     };
@@ -859,11 +899,28 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
             triangle_area(face.points[corners[0]], face.points[corners[1]], face.points[corners[2]]));
         face_area += face_weights.back();
       }
+      // The EFG runs: every variant (with the geometry cut for the cut cases), then for the cut
+      // cases the cutter variants on the uncut model.
+      struct EfgRun {
+        const EfgVariant* variant;
+        bool cutter;
+      };
+      std::vector<EfgRun> runs;
+      for (const EfgVariant& variant : efg_variants) runs.push_back({&variant, false});
+      if (body.cut) {
+        for (const std::string& name : cutter_variants) {
+          const auto it = std::find_if(efg_variants.begin(), efg_variants.end(),
+                                       [&](const EfgVariant& v) { return v.name == name; });
+          runs.push_back({&*it, true});
+        }
+      }
       for (int cells : efg_cells) {
-        for (const EfgVariant& variant : efg_variants) {
+        for (const EfgRun& run : runs) {
+          const EfgVariant& variant = *run.variant;
+          const std::string variant_name = variant.name + (run.cutter ? "_cutter" : cut_suffix);
           const double spacing = beam_length / (2 * cells);
           const std::string resolution = "a" + format(1e3 * spacing, 3) + "mm";
-          progress.draw(body_name + " efg " + variant.name + " " + resolution);
+          progress.draw(body_name + " efg " + variant_name + " " + resolution);
           EfgSettings settings;
           settings.spacing = spacing;
           settings.neighbours = variant.neighbours;
@@ -871,7 +928,7 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
           settings.support_factor = variant.support_factor;
           settings.centroid_points = variant.centroid_points;
           settings.samples_per_axis = variant.samples_per_axis;
-          if (body.cut) {
+          if (body.cut && !run.cutter) {
             // From the top down to z = 0 across the whole width. Particles on the plane count on
             // the +x side; links through the rim z = 0 stay (the crack front is shared).
             settings.cuts.push_back({Vec3(cut_x, -1, 0), Vec3(0, 2, 0), Vec3(0, 0, 1)});
@@ -891,6 +948,31 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
           }
           CorotationalEfg model([shape](const Vec3& p) { return inside_shape(shape, p); },
                                 grid_min, grid_max, beam_material, settings);
+          if (run.cutter) {
+            // One step of a straight blade along y (twice the beam's width), at x = cut_x - a/4,
+            // from 2a above the grid down to 1e-3 a above the front row z = 0; the particles at
+            // rest (start = end). The file comment says why there.
+            const double blade_x = cut_x - 0.25 * spacing;
+            const double width = 2 * hexagon_radius;
+            const std::vector<Vec3> blade_start{Vec3(blade_x, -width, grid_max.z() + 2 * spacing),
+                                                Vec3(blade_x, width, grid_max.z() + 2 * spacing)};
+            const std::vector<Vec3> blade_end{Vec3(blade_x, -width, 1e-3 * spacing),
+                                              Vec3(blade_x, width, 1e-3 * spacing)};
+            // Broad-phase margin 1 um (well above the CCD's touching distance, 1e-8 of the
+            // problem's size), no slack: one refit only.
+            physics::VolumeCutter cutter(model, 1e-6, 0);
+            const Vector rest = model.rest_positions();
+            const physics::VolumeCutReport report = cutter.cut(blade_start, blade_end, rest, rest);
+            progress.note("  " + body_name + " efg " + variant_name + " " + resolution + ": the cutter severed " +
+                          std::to_string(report.particle_links_severed) + " particle links and " +
+                          std::to_string(report.element_links_severed) + " element links (" +
+                          std::to_string(report.candidates) + " candidates), re-selected " +
+                          std::to_string(report.elements_reselected) + " elements, " +
+                          std::to_string(report.elements_isolated) + " isolated, " +
+                          std::to_string(report.reselection_failures) + " failures (CCD " +
+                          format(report.ms_ccd, 3) + " ms, topology " + format(report.ms_topology, 3) + " ms)");
+            cut_reports[variant_name + " " + resolution] = report;
+          }
           model.update_rotations(model.rest_positions());
           const std::vector<uint8_t> fixed = clamped_nodes(model.rest_positions());
           std::vector<Vector> loads;
@@ -908,12 +990,12 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
               tip += face_weights[t] / face_area * (moved.segment<3>(at) - face_points.segment<3>(at));
             }
             const Timing timing = time_steps(model, fixed, loads[i], timed_steps);
-            rows.push_back({c.name, "efg", variant.name + cut_suffix, resolution,
+            rows.push_back({c.name, "efg", variant_name, resolution,
                             3 * static_cast<long long>(model.node_count()), model.element_count(),
                             timing.ms_per_step, timing.cg_iterations,
                             relative_error_pct(tip, references[c.name].tip), timing.converged});
           }
-          progress.step(body_name + " efg " + variant.name + " " + resolution);
+          progress.step(body_name + " efg " + variant_name + " " + resolution);
         }
       }
       const std::chrono::duration<double> body_time = Clock::now() - body_start;
@@ -931,19 +1013,32 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
     });
     write_csv(out_dir / "accuracy.csv", rows);
     // The issue's figures: efg nb8 at its largest size per case (about 10k dofs in --quick).
+    // For the cut cases, nb8 with the geometry cut and with the cutter, side by side.
     for (const Case& c : cases) {
-      const Row* largest = nullptr;
-      for (const Row& row : rows) {
-        if (row.case_name == c.name && row.model == "efg" && (row.variant == "nb8" || row.variant == "nb8_geomcut") &&
-            (largest == nullptr || row.dofs > largest->dofs)) {
-          largest = &row;
+      for (const std::string& variant : c.cut ? std::vector<std::string>{"nb8_geomcut", "nb8_cutter"}
+                                             : std::vector<std::string>{"nb8"}) {
+        const Row* largest = nullptr;
+        for (const Row& row : rows) {
+          if (row.case_name == c.name && row.model == "efg" && row.variant == variant &&
+              (largest == nullptr || row.dofs > largest->dofs)) {
+            largest = &row;
+          }
         }
+        if (largest == nullptr) continue;
+        progress_stream << c.name << " efg " << variant << " at " << largest->dofs << " dofs: "
+                        << format(largest->ms_per_step, 4) << " ms per step ("
+                        << format(1000 / largest->ms_per_step, 3) << " steps/s, " << format(largest->cg_iterations, 4)
+                        << " CG iterations), error " << format(largest->error_pct, 3) << " %";
+        const auto report = cut_reports.find(variant + " " + largest->resolution);
+        if (report != cut_reports.end()) {
+          const physics::VolumeCutReport& r = report->second;
+          progress_stream << "; cutter: " << r.particle_links_severed + r.element_links_severed << " links severed ("
+                          << r.particle_links_severed << " particle, " << r.element_links_severed << " element), "
+                          << r.elements_reselected << " elements re-selected, " << r.elements_isolated << " isolated, "
+                          << r.reselection_failures << " failures";
+        }
+        progress_stream << "\n";
       }
-      if (largest == nullptr) continue;
-      progress_stream << c.name << " efg nb8 at " << largest->dofs << " dofs: " << format(largest->ms_per_step, 4)
-                      << " ms per step (" << format(1000 / largest->ms_per_step, 3) << " steps/s, "
-                      << format(largest->cg_iterations, 4) << " CG iterations), error " << format(largest->error_pct, 3)
-                      << " %\n";
     }
     write_references(out_dir / "references.json", cases, references);
     int unconverged = 0;
