@@ -16,13 +16,25 @@ rows=$(($(wc -l < "$csv") - 1))
 bad=$(awk -F, 'NR > 1 && $7 != "stable" && $7 != "diverged" && $7 != "nonfinite" && $7 != "cg_not_converged"' "$csv")
 [ -z "$bad" ] || { echo "unknown outcomes:"; echo "$bad"; exit 1; }
 cases=$(awk -F, 'NR > 1 { print $3 }' "$csv" | sort -u | tr '\n' ' ')
-for c in beam_gravity compression_release inverted_start; do
+for c in beam_gravity compression_release inverted_start fast_blade thin_slice; do
   case " $cases " in *" $c "*) ;; *) echo "case $c not run (ran: $cases)"; exit 1 ;; esac
+done
+# The cutting cases run on efg only, over the whole quick grid (3 E x 3 nu x 2 dt each).
+for c in fast_blade thin_slice; do
+  n=$(awk -F, -v c="$c" 'NR > 1 && $1 == "efg" && $3 == c' "$csv" | wc -l)
+  [ "$n" -eq 18 ] || { echo "case $c: $n efg runs, expected 18"; exit 1; }
+  other=$(awk -F, -v c="$c" 'NR > 1 && $1 != "efg" && $3 == c' "$csv")
+  [ -z "$other" ] || { echo "case $c run by a model that cannot cut:"; echo "$other"; exit 1; }
+done
+# The thin-slice study (both rotations of the corotation) is in the summary.
+grep -q '^Thin-slice study' "$work/stability_summary.txt" || { echo "no thin-slice study in the summary"; exit 1; }
+for r in shape_matching deformation_gradient; do
+  grep -q "^  $r " "$work/stability_summary.txt" || { echo "thin-slice study: no $r rows"; exit 1; }
 done
 failed=$(awk -F, 'NR > 1 && $2 == "implicit_euler" && $4 + 0 <= 1e8 && $5 + 0 <= 0.49 && $6 + 0 <= 0.0331 && $7 != "stable"' "$csv")
 [ -z "$failed" ] || { echo "implicit Euler not stable inside the target:"; echo "$failed"; exit 1; }
 inside=$(awk -F, 'NR > 1 && $2 == "implicit_euler" && $4 + 0 <= 1e8 && $5 + 0 <= 0.49 && $6 + 0 <= 0.0331' "$csv" | wc -l)
-[ "$inside" -ge 24 ] || { echo "only $inside implicit runs inside the target"; exit 1; }
+[ "$inside" -ge 64 ] || { echo "only $inside implicit runs inside the target"; exit 1; }
 if command -v gnuplot > /dev/null 2>&1; then
   [ -s "$work/stability.png" ] || { echo "stability.png not written"; exit 1; }
 fi
