@@ -11,6 +11,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <functional>
 
@@ -279,6 +281,8 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
       body.cutter = std::make_unique<physics::VolumeCutter>(*model, 1e-6, 0.5 * spec.resolution);
       physics::SurfaceMappingReport mapping;
       body.embedding = physics::map_surface(*model, *body.cut_surface, mapping);
+      body.surface_keys = body.cut_surface->vertex_keys();
+      body.surface_rest = body.cut_surface->rest_vertices();
       body.surface = body.cut_surface->triangles();
       body.render_triangles.clear();
       for (const auto& t : body.surface)
@@ -460,10 +464,20 @@ std::vector<physics::NodalSpring> World::contact(const Body& body, StepStats& st
   return springs;
 }
 
-void World::rebuild_cut_surface(Body& body) {
+void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
+                                const std::vector<std::uint8_t>& changed) {
   body.cut_surface->rebuild();
   physics::SurfaceMappingReport mapping;
-  body.embedding = physics::map_surface(*body.efg, *body.cut_surface, mapping);
+  physics::MappingReuse reuse;
+  reuse.embedding = body.embedding ? &*body.embedding : nullptr;
+  reuse.keys = &body.surface_keys;
+  reuse.rest_vertices = &body.surface_rest;
+  reuse.element_changed = &changed;
+  reuse.dirty_lo = dirty_lo;
+  reuse.dirty_hi = dirty_hi;
+  body.embedding = physics::map_surface(*body.efg, *body.cut_surface, mapping, body.surface_keys.empty() ? nullptr : &reuse);
+  body.surface_keys = body.cut_surface->vertex_keys();
+  body.surface_rest = body.cut_surface->rest_vertices();
   body.surface = body.cut_surface->triangles();
   body.render_triangles.clear();
   body.render_triangles.reserve(3 * body.surface.size());
@@ -474,7 +488,7 @@ void World::rebuild_cut_surface(Body& body) {
   const physics::SurfaceTopology topology = physics::surface_topology(body.surface);
   cut_totals_.worst_boundary_edges = std::max(cut_totals_.worst_boundary_edges, topology.boundary_edges);
   cut_totals_.worst_nonmanifold_edges = std::max(cut_totals_.worst_nonmanifold_edges, topology.nonmanifold_edges);
-  cut_totals_.vertices_remapped += body.embedding->vertex_count();
+  cut_totals_.vertices_remapped += mapping.mapped;
   cut_totals_.relaxed_fallbacks += mapping.relaxed_fallbacks;
   cut_totals_.wrong_side += mapping.wrong_side;
   cut_totals_.pinches_closed = body.cut_surface->pinches_closed();
@@ -578,7 +592,14 @@ void World::cut_body(Body& body, StepStats& stats) {
   stats.ms_ccd += report.ms_ccd;
   topology_start = Clock::now();
   const bool changed = report.any() || faces > 0;
-  if (changed) rebuild_cut_surface(body);
+  if (changed) {
+    // Remap around this step's cut (the reach of the mapping's search) and wherever an
+    // element was re-selected.
+    std::vector<std::uint8_t> element_changed(static_cast<std::size_t>(body.efg->element_count()), 0);
+    for (int e : report.changed_elements) element_changed[e] = 1;
+    const physics::Vec3 reach = physics::Vec3::Constant(4 * a);
+    rebuild_cut_surface(body, visibility.lo - reach, visibility.hi + reach, element_changed);
+  }
   stats.ms_topology += ms_rest + report.ms_topology + ms_since(topology_start);
   stats.links_severed += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;
   if (changed) {

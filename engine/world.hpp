@@ -59,6 +59,8 @@ struct Body {
   std::unique_ptr<physics::VolumeCutter> cutter;
   std::unique_ptr<physics::CutSurface> cut_surface;
   physics::Vector previous_positions;
+  std::vector<long long> surface_keys;  // the cut surface's vertex keys and rest positions at the
+  physics::Vector surface_rest;         // last mapping, so the next one reuses what did not change
   physics::Vec3 surface_min = physics::Vec3::Zero(), surface_max = physics::Vec3::Zero();  // rest box
   physics::Vector gravity;                         // 3n, constant
   physics::ImplicitEulerSettings integrator;
@@ -171,7 +173,9 @@ class World {
   // detect_cuts -> apply_topology for one body (seed 004 §2.7): CCD of the step's blade
   // sweep against its links, re-selection, the cut surface and its mapping.
   void cut_body(Body& body, StepStats& stats);
-  void rebuild_cut_surface(Body& body);
+  // dirty_lo/hi: rest box around what the cut changed; changed: per element, re-selected.
+  void rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
+                           const std::vector<std::uint8_t>& changed);
   void solve_body(Body& body, const std::vector<physics::NodalSpring>& springs, double end_time,
                   StepStats& stats);
 

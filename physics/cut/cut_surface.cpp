@@ -277,12 +277,24 @@ void CutSurface::rebuild() {
 int CutSurface::build_surface(bool fill_empty) {
   // Per grid node, its (up to) 8 cubes grouped by the uncut faces they share around it.
   // Local cube slot s = dx + 2 dy + 4 dz for the cube (i - 1 + dx, j - 1 + dy, k - 1 + dz).
-  std::unordered_map<int, std::array<std::int8_t, 8>> groups_of_node;
+  // Dense per-node scratch, reset only where used (the surface touches few of the nodes).
+  const size_t nodes = node_rest_.size();
+  if (node_groups_.size() != nodes) {
+    node_groups_.assign(nodes, {});
+    node_groups_done_.assign(nodes, 0);
+    vertex_of_.assign(8 * nodes, -1);
+  }
+  for (int node : touched_nodes_) {
+    node_groups_done_[node] = 0;
+    for (int g = 0; g < 8; ++g) vertex_of_[8 * static_cast<size_t>(node) + g] = -1;
+  }
+  touched_nodes_.clear();
   const auto groups = [&](int i, int j, int k) -> const std::array<std::int8_t, 8>& {
     const int node = node_index(i, j, k);
-    auto it = groups_of_node.find(node);
-    if (it != groups_of_node.end()) return it->second;
-    std::array<std::int8_t, 8> label{};
+    if (node_groups_done_[node]) return node_groups_[node];
+    node_groups_done_[node] = 1;
+    touched_nodes_.push_back(node);
+    std::array<std::int8_t, 8>& label = node_groups_[node];
     std::array<int, 8> cube{};
     for (int s = 0; s < 8; ++s) {
       const int ci = i - 1 + (s & 1), cj = j - 1 + ((s >> 1) & 1), ck = k - 1 + ((s >> 2) & 1);
@@ -313,28 +325,32 @@ int CutSurface::build_surface(bool fill_empty) {
         }
       }
     }
-    return groups_of_node.emplace(node, label).first->second;
+    return label;
   };
 
-  std::unordered_map<long long, int> vertex_of;  // node * 8 + group -> vertex
   std::vector<Vec3> positions;
   anchors_.clear();
   on_cut_.clear();
   triangles_.clear();
   vertex_node_.clear();
+  vertex_keys_.clear();
+  std::vector<std::uint8_t> from_cut_face;  // per triangle
   const auto vertex = [&](int i, int j, int k, int cube_i, int cube_j, int cube_k, bool cut_face) {
     const int slot = (cube_i - (i - 1)) + 2 * (cube_j - (j - 1)) + 4 * (cube_k - (k - 1));
     const int group = groups(i, j, k)[slot];
-    const long long key = static_cast<long long>(node_index(i, j, k)) * 8 + group;
-    auto [it, created] = vertex_of.emplace(key, static_cast<int>(positions.size()));
+    const size_t key = static_cast<size_t>(node_index(i, j, k)) * 8 + static_cast<size_t>(group);
+    const bool created = vertex_of_[key] < 0;
+    if (created) vertex_of_[key] = static_cast<int>(positions.size());
+    const int id = vertex_of_[key];
     if (created) {
+      vertex_keys_.push_back(static_cast<long long>(key));
       positions.push_back(node_rest_[node_index(i, j, k)]);
       vertex_node_.push_back(node_index(i, j, k));
       anchors_.push_back(cube_centre(cube_i, cube_j, cube_k));
       on_cut_.push_back(0);
     }
-    if (cut_face) on_cut_[it->second] = 1;
-    return it->second;
+    if (cut_face) on_cut_[id] = 1;
+    return id;
   };
 
   for (int k = 1; k + 1 < counts_[2]; ++k) {
@@ -376,6 +392,8 @@ int CutSurface::build_surface(bool fill_empty) {
               triangles_.push_back({ids[0], ids[1], ids[2]});
               triangles_.push_back({ids[0], ids[2], ids[3]});
             }
+            from_cut_face.push_back(cut_face ? 1 : 0);
+            from_cut_face.push_back(cut_face ? 1 : 0);
           }
         }
       }
@@ -384,12 +402,28 @@ int CutSurface::build_surface(bool fill_empty) {
   // Pinches: edges used by four triangles. The four cubes around such an edge alternate
   // full, gap, full, gap; the first gap (in slot order) is closed.
   {
-    std::map<std::pair<int, int>, int> uses;
-    for (const auto& t : triangles_)
-      for (int e = 0; e < 3; ++e) ++uses[{std::min(t[e], t[(e + 1) % 3]), std::max(t[e], t[(e + 1) % 3])}];
+    // Edges used more than twice. At build every edge is a suspect; after a cut only the
+    // edges of triangles that touch a cut-face vertex can be (the rest is as at build).
+    std::vector<std::uint8_t> suspect_vertex(positions.size(), fill_empty ? 1 : 0);
+    if (!fill_empty) {
+      for (size_t t = 0; t < triangles_.size(); ++t)
+        if (from_cut_face[t])
+          for (int v : triangles_[t]) suspect_vertex[v] = 1;
+    }
+    std::vector<std::pair<int, int>> edges;
+    for (const auto& t : triangles_) {
+      if (!suspect_vertex[t[0]] && !suspect_vertex[t[1]] && !suspect_vertex[t[2]]) continue;
+      for (int e = 0; e < 3; ++e) edges.emplace_back(std::min(t[e], t[(e + 1) % 3]), std::max(t[e], t[(e + 1) % 3]));
+    }
+    std::sort(edges.begin(), edges.end());
     int closed = 0;
     const int nx = counts_[0] + 1, ny = counts_[1] + 1;
-    for (const auto& [edge, count] : uses) {
+    for (size_t first = 0; first < edges.size();) {
+      size_t last = first;
+      while (last < edges.size() && edges[last] == edges[first]) ++last;
+      const auto edge = edges[first];
+      const size_t count = last - first;
+      first = last;
       if (count <= 2) continue;
       const int n1 = std::min(vertex_node_[edge.first], vertex_node_[edge.second]);
       const int n2 = std::max(vertex_node_[edge.first], vertex_node_[edge.second]);
@@ -447,7 +481,7 @@ int CutSurface::build_surface(bool fill_empty) {
 }
 
 SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& surface,
-                             SurfaceMappingReport& report) {
+                             SurfaceMappingReport& report, const MappingReuse* reuse) {
   const double a = model.spacing();
   const Vec3 origin = model.grid_origin();
   // Elements by integration cube.
@@ -469,9 +503,40 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
   constexpr int shells = 3;  // search radius, in integration cubes
   std::vector<std::pair<double, int>> nearby;
   std::vector<Vec3> positions;
+  std::unordered_map<long long, int> previous_of;
+  if (reuse && reuse->embedding && reuse->keys && reuse->rest_vertices) {
+    previous_of.reserve(reuse->keys->size());
+    for (size_t v = 0; v < reuse->keys->size(); ++v) previous_of.emplace((*reuse->keys)[v], static_cast<int>(v));
+  }
   for (int v = 0; v < vertices; ++v) {
     const Vec3 vertex = rest_vertices.segment<3>(3 * static_cast<Eigen::Index>(v));
     const Vec3 anchor = surface.anchors()[v];
+    if (!previous_of.empty()) {
+      const auto it = previous_of.find(surface.vertex_keys()[v]);
+      bool dirty = true;
+      if (it != previous_of.end()) {
+        const int p = it->second;
+        const int e = reuse->embedding->elements[p];
+        dirty = reuse->rest_vertices->segment<3>(3 * static_cast<Eigen::Index>(p)) != vertex ||
+                (reuse->element_changed && (*reuse->element_changed)[e]) ||
+                reuse->embedding->row_lengths[p] > stride;
+        bool in_box = true;
+        for (int axis = 0; axis < 3; ++axis)
+          in_box = in_box && vertex[axis] >= reuse->dirty_lo[axis] && vertex[axis] <= reuse->dirty_hi[axis];
+        dirty = dirty || in_box;
+        if (!dirty) {
+          const size_t from = static_cast<size_t>(p) * reuse->embedding->stride;
+          const size_t to = static_cast<size_t>(v) * stride;
+          const int length = reuse->embedding->row_lengths[p];
+          embedding.elements[v] = e;
+          embedding.row_lengths[v] = length;
+          std::copy_n(reuse->embedding->particles.begin() + from, length, embedding.particles.begin() + to);
+          std::copy_n(reuse->embedding->weights.begin() + from, length, embedding.weights.begin() + to);
+          continue;
+        }
+      }
+    }
+    ++report.mapped;
     nearby.clear();
     std::array<long long, 3> cube{};
     for (int axis = 0; axis < 3; ++axis) cube[axis] = static_cast<long long>(std::floor((vertex[axis] - origin[axis]) / a));

@@ -110,6 +110,9 @@ class CutSurface {
   const std::vector<std::array<int, 3>>& triangles() const { return triangles_; }
   const std::vector<Vec3>& anchors() const { return anchors_; }  // per vertex, see above
   const std::vector<std::uint8_t>& on_cut() const { return on_cut_; }  // per vertex
+  // Per vertex: grid node x 8 + its group there. A vertex keeps its key across rebuilds as
+  // long as the cut does not split its group, which lets a mapping be reused.
+  const std::vector<long long>& vertex_keys() const { return vertex_keys_; }
   const RestCut& rest_cut() const { return rest_cut_; }
   int cut_faces() const { return cut_faces_; }
   int cubes() const { return cube_count_; }
@@ -134,6 +137,12 @@ class CutSurface {
   int pinches_closed_ = 0;
   RestCut rest_cut_;
   std::vector<int> vertex_node_;  // grid node of each vertex
+  std::vector<long long> vertex_keys_;  // node * 8 + group: the same vertex across rebuilds
+  // Scratch of build_surface, kept to avoid reallocating.
+  std::vector<std::array<std::int8_t, 8>> node_groups_;
+  std::vector<std::uint8_t> node_groups_done_;
+  std::vector<int> vertex_of_;
+  std::vector<int> touched_nodes_;
 
   Vector rest_vertices_;
   std::vector<std::array<int, 3>> triangles_;
@@ -143,11 +152,22 @@ class CutSurface {
 
 // The mapping of a cut surface's vertices onto the model (see the file comment).
 struct SurfaceMappingReport {
+  int mapped = 0;             // vertices whose mapping was computed (the others were reused)
   int relaxed_fallbacks = 0;  // no visible integration point within reach
   int wrong_side = 0;         // chosen point across the cut from the vertex's anchor
 };
+// What an earlier mapping can lend a new one: a vertex with the same key and rest position
+// keeps its row, unless it lies in the dirty box (around the cut's latest change) or its
+// integration point's neighbourhood changed (element_changed).
+struct MappingReuse {
+  const SurfaceEmbedding* embedding = nullptr;
+  const std::vector<long long>* keys = nullptr;
+  const Vector* rest_vertices = nullptr;
+  const std::vector<std::uint8_t>* element_changed = nullptr;  // per element, may be null
+  Vec3 dirty_lo = Vec3::Zero(), dirty_hi = Vec3::Zero();
+};
 SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& surface,
-                             SurfaceMappingReport& report);
+                             SurfaceMappingReport& report, const MappingReuse* reuse = nullptr);
 
 // Elements with a neighbour across the rest cut (its link to the integration point crosses a
 // cut triangle): zero when the volume cut agrees with the surface's.

@@ -93,11 +93,26 @@ void VolumeCutter::integration_points(const Vector& particles, std::vector<Vec3>
 }
 
 void VolumeCutter::refit(const std::vector<Vec3>& points_start, const std::vector<Vec3>& points_end,
-                         const Vector& particles_start, const Vector& particles_end) {
+                         const Vector& particles_start, const Vector& particles_end, const Vec3& near_lo,
+                         const Vec3& near_hi) {
   const auto particle = [](const Vector& x, int p) { return Vec3(x.segment<3>(3 * static_cast<Eigen::Index>(p))); };
+  // Only links with an endpoint near the sweep are refitted: a link whose endpoints both stay
+  // outside the sweep's box grown by more than a link's length cannot touch the blade, and a
+  // stale box elsewhere only adds candidates the narrow test rejects.
+  const auto near = [&](const Vec3& at_start, const Vec3& at_end) {
+    for (int axis = 0; axis < 3; ++axis) {
+      const double lo = std::min(at_start[axis], at_end[axis]), hi = std::max(at_start[axis], at_end[axis]);
+      if (hi < near_lo[axis] || lo > near_hi[axis]) return false;
+    }
+    return true;
+  };
+  near_particle_.resize(static_cast<size_t>(model_.node_count()));
+  for (int p = 0; p < model_.node_count(); ++p)
+    near_particle_[p] = near(particle(particles_start, p), particle(particles_end, p)) ? 1 : 0;
   for (size_t link = 0; link < particle_links_.size(); ++link) {
     if (particle_link_severed_[link]) continue;
     const auto [a, b] = particle_links_[link];
+    if (!near_particle_[a] && !near_particle_[b] && broad_phase_.contains(static_cast<int>(link))) continue;
     broad_phase_.set_edge(static_cast<int>(link),
                           {{particle(particles_start, a), particle(particles_start, b)},
                            {particle(particles_end, a), particle(particles_end, b)}});
@@ -107,6 +122,9 @@ void VolumeCutter::refit(const std::vector<Vec3>& points_start, const std::vecto
     const size_t base = static_cast<size_t>(e) * stride;
     auto& boxed = element_link_particles_[e];
     const int length = model_.row_lengths()[e];
+    bool touching = near(points_start[e], points_end[e]) || boxed.empty();
+    for (int k = 0; k < length && !touching; ++k) touching = near_particle_[model_.neighbours()[base + k]] != 0;
+    if (!touching) continue;
     // Slots that no longer hold a link (a shorter row after a re-selection) leave the tree.
     for (int k = length; k < static_cast<int>(boxed.size()); ++k) {
       if (boxed[k] >= 0) broad_phase_.remove_edge(element_link_id(e, k));
@@ -182,7 +200,16 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
   std::vector<Vec3> points_start, points_end;
   integration_points(particles_start, points_start);
   integration_points(particles_end, points_end);
-  refit(points_start, points_end, particles_start, particles_end);
+  // The region the blade sweeps this step, grown by four particle spacings (a link stretched
+  // to four times its rest length is far beyond what the model represents).
+  Vec3 near_lo = Vec3::Constant(std::numeric_limits<double>::infinity()), near_hi = -near_lo;
+  for (size_t j = 0; j + 1 < blade_poses.size(); ++j) {
+    if (!active[j]) continue;
+    for (size_t end = j; end <= j + 1; ++end)
+      for (const Vec3& point : blade_poses[end]) near_lo = near_lo.cwiseMin(point), near_hi = near_hi.cwiseMax(point);
+  }
+  const Vec3 grow = Vec3::Constant(8 * model_.spacing());
+  refit(points_start, points_end, particles_start, particles_end, near_lo - grow, near_hi + grow);
 
   const auto particle = [](const Vector& x, int p) { return Vec3(x.segment<3>(3 * static_cast<Eigen::Index>(p))); };
   const int link_count = static_cast<int>(particle_links_.size());

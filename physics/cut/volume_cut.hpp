@@ -112,7 +112,8 @@ class VolumeCutter {
   struct Sweep;  // the sampled sweep of one call
   int element_link_id(int element, int slot) const;
   void refit(const std::vector<Vec3>& points_start, const std::vector<Vec3>& points_end,
-             const Vector& particles_start, const Vector& particles_end);
+             const Vector& particles_start, const Vector& particles_end, const Vec3& near_lo,
+             const Vec3& near_hi);
   // Whether the blade, over the active sub-intervals, touches the moving segment whose
   // endpoints go linearly from (a0, b0) at fraction 0 to (a1, b1) at fraction 1.
   std::optional<PolylineHit> sweep_hit(const Sweep& sweep, const Vec3& a0, const Vec3& b0,
@@ -129,6 +130,7 @@ class VolumeCutter {
   std::vector<std::vector<int>> element_link_particles_;
   long total_links_severed_ = 0;
   std::vector<int> candidates_;  // reused
+  std::vector<std::uint8_t> near_particle_;  // reused by refit
   // The endpoints of the call in progress (valid only inside cut()).
   const std::vector<Vec3>* points_start_ = nullptr;
   const std::vector<Vec3>* points_end_ = nullptr;
