@@ -121,6 +121,15 @@ int trajectory_export(const std::string& file, const std::string& out) {
   return trajectory.report.complete ? 0 : 2;
 }
 
+int trajectory_import(const std::string& csv, const std::string& out) {
+  std::ifstream in(csv);
+  if (!in) throw std::runtime_error(csv + ": cannot open");
+  const auto samples = engine::import_csv(in, csv);
+  engine::write_trajectory(out, samples);
+  std::printf("%s: %zu samples, %.3f .. %.3f s\n", out.c_str(), samples.size(), samples.front().time, samples.back().time);
+  return 0;
+}
+
 int trajectory_info(const std::string& file) {
   auto trajectory = engine::read_trajectory(file);
   const auto& s = trajectory.samples;

@@ -41,6 +41,7 @@ int check(const std::string& scene_file);
 int run(const RunArgs& args);
 int trajectory_export(const std::string& file, const std::string& out);
 int trajectory_info(const std::string& file);
+int trajectory_import(const std::string& csv, const std::string& out);
 int trajectory_synth(const SynthArgs& args);
 
 }  // namespace incise::app

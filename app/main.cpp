@@ -47,6 +47,10 @@ int main(int argc, char** argv) {
   std::string info_file;
   auto* info_cmd = trajectory_cmd->add_subcommand("info", "Summarise a trajectory file and report damage");
   info_cmd->add_option("file", info_file, "Trajectory file")->required();
+  std::string import_file, import_out;
+  auto* import_cmd = trajectory_cmd->add_subcommand("import", "Write a trajectory file from CSV (the export's columns)");
+  import_cmd->add_option("csv", import_file, "CSV: time,x,y,z,qw,qx,qy,qz,buttons[,fx,fy,fz]")->required();
+  import_cmd->add_option("--out", import_out, "Output trajectory file")->required();
   incise::app::SynthArgs synth;
   auto* synth_cmd = trajectory_cmd->add_subcommand("synth", "Synthesise a probe poke or a blade stroke (approach, press, slide, lift)");
   synth_cmd->add_option("--out", synth.out, "Output trajectory file")->required();
@@ -84,6 +88,7 @@ int main(int argc, char** argv) {
     if (*run_cmd) return incise::app::run(run);
     if (*export_cmd) return incise::app::trajectory_export(export_file, export_out);
     if (*info_cmd) return incise::app::trajectory_info(info_file);
+    if (*import_cmd) return incise::app::trajectory_import(import_file, import_out);
     if (*synth_cmd) return incise::app::trajectory_synth(synth);
     if (*accuracy_cmd) return incise::bench::run_accuracy_bench(accuracy_quick, accuracy_out, std::cerr);
     if (*stability_cmd) return incise::bench::run_stability_bench(stability_quick, stability_out, std::cerr);

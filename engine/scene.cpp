@@ -180,7 +180,7 @@ GeneratorSpec read_generator(const Json& node, const std::string& path,
                              std::vector<std::string>& errors) {
   Reader r(node, path, errors);
   GeneratorSpec g;
-  g.type = r.text("type", true, "", {"box", "ellipsoid", "organ"});
+  g.type = r.text("type", true, "", {"box", "ellipsoid", "organ", "cylinder", "torus"});
   if (g.type == "box") {
     g.box.min = r.point("min", true, {});
     g.box.max = r.point("max", true, {});
@@ -192,6 +192,17 @@ GeneratorSpec read_generator(const Json& node, const std::string& path,
   } else if (g.type == "ellipsoid" || g.type == "organ") {
     g.center = r.point("center", true, {});
     g.radii = r.point("radii", true, {1, 1, 1}, 1e-6, 100);
+  } else if (g.type == "cylinder" || g.type == "torus") {
+    g.center = r.point("center", true, {});
+    const std::string axis = r.text("axis", false, "z", {"x", "y", "z"});
+    g.axis = axis == "x" ? 0 : axis == "y" ? 1 : 2;
+    g.radius = r.number("radius", true, 0.01, 0, 100, true);
+    if (g.type == "cylinder") g.length = r.number("length", true, 0.05, 0, 100, true);
+    if (g.type == "torus") {
+      g.major_radius = r.number("major_radius", true, 0.03, 0, 100, true);
+      if (r.has("major_radius") && r.has("radius") && !(g.major_radius > g.radius))
+        r.error(r.child("major_radius"), "must be greater than radius (the tube would cross the axis)");
+    }
   }
   return g;
 }

@@ -40,10 +40,14 @@ struct MaterialSpec {
 // Either a mesh file (closed surface, read with assimp and filled with elements) or a
 // generated shape.
 struct GeneratorSpec {
-  std::string type;  // "box", "ellipsoid", "organ"
+  std::string type;  // "box", "ellipsoid", "organ", "cylinder", "torus"
   Box box;           // box
-  Point center{};    // ellipsoid, organ
+  Point center{};    // ellipsoid, organ, cylinder, torus
   Point radii{};     // ellipsoid, organ
+  int axis = 2;      // cylinder, torus: 0, 1, 2 for x, y, z
+  double radius = 0;        // cylinder; torus: the tube's radius
+  double length = 0;        // cylinder, along its axis
+  double major_radius = 0;  // torus: centre to the tube's centre line
 };
 
 // Settings of the meshless model (bodies with model "efg"); see physics/efg/corotational_efg.hpp.

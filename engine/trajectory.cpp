@@ -1,5 +1,7 @@
 #include "engine/trajectory.hpp"
 
+#include <istream>
+
 #include <algorithm>
 #include <bit>
 #include <cerrno>
@@ -541,6 +543,68 @@ std::span<const ToolSample> samples_between(const std::vector<ToolSample>& sampl
   const auto first = std::upper_bound(samples.begin(), samples.end(), t0, time_before);
   const auto last = std::upper_bound(first, samples.end(), t1, time_before);
   return {first, last};
+}
+
+}  // namespace incise::engine
+
+namespace incise::engine {
+
+std::vector<ToolSample> import_csv(std::istream& in, const std::string& name) {
+  const auto fail = [&name](const std::string& what) { return TrajectoryError(name, std::nullopt, what); };
+  std::string line;
+  if (!std::getline(in, line)) throw fail("empty file (expected a header line)");
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  const std::string header = "time,x,y,z,qw,qx,qy,qz,buttons";
+  const bool with_force = line == header + ",fx,fy,fz";
+  if (line != header && !with_force)
+    throw fail("line 1: header must be '" + header + "' (optionally ',fx,fy,fz'), got '" + line + "'");
+  static const char* columns[] = {"time", "x", "y", "z", "qw", "qx", "qy", "qz", "buttons", "fx", "fy", "fz"};
+  const size_t expected = with_force ? 12 : 9;
+  std::vector<ToolSample> samples;
+  for (long number = 2; std::getline(in, line); ++number) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty()) continue;
+    std::vector<double> values;
+    size_t start = 0;
+    while (true) {
+      const size_t comma = line.find(',', start);
+      const std::string field = line.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+      const std::string where = "line " + std::to_string(number) + ", column " +
+                                std::to_string(values.size() + 1) +
+                                (values.size() < 12 ? std::string(" (") + columns[values.size()] + ")" : "");
+      double value = 0;
+      const auto result = std::from_chars(field.data(), field.data() + field.size(), value);
+      if (result.ec != std::errc() || result.ptr != field.data() + field.size() || field.empty())
+        throw fail(where + ": '" + field + "' is not a number");
+      if (!std::isfinite(value)) throw fail(where + ": " + field + " is not finite");
+      values.push_back(value);
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+    if (values.size() != expected)
+      throw fail("line " + std::to_string(number) + ": " + std::to_string(values.size()) +
+                            " columns, the header has " + std::to_string(expected));
+    ToolSample sample;
+    sample.time = values[0];
+    for (int c = 0; c < 3; ++c) sample.position[c] = values[1 + c];
+    double norm = 0;
+    for (int c = 0; c < 4; ++c) norm += values[4 + c] * values[4 + c];
+    norm = std::sqrt(norm);
+    if (!(norm > 1e-12)) throw fail("line " + std::to_string(number) + ": the quaternion (qw, qx, qy, qz) is zero");
+    for (int c = 0; c < 4; ++c) sample.orientation[c] = values[4 + c] / norm;
+    if (values[8] < 0 || values[8] != std::floor(values[8]) || values[8] > 4294967295.0)
+      throw fail("line " + std::to_string(number) + ": column 9 (buttons): " + std::to_string(values[8]) +
+                            " is not an unsigned integer");
+    sample.buttons = static_cast<std::uint32_t>(values[8]);
+    if (with_force)
+      for (int c = 0; c < 3; ++c) sample.force[c] = static_cast<float>(values[9 + c]);
+    if (!samples.empty() && !(sample.time > samples.back().time))
+      throw fail("line " + std::to_string(number) + ": time " + std::to_string(sample.time) +
+                            " does not increase (previous " + std::to_string(samples.back().time) + ")");
+    samples.push_back(sample);
+  }
+  if (samples.empty()) throw fail("no sample after the header");
+  return samples;
 }
 
 }  // namespace incise::engine

@@ -124,6 +124,11 @@ void write_trajectory(const std::filesystem::path& file, const std::vector<ToolS
 // Header line time,x,y,z,qw,qx,qy,qz,buttons,fx,fy,fz then one row per sample, each number in
 // its shortest form that parses back to the identical double (or float for the force).
 void export_csv(const Trajectory& trajectory, std::ostream& out);
+// The inverse, for trajectories authored as text (keyframes from a script, another
+// simulator): the header "time,x,y,z,qw,qx,qy,qz,buttons" (optionally ",fx,fy,fz"), one sample
+// per line, times strictly increasing, finite numbers, a non-zero quaternion (normalised
+// here), buttons a non-negative integer. Throws TrajectoryError naming the line and column.
+std::vector<ToolSample> import_csv(std::istream& in, const std::string& name);
 
 // The tool at `time`: position and force interpolated linearly, orientation by slerp along the
 // shorter arc, buttons of the sample at or before `time`. Outside the recorded range the time

@@ -60,6 +60,21 @@ std::function<bool(const physics::Vec3&)> inside_test(const GeneratorSpec& g) {
       return s <= 1.0;
     };
   }
+  if (g.type == "cylinder") {
+    return [g](const physics::Vec3& p) {
+      const physics::Vec3 d = p - vec(g.center);
+      const int u = (g.axis + 1) % 3, v = (g.axis + 2) % 3;
+      return std::abs(d[g.axis]) <= 0.5 * g.length && d[u] * d[u] + d[v] * d[v] <= g.radius * g.radius;
+    };
+  }
+  if (g.type == "torus") {
+    return [g](const physics::Vec3& p) {
+      const physics::Vec3 d = p - vec(g.center);
+      const int u = (g.axis + 1) % 3, v = (g.axis + 2) % 3;
+      const double ring = std::sqrt(d[u] * d[u] + d[v] * d[v]) - g.major_radius;
+      return ring * ring + d[g.axis] * d[g.axis] <= g.radius * g.radius;
+    };
+  }
   return [g](const physics::Vec3& p) { return inside_organ(g, p); };
 }
 
@@ -107,6 +122,11 @@ BodyShape body_shape(const BodySpec& spec) {
     if (g.type == "box") {
       shape.lo = vec(g.box.min);
       shape.hi = vec(g.box.max);
+    } else if (g.type == "cylinder" || g.type == "torus") {
+      physics::Vec3 half = physics::Vec3::Constant(g.type == "torus" ? g.major_radius + g.radius : g.radius);
+      half[g.axis] = g.type == "torus" ? g.radius : 0.5 * g.length;
+      shape.lo = vec(g.center) - half;
+      shape.hi = vec(g.center) + half;
     } else {
       shape.lo = vec(g.center) - vec(g.radii);
       shape.hi = vec(g.center) + vec(g.radii);
