@@ -400,6 +400,8 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
                       {"elements_reselected", totals.elements_reselected},
                       {"isolated_elements", totals.isolated_elements},
                       {"reselection_failures", totals.reselection_failures},
+                      {"orphaned_particles", totals.orphaned_particles},
+                      {"positive_mass_elements", totals.positive_mass_elements},
                       {"elements_linked_across", totals.elements_linked_across},
                       {"ms_ccd", {{"median", percentile(ccd, 0.5)}, {"max", max_of(ccd)}}},
                       {"ms_topology", {{"median", percentile(topology, 0.5)}, {"max", max_of(topology)}}}};

@@ -611,6 +611,16 @@ void World::cut_body(Body& body, StepStats& stats) {
                                                            triangles.empty() ? nullptr : &visibility);
   stats.ms_ccd += report.ms_ccd;
   topology_start = Clock::now();
+  // Particles no element uses any more are pinned: they carry no stiffness.
+  const auto& orphans = body.efg->orphaned_particles();
+  for (std::size_t k = body.orphans_pinned; k < orphans.size(); ++k) {
+    body.fixed[orphans[k]] = 1;
+    body.state.velocities.segment<3>(3 * orphans[k]).setZero();
+    body.velocity_change.segment<3>(3 * orphans[k]).setZero();
+  }
+  body.orphans_pinned = orphans.size();
+  cut_totals_.orphaned_particles = static_cast<long>(orphans.size());
+  cut_totals_.positive_mass_elements = body.efg->positive_mass_elements();
   const bool changed = report.any() || faces > 0;
   if (changed) {
     // Remap around this step's cut (the reach of the mapping's search) and wherever an

@@ -59,6 +59,7 @@ struct Body {
   std::unique_ptr<physics::VolumeCutter> cutter;
   std::unique_ptr<physics::CutSurface> cut_surface;
   physics::Vector previous_positions;
+  std::size_t orphans_pinned = 0;       // of efg->orphaned_particles()
   std::vector<long long> surface_keys;  // the cut surface's vertex keys and rest positions at the
   physics::Vector surface_rest;         // last mapping, so the next one reuses what did not change
   physics::Vec3 surface_min = physics::Vec3::Zero(), surface_max = physics::Vec3::Zero();  // rest box
@@ -117,6 +118,8 @@ struct CutTotals {
   long elements_reselected = 0;
   long isolated_elements = 0;     // thesis failure: several cuts in one element
   long reselection_failures = 0;
+  long orphaned_particles = 0;      // left by every element, pinned
+  long positive_mass_elements = 0;  // share their mass by the positive part of phi
   long vertices_remapped = 0;
   long relaxed_fallbacks = 0;
   long wrong_side = 0;            // over every remapping

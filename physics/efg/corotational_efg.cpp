@@ -678,19 +678,64 @@ void CorotationalEfg::set_neighbourhood(int element, std::span<const int> partic
     restore();
     throw;
   }
-  // The element's mass rho V_e moves to its new neighbours (seed-004 §2.4 step 4).
-  Vector masses = masses_;
+  // The element's mass rho V_e moves to its new neighbours (seed-004 §2.4 step 4), shared by
+  // phi (the thesis's rule). phi is negative at far corners, so after cuts a particle whose
+  // other elements are gone can be left with a negative mass: the element then shares its
+  // mass by the positive part of phi instead (counted in positive_mass_elements()). A
+  // particle no element uses any more keeps its last mass and is reported as orphaned: it
+  // influences nothing, and the caller pins it.
+  if (positive_mass_.size() != volumes_.size()) positive_mass_.assign(volumes_.size(), 0);
+  if (references_.size() != masses_.size()) {
+    references_.assign(masses_.size(), 0);
+    for (int e = 0; e < element_count(); ++e)
+      for (int k = 0; k < row_lengths_[e]; ++k) ++references_[neighbours_[static_cast<size_t>(e) * stride_ + k]];
+  }
+  const auto shares = [](std::span<const double> values, bool positive) {
+    std::vector<double> weights(values.begin(), values.end());
+    if (positive) {
+      double sum = 0;
+      for (double& w : weights) sum += (w = std::max(w, 0.0));
+      for (double& w : weights) w /= sum;
+    }
+    return weights;
+  };
   const double element_mass = material_.density * volumes_[element];
-  for (int k = 0; k < old_length; ++k) masses[old_neighbours[k]] -= old_values[k] * element_mass;
-  for (int k = 0; k < length; ++k) masses[particles[k]] += shape_values_[base + k] * element_mass;
-  for (int k = 0; k < old_length + length; ++k) {
-    const int p = k < old_length ? old_neighbours[k] : particles[k - old_length];
-    if (!(masses[p] > 0)) {
-      restore();
-      fail("set_neighbourhood: particle " + std::to_string(p) + " would have lumped mass " +
-           std::to_string(masses[p]) + " <= 0");
+  std::vector<int> references = references_;
+  for (int p : old_neighbours) --references[p];
+  for (int p : particles) ++references[p];
+  const std::vector<double> old_shares = shares(old_values, positive_mass_[element] != 0);
+  Vector masses;
+  bool accepted = false;
+  int bad = -1;
+  for (const bool positive : {false, true}) {
+    masses = masses_;
+    for (int k = 0; k < old_length; ++k) masses[old_neighbours[k]] -= old_shares[k] * element_mass;
+    const std::vector<double> new_shares =
+        shares(std::span<const double>(&shape_values_[base], static_cast<size_t>(length)), positive);
+    for (int k = 0; k < length; ++k) masses[particles[k]] += new_shares[k] * element_mass;
+    bad = -1;
+    for (int k = 0; k < old_length + length && bad < 0; ++k) {
+      const int p = k < old_length ? old_neighbours[k] : particles[k - old_length];
+      if (references[p] == 0) {
+        masses[p] = masses_[p];  // orphaned: keeps its mass
+      } else if (!(masses[p] > 0)) {
+        bad = p;
+      }
+    }
+    if (bad < 0) {
+      positive_mass_[element] = positive ? 1 : 0;
+      accepted = true;
+      break;
     }
   }
+  if (!accepted) {
+    restore();
+    fail("set_neighbourhood: particle " + std::to_string(bad) + " would have lumped mass " +
+         std::to_string(masses[bad]) + " <= 0");
+  }
+  for (int p : old_neighbours)
+    if (references[p] == 0 && references_[p] > 0) orphans_.push_back(p);
+  references_.swap(references);
   masses_.swap(masses);
   rotations_[element] = Mat3::Identity();
   orientations_[element] = Quaternion::Identity();

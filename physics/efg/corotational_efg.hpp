@@ -56,7 +56,9 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <array>
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -221,6 +223,13 @@ class CorotationalEfg final : public DeformableModel {
   // needed. Throws std::invalid_argument, leaving the model unchanged, if the neighbourhood is
   // invalid or a particle's mass would become non-positive.
   void set_neighbourhood(int element, std::span<const int> particles);
+  // Particles that set_neighbourhood left without any element, in the order it left them
+  // (they keep their mass and influence nothing: pin them).
+  const std::vector<int>& orphaned_particles() const { return orphans_; }
+  // Elements whose mass is shared by the positive part of phi (see set_neighbourhood).
+  int positive_mass_elements() const {
+    return static_cast<int>(std::count(positive_mass_.begin(), positive_mass_.end(), 1));
+  }
 
   // Surface embedding (seed-004 §2.6): each vertex (3n rest positions) maps to its nearest
   // integration point (ties to the lower index) and that point's neighbourhood, with the MLS
@@ -266,6 +275,11 @@ class CorotationalEfg final : public DeformableModel {
   std::vector<int> element_of_cube_;  // cube index -> element, -1 for empty cubes
   std::vector<Mat3> rest_gradients_;  // sum_n X_n (x) grad phi_n, the identity up to rounding
   std::vector<Mat3> rotations_;
+  // Cutting (set_neighbourhood): mass-sharing rule per element, rows using each particle
+  // (built on the first edit), and the particles left by every element.
+  std::vector<std::uint8_t> positive_mass_;
+  std::vector<int> references_;
+  std::vector<int> orphans_;
   std::vector<Eigen::Quaterniond> orientations_;  // the same rotations, warm starts
 
   // Rows (ELL).

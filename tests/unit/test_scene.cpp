@@ -91,13 +91,13 @@ TEST(Scene, BrokenScenesAreRefusedWithTheFieldNamed) {
       {"cuttable fem body", [](Json& s) { s["bodies"][0]["cuttable"] = true; },
        "bodies[0].cuttable: only 'efg' bodies can be cut"},
       {"blade without edge", [](Json& s) {
-         s["tool"] = {{"shape", "blade"}, {"trajectory", "../trajectories/default.traj"}};
+         s["tool"] = {{"shape", "blade"}, {"trajectory", "../trajectories/probe_organ.traj"}};
        }, "tool.edge: is required"},
       {"blade edge of one point", [](Json& s) {
-         s["tool"] = {{"shape", "blade"}, {"edge", {{0, 0, 0}}}, {"trajectory", "../trajectories/default.traj"}};
+         s["tool"] = {{"shape", "blade"}, {"edge", {{0, 0, 0}}}, {"trajectory", "../trajectories/probe_organ.traj"}};
        }, "tool.edge: must be an array of 2 to 64 points"},
       {"blade edge repeats a point", [](Json& s) {
-         s["tool"] = {{"shape", "blade"}, {"edge", {{0, 0, 0}, {0, 0, 0}}}, {"trajectory", "../trajectories/default.traj"}};
+         s["tool"] = {{"shape", "blade"}, {"edge", {{0, 0, 0}, {0, 0, 0}}}, {"trajectory", "../trajectories/probe_organ.traj"}};
        }, "tool.edge[1]: repeats the point before it"},
       {"efg unknown setting", [](Json& s) {
          s["bodies"][0]["model"] = "efg";
@@ -127,7 +127,7 @@ TEST(Scene, BrokenScenesAreRefusedWithTheFieldNamed) {
          s["tool"] = {{"shape", "sphere"}, {"radius", 0.005}, {"trajectory", "nowhere.traj"}};
        }, "tool.trajectory: file '"},
       {"capsule without length", [](Json& s) {
-         s["tool"] = {{"shape", "capsule"}, {"radius", 0.005}, {"trajectory", "../trajectories/default.traj"}};
+         s["tool"] = {{"shape", "capsule"}, {"radius", 0.005}, {"trajectory", "../trajectories/probe_organ.traj"}};
        }, "tool.length: is required"},
       {"expect without bounds", [](Json& s) { s["expect"]["steps"] = Json::object(); }, "expect.steps: needs 'min' or 'max'"},
       {"duplicate body names", [](Json& s) { s["bodies"].push_back(s["bodies"][0]); },
