@@ -1,6 +1,7 @@
 // The `incise` command: replay (headless), check, run (window), trajectory tools.
 #include "app/commands.hpp"
 #include "tests/bench/accuracy.hpp"
+#include "tests/bench/performance.hpp"
 #include "tests/bench/stability.hpp"
 
 #include <CLI/CLI.hpp>
@@ -76,6 +77,12 @@ int main(int argc, char** argv) {
   stability_cmd->add_flag("--quick", stability_quick, "A representative subset (within 3 minutes here)");
   stability_cmd->add_option("--out", stability_out, "Output folder (stability.csv, stability.png)")->capture_default_str();
 
+  bool performance_quick = false;
+  std::string performance_out = "out/bench/performance";
+  auto* performance_cmd = bench_cmd->add_subcommand("performance", "Step time by phase while cutting, by element and triangle count");
+  performance_cmd->add_flag("--quick", performance_quick, "The two coarser resolutions only");
+  performance_cmd->add_option("--out", performance_out, "Output folder (performance.csv)")->capture_default_str();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -92,6 +99,7 @@ int main(int argc, char** argv) {
     if (*synth_cmd) return incise::app::trajectory_synth(synth);
     if (*accuracy_cmd) return incise::bench::run_accuracy_bench(accuracy_quick, accuracy_out, std::cerr);
     if (*stability_cmd) return incise::bench::run_stability_bench(stability_quick, stability_out, std::cerr);
+    if (*performance_cmd) return incise::bench::run_performance_bench(performance_quick, performance_out, std::cerr);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "incise: %s\n", e.what());
     return 1;

@@ -1,0 +1,126 @@
+// The cutting performance report (issue 4): where a cutting step's time goes as the
+// integration grid and the cut surface get finer.
+//
+// Each row replays the default scene's incision (assets/scenes/default.json: the blade is
+// pressed into the lobe and drawn 6 cm along it) with the lobe's integration cube side a and
+// surface cell s changed, from the start of the press to the end of the stroke, and takes the
+// medians of the step phases over the steps the blade was engaged near the body (the steps
+// whose CCD ran): ms_ccd (broad phase + continuous collision), ms_topology (the rest cut,
+// re-selection, MLS and masses, surface rebuild and mapping), ms_solve (implicit Euler + CG),
+// ms_surface (embedded vertex positions), ms_total (the whole step). cut_share_pct is
+// (ms_ccd + ms_topology) / ms_total of the medians, the thesis's H3 asks for <= 10 %.
+// Timings are this machine's (2 shared cores): figures to read, never to assert.
+#include "tests/bench/performance.hpp"
+
+#include "engine/scene.hpp"
+#include "engine/trajectory.hpp"
+#include "engine/world.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace incise::bench {
+
+namespace {
+
+std::filesystem::path find_default_scene() {
+  const std::filesystem::path relative = "assets/scenes/default.json";
+  if (std::filesystem::exists(relative)) return relative;
+  // Next to the binary: build/bin/incise -> assets/ two levels up.
+  std::error_code error;
+  const auto exe = std::filesystem::read_symlink("/proc/self/exe", error);
+  if (!error) {
+    const auto candidate = exe.parent_path().parent_path().parent_path() / relative;
+    if (std::filesystem::exists(candidate)) return candidate;
+  }
+  throw std::runtime_error("bench performance: cannot find " + relative.string() +
+                           " (run it from the repository's root)");
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+struct Resolution {
+  double spacing;   // a, m
+  double surface;   // s, m
+};
+
+}  // namespace
+
+int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress) {
+  try {
+    std::filesystem::create_directories(out_dir);
+    const std::filesystem::path scene_file = find_default_scene();
+    const engine::Scene base = engine::load_scene(scene_file);
+    const std::vector<Resolution> rows =
+        quick ? std::vector<Resolution>{{0.005, 0.0025}, {0.0035, 0.00175}}
+              : std::vector<Resolution>{{0.005, 0.0025}, {0.0035, 0.00175}, {0.0028, 0.0014},
+                                        {0.0028, 0.0007}};
+    // From the press to the end of the stroke of default.traj (0.3 s .. 2.0 s); fewer steps
+    // for the finest rows, whose steps are long.
+    std::ofstream csv(out_dir / "performance.csv");
+    csv << "scene,backend,elements,triangles,ms_ccd,ms_topology,ms_solve,ms_surface,ms_total,"
+           "dofs,steps,ms_topology_max,cut_share_pct,cut_events\n";
+    progress << "incise bench performance" << (quick ? " --quick" : "") << ": the default scene's incision, "
+             << rows.size() << " resolutions, output in " << out_dir.string() << "\n";
+    progress << std::setw(8) << "a mm" << std::setw(8) << "s mm" << std::setw(9) << "elements" << std::setw(10)
+             << "triangles" << std::setw(9) << "ccd" << std::setw(10) << "topology" << std::setw(9) << "solve"
+             << std::setw(9) << "surface" << std::setw(9) << "total" << std::setw(8) << "cut %" << "   (ms, medians)\n";
+    for (const Resolution& resolution : rows) {
+      engine::Scene scene = base;
+      scene.bodies[0].resolution = resolution.spacing;
+      scene.bodies[0].efg.surface_resolution = resolution.surface;
+      scene.render.capture_every = 0;
+      const auto built_start = std::chrono::steady_clock::now();
+      engine::World world(scene, engine::read_trajectory(*scene.tool->trajectory));
+      const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - built_start).count();
+      const auto& body = world.bodies()[0];
+      const long first = std::lround(0.3 / scene.solver.dt);
+      const long last = std::lround((resolution.surface < 0.001 ? 1.2 : 2.0) / scene.solver.dt);
+      std::vector<double> ccd, topology, solve, surface, total;
+      long events = 0;
+      double topology_max = 0;
+      for (long k = 0; k < last; ++k) {
+        const engine::StepStats stats = world.step();
+        if (k < first || !stats.cut_tested) continue;
+        ccd.push_back(stats.ms_ccd);
+        topology.push_back(stats.ms_topology);
+        solve.push_back(stats.ms_solve);
+        surface.push_back(stats.ms_surface);
+        total.push_back(stats.ms_total);
+        topology_max = std::max(topology_max, stats.ms_topology);
+        events += stats.cut_event ? 1 : 0;
+      }
+      const double share = median(total) > 0 ? 100 * (median(ccd) + median(topology)) / median(total) : 0;
+      csv << "default,cpu," << body.elements << ',' << body.surface.size() << ',' << median(ccd) << ','
+          << median(topology) << ',' << median(solve) << ',' << median(surface) << ',' << median(total) << ','
+          << 3 * body.model->node_count() << ',' << ccd.size() << ',' << topology_max << ',' << share << ','
+          << events << '\n';
+      csv.flush();
+      progress << std::fixed << std::setprecision(2) << std::setw(8) << 1e3 * resolution.spacing << std::setw(8)
+               << 1e3 * resolution.surface << std::setw(9) << body.elements << std::setw(10) << body.surface.size()
+               << std::setw(9) << median(ccd) << std::setw(10) << median(topology) << std::setw(9) << median(solve)
+               << std::setw(9) << median(surface) << std::setw(9) << median(total) << std::setw(8)
+               << std::setprecision(1) << share << "   (" << ccd.size() << " steps, " << events
+               << " cut events, topology max " << std::setprecision(1) << topology_max << " ms, built in "
+               << std::setprecision(1) << build_s << " s)\n";
+    }
+    progress << "wrote " << (out_dir / "performance.csv").string() << "\n";
+    return 0;
+  } catch (const std::exception& error) {
+    progress << "\nbench performance failed: " << error.what() << "\n";
+    return 1;
+  }
+}
+
+}  // namespace incise::bench
