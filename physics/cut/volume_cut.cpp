@@ -200,32 +200,61 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
   std::vector<Vec3> points_start, points_end;
   integration_points(particles_start, points_start);
   integration_points(particles_end, points_end);
-  // The region the blade sweeps this step, grown by four particle spacings (a link stretched
-  // to four times its rest length is far beyond what the model represents).
+  // The region the blade sweeps this step, grown by the longest link (at the start or the
+  // end of the step): a link with both endpoints outside it cannot reach the blade.
   Vec3 near_lo = Vec3::Constant(std::numeric_limits<double>::infinity()), near_hi = -near_lo;
   for (size_t j = 0; j + 1 < blade_poses.size(); ++j) {
     if (!active[j]) continue;
     for (size_t end = j; end <= j + 1; ++end)
       for (const Vec3& point : blade_poses[end]) near_lo = near_lo.cwiseMin(point), near_hi = near_hi.cwiseMax(point);
   }
-  const Vec3 grow = Vec3::Constant(8 * model_.spacing());
+  double longest = 0;
+  {
+    const auto at = [](const Vector& x, int p) { return x.segment<3>(3 * static_cast<Eigen::Index>(p)); };
+    for (size_t link = 0; link < particle_links_.size(); ++link) {
+      if (particle_link_severed_[link]) continue;
+      const auto [a, b] = particle_links_[link];
+      longest = std::max({longest, (at(particles_start, a) - at(particles_start, b)).squaredNorm(),
+                          (at(particles_end, a) - at(particles_end, b)).squaredNorm()});
+    }
+    const int stride = model_.row_stride();
+    for (int e = 0; e < model_.element_count(); ++e) {
+      const size_t base = static_cast<size_t>(e) * stride;
+      for (int k = 0; k < model_.row_lengths()[e]; ++k) {
+        const int p = model_.neighbours()[base + k];
+        longest = std::max({longest, (points_start[e] - at(particles_start, p)).squaredNorm(),
+                            (points_end[e] - at(particles_end, p)).squaredNorm()});
+      }
+    }
+    longest = std::sqrt(longest);
+  }
+  const Vec3 grow = Vec3::Constant(1.01 * longest + 1e-9);
   refit(points_start, points_end, particles_start, particles_end, near_lo - grow, near_hi + grow);
 
   const auto particle = [](const Vector& x, int p) { return Vec3(x.segment<3>(3 * static_cast<Eigen::Index>(p))); };
   const int link_count = static_cast<int>(particle_links_.size());
   // Candidates over every active sub-interval (the boxes cover the whole step).
-  std::vector<int> all;
+  // (edge, sub-interval) pairs: an edge can only touch the blade in a sub-interval whose
+  // blade box overlaps its (whole-step) box, so it is tested in those alone.
+  std::vector<std::pair<int, int>> pairs;
   for (size_t j = 0; j + 1 < blade_poses.size(); ++j) {
     if (!active[j]) continue;
     broad_phase_.query(blade_poses[j], blade_poses[j + 1], candidates_);
-    all.insert(all.end(), candidates_.begin(), candidates_.end());
+    for (int id : candidates_) pairs.emplace_back(id, static_cast<int>(j));
   }
-  std::sort(all.begin(), all.end());
-  all.erase(std::unique(all.begin(), all.end()), all.end());
-  report.candidates = static_cast<int>(all.size());
+  std::sort(pairs.begin(), pairs.end());
+  std::vector<std::uint8_t> intervals(active.size(), 0);
+  const Sweep everything = sweep;
 
   std::map<int, std::vector<int>> cut_from;  // element -> particles whose link to it was cut
-  for (int id : all) {
+  for (size_t first = 0; first < pairs.size();) {
+    const int id = pairs[first].first;
+    std::fill(intervals.begin(), intervals.end(), 0);
+    size_t last = first;
+    for (; last < pairs.size() && pairs[last].first == id; ++last) intervals[pairs[last].second] = 1;
+    first = last;
+    ++report.candidates;
+    const Sweep sweep{everything.poses, everything.fractions, intervals};
     Vec3 a0, b0, a1, b1, rest_first, rest_second;
     int element = -1, slot_particle = -1;
     if (id < link_count) {
