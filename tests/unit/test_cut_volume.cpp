@@ -172,13 +172,14 @@ TEST(VolumeCut, TheSeparatedPieceFallsFreely) {
   State state{rest, Vector::Zero(3 * n)};
   const Vector gravity = gravity_forces(masses, Vec3(0, 0, -9.81));
   ImplicitEulerSettings settings;
-  settings.dt = 0.0025;
-  settings.cg.tolerance = 1e-10;
+  settings.dt = 0.004;
+  settings.cg.tolerance = 1e-9;
   settings.cg.max_iterations = 2000;
   const double start = centre_z(state.positions);
-  const int steps = 200;
+  const int steps = 120;  // implicit Euler's fall is g dt^2 k (k + 1) / 2: 1 / k = 0.83 % above g t^2 / 2
+  Vector velocity_change = Vector::Zero(3 * n);  // warm start, as the engine does
   for (int k = 0; k < steps; ++k) {
-    const StepReport step = implicit_euler_step(model, state, fixed, gravity, {}, settings);
+    const StepReport step = implicit_euler_step(model, state, fixed, gravity, {}, settings, &velocity_change);
     ASSERT_FALSE(step.nonfinite);
   }
   const double t = steps * settings.dt;

@@ -1,6 +1,7 @@
 #include "engine/mesh_import.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -12,7 +13,8 @@ using incise::engine::winding_number;
 namespace {
 
 std::filesystem::path write_file(const std::string& name, const std::string& text) {
-  auto path = std::filesystem::temp_directory_path() / name;
+  // Named after the process: two test runs at once must not share the file.
+  auto path = std::filesystem::temp_directory_path() / (std::to_string(::getpid()) + "_" + name);
   std::ofstream(path) << text;
   return path;
 }

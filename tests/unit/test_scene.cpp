@@ -3,6 +3,7 @@
 #include "engine/scene.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
@@ -170,7 +171,7 @@ TEST(Scene, InvalidJsonNamesTheLine) {
 
 TEST(Scene, MissingAndEmptyFilesAreErrors) {
   EXPECT_THROW(incise::engine::load_scene("no/such/scene.json"), SceneError);
-  auto empty = std::filesystem::temp_directory_path() / "incise_empty_scene.json";
+  auto empty = std::filesystem::temp_directory_path() / ("incise_empty_scene_" + std::to_string(::getpid()) + ".json");
   { std::ofstream(empty).flush(); }
   try {
     incise::engine::load_scene(empty);

@@ -11,6 +11,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <string>
+
+#include <unistd.h>
 
 using namespace incise::engine;
 namespace physics = incise::physics;
@@ -20,7 +23,9 @@ namespace {
 
 struct TempDir {
   std::filesystem::path path;
-  explicit TempDir(const std::string& name) : path(std::filesystem::temp_directory_path() / name) {
+  // Named after the process too: two test runs at once (two build folders) must not share it.
+  explicit TempDir(const std::string& name)
+      : path(std::filesystem::temp_directory_path() / (name + "_" + std::to_string(::getpid()))) {
     std::filesystem::remove_all(path);
     std::filesystem::create_directories(path);
   }
@@ -191,8 +196,8 @@ Json efg_beam_scene() {
     "bodies": [{
       "name": "beam", "model": "efg",
       "generator": {"type": "box", "min": [0, -0.01, -0.01], "max": [0.2, 0.01, 0.01]},
-      "resolution": 0.0025,
-      "efg": {"neighbours": 8, "support_factor": 1.2, "surface_resolution": 0.005},
+      "resolution": 0.005,
+      "efg": {"neighbours": 8, "surface_resolution": 0.005},
       "material": {"E": 1e7, "nu": 0.3, "rho": 1000},
       "fixed": [{"min": [-1, -1, -1], "max": [0.0001, 1, 1]}]
     }],
