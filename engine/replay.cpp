@@ -402,6 +402,8 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
                       {"reselection_failures", totals.reselection_failures},
                       {"orphaned_particles", totals.orphaned_particles},
                       {"positive_mass_elements", totals.positive_mass_elements},
+                      {"deactivated_elements", totals.deactivated_elements},
+                      {"masses_floored", totals.masses_floored},
                       {"elements_linked_across", totals.elements_linked_across},
                       {"ms_ccd", {{"median", percentile(ccd, 0.5)}, {"max", max_of(ccd)}}},
                       {"ms_topology", {{"median", percentile(topology, 0.5)}, {"max", max_of(topology)}}}};

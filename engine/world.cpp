@@ -536,10 +536,9 @@ void World::cut_body(Body& body, StepStats& stats) {
   auto topology_start = Clock::now();
   // The sweep in the rest configuration (seed 004 §2.3: topology edits are done at rest).
   // The edge is resampled every a / 2 and each point mapped through the body's local
-  // deformation at its moment; poses are kept once the edge has moved a / 2 since the last
-  // kept one (and at the end of each engaged stretch), and consecutive kept poses span quads,
-  // two triangles each. Quads with a corner more than 2a from every integration point lie
-  // outside the body, where the mapping only extrapolates: they are left out.
+  // deformation at its moment; moments are taken so that the blade moves at most about a / 2
+  // relative to the body between two of them, and consecutive moments span quads, two
+  // triangles each.
   const double a = body.efg->spacing();
   std::vector<physics::RestTriangle> triangles;
   {
@@ -554,43 +553,62 @@ void World::cut_body(Body& body, StepStats& stats) {
       points.push_back(edge.back());
       return points;
     };
+    // Moments of the step at which the sweep is mapped: every sample's, and more wherever
+    // the blade or the body moved more than a / 2 between two of them (a static blade in a
+    // falling body sweeps the body all the same).
+    double body_motion = 0;
+    for (Eigen::Index p = 0; p < body.state.positions.size() / 3; ++p)
+      body_motion = std::max(body_motion, (body.state.positions.segment<3>(3 * p) - body.previous_positions.segment<3>(3 * p)).norm());
     physics::Vector at_fraction;
-    const auto map_pose = [&](std::size_t j, std::vector<physics::Vec3>& rest, std::vector<double>& distance) {
-      const double f = tool_.blade_fractions[j];
+    const auto map_at = [&](std::size_t j, double f, std::vector<physics::Vec3>& rest, std::vector<double>& distance) {
+      // The blade between samples j and j + 1, at the step's fraction f.
+      const double f0 = tool_.blade_fractions[j], f1 = tool_.blade_fractions[j + 1];
+      const double s = f1 > f0 ? std::clamp((f - f0) / (f1 - f0), 0.0, 1.0) : 0.0;
+      std::vector<physics::Vec3> edge(tool_.blade_poses[j].size());
+      for (std::size_t i = 0; i < edge.size(); ++i) edge[i] = tool_.blade_poses[j][i] + s * (tool_.blade_poses[j + 1][i] - tool_.blade_poses[j][i]);
       at_fraction = body.previous_positions + f * (body.state.positions - body.previous_positions);
-      body.cutter->to_rest(at_fraction, resample(tool_.blade_poses[j]), rest, &distance);
+      body.cutter->to_rest(at_fraction, resample(edge), rest, &distance);
     };
-    const auto moved = [&](std::size_t from, std::size_t to) {
+    const auto moved = [&](std::size_t j) {
       double most = 0;
-      for (std::size_t i = 0; i < tool_.blade_poses[from].size(); ++i)
-        most = std::max(most, (tool_.blade_poses[to][i] - tool_.blade_poses[from][i]).norm());
+      for (std::size_t i = 0; i < tool_.blade_poses[j].size(); ++i)
+        most = std::max(most, (tool_.blade_poses[j + 1][i] - tool_.blade_poses[j][i]).norm());
       return most;
     };
     std::vector<physics::Vec3> rest_a, rest_b;
     std::vector<double> far_a, far_b;
-    std::size_t kept = 0;
-    bool open = false;  // rest_a holds the pose `kept`
+    bool open = false;  // rest_a holds the sweep's last mapped moment
     for (std::size_t j = 0; j + 1 < tool_.blade_poses.size(); ++j) {
       if (!active[j]) {
         open = false;
         continue;
       }
+      const double f0 = tool_.blade_fractions[j], f1 = tool_.blade_fractions[j + 1];
       if (!open) {
-        kept = j;
-        map_pose(kept, rest_a, far_a);
+        map_at(j, f0, rest_a, far_a);
         open = true;
       }
+      const double relative = moved(j) + body_motion * (f1 - f0);
+      const int pieces_in_time = std::max(1, static_cast<int>(std::ceil(relative / (0.5 * a))));
+      // Consecutive samples that moved little are merged: only map where needed.
       const bool stretch_ends = j + 2 >= tool_.blade_poses.size() || !active[j + 1];
-      if (!stretch_ends && moved(kept, j + 1) < 0.5 * a) continue;
-      map_pose(j + 1, rest_b, far_b);
-      for (std::size_t i = 0; i + 1 < rest_a.size(); ++i) {
-        if (std::max({far_a[i], far_a[i + 1], far_b[i], far_b[i + 1]}) > 2 * a) continue;
-        triangles.push_back({rest_a[i], rest_a[i + 1], rest_b[i + 1]});
-        triangles.push_back({rest_a[i], rest_b[i + 1], rest_b[i]});
+      if (pieces_in_time == 1 && !stretch_ends && relative < 0.25 * a) {
+        // Accumulate nothing now: the next interval's quad starts from rest_a, whose moment is
+        // earlier; its relative motion is bounded by the same test there.
+        continue;
       }
-      kept = j + 1;
-      rest_a.swap(rest_b);
-      far_a.swap(far_b);
+      for (int piece = 1; piece <= pieces_in_time; ++piece) {
+        map_at(j, f0 + (f1 - f0) * piece / pieces_in_time, rest_b, far_b);
+        for (std::size_t i = 0; i + 1 < rest_a.size(); ++i) {
+          // Outside the body (every corner beyond 2a of the integration points) the mapping
+          // only extrapolates: such quads are left out.
+          if (std::min({far_a[i], far_a[i + 1], far_b[i], far_b[i + 1]}) > 2 * a) continue;
+          triangles.push_back({rest_a[i], rest_a[i + 1], rest_b[i + 1]});
+          triangles.push_back({rest_a[i], rest_b[i + 1], rest_b[i]});
+        }
+        rest_a.swap(rest_b);
+        far_a.swap(far_b);
+      }
     }
   }
   const int faces = body.cut_surface->cut(triangles);
@@ -621,8 +639,12 @@ void World::cut_body(Body& body, StepStats& stats) {
   body.orphans_pinned = orphans.size();
   cut_totals_.orphaned_particles = static_cast<long>(orphans.size());
   cut_totals_.positive_mass_elements = body.efg->positive_mass_elements();
+  cut_totals_.deactivated_elements = body.efg->deactivated_elements();
+  cut_totals_.masses_floored = body.efg->masses_floored();
   const bool changed = report.any() || faces > 0;
   if (changed) {
+    // The masses moved with the neighbourhoods: so does their weight.
+    body.gravity = physics::gravity_forces(body.model->lumped_masses(), vec(scene_.solver.gravity));
     // Remap around this step's cut (the reach of the mapping's search) and wherever an
     // element was re-selected.
     std::vector<std::uint8_t> element_changed(static_cast<std::size_t>(body.efg->element_count()), 0);

@@ -120,6 +120,8 @@ struct CutTotals {
   long reselection_failures = 0;
   long orphaned_particles = 0;      // left by every element, pinned
   long positive_mass_elements = 0;  // share their mass by the positive part of phi
+  long deactivated_elements = 0;    // no valid neighbourhood left after a cut
+  long masses_floored = 0;          // particles kept at a floor mass
   long vertices_remapped = 0;
   long relaxed_fallbacks = 0;
   long wrong_side = 0;            // over every remapping

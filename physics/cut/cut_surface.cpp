@@ -544,7 +544,7 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
       for (long long dy = -shells; dy <= shells; ++dy)
         for (long long dx = -shells; dx <= shells; ++dx) {
           const auto it = element_at.find(key(cube[0] + dx, cube[1] + dy, cube[2] + dz));
-          if (it == element_at.end()) continue;
+          if (it == element_at.end() || !model.element_active(it->second)) continue;
           nearby.emplace_back((model.element_centres()[it->second] - vertex).squaredNorm(), it->second);
         }
     std::sort(nearby.begin(), nearby.end());
@@ -565,6 +565,7 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
       } else {
         double best = 0;
         for (int e = 0; e < model.element_count(); ++e) {
+          if (!model.element_active(e)) continue;
           const double d = (model.element_centres()[e] - vertex).squaredNorm();
           if (chosen < 0 || d < best) chosen = e, best = d;
         }
@@ -599,6 +600,7 @@ int elements_linked_across(const CorotationalEfg& model, const RestCut& cut) {
   int across = 0;
   const int stride = model.row_stride();
   for (int e = 0; e < model.element_count(); ++e) {
+    if (!model.element_active(e)) continue;
     const Vec3 centre = model.element_centres()[e];
     const size_t base = static_cast<size_t>(e) * stride;
     for (int k = 0; k < model.row_lengths()[e]; ++k) {

@@ -265,6 +265,7 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
       rest_second = particle(model_.rest_positions(), b);
     } else {
       element = (id - link_count) / slots_per_element;
+      if (!model_.element_active(element)) continue;  // out of the mechanics already
       const int slot = (id - link_count) % slots_per_element;
       slot_particle = element_link_particles_[element][slot];
       a0 = points_start[element], b0 = particle(particles_start, slot_particle);
@@ -288,6 +289,7 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
   if (rest_cut && rest_cut->blocked) {
     const int stride = model_.row_stride();
     for (int e = 0; e < model_.element_count(); ++e) {
+      if (!model_.element_active(e)) continue;
       const Vec3& centre = model_.element_centres()[e];
       bool inside = true;
       for (int axis = 0; axis < 3; ++axis) inside = inside && centre[axis] >= rest_cut->lo[axis] && centre[axis] <= rest_cut->hi[axis];
@@ -326,17 +328,22 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
     bool isolated = false;
     const std::vector<int> row = reselect(element, kept, sweep, isolated);
     report.elements_isolated += isolated ? 1 : 0;
-    if (row.empty()) {
-      ++report.reselection_failures;
-      continue;
+    // No valid neighbourhood left on its side (a sliver, several cuts in one element): the
+    // element leaves the mechanics rather than keep links across the cut (counted).
+    bool placed = !row.empty();
+    if (placed) {
+      try {
+        model_.set_neighbourhood(element, row);
+        ++report.elements_reselected;
+      } catch (const std::invalid_argument&) {
+        placed = false;
+      }
     }
-    try {
-      model_.set_neighbourhood(element, row);
-      ++report.elements_reselected;
-      report.changed_elements.push_back(element);
-    } catch (const std::invalid_argument&) {
+    if (!placed) {
       ++report.reselection_failures;
+      model_.deactivate_element(element);
     }
+    report.changed_elements.push_back(element);
   }
   points_start_ = points_end_ = nullptr;
   particles_start_ = particles_end_ = nullptr;

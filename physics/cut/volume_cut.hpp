@@ -23,8 +23,8 @@
 // with no linked neighbour (several cuts inside one element, or the blade through its
 // integration point) keeps a neighbourhood found from its nearest particles on the side of
 // its first surviving neighbour, or, failing that, its old one (counted as isolated); a
-// re-selection the model refuses (a particle's lumped mass would not stay positive) keeps
-// the old neighbourhood minus nothing and is counted as a failure.
+// re-selection that finds no neighbourhood spanning three dimensions on the element's side
+// deactivates the element (CorotationalEfg::deactivate_element) and is counted as a failure.
 #pragma once
 
 #include "physics/cut/broad_phase.hpp"
@@ -46,7 +46,7 @@ struct VolumeCutReport {
   int links_severed_at_rest = 0;   // element links dropped by the rest cut (see cut())
   int elements_reselected = 0;
   int elements_isolated = 0;       // left with no linked neighbour (thesis §4.3.3 failure)
-  int reselection_failures = 0;    // the model refused the new neighbourhood
+  int reselection_failures = 0;    // no valid neighbourhood: the element was deactivated
   std::vector<int> changed_elements;  // increasing: rows to re-upload, vertices to remap
   // Where the links were cut, in the rest configuration (the hit's fraction along the link,
   // applied to its rest endpoints, §2.3), in the order found.

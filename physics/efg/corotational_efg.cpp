@@ -685,7 +685,7 @@ void CorotationalEfg::set_neighbourhood(int element, std::span<const int> partic
   // particle no element uses any more keeps its last mass and is reported as orphaned: it
   // influences nothing, and the caller pins it.
   if (positive_mass_.size() != volumes_.size()) positive_mass_.assign(volumes_.size(), 0);
-  if (references_.size() != masses_.size()) {
+  if (references_.size() != static_cast<size_t>(masses_.size())) {
     references_.assign(masses_.size(), 0);
     for (int e = 0; e < element_count(); ++e)
       for (int k = 0; k < row_lengths_[e]; ++k) ++references_[neighbours_[static_cast<size_t>(e) * stride_ + k]];
@@ -729,9 +729,17 @@ void CorotationalEfg::set_neighbourhood(int element, std::span<const int> partic
     }
   }
   if (!accepted) {
-    restore();
-    fail("set_neighbourhood: particle " + std::to_string(bad) + " would have lumped mass " +
-         std::to_string(masses[bad]) + " <= 0");
+    // Even the positive shares leave a particle without mass: its other elements weigh it
+    // negatively. It keeps a floor of 1e-3 of this element's mass (counted): the DOF must stay
+    // a DOF, and the mass this adds is far below the sampling error of the volumes.
+    positive_mass_[element] = 1;
+    for (int k = 0; k < old_length + length; ++k) {
+      const int p = k < old_length ? old_neighbours[k] : particles[k - old_length];
+      if (references[p] > 0 && !(masses[p] > 0)) {
+        masses[p] = 1e-3 * element_mass;
+        ++masses_floored_;
+      }
+    }
   }
   for (int p : old_neighbours)
     if (references[p] == 0 && references_[p] > 0) orphans_.push_back(p);
@@ -959,6 +967,48 @@ void CorotationalEfg::surface_positions(const SurfaceEmbedding& embedding,
     }
     out.segment<3>(3 * static_cast<Index>(v)) = position;
   }
+}
+
+}  // namespace incise::physics
+
+namespace incise::physics {
+
+void CorotationalEfg::deactivate_element(int element) {
+  if (element < 0 || element >= element_count()) {
+    fail("deactivate_element: element " + std::to_string(element) + " outside [0, " +
+         std::to_string(element_count()) + ")");
+  }
+  if (!(volumes_[element] > 0)) return;
+  if (positive_mass_.size() != volumes_.size()) positive_mass_.assign(volumes_.size(), 0);
+  if (references_.size() != static_cast<size_t>(masses_.size())) {
+    references_.assign(masses_.size(), 0);
+    for (int e = 0; e < element_count(); ++e)
+      for (int k = 0; k < row_lengths_[e]; ++k) ++references_[neighbours_[static_cast<size_t>(e) * stride_ + k]];
+  }
+  const size_t base = static_cast<size_t>(element) * stride_;
+  const int length = row_lengths_[element];
+  std::vector<double> shares(shape_values_.begin() + base, shape_values_.begin() + base + length);
+  if (positive_mass_[element]) {
+    double sum = 0;
+    for (double& w : shares) sum += (w = std::max(w, 0.0));
+    for (double& w : shares) w /= sum;
+  }
+  const double element_mass = material_.density * volumes_[element];
+  for (int k = 0; k < length; ++k) {
+    const int p = neighbours_[base + k];
+    --references_[p];
+    if (references_[p] == 0) {
+      orphans_.push_back(p);  // keeps its mass
+      continue;
+    }
+    masses_[p] -= shares[k] * element_mass;
+    if (!(masses_[p] > 0)) {
+      masses_[p] = 1e-3 * element_mass;
+      ++masses_floored_;
+    }
+  }
+  volumes_[element] = 0;  // no force, no stiffness, no energy from now on
+  ++deactivated_;
 }
 
 }  // namespace incise::physics

@@ -226,6 +226,14 @@ class CorotationalEfg final : public DeformableModel {
   // Particles that set_neighbourhood left without any element, in the order it left them
   // (they keep their mass and influence nothing: pin them).
   const std::vector<int>& orphaned_particles() const { return orphans_; }
+  // Cutting: takes an element out of the mechanics when no valid neighbourhood is left (the
+  // thesis's isolated element, seed 004 §4.3.3): its volume becomes zero, its mass leaves its
+  // particles (a particle left by every element is orphaned, one left with no mass keeps a
+  // floor of 1e-3 of the element's mass). Its row stays, so the DOFs do not change.
+  void deactivate_element(int element);
+  bool element_active(int element) const { return volumes_[static_cast<size_t>(element)] > 0; }
+  int deactivated_elements() const { return deactivated_; }
+  int masses_floored() const { return masses_floored_; }
   // Elements whose mass is shared by the positive part of phi (see set_neighbourhood).
   int positive_mass_elements() const {
     return static_cast<int>(std::count(positive_mass_.begin(), positive_mass_.end(), 1));
@@ -280,6 +288,8 @@ class CorotationalEfg final : public DeformableModel {
   std::vector<std::uint8_t> positive_mass_;
   std::vector<int> references_;
   std::vector<int> orphans_;
+  int deactivated_ = 0;
+  int masses_floored_ = 0;
   std::vector<Eigen::Quaterniond> orientations_;  // the same rotations, warm starts
 
   // Rows (ELL).
