@@ -485,8 +485,10 @@ std::vector<physics::NodalSpring> World::contact(const Body& body, StepStats& st
 }
 
 void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
-                                const std::vector<std::uint8_t>& changed) {
-  body.cut_surface->rebuild();
+                                const std::vector<std::uint8_t>& changed, bool surface_changed) {
+  // Only the volume changed (links cut, no cube face): the surface is the same, its
+  // vertices near the changed elements are remapped.
+  if (surface_changed) body.cut_surface->rebuild();
   physics::SurfaceMappingReport mapping;
   physics::MappingReuse reuse;
   reuse.embedding = body.embedding ? &*body.embedding : nullptr;
@@ -505,9 +507,11 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
     for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
   set_fixed_vertices(body);
   physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
-  const physics::SurfaceTopology topology = physics::surface_topology(body.surface);
-  cut_totals_.worst_boundary_edges = std::max(cut_totals_.worst_boundary_edges, topology.boundary_edges);
-  cut_totals_.worst_nonmanifold_edges = std::max(cut_totals_.worst_nonmanifold_edges, topology.nonmanifold_edges);
+  if (surface_changed) {
+    const physics::SurfaceTopology topology = physics::surface_topology(body.surface);
+    cut_totals_.worst_boundary_edges = std::max(cut_totals_.worst_boundary_edges, topology.boundary_edges);
+    cut_totals_.worst_nonmanifold_edges = std::max(cut_totals_.worst_nonmanifold_edges, topology.nonmanifold_edges);
+  }
   cut_totals_.vertices_remapped += mapping.mapped;
   cut_totals_.relaxed_fallbacks += mapping.relaxed_fallbacks;
   cut_totals_.wrong_side += mapping.wrong_side;
@@ -650,7 +654,7 @@ void World::cut_body(Body& body, StepStats& stats) {
     std::vector<std::uint8_t> element_changed(static_cast<std::size_t>(body.efg->element_count()), 0);
     for (int e : report.changed_elements) element_changed[e] = 1;
     const physics::Vec3 reach = physics::Vec3::Constant(4 * a);
-    rebuild_cut_surface(body, visibility.lo - reach, visibility.hi + reach, element_changed);
+    rebuild_cut_surface(body, visibility.lo - reach, visibility.hi + reach, element_changed, faces > 0);
   }
   stats.ms_topology += ms_rest + report.ms_topology + ms_since(topology_start);
   stats.links_severed += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;

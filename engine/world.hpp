@@ -178,9 +178,10 @@ class World {
   // detect_cuts -> apply_topology for one body (seed 004 §2.7): CCD of the step's blade
   // sweep against its links, re-selection, the cut surface and its mapping.
   void cut_body(Body& body, StepStats& stats);
-  // dirty_lo/hi: rest box around what the cut changed; changed: per element, re-selected.
+  // dirty_lo/hi: rest box around what the cut changed; changed: per element, re-selected;
+  // surface_changed: cube faces were cut (else only the mapping is redone).
   void rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
-                           const std::vector<std::uint8_t>& changed);
+                           const std::vector<std::uint8_t>& changed, bool surface_changed);
   void solve_body(Body& body, const std::vector<physics::NodalSpring>& springs, double end_time,
                   StepStats& stats);
 

@@ -144,17 +144,23 @@ bool RestCut::near_box(const Vec3& lo, const Vec3& hi, double reach) const {
 }
 
 SurfaceTopology surface_topology(const std::vector<std::array<int, 3>>& triangles) {
-  std::map<std::pair<int, int>, int> uses;
+  std::vector<std::pair<int, int>> edges;
+  edges.reserve(3 * triangles.size());
   for (const auto& t : triangles) {
     for (int e = 0; e < 3; ++e) {
       const int a = t[e], b = t[(e + 1) % 3];
-      ++uses[{std::min(a, b), std::max(a, b)}];
+      edges.emplace_back(std::min(a, b), std::max(a, b));
     }
   }
+  std::sort(edges.begin(), edges.end());
   SurfaceTopology topology;
-  for (const auto& [edge, count] : uses) {
+  for (size_t first = 0; first < edges.size();) {
+    size_t last = first;
+    while (last < edges.size() && edges[last] == edges[first]) ++last;
+    const size_t count = last - first;
     topology.boundary_edges += count == 1 ? 1 : 0;
     topology.nonmanifold_edges += count > 2 ? 1 : 0;
+    first = last;
   }
   return topology;
 }
