@@ -1,9 +1,9 @@
 #include "physics/cut/volume_cut.hpp"
 
 #include "physics/cut/continuous_collision.hpp"
+#include "physics/efg/mls.hpp"
 
 #include <Eigen/LU>
-#include <Eigen/SVD>
 
 #include <algorithm>
 #include <chrono>
@@ -25,20 +25,6 @@ constexpr int slots_per_element = 64;
 constexpr int graph_radius = 3;
 
 [[noreturn]] void fail(const std::string& what) { throw std::invalid_argument("VolumeCutter: " + what); }
-
-// The same rank test as the model's: the smallest singular value of the centred positions
-// above 1e-6 of the largest.
-bool spans_three_dimensions(const std::vector<Vec3>& points) {
-  if (points.size() < 4) return false;
-  Vec3 centroid = Vec3::Zero();
-  for (const Vec3& p : points) centroid += p;
-  centroid /= static_cast<double>(points.size());
-  Eigen::MatrixXd centred(3, static_cast<Eigen::Index>(points.size()));
-  for (size_t i = 0; i < points.size(); ++i) centred.col(static_cast<Eigen::Index>(i)) = points[i] - centroid;
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(centred);
-  const Vec3 singular = svd.singularValues();
-  return singular[0] > 0 && singular[2] > 1e-6 * singular[0];
-}
 
 void check_finite(const Vector& v, const char* name) {
   if (!v.allFinite()) fail(std::string(name) + " holds a non-finite value");
