@@ -4,6 +4,7 @@
 #include "engine/trajectory.hpp"
 #include "engine/trajectory_synth.hpp"
 #include "engine/world.hpp"
+#include "tests/unit/temp_dir.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -13,24 +14,13 @@
 #include <filesystem>
 #include <string>
 
-#include <unistd.h>
 
 using namespace incise::engine;
 namespace physics = incise::physics;
 using Json = nlohmann::json;
+using incise::testing::TempDir;
 
 namespace {
-
-struct TempDir {
-  std::filesystem::path path;
-  // Named after the process too: two test runs at once (two build folders) must not share it.
-  explicit TempDir(const std::string& name)
-      : path(std::filesystem::temp_directory_path() / (name + "_" + std::to_string(::getpid()))) {
-    std::filesystem::remove_all(path);
-    std::filesystem::create_directories(path);
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
-};
 
 // A 4 x 2 x 2 cm block clamped at x = 0 and a sphere probe pressing its top.
 Json block_scene(bool with_tool) {

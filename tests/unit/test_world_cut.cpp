@@ -5,6 +5,7 @@
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
+#include "tests/unit/temp_dir.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -14,24 +15,13 @@
 #include <filesystem>
 #include <string>
 
-#include <unistd.h>
 
 using namespace incise::engine;
 namespace physics = incise::physics;
 using Json = nlohmann::json;
+using incise::testing::TempDir;
 
 namespace {
-
-struct TempDir {
-  std::filesystem::path path;
-  // Named after the process too: two test runs at once (two build folders) must not share it.
-  explicit TempDir(const std::string& name)
-      : path(std::filesystem::temp_directory_path() / (name + "_" + std::to_string(::getpid()))) {
-    std::filesystem::remove_all(path);
-    std::filesystem::create_directories(path);
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
-};
 
 // A beam 0.1 x 0.02 x 0.02 m clamped at x = 0, and a straight blade along y that comes down
 // through the whole section at x = 0.0512 in `cut_seconds`, engaged throughout.
