@@ -485,10 +485,14 @@ std::vector<physics::NodalSpring> World::contact(const Body& body, StepStats& st
 }
 
 void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
-                                const std::vector<std::uint8_t>& changed, bool surface_changed) {
+                                const std::vector<std::uint8_t>& changed, bool surface_changed,
+                                StepStats& stats) {
   // Only the volume changed (links cut, no cube face): the surface is the same, its
   // vertices near the changed elements are remapped.
+  auto start = Clock::now();
   if (surface_changed) body.cut_surface->rebuild();
+  stats.ms_surface_rebuild += ms_since(start);
+  start = Clock::now();
   physics::SurfaceMappingReport mapping;
   physics::MappingReuse reuse;
   reuse.embedding = body.embedding ? &*body.embedding : nullptr;
@@ -497,6 +501,7 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
   reuse.element_changed = &changed;
   reuse.dirty_lo = dirty_lo;
   reuse.dirty_hi = dirty_hi;
+  reuse.key_table = &body.surface_key_table;
   body.embedding = physics::map_surface(*body.efg, *body.cut_surface, mapping, body.surface_keys.empty() ? nullptr : &reuse);
   body.surface_keys = body.cut_surface->vertex_keys();
   body.surface_rest = body.cut_surface->rest_vertices();
@@ -507,6 +512,8 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
     for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
   set_fixed_vertices(body);
   physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
+  stats.ms_mapping += ms_since(start);
+  start = Clock::now();
   if (surface_changed) {
     const physics::SurfaceTopology topology = physics::surface_topology(body.surface);
     cut_totals_.worst_boundary_edges = std::max(cut_totals_.worst_boundary_edges, topology.boundary_edges);
@@ -516,7 +523,10 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
   cut_totals_.relaxed_fallbacks += mapping.relaxed_fallbacks;
   cut_totals_.wrong_side += mapping.wrong_side;
   cut_totals_.pinches_closed = body.cut_surface->pinches_closed();
-  cut_totals_.elements_linked_across = physics::elements_linked_across(*body.efg, body.cut_surface->rest_cut());
+  // Every triangle the cut gained this step lies in the dirty box (the sweep's, grown).
+  cut_totals_.elements_linked_across = physics::update_elements_linked_across(
+      *body.efg, body.cut_surface->rest_cut(), body.linked_across, dirty_lo, dirty_hi, &changed);
+  stats.ms_checks += ms_since(start);
 }
 
 void World::cut_body(Body& body, StepStats& stats) {
@@ -616,7 +626,8 @@ void World::cut_body(Body& body, StepStats& stats) {
     }
   }
   const int faces = body.cut_surface->cut(triangles);
-  double ms_rest = ms_since(topology_start);
+  const double ms_rest = ms_since(topology_start);
+  stats.ms_rest_cut += ms_rest;
   // The volume: CCD of the sweep against the links, re-selection kept consistent with the
   // rest cut around this sweep.
   physics::VolumeCutter::RestVisibility visibility;
@@ -632,6 +643,7 @@ void World::cut_body(Body& body, StepStats& stats) {
                                                            body.previous_positions, body.state.positions,
                                                            triangles.empty() ? nullptr : &visibility);
   stats.ms_ccd += report.ms_ccd;
+  stats.ms_reselect += report.ms_topology;
   topology_start = Clock::now();
   // Particles no element uses any more are pinned: they carry no stiffness.
   const auto& orphans = body.efg->orphaned_particles();
@@ -654,7 +666,7 @@ void World::cut_body(Body& body, StepStats& stats) {
     std::vector<std::uint8_t> element_changed(static_cast<std::size_t>(body.efg->element_count()), 0);
     for (int e : report.changed_elements) element_changed[e] = 1;
     const physics::Vec3 reach = physics::Vec3::Constant(4 * a);
-    rebuild_cut_surface(body, visibility.lo - reach, visibility.hi + reach, element_changed, faces > 0);
+    rebuild_cut_surface(body, visibility.lo - reach, visibility.hi + reach, element_changed, faces > 0, stats);
   }
   stats.ms_topology += ms_rest + report.ms_topology + ms_since(topology_start);
   stats.links_severed += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;

@@ -63,6 +63,8 @@ struct Body {
   std::vector<long long> surface_keys;  // the cut surface's vertex keys and rest positions at the
   physics::Vector surface_rest;         // last mapping, so the next one reuses what did not change
   physics::Vec3 surface_min = physics::Vec3::Zero(), surface_max = physics::Vec3::Zero();  // rest box
+  std::vector<int> surface_key_table;               // map_surface's scratch (MappingReuse::key_table)
+  std::vector<std::uint8_t> linked_across;          // per element, kept by update_elements_linked_across
   physics::Vector gravity;                         // 3n, constant
   physics::ImplicitEulerSettings integrator;
   std::vector<std::vector<int>> load_nodes;        // per scene load aimed at this body
@@ -89,7 +91,11 @@ struct StepStats {
   bool cut_tested = false;   // the blade was engaged near a cuttable body: CCD ran
   bool cut_event = false;    // the topology changed this step
   double ms_ccd = 0;         // broad phase, continuous collision
-  double ms_topology = 0;    // neighbourhoods, MLS, masses, surface, mapping
+  double ms_topology = 0;    // neighbourhoods, MLS, masses, surface, mapping. Its main
+  // parts, each in ms: the sweep mapped to rest and the surface's cut faces, the volume's
+  // re-selection (MLS, masses), the surface rebuild, the vertex mapping, and the checks
+  // (surface topology, elements linked across the cut) that feed the metrics.
+  double ms_rest_cut = 0, ms_reselect = 0, ms_surface_rebuild = 0, ms_mapping = 0, ms_checks = 0;
   int links_severed = 0;
   double elastic_energy = 0;
   double kinetic_energy = 0;
@@ -181,7 +187,7 @@ class World {
   // dirty_lo/hi: rest box around what the cut changed; changed: per element, re-selected;
   // surface_changed: cube faces were cut (else only the mapping is redone).
   void rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
-                           const std::vector<std::uint8_t>& changed, bool surface_changed);
+                           const std::vector<std::uint8_t>& changed, bool surface_changed, StepStats& stats);
   void solve_body(Body& body, const std::vector<physics::NodalSpring>& springs, double end_time,
                   StepStats& stats);
 

@@ -95,16 +95,17 @@ EdgeBroadPhase::EdgeBroadPhase(EdgeBroadPhase&&) noexcept = default;
 EdgeBroadPhase& EdgeBroadPhase::operator=(EdgeBroadPhase&&) noexcept = default;
 
 bool EdgeBroadPhase::set_edge(int id, const MovingSegment& edge) {
+  if (id < 0) throw std::invalid_argument("broad phase: edge id " + std::to_string(id) + " is negative");
   const Box box = swept_box(edge, "edge", id);
   const btDbvtVolume needed = to_volume(box, margin_);
-  const auto found = leaves_.find(id);
-  if (found == leaves_.end()) {
-    btDbvtNode* leaf = tree_->insert(to_volume(box, margin_ + slack_), nullptr);
+  if (static_cast<size_t>(id) >= leaves_.size()) leaves_.resize(static_cast<size_t>(id) + 1, nullptr);
+  btDbvtNode*& leaf = leaves_[static_cast<size_t>(id)];
+  if (leaf == nullptr) {
+    leaf = tree_->insert(to_volume(box, margin_ + slack_), nullptr);
     leaf->dataAsInt = id;  // leaves keep the caller's id in the node's data word
-    leaves_.emplace(id, leaf);
+    ++edge_count_;
     return true;
   }
-  btDbvtNode* leaf = found->second;
   if (leaf->volume.Contain(needed)) return false;
   btDbvtVolume grown = to_volume(box, margin_ + slack_);
   tree_->update(leaf, grown);
@@ -112,17 +113,18 @@ bool EdgeBroadPhase::set_edge(int id, const MovingSegment& edge) {
 }
 
 void EdgeBroadPhase::remove_edge(int id) {
-  const auto found = leaves_.find(id);
-  if (found == leaves_.end()) {
-    throw std::out_of_range("broad phase: no edge " + std::to_string(id) + " to remove");
-  }
-  tree_->remove(found->second);
-  leaves_.erase(found);
+  if (!contains(id)) throw std::out_of_range("broad phase: no edge " + std::to_string(id) + " to remove");
+  btDbvtNode*& leaf = leaves_[static_cast<size_t>(id)];
+  tree_->remove(leaf);
+  leaf = nullptr;
+  --edge_count_;
 }
 
-bool EdgeBroadPhase::contains(int id) const { return leaves_.count(id) != 0; }
+bool EdgeBroadPhase::contains(int id) const {
+  return id >= 0 && static_cast<size_t>(id) < leaves_.size() && leaves_[static_cast<size_t>(id)] != nullptr;
+}
 
-int EdgeBroadPhase::edge_count() const { return static_cast<int>(leaves_.size()); }
+int EdgeBroadPhase::edge_count() const { return edge_count_; }
 
 void EdgeBroadPhase::rebalance(int passes) {
   if (passes > 0) tree_->optimizeIncremental(passes);

@@ -10,7 +10,8 @@
 // the candidates are a superset of the edges first_edge_hit reports, provided `margin` is at
 // least the touching distance of continuous_collision.hpp.
 //
-// Edges are named by an integer id of the caller's choosing (an index into its edge list).
+// Edges are named by a non-negative integer id of the caller's choosing (an index into its
+// edge list; the ids index a table, so keep them dense).
 // btDbvt stores single-precision boxes; conversion rounds outwards, so no box shrinks.
 // Queries reuse a traversal stack and the caller's vector: no allocation once warm. A query
 // is not safe to run concurrently with another query on the same object.
@@ -21,7 +22,6 @@
 #include <memory>
 #include <optional>
 #include <span>
-#include <unordered_map>
 #include <vector>
 
 struct btDbvt;
@@ -70,7 +70,8 @@ class EdgeBroadPhase {
   double slack_;
   std::unique_ptr<btDbvt> tree_;
   std::unique_ptr<Traversal> traversal_;  // reused stack and collector of queries
-  std::unordered_map<int, btDbvtNode*> leaves_;
+  std::vector<btDbvtNode*> leaves_;  // by id (ids are dense indices); nullptr: absent
+  int edge_count_ = 0;
 };
 
 }  // namespace incise::physics

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
+#include <utility>
 
 namespace incise::physics {
 
@@ -54,13 +55,48 @@ std::optional<double> segment_crosses_triangle(const Vec3& p, const Vec3& q, con
   return along;
 }
 
-namespace {
-
-long long bin_key(long long i, long long j, long long k) {
-  return ((i + (1LL << 20)) << 42) ^ ((j + (1LL << 20)) << 21) ^ (k + (1LL << 20));
+const std::vector<int>* RestCut::bin(long long i, long long j, long long k) const {
+  i -= bins_lo_[0], j -= bins_lo_[1], k -= bins_lo_[2];
+  if (i < 0 || j < 0 || k < 0 || i >= bins_count_[0] || j >= bins_count_[1] || k >= bins_count_[2]) return nullptr;
+  return &bins_[static_cast<size_t>(i + bins_count_[0] * (j + bins_count_[1] * k))];
 }
 
-}  // namespace
+std::vector<int>* RestCut::bin(long long i, long long j, long long k) {
+  return const_cast<std::vector<int>*>(std::as_const(*this).bin(i, j, k));
+}
+
+void RestCut::cover(const std::array<long long, 3>& first, const std::array<long long, 3>& last) {
+  bool inside = !bins_.empty();
+  for (int axis = 0; axis < 3; ++axis)
+    inside = inside && first[axis] >= bins_lo_[axis] && last[axis] < bins_lo_[axis] + bins_count_[axis];
+  if (inside) return;
+  // Grow to the union, with as much again as margin on each side that grew (amortised).
+  std::array<long long, 3> lo{}, count{};
+  for (int axis = 0; axis < 3; ++axis) {
+    long long new_lo = first[axis], new_hi = last[axis];
+    if (!bins_.empty()) {
+      new_lo = std::min(new_lo, bins_lo_[axis]);
+      new_hi = std::max(new_hi, bins_lo_[axis] + bins_count_[axis] - 1);
+    }
+    const long long margin = (new_hi - new_lo + 1) / 2 + 1;
+    if (bins_.empty() || new_lo < bins_lo_[axis]) new_lo -= margin;
+    if (bins_.empty() || new_hi >= bins_lo_[axis] + bins_count_[axis]) new_hi += margin;
+    lo[axis] = new_lo;
+    count[axis] = new_hi - new_lo + 1;
+  }
+  std::vector<std::vector<int>> grown(static_cast<size_t>(count[0] * count[1] * count[2]));
+  for (long long k = 0; k < bins_count_[2]; ++k)
+    for (long long j = 0; j < bins_count_[1]; ++j)
+      for (long long i = 0; i < bins_count_[0]; ++i) {
+        auto& from = bins_[static_cast<size_t>(i + bins_count_[0] * (j + bins_count_[1] * k))];
+        if (from.empty()) continue;
+        const long long gi = i + bins_lo_[0] - lo[0], gj = j + bins_lo_[1] - lo[1], gk = k + bins_lo_[2] - lo[2];
+        grown[static_cast<size_t>(gi + count[0] * (gj + count[1] * gk))] = std::move(from);
+      }
+  bins_ = std::move(grown);
+  bins_lo_ = lo;
+  bins_count_ = count;
+}
 
 template <typename Visit>
 void RestCut::for_each_near(const Vec3& lo, const Vec3& hi, double reach, const Visit& visit) const {
@@ -68,8 +104,11 @@ void RestCut::for_each_near(const Vec3& lo, const Vec3& hi, double reach, const 
   ++query_;
   std::array<long long, 3> first{}, last{};
   for (int axis = 0; axis < 3; ++axis) {
-    first[axis] = static_cast<long long>(std::floor((lo[axis] - reach) / cell_));
-    last[axis] = static_cast<long long>(std::floor((hi[axis] + reach) / cell_));
+    // Only the bins that exist: clamped to the covered range (none outside it holds anything).
+    first[axis] = std::max(bins_lo_[axis], static_cast<long long>(std::floor((lo[axis] - reach) / cell_)));
+    last[axis] = std::min(bins_lo_[axis] + bins_count_[axis] - 1,
+                          static_cast<long long>(std::floor((hi[axis] + reach) / cell_)));
+    if (last[axis] < first[axis]) return;
   }
   // A query box much larger than the cut: scan the triangles instead of the cells.
   const double cells = static_cast<double>(last[0] - first[0] + 1) * (last[1] - first[1] + 1) * (last[2] - first[2] + 1);
@@ -81,9 +120,7 @@ void RestCut::for_each_near(const Vec3& lo, const Vec3& hi, double reach, const 
   for (long long k = first[2]; k <= last[2]; ++k)
     for (long long j = first[1]; j <= last[1]; ++j)
       for (long long i = first[0]; i <= last[0]; ++i) {
-        const auto it = bins_.find(bin_key(i, j, k));
-        if (it == bins_.end()) continue;
-        for (int t : it->second) {
+        for (int t : *bin(i, j, k)) {
           if (stamp_[t] == query_) continue;
           stamp_[t] = query_;
           if (boxes_overlap(lo, hi, boxes_[t][0], boxes_[t][1], reach) && visit(t)) return;
@@ -105,9 +142,10 @@ void RestCut::add(const RestTriangle& triangle) {
     // the triangle still gets its box test, so nothing is lost but speed.
     last[axis] = std::min(last[axis], first[axis] + 256);
   }
+  cover(first, last);
   for (long long k = first[2]; k <= last[2]; ++k)
     for (long long j = first[1]; j <= last[1]; ++j)
-      for (long long i = first[0]; i <= last[0]; ++i) bins_[bin_key(i, j, k)].push_back(index);
+      for (long long i = first[0]; i <= last[0]; ++i) bin(i, j, k)->push_back(index);
 }
 
 bool RestCut::crosses(const Vec3& p, const Vec3& q) const {
@@ -144,23 +182,34 @@ bool RestCut::near_box(const Vec3& lo, const Vec3& hi, double reach) const {
 }
 
 SurfaceTopology surface_topology(const std::vector<std::array<int, 3>>& triangles) {
-  std::vector<std::pair<int, int>> edges;
-  edges.reserve(3 * triangles.size());
-  for (const auto& t : triangles) {
+  // Edges bucketed by their lower vertex (a counting sort, linear in the triangles), then
+  // each bucket's few upper vertices counted.
+  int vertices = 0;
+  for (const auto& t : triangles)
+    for (int v : t) vertices = std::max(vertices, v + 1);
+  std::vector<int> start(static_cast<size_t>(vertices) + 1, 0);
+  for (const auto& t : triangles)
+    for (int e = 0; e < 3; ++e) ++start[static_cast<size_t>(std::min(t[e], t[(e + 1) % 3])) + 1];
+  for (int v = 0; v < vertices; ++v) start[v + 1] += start[v];
+  std::vector<int> upper(static_cast<size_t>(start[vertices]));
+  std::vector<int> fill(start.begin(), start.end() - 1);
+  for (const auto& t : triangles)
     for (int e = 0; e < 3; ++e) {
       const int a = t[e], b = t[(e + 1) % 3];
-      edges.emplace_back(std::min(a, b), std::max(a, b));
+      upper[static_cast<size_t>(fill[std::min(a, b)]++)] = std::max(a, b);
     }
-  }
-  std::sort(edges.begin(), edges.end());
   SurfaceTopology topology;
-  for (size_t first = 0; first < edges.size();) {
-    size_t last = first;
-    while (last < edges.size() && edges[last] == edges[first]) ++last;
-    const size_t count = last - first;
-    topology.boundary_edges += count == 1 ? 1 : 0;
-    topology.nonmanifold_edges += count > 2 ? 1 : 0;
-    first = last;
+  for (int v = 0; v < vertices; ++v) {
+    const auto first = upper.begin() + start[v], last = upper.begin() + start[v + 1];
+    std::sort(first, last);
+    for (auto it = first; it != last;) {
+      auto next = it;
+      while (next != last && *next == *it) ++next;
+      const auto count = next - it;
+      topology.boundary_edges += count == 1 ? 1 : 0;
+      topology.nonmanifold_edges += count > 2 ? 1 : 0;
+      it = next;
+    }
   }
   return topology;
 }
@@ -490,11 +539,24 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
                              SurfaceMappingReport& report, const MappingReuse* reuse) {
   const double a = model.spacing();
   const Vec3 origin = model.grid_origin();
-  // Elements by integration cube.
-  std::unordered_map<long long, int> element_at;
-  const auto key = [](long long i, long long j, long long k) { return (i * 8192 + j) * 8192 + k; };
+  // Elements by integration cube, in a dense table over the cubes' range.
   const auto& cubes = model.element_grid_coordinates();
-  for (int e = 0; e < model.element_count(); ++e) element_at[key(cubes[e][0], cubes[e][1], cubes[e][2])] = e;
+  std::array<long long, 3> cube_lo{0, 0, 0}, cube_count{0, 0, 0};
+  if (!cubes.empty()) {
+    std::array<long long, 3> cube_hi{};
+    for (int axis = 0; axis < 3; ++axis) cube_lo[axis] = cube_hi[axis] = cubes[0][axis];
+    for (const auto& c : cubes)
+      for (int axis = 0; axis < 3; ++axis)
+        cube_lo[axis] = std::min<long long>(cube_lo[axis], c[axis]), cube_hi[axis] = std::max<long long>(cube_hi[axis], c[axis]);
+    for (int axis = 0; axis < 3; ++axis) cube_count[axis] = cube_hi[axis] - cube_lo[axis] + 1;
+  }
+  std::vector<int> element_at(static_cast<size_t>(cube_count[0] * cube_count[1] * cube_count[2]), -1);
+  const auto cube_slot = [&](long long i, long long j, long long k) -> long long {
+    i -= cube_lo[0], j -= cube_lo[1], k -= cube_lo[2];
+    if (i < 0 || j < 0 || k < 0 || i >= cube_count[0] || j >= cube_count[1] || k >= cube_count[2]) return -1;
+    return i + cube_count[0] * (j + cube_count[1] * k);
+  };
+  for (int e = 0; e < model.element_count(); ++e) element_at[cube_slot(cubes[e][0], cubes[e][1], cubes[e][2])] = e;
 
   const Vector& rest_vertices = surface.rest_vertices();
   const RestCut& cut = surface.rest_cut();
@@ -509,19 +571,34 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
   constexpr int shells = 3;  // search radius, in integration cubes
   std::vector<std::pair<double, int>> nearby;
   std::vector<Vec3> positions;
-  std::unordered_map<long long, int> previous_of;
-  if (reuse && reuse->embedding && reuse->keys && reuse->rest_vertices) {
-    previous_of.reserve(reuse->keys->size());
-    for (size_t v = 0; v < reuse->keys->size(); ++v) previous_of.emplace((*reuse->keys)[v], static_cast<int>(v));
+  // The previous vertex of each key: a table over the key space, -1 where there is none
+  // (left all -1 on return).
+  std::vector<int> local_table;
+  std::vector<int>* previous_of = nullptr;
+  const bool reusing = reuse && reuse->embedding && reuse->keys && reuse->rest_vertices && !reuse->keys->empty();
+  if (reusing) {
+    previous_of = reuse->key_table ? reuse->key_table : &local_table;
+    long long space = surface.key_space();
+    for (long long k : *reuse->keys) space = std::max(space, k + 1);
+    if (static_cast<long long>(previous_of->size()) < space) previous_of->resize(static_cast<size_t>(space), -1);
+    for (size_t v = 0; v < reuse->keys->size(); ++v) (*previous_of)[static_cast<size_t>((*reuse->keys)[v])] = static_cast<int>(v);
   }
+  struct ResetTable {
+    std::vector<int>* table;
+    const std::vector<long long>* keys;
+    ~ResetTable() {
+      if (table)
+        for (long long k : *keys) (*table)[static_cast<size_t>(k)] = -1;
+    }
+  } reset{previous_of, reusing ? reuse->keys : nullptr};
   for (int v = 0; v < vertices; ++v) {
     const Vec3 vertex = rest_vertices.segment<3>(3 * static_cast<Eigen::Index>(v));
     const Vec3 anchor = surface.anchors()[v];
-    if (!previous_of.empty()) {
-      const auto it = previous_of.find(surface.vertex_keys()[v]);
+    if (previous_of) {
+      const long long key = surface.vertex_keys()[v];
+      const int p = key < static_cast<long long>(previous_of->size()) ? (*previous_of)[static_cast<size_t>(key)] : -1;
       bool dirty = true;
-      if (it != previous_of.end()) {
-        const int p = it->second;
+      if (p >= 0) {
         const int e = reuse->embedding->elements[p];
         dirty = reuse->rest_vertices->segment<3>(3 * static_cast<Eigen::Index>(p)) != vertex ||
                 (reuse->element_changed && (*reuse->element_changed)[e]) ||
@@ -546,20 +623,30 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
     nearby.clear();
     std::array<long long, 3> cube{};
     for (int axis = 0; axis < 3; ++axis) cube[axis] = static_cast<long long>(std::floor((vertex[axis] - origin[axis]) / a));
-    for (long long dz = -shells; dz <= shells; ++dz)
-      for (long long dy = -shells; dy <= shells; ++dy)
-        for (long long dx = -shells; dx <= shells; ++dx) {
-          const auto it = element_at.find(key(cube[0] + dx, cube[1] + dy, cube[2] + dz));
-          if (it == element_at.end() || !model.element_active(it->second)) continue;
-          nearby.emplace_back((model.element_centres()[it->second] - vertex).squaredNorm(), it->second);
-        }
-    std::sort(nearby.begin(), nearby.end());
     int chosen = -1;
     const bool near_cut = cut.size() > 0 && cut.near_box(vertex.cwiseMin(anchor), vertex.cwiseMax(anchor), (shells + 1) * a);
-    for (const auto& [distance, e] : nearby) {
-      if (!near_cut || !cut.crosses(anchor, model.element_centres()[e])) {
-        chosen = e;
-        break;
+    // The nearest valid point (nearest, and visible from the anchor near the cut), searched
+    // ring by ring of cubes: every element of a ring beyond s lies farther than s a from the
+    // vertex (its point is inside its cube), so a valid one nearer than that is the nearest of
+    // all `shells` rings, as if they had all been sorted.
+    for (long long ring = 0; ring <= shells && chosen < 0; ++ring) {
+      for (long long dz = -ring; dz <= ring; ++dz)
+        for (long long dy = -ring; dy <= ring; ++dy)
+          for (long long dx = -ring; dx <= ring; ++dx) {
+            if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != ring) continue;
+            const long long slot = cube_slot(cube[0] + dx, cube[1] + dy, cube[2] + dz);
+            const int e = slot < 0 ? -1 : element_at[static_cast<size_t>(slot)];
+            if (e < 0 || !model.element_active(e)) continue;
+            nearby.emplace_back((model.element_centres()[e] - vertex).squaredNorm(), e);
+          }
+      std::sort(nearby.begin(), nearby.end());
+      const double bound = static_cast<double>(ring) * a;
+      for (const auto& [distance, e] : nearby) {
+        if (ring < shells && !(distance < bound * bound)) break;  // a farther ring may hold a nearer one
+        if (!near_cut || !cut.crosses(anchor, model.element_centres()[e])) {
+          chosen = e;
+          break;
+        }
       }
     }
     if (chosen < 0) {
@@ -601,21 +688,54 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
   return embedding;
 }
 
+namespace {
+
+bool element_linked_across(const CorotationalEfg& model, const RestCut& cut, int e) {
+  if (!model.element_active(e)) return false;
+  const Vec3 centre = model.element_centres()[e];
+  const size_t base = static_cast<size_t>(e) * model.row_stride();
+  for (int k = 0; k < model.row_lengths()[e]; ++k) {
+    const Vec3 particle = model.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(model.neighbours()[base + k]));
+    if (cut.crosses(centre, particle)) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 int elements_linked_across(const CorotationalEfg& model, const RestCut& cut) {
   if (cut.size() == 0) return 0;
   int across = 0;
+  for (int e = 0; e < model.element_count(); ++e) across += element_linked_across(model, cut, e) ? 1 : 0;
+  return across;
+}
+
+int update_elements_linked_across(const CorotationalEfg& model, const RestCut& cut, std::vector<std::uint8_t>& linked,
+                                  const Vec3& lo, const Vec3& hi, const std::vector<std::uint8_t>* changed) {
+  const int elements = model.element_count();
+  const bool all = static_cast<int>(linked.size()) != elements;
+  if (all) linked.assign(static_cast<size_t>(elements), 0);
+  if (cut.size() == 0) return 0;
   const int stride = model.row_stride();
-  for (int e = 0; e < model.element_count(); ++e) {
-    if (!model.element_active(e)) continue;
-    const Vec3 centre = model.element_centres()[e];
-    const size_t base = static_cast<size_t>(e) * stride;
-    for (int k = 0; k < model.row_lengths()[e]; ++k) {
-      const Vec3 particle = model.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(model.neighbours()[base + k]));
-      if (cut.crosses(centre, particle)) {
-        ++across;
-        break;
-      }
+  int across = 0;
+  for (int e = 0; e < elements; ++e) {
+    if (!model.element_active(e)) {
+      linked[e] = 0;
+      continue;
     }
+    bool check = all || (changed && (*changed)[e]);
+    if (!check) {
+      // The box of the element's links: its centre and its neighbours, at rest.
+      Vec3 box_lo = model.element_centres()[e], box_hi = box_lo;
+      const size_t base = static_cast<size_t>(e) * stride;
+      for (int k = 0; k < model.row_lengths()[e]; ++k) {
+        const Vec3 particle = model.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(model.neighbours()[base + k]));
+        box_lo = box_lo.cwiseMin(particle), box_hi = box_hi.cwiseMax(particle);
+      }
+      check = (box_lo.array() <= hi.array()).all() && (box_hi.array() >= lo.array()).all();
+    }
+    if (check) linked[e] = element_linked_across(model, cut, e) ? 1 : 0;
+    across += linked[e];
   }
   return across;
 }

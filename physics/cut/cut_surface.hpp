@@ -71,10 +71,17 @@ class RestCut {
   template <typename Visit>
   void for_each_near(const Vec3& lo, const Vec3& hi, double reach, const Visit& visit) const;
 
+  // The bin range covering every triangle's box, grown (by doubling, re-binning) as the cut
+  // grows; bins are a dense array over it, so a query costs array reads, not hash lookups.
+  std::vector<int>* bin(long long i, long long j, long long k);
+  const std::vector<int>* bin(long long i, long long j, long long k) const;
+  void cover(const std::array<long long, 3>& first, const std::array<long long, 3>& last);
+
   double cell_;
   std::vector<RestTriangle> triangles_;
   std::vector<std::array<Vec3, 2>> boxes_;
-  std::unordered_map<long long, std::vector<int>> bins_;  // grid cell -> triangles overlapping it
+  std::array<long long, 3> bins_lo_{0, 0, 0}, bins_count_{0, 0, 0};
+  std::vector<std::vector<int>> bins_;  // grid cell -> triangles overlapping it
   mutable std::vector<int> stamp_;                         // per triangle: last query that saw it
   mutable int query_ = 0;
 };
@@ -113,6 +120,10 @@ class CutSurface {
   // Per vertex: grid node x 8 + its group there. A vertex keeps its key across rebuilds as
   // long as the cut does not split its group, which lets a mapping be reused.
   const std::vector<long long>& vertex_keys() const { return vertex_keys_; }
+  // Keys are below this bound (grid nodes x 8): a table indexed by key can replace a map.
+  long long key_space() const {
+    return 8LL * (counts_[0] + 1) * (counts_[1] + 1) * (counts_[2] + 1);
+  }
   const RestCut& rest_cut() const { return rest_cut_; }
   int cut_faces() const { return cut_faces_; }
   int cubes() const { return cube_count_; }
@@ -165,6 +176,9 @@ struct MappingReuse {
   const Vector* rest_vertices = nullptr;
   const std::vector<std::uint8_t>* element_changed = nullptr;  // per element, may be null
   Vec3 dirty_lo = Vec3::Zero(), dirty_hi = Vec3::Zero();
+  // Scratch the caller keeps between calls (may be null): a key -> previous vertex table,
+  // every entry -1 between calls, so each call costs the vertices, not the key space.
+  std::vector<int>* key_table = nullptr;
 };
 SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& surface,
                              SurfaceMappingReport& report, const MappingReuse* reuse = nullptr);
@@ -172,5 +186,12 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
 // Elements with a neighbour across the rest cut (its link to the integration point crosses a
 // cut triangle): zero when the volume cut agrees with the surface's.
 int elements_linked_across(const CorotationalEfg& model, const RestCut& cut);
+// The same kept up to date after a cut grew by triangles inside the rest box [lo, hi]:
+// `linked` (per element, 1 = linked across) is recomputed for the elements whose links reach
+// into the box or that `changed` marks (may be null), all of them when its size is not the
+// element count; returns the count. Equal to the full count as long as every triangle added
+// since the last call lies in [lo, hi].
+int update_elements_linked_across(const CorotationalEfg& model, const RestCut& cut, std::vector<std::uint8_t>& linked,
+                                  const Vec3& lo, const Vec3& hi, const std::vector<std::uint8_t>* changed);
 
 }  // namespace incise::physics

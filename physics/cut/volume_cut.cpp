@@ -82,9 +82,10 @@ void VolumeCutter::refit(const std::vector<Vec3>& points_start, const std::vecto
                          const Vector& particles_start, const Vector& particles_end, const Vec3& near_lo,
                          const Vec3& near_hi) {
   const auto particle = [](const Vector& x, int p) { return Vec3(x.segment<3>(3 * static_cast<Eigen::Index>(p))); };
-  // Only links with an endpoint near the sweep are refitted: a link whose endpoints both stay
+  // Only links with an endpoint near the sweep are (re)boxed: a link whose endpoints both stay
   // outside the sweep's box grown by more than a link's length cannot touch the blade, and a
-  // stale box elsewhere only adds candidates the narrow test rejects.
+  // stale box elsewhere only adds candidates the narrow test rejects. Links enter the tree the
+  // first time they come near a sweep, so the first contact does not box the whole body.
   const auto near = [&](const Vec3& at_start, const Vec3& at_end) {
     for (int axis = 0; axis < 3; ++axis) {
       const double lo = std::min(at_start[axis], at_end[axis]), hi = std::max(at_start[axis], at_end[axis]);
@@ -98,7 +99,7 @@ void VolumeCutter::refit(const std::vector<Vec3>& points_start, const std::vecto
   for (size_t link = 0; link < particle_links_.size(); ++link) {
     if (particle_link_severed_[link]) continue;
     const auto [a, b] = particle_links_[link];
-    if (!near_particle_[a] && !near_particle_[b] && broad_phase_.contains(static_cast<int>(link))) continue;
+    if (!near_particle_[a] && !near_particle_[b]) continue;
     broad_phase_.set_edge(static_cast<int>(link),
                           {{particle(particles_start, a), particle(particles_start, b)},
                            {particle(particles_end, a), particle(particles_end, b)}});
@@ -108,7 +109,7 @@ void VolumeCutter::refit(const std::vector<Vec3>& points_start, const std::vecto
     const size_t base = static_cast<size_t>(e) * stride;
     auto& boxed = element_link_particles_[e];
     const int length = model_.row_lengths()[e];
-    bool touching = near(points_start[e], points_end[e]) || boxed.empty();
+    bool touching = near(points_start[e], points_end[e]);
     for (int k = 0; k < length && !touching; ++k) touching = near_particle_[model_.neighbours()[base + k]] != 0;
     if (!touching) continue;
     // Slots that no longer hold a link (a shorter row after a re-selection) leave the tree.

@@ -156,3 +156,82 @@ TEST(CutSurface, VerticesMapToTheirOwnSideAndAgreeWithTheVolumeCut) {
     EXPECT_NEAR(dz, right ? -0.01 : 0.0, 1e-9) << "vertex " << v;
   }
 }
+
+TEST(CutSurface, EachVertexMapsToTheNearestVisibleIntegrationPoint) {
+  // map_surface searches ring by ring of cubes; the answer must be the brute-force one: the
+  // nearest active integration point whose segment to the vertex's anchor crosses no cut.
+  EfgSettings settings;
+  settings.spacing = 0.0025;
+  settings.threaded_elements = 0;
+  CorotationalEfg model(Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), Material{1e5, 0.3, 1000}, settings);
+  const Vector rest = model.rest_positions();
+  VolumeCutter cutter(model, 1e-6, 0.002);
+  const double x_cut = 0.0512;
+  cutter.cut(std::vector<Vec3>{Vec3(x_cut, -0.03, 0.03), Vec3(x_cut, 0.03, 0.03)},
+             std::vector<Vec3>{Vec3(x_cut, -0.03, 0.0), Vec3(x_cut, 0.03, 0.0)}, rest, rest);
+  CutSurface surface(in_box, Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), 0.00125);
+  surface.cut(plane_cut(x_cut, 0.0));
+  surface.rebuild();
+  SurfaceMappingReport report;
+  const SurfaceEmbedding embedding = map_surface(model, surface, report);
+  ASSERT_EQ(report.relaxed_fallbacks, 0);
+  int near_the_cut = 0;
+  for (int v = 0; v < embedding.vertex_count(); ++v) {
+    const Vec3 vertex = surface.rest_vertices().segment<3>(3 * v);
+    const Vec3 anchor = surface.anchors()[v];
+    int best = -1;
+    double best_distance = 0;
+    for (int e = 0; e < model.element_count(); ++e) {
+      if (!model.element_active(e)) continue;
+      const double d = (model.element_centres()[e] - vertex).squaredNorm();
+      if (best >= 0 && d >= best_distance) continue;
+      if (surface.rest_cut().crosses(anchor, model.element_centres()[e])) continue;
+      best = e, best_distance = d;
+    }
+    ASSERT_EQ(embedding.elements[v], best) << "vertex " << v;
+    near_the_cut += std::abs(vertex.x() - x_cut) < 0.005 ? 1 : 0;
+  }
+  EXPECT_GT(near_the_cut, 50) << "the case exercises the visibility test";
+}
+
+TEST(CutSurface, LinkedAcrossKeptUpToDateEqualsTheFullCount) {
+  // The surface's cut grows strip by strip while the volume is not cut, so elements linked
+  // across appear at every strip; the incremental count (elements near the new strip and the
+  // ones marked changed) must equal a full recount each time.
+  EfgSettings settings;
+  settings.spacing = 0.0025;
+  settings.threaded_elements = 0;
+  CorotationalEfg model(Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), Material{1e5, 0.3, 1000}, settings);
+  CutSurface surface(in_box, Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), 0.00125);
+  std::vector<std::uint8_t> linked;
+  int previous = 0;
+  for (int strip = 0; strip < 8; ++strip) {
+    // A slanted strip: x from 0.02 + 0.008 strip, top to bottom.
+    const double x0 = 0.02 + 0.008 * strip, x1 = x0 + 0.008;
+    const Vec3 p0(x0, -0.03, 0.03), p1(x1, -0.03, 0.03), p2(x1, 0.03, -0.03), p3(x0, 0.03, -0.03);
+    const std::vector<RestTriangle> triangles{{p0, p1, p2}, {p0, p2, p3}};
+    surface.cut(triangles);
+    Vec3 lo = p0, hi = p0;
+    for (const Vec3& p : {p1, p2, p3}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    const int incremental = update_elements_linked_across(model, surface.rest_cut(), linked, lo, hi, nullptr);
+    const int full = elements_linked_across(model, surface.rest_cut());
+    EXPECT_EQ(incremental, full) << "strip " << strip;
+    EXPECT_GT(full, previous) << "strip " << strip << " links more elements across";
+    previous = full;
+  }
+}
+
+TEST(SurfaceTopology, CountsBoundaryAndNonManifoldEdges) {
+  // A closed tetrahedron: watertight.
+  const std::vector<std::array<int, 3>> tetrahedron{{0, 2, 1}, {0, 1, 3}, {1, 2, 3}, {0, 3, 2}};
+  EXPECT_TRUE(surface_topology(tetrahedron).watertight());
+  // One face removed: its three edges are boundary edges.
+  const std::vector<std::array<int, 3>> open(tetrahedron.begin(), tetrahedron.end() - 1);
+  EXPECT_EQ(surface_topology(open).boundary_edges, 3);
+  EXPECT_EQ(surface_topology(open).nonmanifold_edges, 0);
+  // A third triangle on edge (0, 1) of the closed one: one non-manifold edge, two boundary ones.
+  auto fin = tetrahedron;
+  fin.push_back({0, 1, 4});
+  EXPECT_EQ(surface_topology(fin).nonmanifold_edges, 1);
+  EXPECT_EQ(surface_topology(fin).boundary_edges, 2);
+}
