@@ -2,6 +2,7 @@
 
 #include <Eigen/SparseCholesky>
 #include <cmath>
+#include <vector>
 #include <stdexcept>
 #include <string>
 
@@ -75,18 +76,78 @@ std::array<Vec3, 10> quadratic_shape_gradients(const Eigen::Vector4d& l,
   return gradients;
 }
 
-void check_straight_edges(const Vector& rest, const std::array<int, 10>& tet, size_t element) {
+// Edges must be straight; a midside node may sit anywhere in the middle half of its edge
+// (the quarter-point position puts the 1 / sqrt r strain of a crack front into the element,
+// Barsoum 1976). Returns whether every midside node is at its midpoint (the element is then
+// affine and the exact 4-point rule applies); otherwise the element is isoparametric.
+bool check_straight_edges(const Vector& rest, const std::array<int, 10>& tet, size_t element) {
+  bool affine = true;
   for (int e = 0; e < 6; ++e) {
     const Vec3 a = rest.segment<3>(3 * tet[quadratic_tet_edges[e][0]]);
     const Vec3 b = rest.segment<3>(3 * tet[quadratic_tet_edges[e][1]]);
-    const Vec3 middle = rest.segment<3>(3 * tet[4 + e]);
-    if ((middle - 0.5 * (a + b)).norm() > 1e-9 * (b - a).norm()) {
+    const Vec3 node = rest.segment<3>(3 * tet[4 + e]);
+    const Vec3 edge = b - a;
+    const double t = (node - a).dot(edge) / edge.squaredNorm();
+    if ((node - (a + t * edge)).norm() > 1e-9 * edge.norm()) {
       throw std::invalid_argument("quadratic tet element " + std::to_string(element) + ": node " +
                                   std::to_string(tet[4 + e]) +
-                                  " is not at the middle of its edge (curved edges are not "
+                                  " is off the straight line of its edge (curved edges are not "
                                   "supported)");
     }
+    if (t < 0.25 - 1e-9 || t > 0.75 + 1e-9) {
+      throw std::invalid_argument("quadratic tet element " + std::to_string(element) + ": node " +
+                                  std::to_string(tet[4 + e]) + " is at " + std::to_string(t) +
+                                  " along its edge, outside the middle half [0.25, 0.75]");
+    }
+    affine = affine && std::abs(t - 0.5) <= 1e-9;
   }
+  return affine;
+}
+
+// The isoparametric 10-node tet: reference coordinates r = (L_1, L_2, L_3), L_0 = 1 - sum.
+// dN/dr through L as in quadratic_shape_gradients, with grad L_0 = -(1, 1, 1).
+std::array<Vec3, 10> quadratic_reference_gradients(const Eigen::Vector4d& l) {
+  const std::array<Vec3, 4> reference{Vec3(-1, -1, -1), Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()};
+  return quadratic_shape_gradients(l, reference);
+}
+
+// A conical (collapsed Gauss-Legendre, 4 x 4 x 4) rule on the reference tet: r_1 = u,
+// r_2 = (1 - u) v, r_3 = (1 - u)(1 - v) w, dr = (1 - u)^2 (1 - v) du dv dw. Exact for
+// polynomials of degree 7; the quarter-point element's rational integrand needs more than the
+// 4-point rule.
+struct ReferencePoint {
+  Eigen::Vector4d l;
+  double weight;  // sums to 1/6, the reference volume
+};
+std::vector<ReferencePoint> conical_rule() {
+  const double x[4] = {0.8611363115940526, 0.3399810435848563, -0.3399810435848563, -0.8611363115940526};
+  const double w[4] = {0.3478548451374538, 0.6521451548625461, 0.6521451548625461, 0.3478548451374538};
+  std::vector<ReferencePoint> points;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j)
+      for (int k = 0; k < 4; ++k) {
+        const double u = 0.5 * (1 + x[i]), v = 0.5 * (1 + x[j]), t = 0.5 * (1 + x[k]);
+        const double r1 = u, r2 = (1 - u) * v, r3 = (1 - u) * (1 - v) * t;
+        points.push_back({Eigen::Vector4d(1 - r1 - r2 - r3, r1, r2, r3),
+                          0.125 * w[i] * w[j] * w[k] * (1 - u) * (1 - u) * (1 - v)});
+      }
+  return points;
+}
+
+// At a reference point: the shape gradients in x and dV / dr (det J), J = sum_a x_a (x) dN_a/dr.
+double isoparametric_gradients(const Vector& rest, const std::array<int, 10>& tet, const Eigen::Vector4d& l,
+                               std::array<Vec3, 10>& gradients, size_t element) {
+  const std::array<Vec3, 10> reference = quadratic_reference_gradients(l);
+  Mat3 jacobian = Mat3::Zero();
+  for (int a = 0; a < 10; ++a) jacobian += rest.segment<3>(3 * tet[a]) * reference[a].transpose();
+  const double determinant = jacobian.determinant();
+  if (!(determinant > 0)) {
+    throw std::invalid_argument("quadratic tet element " + std::to_string(element) +
+                                ": the isoparametric map folds (det J = " + std::to_string(determinant) + ")");
+  }
+  const Mat3 inverse_transpose = jacobian.inverse().transpose();
+  for (int a = 0; a < 10; ++a) gradients[a] = inverse_transpose * reference[a];
+  return determinant;
 }
 
 template <int Nodes>
@@ -142,9 +203,21 @@ SparseMatrix assemble_stiffness(const QuadraticTetMesh& mesh, const Material& ma
     const auto& tet = mesh.tets[e];
     check_nodes(mesh.rest, tet.data(), 10, e);
     const TetRestGeometry geometry = corner_geometry(mesh.rest, tet.data(), e);
-    check_straight_edges(mesh.rest, tet, e);
-    const auto barycentric = barycentric_gradients(geometry.inverse_shape);
     element_stiffness.setZero();
+    if (!check_straight_edges(mesh.rest, tet, e)) {
+      static const std::vector<ReferencePoint> rule = conical_rule();
+      std::array<Vec3, 10> gradients;
+      for (const ReferencePoint& point : rule) {
+        const double weight = point.weight * isoparametric_gradients(mesh.rest, tet, point.l, gradients, e);
+        for (int a = 0; a < 10; ++a)
+          for (int b = 0; b < 10; ++b)
+            element_stiffness.block<3, 3>(3 * a, 3 * b) +=
+                weight * isotropic_stiffness_block(gradients[a], gradients[b], lambda, mu);
+      }
+      push_element<10>(tet, element_stiffness, triplets);
+      continue;
+    }
+    const auto barycentric = barycentric_gradients(geometry.inverse_shape);
     for (int q = 0; q < gauss_points; ++q) {
       const auto gradients = quadratic_shape_gradients(gauss_barycentric(q), barycentric);
       const double weight = geometry.volume / gauss_points;
@@ -186,6 +259,16 @@ Vector assemble_body_load(const QuadraticTetMesh& mesh, const Vec3& body_force_p
     const auto& tet = mesh.tets[e];
     check_nodes(mesh.rest, tet.data(), 10, e);
     const double volume = corner_geometry(mesh.rest, tet.data(), e).volume;
+    if (!check_straight_edges(mesh.rest, tet, e)) {
+      static const std::vector<ReferencePoint> rule = conical_rule();
+      std::array<Vec3, 10> gradients;
+      for (const ReferencePoint& point : rule) {
+        const double weight = point.weight * isoparametric_gradients(mesh.rest, tet, point.l, gradients, e);
+        const auto values = quadratic_shape_values(point.l);
+        for (int a = 0; a < 10; ++a) load.segment<3>(3 * tet[a]) += weight * values[a] * body_force_per_volume;
+      }
+      continue;
+    }
     for (int a = 0; a < 10; ++a) {
       load.segment<3>(3 * tet[a]) += integral_per_volume[a] * volume * body_force_per_volume;
     }

@@ -213,9 +213,66 @@ TEST(StaticSolve, UnconstrainedBodyThrows) {
 
 TEST(StaticSolve, CurvedQuadraticEdgeIsRejected) {
   QuadraticTetMesh mesh = make_box_quadratic_tets(Vec3::Zero(), Vec3::Ones(), {1, 1, 1});
-  const int midpoint = mesh.tets[0][4];
-  mesh.rest[3 * midpoint] += 0.1;
-  EXPECT_THROW(assemble_stiffness(mesh, material), std::invalid_argument);
+  const auto& tet = mesh.tets[0];
+  const Vec3 a = mesh.rest.segment<3>(3 * tet[quadratic_tet_edges[0][0]]);
+  const Vec3 b = mesh.rest.segment<3>(3 * tet[quadratic_tet_edges[0][1]]);
+  // Off the line of its edge: a curved edge.
+  QuadraticTetMesh curved = mesh;
+  curved.rest.segment<3>(3 * tet[4]) += 0.1 * (b - a).unitOrthogonal();
+  EXPECT_THROW(assemble_stiffness(curved, material), std::invalid_argument);
+  EXPECT_THROW(assemble_body_load(curved, Vec3(0, 0, -1)), std::invalid_argument);
+  // On the line but outside its middle half: the map would fold.
+  QuadraticTetMesh folded = mesh;
+  folded.rest.segment<3>(3 * tet[4]) = a + 0.2 * (b - a);
+  EXPECT_THROW(assemble_stiffness(folded, material), std::invalid_argument);
+}
+
+// Moves every interior midside node along its (straight) edge to 0.3 or 0.7 of it: the
+// elements become isoparametric, as quarter-point crack-front elements are.
+QuadraticTetMesh shifted_midside_mesh() {
+  QuadraticTetMesh mesh = distorted_quadratic_mesh();
+  const std::vector<uint8_t> boundary = surface_nodes(mesh.rest);
+  std::vector<uint8_t> done(boundary.size(), 0);
+  int shifted = 0;
+  for (const auto& tet : mesh.tets) {
+    for (int e = 0; e < 6; ++e) {
+      const int node = tet[4 + e];
+      if (boundary[node] || done[node]) continue;
+      done[node] = 1;
+      const Vec3 a = mesh.rest.segment<3>(3 * tet[quadratic_tet_edges[e][0]]);
+      const Vec3 b = mesh.rest.segment<3>(3 * tet[quadratic_tet_edges[e][1]]);
+      mesh.rest.segment<3>(3 * node) = a + (shifted++ % 2 ? 0.3 : 0.7) * (b - a);
+    }
+  }
+  return mesh;
+}
+
+TEST(StaticPatch, IsoparametricQuadraticTetsReproduceAffineField) {
+  // An isoparametric element reproduces every affine field whatever its midside nodes (its
+  // shape functions still sum to 1 and interpolate x): the patch test with shifted nodes.
+  const QuadraticTetMesh mesh = shifted_midside_mesh();
+  const std::vector<uint8_t> boundary = surface_nodes(mesh.rest);
+  const Vector exact = sample(mesh.rest, affine_field);
+  const Vector u = solve_static_quadratic(mesh, material, boundary, exact, Vec3::Zero(), Vector());
+  double worst = 0;
+  for (size_t node = 0; node < boundary.size(); ++node) {
+    if (boundary[node]) continue;
+    const Eigen::Index offset = 3 * static_cast<Eigen::Index>(node);
+    worst = std::max(worst, (u.segment<3>(offset) - exact.segment<3>(offset)).norm());
+  }
+  EXPECT_LE(worst, 1e-9 * exact.cwiseAbs().maxCoeff());
+  // The shift matters: with the nodes moved the quadratic patch is no longer passed.
+  const QuadraticField field;
+  const Vector quadratic = sample(mesh.rest, field);
+  const Vector v = solve_static_quadratic(mesh, material, boundary, quadratic, field.body_force(material), Vector());
+  EXPECT_GT((v - quadratic).cwiseAbs().maxCoeff(), 1e-6 * quadratic.cwiseAbs().maxCoeff());
+  expect_rigid_kernel(mesh);
+  // The body load still integrates to the volume (the edges are straight: the same volume).
+  const Vec3 g(1.0, -2.0, 3.0);
+  const Vector load = assemble_body_load(mesh, g);
+  Vec3 total = Vec3::Zero();
+  for (Eigen::Index node = 0; node < load.size() / 3; ++node) total += load.segment<3>(3 * node);
+  EXPECT_LE((total - (box_max - box_min).prod() * g).norm(), 1e-12 * g.norm());
 }
 
 }  // namespace
