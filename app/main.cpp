@@ -68,7 +68,7 @@ int main(int argc, char** argv) {
 
   auto* bench_cmd = app.add_subcommand("bench", "Benchmarks that print figures and write reports (CSV, PNG)");
   bench_cmd->require_subcommand(1);
-  bool accuracy_quick = false, stability_quick = false;
+  bool accuracy_quick = false, stability_quick = false, stability_resume = false;
   std::string accuracy_out = "out/bench/accuracy", stability_out = "out/bench/stability";
   auto* accuracy_cmd = bench_cmd->add_subcommand("accuracy", "Error against run time per step, per model, variant and resolution");
   accuracy_cmd->add_flag("--quick", accuracy_quick, "A smaller sweep (about 3 minutes here)");
@@ -76,6 +76,8 @@ int main(int argc, char** argv) {
   auto* stability_cmd = bench_cmd->add_subcommand("stability", "Stiff and extreme cases: outcome per model, integrator, case, E, nu, dt");
   stability_cmd->add_flag("--quick", stability_quick, "A representative subset (within 3 minutes here)");
   stability_cmd->add_option("--out", stability_out, "Output folder (stability.csv, stability.png)")->capture_default_str();
+  stability_cmd->add_flag("--resume", stability_resume,
+                          "Keep the runs already in OUT/stability.csv (an interrupted sweep) and run the missing ones");
 
   bool performance_quick = false;
   std::string performance_out = "out/bench/performance";
@@ -98,7 +100,7 @@ int main(int argc, char** argv) {
     if (*import_cmd) return incise::app::trajectory_import(import_file, import_out);
     if (*synth_cmd) return incise::app::trajectory_synth(synth);
     if (*accuracy_cmd) return incise::bench::run_accuracy_bench(accuracy_quick, accuracy_out, std::cerr);
-    if (*stability_cmd) return incise::bench::run_stability_bench(stability_quick, stability_out, std::cerr);
+    if (*stability_cmd) return incise::bench::run_stability_bench(stability_quick, stability_out, std::cerr, stability_resume);
     if (*performance_cmd) return incise::bench::run_performance_bench(performance_quick, performance_out, std::cerr);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "incise: %s\n", e.what());

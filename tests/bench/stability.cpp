@@ -49,7 +49,9 @@
 //   freely for the run's duration T (M g^2 T^2 / 2), or a node moved more than 10 x the body
 //   size (the largest side of its rest bounding box); the run stops at the first such step;
 // - cg_not_converged: implicit Euler's CG hit its 1000-iteration cap in more than 10 % of the
-//   steps;
+//   run's steps; the run stops as soon as that count is reached (its steps are then not
+//   implicit Euler's solution, and the stiff runs that never converge would otherwise take
+//   most of the sweep's time);
 // - stable otherwise.
 // Runs are T = 1 s (beam) or 0.5 s (cubes) of simulated time; 0.25 s in quick mode.
 // Quick sweep (3 E x 3 nu x 2 dt; 414 runs and the study in about 160 s on the 2 shared cores):
@@ -544,6 +546,7 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
       run.outcome = Outcome::diverged;
       break;
     }
+    if (capped_steps > cg_capped_fraction * steps) break;  // cg_not_converged, below
   }
   if (run.outcome == Outcome::stable && capped_steps > cg_capped_fraction * steps) {
     run.outcome = Outcome::cg_not_converged;
@@ -712,6 +715,63 @@ std::string csv_row(const Run& run) {
          "," + format(run.poisson_ratio) + "," + format(run.dt) + "," + outcome_name(run.outcome) +
          "," + format(run.max_energy_ratio, 4) + "," + format(run.max_displacement, 4) + "," +
          std::to_string(run.steps) + "," + std::to_string(run.guard_events);
+}
+
+// The key of a run in the sweep: what identifies it, as the CSV writes it.
+std::string run_key(const std::string& model, const std::string& integrator, const std::string& case_name,
+                    double youngs_modulus, double poisson_ratio, double dt) {
+  return model + "," + integrator + "," + case_name + "," + format(youngs_modulus) + "," + format(poisson_ratio) +
+         "," + format(dt);
+}
+
+// The runs of an earlier (interrupted) sweep in `path`, by key. A row that does not parse
+// (a line cut short when the sweep was killed) ends the list: it and what follows are run
+// again. The CSV does not keep the inverted-element counts, so kept runs are left out of the
+// summary's inverted_start table.
+std::map<std::string, Run> read_previous_runs(const std::filesystem::path& path, std::ostream& progress) {
+  std::map<std::string, Run> runs;
+  std::ifstream in(path);
+  if (!in) return runs;
+  std::string line;
+  int number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    if (number == 1) {
+      if (line.rfind("model,integrator,case,E,nu,dt,outcome", 0) != 0) {
+        throw std::runtime_error(path.string() + ": line 1 is not a stability.csv header; not resuming from it");
+      }
+      continue;
+    }
+    std::vector<std::string> fields;
+    std::stringstream stream(line);
+    for (std::string field; std::getline(stream, field, ',');) fields.push_back(field);
+    if (!line.empty() && line.back() == ',') fields.emplace_back();  // an empty last field
+    Run run;
+    bool ok = fields.size() == 11;
+    try {
+      if (ok) {
+        run.model = fields[0], run.integrator = fields[1], run.case_name = fields[2];
+        run.youngs_modulus = std::stod(fields[3]);
+        run.poisson_ratio = std::stod(fields[4]);
+        run.dt = std::stod(fields[5]);
+        ok = false;
+        for (Outcome outcome : all_outcomes)
+          if (fields[6] == outcome_name(outcome)) run.outcome = outcome, ok = true;
+        run.max_energy_ratio = std::stod(fields[7]);
+        run.max_displacement = std::stod(fields[8]);
+        run.steps = std::stoi(fields[9]);
+        run.guard_events = std::stoi(fields[10]);
+      }
+    } catch (const std::exception&) {
+      ok = false;
+    }
+    if (!ok) {
+      progress << path.string() << ": line " << number << " is incomplete or malformed; it and any later lines are run again\n";
+      break;
+    }
+    runs[run_key(run.model, run.integrator, run.case_name, run.youngs_modulus, run.poisson_ratio, run.dt)] = run;
+  }
+  return runs;
 }
 
 std::string short_modulus(double pascals) {
@@ -903,7 +963,7 @@ std::string bounds_text(const Sweep& sweep) {
        << displacement_bound << " x the body size (largest side of its rest bounding box); "
        << "cg_not_converged = implicit Euler's CG hit its " << cg_max_iterations
        << "-iteration cap (tolerance " << format(cg_tolerance) << ") in more than "
-       << 100 * cg_capped_fraction << " % of the steps; stable otherwise.\n"
+       << 100 * cg_capped_fraction << " % of the run's steps (the run stops when it has); stable otherwise.\n"
        << "guard_events = steps that produced a non-finite value and were retried with dt "
           "halved (2, 4, 8 sub-steps).\n"
        << "Runs: T = " << format(sweep.beam_duration) << " s (beam_gravity), "
@@ -917,17 +977,21 @@ std::string bounds_text(const Sweep& sweep) {
 
 }  // namespace
 
-int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress_stream) {
+int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress_stream,
+                        bool resume) {
   try {
     std::filesystem::create_directories(out_dir);
     const Sweep sweep = make_sweep(quick);
     const std::vector<ModelKind> kinds = model_kinds();
+    const std::map<std::string, Run> previous =
+        resume ? read_previous_runs(out_dir / "stability.csv", progress_stream) : std::map<std::string, Run>{};
     std::ofstream csv(out_dir / "stability.csv");
     if (!csv) {
       progress_stream << "cannot write " << (out_dir / "stability.csv").string() << "\n";
       return 1;
     }
     csv << csv_header() << "\n";
+    if (resume) progress_stream << "resuming: " << previous.size() << " runs kept from the earlier sweep\n";
 
     int total = 0;
     for (const ModelKind& kind : kinds) {
@@ -950,9 +1014,27 @@ int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::o
         for (double youngs_modulus : sweep.youngs_moduli) {
           for (double poisson_ratio : sweep.poisson_ratios) {
             const Material material{youngs_modulus, poisson_ratio, density};
-            Body body = make_body(kind.name, case_name, material);
             const bool first_material = youngs_modulus == sweep.youngs_moduli.front() &&
                                         poisson_ratio == sweep.poisson_ratios.front();
+            // Resuming: the runs of this material already done are kept as they were; the
+            // body is only built when a run is missing (or for the set-up note).
+            bool missing = false;
+            for (const Integrator& integrator : kind.integrators)
+              for (double dt : sweep.time_steps)
+                missing = missing || !previous.count(run_key(kind.name, integrator.name, case_name, youngs_modulus,
+                                                             poisson_ratio, dt));
+            if (!missing && !first_material) {
+              for (const Integrator& integrator : kind.integrators)
+                for (double dt : sweep.time_steps) {
+                  const Run& run = previous.at(run_key(kind.name, integrator.name, case_name, youngs_modulus,
+                                                       poisson_ratio, dt));
+                  csv << csv_row(run) << "\n" << std::flush;
+                  runs.push_back(run);
+                  progress.advance();
+                }
+              continue;
+            }
+            Body body = make_body(kind.name, case_name, material);
             if (first_material) {
               set_up_notes.push_back(kind.name + " " + case_name + ": " +
                                      std::to_string(body.model->node_count()) + " nodes" +
@@ -968,6 +1050,14 @@ int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::o
                 if (used && body.single_use) {
                   body.cutter.reset();  // before the model it refers to
                   body = make_body(kind.name, case_name, material);
+                }
+                const auto kept = previous.find(run_key(kind.name, integrator.name, case_name, youngs_modulus,
+                                                        poisson_ratio, dt));
+                if (kept != previous.end()) {
+                  csv << csv_row(kept->second) << "\n" << std::flush;
+                  runs.push_back(kept->second);
+                  progress.advance();
+                  continue;
                 }
                 used = true;
                 progress.draw(kind.name + " " + integrator.name + " " + case_name + " E " +

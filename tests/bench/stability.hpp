@@ -14,6 +14,9 @@ namespace incise::bench {
 //   DIR/stability.gnuplot and, with gnuplot installed, DIR/stability.png (the outcome map).
 // A carriage-return progress line, then the outcome counts per model and integrator, go to
 // `progress`. Returns 0 on success, 1 on failure (with a message on `progress`).
-int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress);
+// resume: keep the runs already in out_dir/stability.csv (an interrupted sweep) and run only
+// the missing ones; the summary and the plot cover them all.
+int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress,
+                        bool resume = false);
 
 }  // namespace incise::bench
