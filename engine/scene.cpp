@@ -344,7 +344,8 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
           }
         }
       }
-      if (const Json* traj = tr.get("trajectory", true)) {
+      // Optional: a replay needs one (or --trajectory); a live session's device drives the tool.
+      if (const Json* traj = tr.get("trajectory", false)) {
         if (!traj->is_string()) {
           tr.error("tool.trajectory", "must be a file path (string)");
         } else {

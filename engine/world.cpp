@@ -395,7 +395,10 @@ World::World(const Scene& scene, std::optional<Trajectory> trajectory)
     }
   }
   if (scene_.tool) {
-    if (!trajectory_ || trajectory_->samples.empty())
+    if (!trajectory_)
+      throw std::runtime_error(scene_.file.string() + ": tool.trajectory: none given (set it in the scene or pass "
+                               "--trajectory FILE; `incise run` and `incise session` drive the tool live)");
+    if (trajectory_->samples.empty())
       throw std::runtime_error(scene_.file.string() + ": tool.trajectory: holds no sample");
     tool_.present = true;
     tool_.radius = scene_.tool->radius;
@@ -443,6 +446,35 @@ void World::take_tool_input(double time) {
     auto axis = rotate(tool_.pose.orientation, {0, 0, scene_.tool->length});
     for (int i = 0; i < 3; ++i) tool_.tail[i] = tool_.tip[i] + axis[i];
   }
+}
+
+void World::append_tool_samples(std::span<const ToolSample> samples) {
+  if (!tool_.present || !trajectory_) throw std::logic_error("World::append_tool_samples: the scene has no tool");
+  auto& held = trajectory_->samples;
+  for (std::size_t k = 0; k < samples.size(); ++k) {
+    const ToolSample& s = samples[k];
+    const std::string at = "live tool sample " + std::to_string(k) + " (t = " + std::to_string(s.time) + " s)";
+    bool finite = std::isfinite(s.time);
+    for (double v : s.position) finite = finite && std::isfinite(v);
+    for (double v : s.orientation) finite = finite && std::isfinite(v);
+    if (!finite) throw std::invalid_argument(at + ": a time, position or orientation is not finite");
+    const double norm = std::sqrt(s.orientation[0] * s.orientation[0] + s.orientation[1] * s.orientation[1] +
+                                  s.orientation[2] * s.orientation[2] + s.orientation[3] * s.orientation[3]);
+    if (std::abs(norm - 1) > 1e-3) throw std::invalid_argument(at + ": orientation |q| = " + std::to_string(norm) + " is not 1");
+    if (!held.empty() && s.time < held.back().time)
+      throw std::invalid_argument(at + ": earlier than the previous sample (t = " + std::to_string(held.back().time) + " s)");
+    held.push_back(s);
+  }
+  // The next step starts at time_ (computed there as end - dt, which may round below time_):
+  // it needs the last sample at or before its start (sample_at's left neighbour) and
+  // everything after it. Keeping from one step further back is safe; what is older can go.
+  const auto keep = std::upper_bound(held.begin(), held.end(), time_ - scene_.solver.dt,
+                                     [](double t, const ToolSample& s) { return t < s.time; });
+  if (keep - held.begin() > 1) held.erase(held.begin(), keep - 1);
+}
+
+double World::last_tool_sample_time() const {
+  return trajectory_ && !trajectory_->samples.empty() ? trajectory_->samples.back().time : 0.0;
 }
 
 std::vector<physics::NodalSpring> World::contact(const Body& body, StepStats& stats) const {

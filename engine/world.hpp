@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -157,6 +158,17 @@ class World {
   World(const Scene& scene, std::optional<Trajectory> trajectory);
 
   StepStats step();
+  // Live tool input (issue 5): the tool's samples arrive while the world runs, from the haptic
+  // loop, instead of all being known up front. Each step uses the samples as a recorded
+  // trajectory would (the pose at the step's end and every sample inside it as the blade's
+  // sweep), so a live session and a replay of its recording step identically, provided the
+  // samples bracketing the step's end are there before step() (engine/haptic_session.hpp
+  // waits for them). Samples a step no longer needs are dropped. Throws std::invalid_argument
+  // naming the sample for a time earlier than the last one, a non-finite number or a
+  // quaternion away from unit; std::logic_error without a tool.
+  void append_tool_samples(std::span<const ToolSample> samples);
+  // The newest tool sample the world holds (live input), or the trajectory's last.
+  double last_tool_sample_time() const;
   double time() const { return time_; }
   std::uint64_t steps_taken() const { return steps_; }
   double dt() const { return scene_.solver.dt; }

@@ -122,8 +122,6 @@ TEST(Scene, BrokenScenesAreRefusedWithTheFieldNamed) {
        "loads[0].events[1].t: times must increase"},
       {"render size", [](Json& s) { s["render"]["size"] = {10, 240}; }, "render.size: must be [width, height]"},
       {"negative capture", [](Json& s) { s["render"]["capture_every"] = -1; }, "render.capture_every: -1 must be in [0"},
-      {"tool without trajectory", [](Json& s) { s["tool"] = {{"shape", "sphere"}, {"radius", 0.005}}; },
-       "tool.trajectory: is required"},
       {"missing trajectory file", [](Json& s) {
          s["tool"] = {{"shape", "sphere"}, {"radius", 0.005}, {"trajectory", "nowhere.traj"}};
        }, "tool.trajectory: file '"},

@@ -1,0 +1,153 @@
+// The engine's side of the haptic loop (issue 5; the contract is haptics/haptic_loop.hpp's
+// header). A HapticSession owns the Device, the ContactChannel, the HapticLoop and the World:
+//
+//   haptic thread (1 kHz)                 physics (the caller of step())
+//   device pose, force  ──SPSC ring──▶    drain: every tick since the last step, recorded to the
+//                                         trajectory file, fed to the World as its tool input;
+//                                         World::step(): the samples in (t_k-1, t_k] are the
+//                                         blade's swept path (CCD, topology, solve, surface);
+//   force ◀── ContactModel ◀──────────    build_contact_model() from the surface after the step
+//                                         (so in the step a cut changes the topology, the model
+//                                         already describes the cut surface), validate, publish.
+//
+// Time. The session's time is the haptic loop's: t = 0 at the first tick, every tick's sample
+// is stamped with its own time. Step k covers (t_k-1, t_k] of that time, as a replay of the
+// recording would, so before stepping, physics waits until a tick later than t_k has arrived
+// (the sample after the step's end is sample_at's right neighbour). Physics waits on the
+// haptic loop, never the reverse. When a step is slower than dt the simulation falls behind
+// the hand (the window shows the real-time factor) but never drops or reorders a sample, so a
+// live session and the headless replay of its recording take identical steps: same cuts, same
+// triangle count, same state hash.
+//
+// Two clocks. realtime: the loop runs on its own thread (clock_nanosleep to absolute
+// deadlines). simulated: no thread; step() calls HapticLoop::tick(t) itself at every period
+// of simulated time, calling the `script` hook before each tick so a scripted device can set
+// its pose for that instant: deterministic, for tests and `incise session`.
+#pragma once
+
+#include "engine/scene.hpp"
+#include "engine/trajectory.hpp"
+#include "engine/world.hpp"
+#include "haptics/contact_model.hpp"
+#include "haptics/haptic_loop.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace incise::engine {
+
+// The contact linearisation physics hands the haptic loop (haptics/contact_model.hpp), built
+// from the world after a step. The tool's contact points are its tip (sphere), points along
+// its axis (capsule) or along its cutting edge (blade, at most ContactModel::kCapacity). For
+// each, the nearest surface triangle within `search_radius` gives a half-space: the closest
+// point and the face's outward normal, shifted by the point's offset from the tool's reference
+// point (the device position), so the loop evaluates it at the device position directly.
+// Stiffness: the tool's penalty stiffness (tool.stiffness; a blade without one gets
+// kDefaultBladeStiffness), shared among the tool's points so the total does not depend on how
+// many there are. Compliance: the tissue's own, as an elastic half-space under a punch the
+// size of the body's resolution r (Boussinesq: k = 2 E r / (1 - nu^2)), so a soft organ feels
+// soft however stiff the penalty. Proxy: the tool as physics placed it, with its velocity,
+// but has_proxy stays false (no virtual coupling): see build_contact_model.
+struct ContactBuild {
+  double search_radius = 0;  // m; <= 0: three times the largest body resolution
+  std::int64_t time_ns = 0;  // haptic clock time of the step's end (the proxy's time)
+  std::uint64_t step = 0;
+  std::array<double, 3> proxy_velocity{};  // m/s
+};
+inline constexpr double kDefaultBladeStiffness = 400;  // N/m, whole edge
+haptics::ContactModel build_contact_model(const World& world, const ContactBuild& build);
+
+// A tick as a trajectory sample: time since t0, pose, buttons, the force rendered. The device
+// state goes into buttons bits 8-9 and the clamp into bit 10 (docs/trajectory.md: bits above
+// 0 are free for devices); the World reads bit 0 only.
+ToolSample to_tool_sample(const haptics::TickSample& tick, std::int64_t t0_ns);
+inline constexpr std::uint32_t kButtonsDeviceStateShift = 8;
+inline constexpr std::uint32_t kButtonClamped = 1u << 10;
+
+struct SessionOptions {
+  enum class Clock { realtime, simulated };
+  Clock clock = Clock::simulated;
+  haptics::HapticLoopConfig loop{};
+  std::optional<std::filesystem::path> record;  // every tick to this trajectory file
+  std::size_t record_chunk = 250;               // samples per chunk (the most an abrupt stop loses)
+  bool keep_ticks = false;                      // keep every tick in ticks() (bench, tests)
+  // simulated: called with the tick's time (s since t0) before each tick.
+  std::function<void(double)> script;
+  double realtime_stall_s = 2.0;  // realtime: no tick for this long is an error
+};
+
+class HapticSession {
+ public:
+  // Opens the device, takes the first tick (t = 0) and builds the World with it as the tool's
+  // first sample; realtime sessions then start the loop thread. Throws std::runtime_error
+  // when the scene has no tool, or what the device, the world or the recording throws.
+  HapticSession(const Scene& scene, haptics::Device& device, SessionOptions options);
+  ~HapticSession();  // stop()
+  HapticSession(const HapticSession&) = delete;
+  HapticSession& operator=(const HapticSession&) = delete;
+
+  // One physics step on the samples up to its end; publishes the ContactModel it leaves.
+  StepStats step();
+  // Stops the loop thread, records what is left in the ring, closes the recording and the
+  // device. Idempotent.
+  void stop();
+
+  World& world() { return *world_; }
+  const World& world() const { return *world_; }
+  haptics::HapticLoop& loop() { return *loop_; }
+  const std::vector<haptics::TickSample>& ticks() const { return ticks_; }
+  // cut_steps()[k] == 1 when step k changed the topology (index 0: the initial state).
+  const std::vector<std::uint8_t>& cut_steps() const { return cut_steps_; }
+  std::uint64_t samples_recorded() const { return samples_recorded_; }
+  std::int64_t t0_ns() const { return t0_ns_; }
+  const haptics::ContactModel& last_model() const { return last_model_; }
+
+ private:
+  void take(const haptics::TickSample& tick);
+  void drain();
+  void publish(std::uint64_t step);
+
+  SessionOptions options_;
+  haptics::Device& device_;
+  haptics::ContactChannel channel_;
+  std::unique_ptr<haptics::HapticLoop> loop_;
+  std::unique_ptr<World> world_;
+  std::optional<TrajectoryWriter> writer_;
+  std::int64_t t0_ns_ = 0;
+  std::int64_t next_tick_ns_ = 0;  // simulated clock
+  std::vector<ToolSample> pending_;
+  std::vector<haptics::TickSample> ticks_;
+  std::vector<std::uint8_t> cut_steps_{0};
+  std::uint64_t samples_recorded_ = 0;
+  std::array<double, 3> previous_proxy_{};
+  haptics::ContactModel last_model_{};
+  bool stopped_ = false;
+};
+
+// Force continuity (issue 5): |F_i - F_i-1| per millisecond between consecutive ticks, the
+// largest at the first tick that uses a model rebuilt in a cut step, at the first tick of any
+// other new model, and between publications.
+struct ForceJumps {
+  double at_cut_max = 0;          // N/ms
+  double at_publication_max = 0;  // new model, no cut
+  double between_max = 0;         // same model as the tick before
+  std::size_t cut_ticks = 0, publication_ticks = 0, ticks = 0;
+};
+ForceJumps force_jumps(const std::vector<haptics::TickSample>& ticks, const std::vector<std::uint8_t>& cut_steps);
+
+// What a session did, for session.json and the summary beside a recording (FILE.json): steps,
+// simulated time, ticks recorded, state hash, surface triangles, cut events, and the force
+// jumps when ticks were kept. `incise replay SCENE --trajectory FILE --steps <steps>` of the
+// recording reproduces state_hash and surface_triangles.
+nlohmann::json session_summary(const HapticSession& session);
+// Writes session_summary() to file (std::runtime_error naming it when it cannot).
+void write_session_summary(const HapticSession& session, const std::filesystem::path& file);
+
+}  // namespace incise::engine

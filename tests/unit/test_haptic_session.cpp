@@ -1,0 +1,257 @@
+// The haptic loop in the engine (issue 5): the ring drained as the blade's sweep, the
+// ContactModel published every step and rebuilt in the step a cut changes the topology, the
+// force continuous through cuts, and a recorded session that replays headless to the same cut.
+// Deterministic (simulated clock) except RealtimeLoopFeedsPhysics, which checks no timing.
+#include "engine/haptic_session.hpp"
+#include "engine/replay.hpp"
+#include "engine/scene.hpp"
+#include "engine/trajectory.hpp"
+#include "engine/world.hpp"
+#include "haptics/virtual_device.hpp"
+#include "tests/unit/temp_dir.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <iomanip>
+#include <sstream>
+#include <thread>
+
+using namespace incise::engine;
+namespace haptics = incise::haptics;
+using Json = nlohmann::json;
+using incise::testing::TempDir;
+
+namespace {
+
+// A bar 0.1 x 0.02 x 0.02 m resting on its fixed bottom face (so it does not sag away from
+// the blade) and a straight blade along y, driven by a scripted virtual device (not a
+// trajectory: the scene's tool has none).
+Scene beam_scene(const TempDir& dir, double tool_stiffness = 0) {
+  Json scene = Json::parse(R"({
+    "name": "beam_session",
+    "bodies": [{
+      "name": "beam", "model": "efg", "cuttable": true,
+      "generator": {"type": "box", "min": [0, -0.01, -0.01], "max": [0.1, 0.01, 0.01]},
+      "resolution": 0.004,
+      "efg": {"surface_resolution": 0.002, "samples_per_axis": 3},
+      "material": {"E": 2e4, "nu": 0.3, "rho": 1000},
+      "fixed": [{"min": [-1, -1, -1], "max": [1, 1, -0.0099]}],
+      "damping": {"mass": 2.0, "stiffness": 0.001}
+    }],
+    "tool": {"shape": "blade", "edge": [[0, -0.015, 0], [0, 0.015, 0]], "radius": 0.0005},
+    "solver": {"dt": 0.01, "duration": 0.5, "tolerance": 1e-6, "max_iterations": 500}
+  })");
+  if (tool_stiffness > 0) scene["tool"]["stiffness"] = tool_stiffness;
+  return parse_scene(scene.dump(), dir.path / "scene.json");
+}
+
+// Down into the bar at x = 0.06 at 0.1 m/s, from 1 cm above its top to 6 mm above its bottom,
+// engaged (or not) all the way.
+haptics::DevicePose stroke(double t, bool engage) {
+  haptics::DevicePose pose;
+  const double f = std::clamp((t - 0.02) / 0.24, 0.0, 1.0);
+  pose.position = {0.06, 0, 0.02 - 0.024 * f};
+  pose.buttons = engage ? haptics::kButtonEngage : 0;
+  return pose;
+}
+
+std::string hex64(std::uint64_t v) {
+  std::ostringstream out;
+  out << "0x" << std::hex << std::setw(16) << std::setfill('0') << v;
+  return out.str();
+}
+
+}  // namespace
+
+TEST(HapticSession, ARecordedSessionReplaysHeadlessToTheSameCut) {
+  TempDir dir("incise_session_replay");
+  const Scene scene = beam_scene(dir);
+  haptics::VirtualDevice device;
+  SessionOptions options;
+  options.record = dir.path / "session.traj";
+  options.script = [&](double t) { device.set_pose(stroke(t, true)); };
+  const int steps = 30;
+  std::string hash;
+  std::size_t triangles = 0, triangles_before = 0;
+  long events = 0;
+  {
+    HapticSession session(scene, device, options);
+    triangles_before = session.world().bodies()[0].surface.size();
+    for (int k = 0; k < steps; ++k) session.step();
+    session.stop();
+    hash = hex64(session.world().state_hash());
+    triangles = session.world().bodies()[0].surface.size();
+    events = session.world().cut_totals().events;
+    EXPECT_EQ(read_trajectory(dir.path / "session.traj").samples.size(), session.samples_recorded());
+  }
+  ASSERT_GT(events, 0) << "the stroke should cut";
+  EXPECT_GT(triangles, triangles_before);
+
+  ReplayOptions replay;
+  replay.out_dir = dir.path / "replay";
+  replay.trajectory = dir.path / "session.traj";
+  replay.steps = steps;
+  const auto result = run_replay(scene, replay);
+  ASSERT_TRUE(result.ok);
+  std::printf("session: %ld cut events, %zu -> %zu triangles, state hash %s; replay %s, %s triangles\n", events,
+              triangles_before, triangles, hash.c_str(), result.metrics["state_hash"].get<std::string>().c_str(),
+              result.metrics["surface"]["triangles"].dump().c_str());
+  EXPECT_EQ(result.metrics["state_hash"].get<std::string>(), hash);
+  EXPECT_EQ(result.metrics["surface"]["triangles"].get<std::size_t>(), triangles);
+  EXPECT_EQ(result.metrics["cut"]["events"].get<long>(), events);
+}
+
+TEST(HapticSession, TheContactModelIsRebuiltInTheCutStepAndTheForceStaysContinuous) {
+  TempDir dir("incise_session_force");
+  const Scene scene = beam_scene(dir);
+  const auto run = [&](bool engage) {
+    haptics::VirtualDevice device;
+    SessionOptions options;
+    options.keep_ticks = true;
+    options.script = [&](double t) { device.set_pose(stroke(t, engage)); };
+    HapticSession session(scene, device, options);
+    for (int k = 0; k < 40; ++k) {
+      const StepStats stats = session.step();
+      // Published in the step itself, from the surface the step left.
+      EXPECT_EQ(session.last_model().step, session.world().steps_taken());
+      if (stats.cut_event) {
+        EXPECT_TRUE(session.cut_steps().back());
+      }
+    }
+    session.stop();
+    // Every tick after step k's publication uses step k's model: nothing stale survives.
+    const auto& ticks = session.ticks();
+    const std::int64_t dt_ns = std::llround(session.world().dt() * 1e9);
+    for (const auto& tick : ticks) {
+      const auto published_before = static_cast<std::uint64_t>(std::max<std::int64_t>(0, tick.time_ns / dt_ns - 1));
+      EXPECT_GE(tick.contact_step, std::min<std::uint64_t>(published_before, 40)) << "tick " << tick.tick;
+    }
+    double most = 0;
+    for (const auto& tick : ticks) most = std::max(most, std::hypot(tick.force[0], tick.force[1], tick.force[2]));
+    return std::make_tuple(force_jumps(ticks, session.cut_steps()), session.world().cut_totals().events, most);
+  };
+  const auto [cut, cut_events, cut_force] = run(true);
+  const auto [press, press_events, press_force] = run(false);
+  std::printf("force jump N/ms: cutting (%ld events): at cut %.4f (%zu ticks), other publications %.4f, between %.4f, "
+              "max |F| %.3f N; pressing without cutting: publications %.4f, between %.4f, max |F| %.3f N\n",
+              cut_events, cut.at_cut_max, cut.cut_ticks, cut.at_publication_max, cut.between_max, cut_force,
+              press.at_publication_max, press.between_max, press_force);
+  ASSERT_GT(cut_events, 0);
+  EXPECT_EQ(press_events, 0);
+  ASSERT_GT(cut.cut_ticks, 0u);
+  EXPECT_GT(press_force, 0.05) << "the disengaged blade pressed into the beam must be pushed back";
+  // Continuity through cuts: a model rebuilt in a cut step changes the force no more than any
+  // other step's new model does, in this run or in the one that never cuts.
+  EXPECT_LE(cut.at_cut_max, std::max({cut.at_publication_max, press.at_publication_max, press.between_max}) * 1.0001);
+}
+
+TEST(HapticSession, ABladePressedOnTheSurfaceIsPushedOutAlongItsNormal) {
+  TempDir dir("incise_session_normal");
+  const Scene scene = beam_scene(dir, 200);
+  haptics::VirtualDevice device;
+  SessionOptions options;
+  double depth = -0.002;  // edge 2 mm above the top face (z = 0.01), then 1.5 mm into it
+  options.script = [&](double) {
+    haptics::DevicePose pose;
+    pose.position = {0.06, 0, 0.01 - depth};
+    device.set_pose(pose);
+  };
+  HapticSession session(scene, device, options);
+  session.step();
+  const auto above = session.loop().latest();
+  EXPECT_EQ(std::hypot(above.contact_force[0], above.contact_force[1], above.contact_force[2]), 0.0);
+  depth = 0.0015;
+  session.step();
+  session.step();
+  const auto in = session.loop().latest();
+  std::printf("pressed 1.5 mm: contact force (%.4f, %.4f, %.4f) N from %d contacts\n", in.contact_force[0],
+              in.contact_force[1], in.contact_force[2], session.last_model().count);
+  EXPECT_GT(in.contact_force[2], 0.0);
+  EXPECT_LT(std::abs(in.contact_force[0]), 0.1 * in.contact_force[2]);
+  // Series stiffness of the penalty and the tissue: softer than the penalty alone.
+  EXPECT_LT(in.contact_force[2], 200 * (0.0015 + 0.0005));
+  session.stop();
+}
+
+TEST(HapticSession, ARecordingSurvivesAnAbruptStopUpToTheLastFullChunk) {
+  TempDir dir("incise_session_abrupt");
+  const Scene scene = beam_scene(dir);
+  haptics::VirtualDevice device;
+  SessionOptions options;
+  options.record = dir.path / "abrupt.traj";
+  options.record_chunk = 50;
+  options.script = [&](double t) { device.set_pose(stroke(t, true)); };
+  HapticSession session(scene, device, options);
+  for (int k = 0; k < 12; ++k) session.step();
+  // Read while the session still holds the file open, as after a crash: every full chunk is
+  // on disk already.
+  const Trajectory read = read_trajectory(dir.path / "abrupt.traj");
+  EXPECT_TRUE(read.report.complete);
+  EXPECT_EQ(read.samples.size(), session.samples_recorded() / 50 * 50);
+  EXPECT_GE(read.samples.size(), 100u);
+  session.stop();
+  EXPECT_EQ(read_trajectory(dir.path / "abrupt.traj").samples.size(), session.samples_recorded());
+}
+
+TEST(HapticSession, RealtimeLoopFeedsPhysicsEverySample) {
+  TempDir dir("incise_session_realtime");
+  const Scene scene = beam_scene(dir);
+  haptics::VirtualDevice device;
+  SessionOptions options;
+  options.clock = SessionOptions::Clock::realtime;
+  options.keep_ticks = true;
+  options.record = dir.path / "live.traj";
+  options.loop.realtime_priority = false;
+  std::atomic<bool> done{false};
+  std::thread mouse([&] {  // the window's role: set the pose from its own thread
+    const auto start = std::chrono::steady_clock::now();
+    while (!done.load()) {
+      const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      device.set_pose(stroke(t, true));
+      std::this_thread::sleep_for(std::chrono::microseconds(500));
+    }
+  });
+  {
+    HapticSession session(scene, device, options);
+    for (int k = 0; k < 10; ++k) session.step();
+    session.stop();
+    EXPECT_EQ(session.world().steps_taken(), 10u);
+    // Physics waited for the tick after its last step's end; nothing was lost on the way.
+    ASSERT_FALSE(session.ticks().empty());
+    EXPECT_GT(1e-9 * static_cast<double>(session.ticks().back().time_ns - session.t0_ns()), 10 * scene.solver.dt);
+    EXPECT_EQ(session.loop().ring_overflows(), 0u);
+    EXPECT_EQ(session.samples_recorded(), session.ticks().size());
+    for (std::size_t i = 1; i < session.ticks().size(); ++i)
+      ASSERT_EQ(session.ticks()[i].tick, session.ticks()[i - 1].tick + 1) << "a tick went missing";
+    EXPECT_EQ(read_trajectory(dir.path / "live.traj").samples.size(), session.ticks().size());
+  }
+  done.store(true);
+  mouse.join();
+}
+
+TEST(HapticSession, LiveToolSamplesAreChecked) {
+  TempDir dir("incise_session_bad");
+  const Scene scene = beam_scene(dir);
+  Trajectory start;
+  start.samples.push_back(ToolSample{});
+  World world(scene, start);
+  ToolSample late;
+  late.time = 0.005;
+  world.append_tool_samples(std::span<const ToolSample>(&late, 1));
+  ToolSample early;
+  early.time = 0.001;
+  try {
+    world.append_tool_samples(std::span<const ToolSample>(&early, 1));
+    FAIL() << "a sample earlier than the last was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("earlier than the previous sample"), std::string::npos) << e.what();
+  }
+  ToolSample nan_pose;
+  nan_pose.time = 0.01;
+  nan_pose.position[1] = std::nan("");
+  EXPECT_THROW(world.append_tool_samples(std::span<const ToolSample>(&nan_pose, 1)), std::invalid_argument);
+}
