@@ -23,6 +23,24 @@ struct RunArgs {
   std::string scene;
   long frames = 0;
   std::string screenshot;
+  std::string device = "virtual";  // virtual (mouse), replay (--play FILE), udp (a bridge)
+  std::string play;                // replay device: the trajectory it plays
+  std::string record;              // record every haptic tick to this trajectory file
+  std::string udp_bind = "127.0.0.1";
+  int udp_port = 0;
+  std::string script_drag;         // tests: a scripted mouse drag "x0,y0,x1,y1" in window pixels
+};
+
+// `incise session`: the haptic loop and physics headless on simulated time, a scripted virtual
+// device following a trajectory (the scene's tool.trajectory or --trajectory).
+struct SessionArgs {
+  std::string scene;
+  std::string trajectory;
+  std::optional<long> steps;
+  std::string record;
+  std::string out = "out/session";
+  bool no_engage = false;
+  bool quiet = false;
 };
 
 struct SynthArgs {
@@ -39,6 +57,7 @@ struct SynthArgs {
 int replay(const ReplayArgs& args);
 int check(const std::string& scene_file);
 int run(const RunArgs& args);
+int session(const SessionArgs& args);
 int trajectory_export(const std::string& file, const std::string& out);
 int trajectory_info(const std::string& file);
 int trajectory_import(const std::string& csv, const std::string& out);

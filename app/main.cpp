@@ -1,6 +1,7 @@
 // The `incise` command: replay (headless), check, run (window), trajectory tools.
 #include "app/commands.hpp"
 #include "tests/bench/accuracy.hpp"
+#include "tests/bench/haptics.hpp"
 #include "tests/bench/performance.hpp"
 #include "tests/bench/stability.hpp"
 
@@ -36,6 +37,24 @@ int main(int argc, char** argv) {
   run_cmd->add_option("scene", run.scene, "Scene file (JSON)")->required();
   run_cmd->add_option("--frames", run.frames, "Close after this many frames (0: when the window closes)");
   run_cmd->add_option("--screenshot", run.screenshot, "Save a PNG of the last frame");
+  run_cmd->add_option("--device", run.device, "Tool input: virtual (the mouse), replay (--play FILE) or udp (a bridge)")
+      ->check(CLI::IsMember({"virtual", "replay", "udp"}))
+      ->capture_default_str();
+  run_cmd->add_option("--play", run.play, "Trajectory the replay device plays");
+  run_cmd->add_option("--record", run.record, "Record every haptic tick (pose, buttons, force, device state) to this trajectory file");
+  run_cmd->add_option("--udp-bind", run.udp_bind, "udp device: address to bind")->capture_default_str();
+  run_cmd->add_option("--udp-port", run.udp_port, "udp device: port (0: any free one, printed)")->capture_default_str();
+  run_cmd->add_option("--script-drag", run.script_drag, "Tests: drag the mouse from x0,y0 to x1,y1 (pixels) with the blade engaged");
+
+  incise::app::SessionArgs session;
+  auto* session_cmd = app.add_subcommand("session", "A haptic session headless on simulated time: a scripted virtual device follows a trajectory; --record writes every tick");
+  session_cmd->add_option("scene", session.scene, "Scene file (JSON)")->required();
+  session_cmd->add_option("--trajectory", session.trajectory, "What the scripted device follows (default: tool.trajectory)");
+  session_cmd->add_option("--steps", session.steps, "Number of physics steps (default: solver.duration / solver.dt)");
+  session_cmd->add_option("--record", session.record, "Record every tick to this trajectory file");
+  session_cmd->add_option("--out", session.out, "Output folder (session.json)")->capture_default_str();
+  session_cmd->add_flag("--no-engage", session.no_engage, "Never engage the blade (the same strokes without cutting)");
+  session_cmd->add_flag("--quiet", session.quiet, "No summary");
 
   auto* trajectory_cmd = app.add_subcommand("trajectory", "Inspect, export or synthesise tool trajectory files");
   trajectory_cmd->require_subcommand(1);
@@ -85,6 +104,14 @@ int main(int argc, char** argv) {
   performance_cmd->add_flag("--quick", performance_quick, "The two coarser resolutions only");
   performance_cmd->add_option("--out", performance_out, "Output folder (performance.csv)")->capture_default_str();
 
+  incise::bench::HapticsBenchOptions haptics_bench;
+  std::string haptics_scene;
+  auto* haptics_cmd = bench_cmd->add_subcommand("haptics", "The 1 kHz loop against a cutting scene while physics runs, with and without cutting, beside a bare loop");
+  haptics_cmd->add_option("--seconds", haptics_bench.seconds, "Seconds per run (three runs)")->capture_default_str();
+  haptics_cmd->add_option("--out", haptics_bench.out_dir, "Output folder (haptics.json)")->capture_default_str();
+  haptics_cmd->add_option("--scene", haptics_scene, "Cutting scene (default assets/scenes/haptics_block.json)");
+  haptics_cmd->add_option("--spin-us", haptics_bench.spin_us, "Sleep to this long before each deadline, then spin")->capture_default_str();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -95,6 +122,11 @@ int main(int argc, char** argv) {
     if (*replay_cmd) return incise::app::replay(replay);
     if (*check_cmd) return incise::app::check(check_scene);
     if (*run_cmd) return incise::app::run(run);
+    if (*session_cmd) return incise::app::session(session);
+    if (*haptics_cmd) {
+      haptics_bench.scene = haptics_scene;
+      return incise::bench::run_haptics_bench(haptics_bench, std::cerr);
+    }
     if (*export_cmd) return incise::app::trajectory_export(export_file, export_out);
     if (*info_cmd) return incise::app::trajectory_info(info_file);
     if (*import_cmd) return incise::app::trajectory_import(import_file, import_out);

@@ -275,14 +275,15 @@ ForceJumps force_jumps(const std::vector<haptics::TickSample>& ticks, const std:
       bool cut = false;
       for (std::uint64_t k = a.contact_step + 1; k <= b.contact_step && k < cut_steps.size(); ++k) cut = cut || cut_steps[k];
       if (cut) {
-        j.at_cut_max = std::max(j.at_cut_max, rate);
+        if (rate > j.at_cut_max) j.at_cut_max = rate, j.at_cut_max_ns = b.time_ns;
         ++j.cut_ticks;
       } else {
-        j.at_publication_max = std::max(j.at_publication_max, rate);
+        if (rate > j.at_publication_max) j.at_publication_max = rate, j.at_publication_max_ns = b.time_ns;
         ++j.publication_ticks;
       }
-    } else {
-      j.between_max = std::max(j.between_max, rate);
+    } else if (rate > j.between_max) {
+      j.between_max = rate;
+      j.between_max_ns = b.time_ns;
     }
   }
   return j;

@@ -138,6 +138,7 @@ struct ForceJumps {
   double at_cut_max = 0;          // N/ms
   double at_publication_max = 0;  // new model, no cut
   double between_max = 0;         // same model as the tick before
+  std::int64_t at_cut_max_ns = 0, at_publication_max_ns = 0, between_max_ns = 0;  // when (tick time)
   std::size_t cut_ticks = 0, publication_ticks = 0, ticks = 0;
 };
 ForceJumps force_jumps(const std::vector<haptics::TickSample>& ticks, const std::vector<std::uint8_t>& cut_steps);

@@ -14,3 +14,13 @@ target_link_libraries(test_haptics PRIVATE incise_haptics GTest::gtest_main)
 add_dependencies(test_haptics incise-bridge)
 target_compile_definitions(test_haptics PRIVATE INCISE_BRIDGE_PATH="$<TARGET_FILE:incise-bridge>")
 gtest_discover_tests(test_haptics DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "haptics")
+
+# The window end to end with the haptic session (needs a display; scripts/test provides Xvfb).
+if(INCISE_WITH_WINDOW)
+  add_executable(test_window_session ${CMAKE_CURRENT_LIST_DIR}/test_window_session.cpp)
+  target_link_libraries(test_window_session PRIVATE incise_engine GTest::gtest_main)
+  add_dependencies(test_window_session incise)
+  target_compile_definitions(test_window_session PRIVATE INCISE_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+                                                         INCISE_BINARY="$<TARGET_FILE:incise>")
+  gtest_discover_tests(test_window_session DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "haptics;render" TIMEOUT 600)
+endif()

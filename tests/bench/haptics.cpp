@@ -1,0 +1,219 @@
+#include "tests/bench/haptics.hpp"
+
+#include "engine/haptic_session.hpp"
+#include "engine/scene.hpp"
+#include "haptics/clock.hpp"
+#include "haptics/virtual_device.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <thread>
+
+namespace incise::bench {
+
+namespace {
+
+using Json = nlohmann::json;
+
+std::filesystem::path find_scene(const std::filesystem::path& relative) {
+  if (std::filesystem::exists(relative)) return relative;
+  std::error_code error;
+  const auto exe = std::filesystem::read_symlink("/proc/self/exe", error);
+  if (!error) {
+    const auto candidate = exe.parent_path().parent_path().parent_path() / relative;
+    if (std::filesystem::exists(candidate)) return candidate;
+  }
+  throw std::runtime_error("bench haptics: cannot find " + relative.string() + " (run it from the repository's root)");
+}
+
+// The scripted hand: strokes of 2 s, each a centimetre aside of the last (five lanes, then
+// again): from 1 cm above the block's top (z = 0.03) at x = -0.03, press 10 mm in over 0.3 s,
+// draw to x = +0.03 over 1.2 s (5 cm/s), lift over 0.3 s, move back over 0.2 s.
+haptics::DevicePose scripted_stroke(double t, bool engage) {
+  const double period = 2.0;
+  const int lane = static_cast<int>(std::floor(t / period)) % 5;
+  const double s = std::fmod(t, period);
+  const double top = 0.03, above = top + 0.01, depth = top - 0.01;
+  const double y = -0.02 + 0.01 * lane;
+  haptics::DevicePose pose;
+  double x = -0.03, z = above;
+  bool down = false;
+  if (s < 0.3) {
+    z = above + (depth - above) * s / 0.3;
+    down = true;
+  } else if (s < 1.5) {
+    x = -0.03 + 0.06 * (s - 0.3) / 1.2;
+    z = depth;
+    down = true;
+  } else if (s < 1.8) {
+    x = 0.03;
+    z = depth + (above - depth) * (s - 1.5) / 0.3;
+  } else {
+    x = 0.03 - 0.06 * (s - 1.8) / 0.2;
+  }
+  pose.position = {x, y, z};
+  pose.buttons = engage && down ? haptics::kButtonEngage : 0;
+  return pose;
+}
+
+Json period_json(const haptics::PeriodStatistics& p) {
+  return {{"p50", p.p50_us}, {"p99", p.p99_us}, {"p999", p.p999_us}, {"max", p.max_us}, {"mean", p.mean_us}};
+}
+
+struct RunResult {
+  Json json;
+  std::string line;
+};
+
+RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& options, bool engage) {
+  haptics::VirtualDevice device;
+  engine::SessionOptions session_options;
+  session_options.clock = engine::SessionOptions::Clock::realtime;
+  session_options.keep_ticks = true;
+  session_options.loop.spin_ns = static_cast<std::int64_t>(options.spin_us * 1000);
+  session_options.loop.realtime_priority = options.realtime_priority;
+  device.set_pose(scripted_stroke(0, engage));
+  engine::HapticSession session(scene, device, session_options);
+  const std::int64_t t0 = session.t0_ns();
+  std::atomic<bool> done{false};
+  // The hand: sets the device's pose from the wall clock, as the window's mouse would.
+  std::thread hand([&] {
+    while (!done.load(std::memory_order_acquire)) {
+      device.set_pose(scripted_stroke(1e-9 * static_cast<double>(haptics::monotonic_now_ns() - t0), engage));
+      std::this_thread::sleep_for(std::chrono::microseconds(500));
+    }
+  });
+  std::vector<double> step_ms;
+  std::string error;
+  std::atomic<bool> stop_physics{false};
+  std::thread physics([&] {
+    try {
+      while (!stop_physics.load(std::memory_order_acquire)) step_ms.push_back(session.step().ms_total);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+  });
+  std::this_thread::sleep_for(std::chrono::duration<double>(options.seconds));
+  const std::int64_t end = haptics::monotonic_now_ns();
+  stop_physics.store(true, std::memory_order_release);
+  physics.join();
+  const haptics::PeriodStatistics periods = session.loop().period_statistics();
+  session.stop();
+  done.store(true, std::memory_order_release);
+  hand.join();
+  if (!error.empty()) throw std::runtime_error("physics stopped: " + error);
+
+  const auto& ticks = session.ticks();
+  const auto at = [t0](std::size_t count, std::int64_t ns) {
+    return count > 0 ? Json(1e-9 * static_cast<double>(ns - t0)) : Json(nullptr);
+  };
+  const engine::ForceJumps jumps = engine::force_jumps(ticks, session.cut_steps());
+  double max_force = 0;
+  std::uint64_t clamped = 0;
+  for (const auto& t : ticks) {
+    max_force = std::max(max_force, std::hypot(t.force[0], t.force[1], t.force[2]));
+    clamped += t.clamped ? 1 : 0;
+  }
+  std::sort(step_ms.begin(), step_ms.end());
+  const double wall = 1e-9 * static_cast<double>(end - t0);
+  const double sim = session.world().time();
+  // The loop's own rate: its mean period (the first tick, taken before the world was built,
+  // and the build itself are not the loop's).
+  const double rate = periods.mean_us > 0 ? 1e6 / periods.mean_us : 0;
+  Json j = {
+      {"rate_hz", rate},
+      {"period_us", period_json(periods)},
+      {"missed_2ms", periods.over_2ms},
+      {"missed_deadlines", periods.missed_deadlines},
+      {"periods", periods.periods},
+      {"ticks", session.loop().ticks()},
+      {"force_jump_at_cut_N_per_ms",
+       {{"max", jumps.at_cut_max}, {"ticks", jumps.cut_ticks}, {"max_at_s", at(jumps.cut_ticks, jumps.at_cut_max_ns)}}},
+      {"force_jump_at_other_publications_N_per_ms",
+       {{"max", jumps.at_publication_max},
+        {"ticks", jumps.publication_ticks},
+        {"max_at_s", at(jumps.publication_ticks, jumps.at_publication_max_ns)}}},
+      {"force_jump_between_publications_N_per_ms",
+       {{"max", jumps.between_max}, {"max_at_s", at(ticks.size(), jumps.between_max_ns)}}},
+      {"max_force_N", max_force},
+      {"ticks_clamped", clamped},
+      {"ring_overflows", session.loop().ring_overflows()},
+      {"nonfinite_forces", session.loop().nonfinite_forces()},
+      {"realtime_priority", session.loop().realtime()},
+      {"cut_events", session.world().cut_totals().events},
+      {"physics",
+       {{"steps", step_ms.size()},
+        {"sim_time_s", sim},
+        {"wall_time_s", wall},
+        {"real_time_factor", wall > 0 ? sim / wall : 0},
+        {"ms_per_step_median", step_ms.empty() ? 0 : step_ms[step_ms.size() / 2]},
+        {"ms_per_step_max", step_ms.empty() ? 0 : step_ms.back()}}},
+  };
+  char line[512];
+  std::snprintf(line, sizeof line,
+                "%-16s %7.1f Hz  period p50 %6.1f p99 %6.1f p99.9 %6.1f max %7.1f us  >2ms %3llu  "
+                "jump N/ms: cut %.4f, publication %.4f, between %.4f  |F|max %.2f N  cuts %ld  physics x%.2f",
+                engage ? "cutting" : "without cutting", rate, periods.p50_us, periods.p99_us, periods.p999_us,
+                periods.max_us, static_cast<unsigned long long>(periods.over_2ms), jumps.at_cut_max,
+                jumps.at_publication_max, jumps.between_max, max_force, session.world().cut_totals().events,
+                wall > 0 ? sim / wall : 0);
+  return {j, line};
+}
+
+}  // namespace
+
+int run_haptics_bench(const HapticsBenchOptions& options, std::ostream& progress) {
+  try {
+    if (!(options.seconds > 0 && options.seconds <= 3600))
+      throw std::runtime_error("--seconds " + std::to_string(options.seconds) + " must be in (0, 3600]");
+    if (!(options.spin_us >= 0 && options.spin_us < 1000))
+      throw std::runtime_error("--spin-us " + std::to_string(options.spin_us) + " must be in [0, 1000)");
+    const auto scene_file = options.scene.empty() ? find_scene("assets/scenes/haptics_block.json") : options.scene;
+    const engine::Scene scene = engine::load_scene(scene_file);
+    std::filesystem::create_directories(options.out_dir);
+    progress << "bench haptics: " << scene.name << ", " << options.seconds << " s per run, spin " << options.spin_us
+             << " us\n";
+    RunResult cutting = run_session(scene, options, true);
+    progress << cutting.line << "\n";
+    RunResult pressing = run_session(scene, options, false);
+    progress << pressing.line << "\n";
+    haptics::HapticLoopConfig bare;
+    bare.spin_ns = static_cast<std::int64_t>(options.spin_us * 1000);
+    bare.realtime_priority = options.realtime_priority;
+    const haptics::PeriodStatistics base =
+        haptics::measure_bare_loop(bare, static_cast<std::int64_t>(options.seconds * 1e9));
+    char line[256];
+    std::snprintf(line, sizeof line, "%-16s %7.1f Hz  period p50 %6.1f p99 %6.1f p99.9 %6.1f max %7.1f us  >2ms %3llu",
+                  "bare loop", base.mean_us > 0 ? 1e6 / base.mean_us : 0, base.p50_us, base.p99_us, base.p999_us,
+                  base.max_us, static_cast<unsigned long long>(base.over_2ms));
+    progress << line << "\n";
+
+    Json report = cutting.json;
+    report["scene"] = scene.name;
+    report["scene_file"] = scene_file.string();
+    report["seconds"] = options.seconds;
+    report["spin_us"] = options.spin_us;
+    report["without_cutting"] = pressing.json;
+    report["baseline"] = {{"rate_hz", base.mean_us > 0 ? 1e6 / base.mean_us : 0},
+                          {"period_us", period_json(base)},
+                          {"missed_2ms", base.over_2ms},
+                          {"missed_deadlines", base.missed_deadlines},
+                          {"periods", base.periods}};
+    const auto file = options.out_dir / "haptics.json";
+    std::ofstream out(file);
+    out << report.dump(2) << "\n";
+    if (!out) throw std::runtime_error(file.string() + ": cannot write");
+    progress << "report: " << file.string() << "\n";
+    return 0;
+  } catch (const std::exception& e) {
+    progress << "bench haptics: " << e.what() << "\n";
+    return 1;
+  }
+}
+
+}  // namespace incise::bench

@@ -1,0 +1,27 @@
+// The haptics benchmark (issue 5): `incise bench haptics --seconds S --out DIR`.
+#pragma once
+
+#include <filesystem>
+#include <ostream>
+#include <string>
+
+namespace incise::bench {
+
+struct HapticsBenchOptions {
+  double seconds = 10;         // per run: cutting, without cutting, bare loop
+  std::filesystem::path scene;  // empty: assets/scenes/haptics_block.json
+  std::filesystem::path out_dir = "out/bench/haptics";
+  double spin_us = 300;         // sleep to this long before each deadline, then spin
+  bool realtime_priority = true;
+};
+
+// Three runs of `seconds` each, in this process: (1) the 1 kHz loop on its own thread with a
+// scripted virtual device drawing a blade through the scene (engaged: it cuts) while physics
+// steps on its own thread, (2) the same strokes with the blade never engaged (no cut), (3) a
+// bare timing loop (nothing but the wait). Writes DIR/haptics.json: rate_hz, period_us {p50,
+// p99, p999, max}, missed_2ms, force_jump_at_cut_N_per_ms {max} and the rest for (1) at the
+// top level, the same under `without_cutting` for (2), `baseline` for (3). Prints a summary.
+// Returns 0, or 1 with a message on `progress`.
+int run_haptics_bench(const HapticsBenchOptions& options, std::ostream& progress);
+
+}  // namespace incise::bench
