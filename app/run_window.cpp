@@ -125,6 +125,7 @@ int run(const RunArgs& args) {
   haptics::DeviceLimits limits;
   std::unique_ptr<haptics::Device> device;
   haptics::VirtualDevice* mouse = nullptr;
+  haptics::UdpDevice* udp = nullptr;
   double top = 0;
   {
     // Bounds from a throwaway world would cost a build; the scene's camera target and the
@@ -152,7 +153,9 @@ int run(const RunArgs& args) {
     if (args.udp_port < 0 || args.udp_port > 65535) throw std::runtime_error("--udp-port " + std::to_string(args.udp_port) + " is outside [0, 65535]");
     config.port = static_cast<std::uint16_t>(args.udp_port);
     config.limits = limits;
-    device = std::make_unique<haptics::UdpDevice>(config);
+    auto u = std::make_unique<haptics::UdpDevice>(config);
+    udp = u.get();
+    device = std::move(u);
   }
 
   std::optional<std::array<int, 4>> drag;
@@ -201,6 +204,12 @@ int run(const RunArgs& args) {
       session = std::make_unique<engine::HapticSession>(current, *device, o);
       loop_view.store(&session->loop(), std::memory_order_release);
       ++session_count;
+      if (udp) {
+        std::printf("udp device: listening on %s:%u (e.g. incise-bridge --device %s:%u)\n", args.udp_bind.c_str(),
+                    static_cast<unsigned>(udp->bound_port()), args.udp_bind.c_str(),
+                    static_cast<unsigned>(udp->bound_port()));
+        std::fflush(stdout);
+      }
     };
     try {
       begin(!args.record.empty());

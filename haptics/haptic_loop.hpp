@@ -6,22 +6,26 @@
 //   force  = 0 unless the device is ok; clamped to |force| <= device.limits().max_force
 //   device.write_force(force); push the TickSample into the SPSC ring physics drains.
 //
-// Integration (the engine's side, not done here):
-//   - The engine owns the Device, a ContactChannel and the HapticLoop; it opens the device,
-//     start()s the loop, and stop()s it before closing the device.
+// Integration (the engine's side: engine/haptic_session.hpp, HapticSession):
+//   - The session owns the ContactChannel, the HapticLoop and the World and drives a Device the
+//     caller owns; it opens the device, start()s the loop (realtime clock), and stop()s it
+//     before closing the device.
 //   - The physics thread, at the start of each step, drains samples() (the consumer side of
-//     the ring; one consumer only) and uses every pose since its last step as the blade's
-//     swept path; ring_overflows() counts samples lost when it has not drained for
-//     ring_capacity ticks.
-//   - At the end of each step (and in the step a cut changes the topology), physics fills
-//     contacts.back() (or builds a ContactModel and calls validate() on it) with the contact
-//     linearisation and the tool proxy, and publish()es; the next tick uses it.
-//   - Headless replay does not start the thread: its deterministic scheduler calls tick(t)
-//     with simulated time between physics steps, so two replays give identical samples.
-//   - The window reads latest() and period_statistics() for its plots; the VirtualDevice's
-//     set_pose() is its input.
-//   - Recording: the consumer of samples() writes each TickSample (pose, buttons, force,
-//     device state, time) to the trajectory file.
+//     the ring; one consumer only), records each tick and feeds every pose since its last step
+//     to World::append_tool_samples as the blade's swept path; it waits for the tick after the
+//     step's end, so a live step equals a replay's. ring_overflows() counts samples lost when
+//     it has not drained for ring_capacity ticks.
+//   - At the end of each step, including the step a cut changes the topology, physics builds
+//     the ContactModel from the surface the step left (engine::build_contact_model: half-spaces
+//     at the nearest surface points of the tool's edge, penalty stiffness in series with the
+//     tissue's compliance), validate()s and publish()es it; the next tick uses it.
+//   - Headless sessions (simulated clock: tests, `incise session`) do not start the thread:
+//     the session calls tick(t) with simulated time between physics steps, so two runs give
+//     identical samples.
+//   - The window (app/run_window.cpp) reads latest() and period_statistics() for its plots;
+//     the VirtualDevice's set_pose() is its mouse input.
+//   - Recording: the session, the consumer of samples(), writes each TickSample (pose,
+//     buttons, force, device state, time) to the trajectory file (engine::to_tool_sample).
 #pragma once
 
 #include <atomic>
