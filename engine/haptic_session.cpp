@@ -69,12 +69,15 @@ haptics::ContactModel build_contact_model(const World& world, const ContactBuild
   // device's current position); a tool that physics constrains would set it.
   model.has_proxy = false;
   model.proxy_position = tool.pose.position;
+  model.linearised_at = tool.pose.position;
+  model.valid_radius = build.valid_radius;
   model.proxy_velocity = build.proxy_velocity;
 
   const Scene& scene = world.scene();
   double search = build.search_radius;
   if (search <= 0)
     for (const auto& spec : scene.bodies) search = std::max(search, 3 * spec.resolution);
+  if (model.valid_radius <= 0) model.valid_radius = search;
   const std::vector<Vec3> points = tool_points(world);
   if (points.empty()) return model;
   Vec3 lo = points.front(), hi = points.front();

@@ -60,6 +60,9 @@ struct ContactBuild {
   std::int64_t time_ns = 0;  // haptic clock time of the step's end (the proxy's time)
   std::uint64_t step = 0;
   std::array<double, 3> proxy_velocity{};  // m/s
+  // The model's domain (ContactModel::valid_radius) around the tool's position; <= 0: the
+  // search radius (the nearest surface is only looked for that far).
+  double valid_radius = 0;
 };
 inline constexpr double kDefaultBladeStiffness = 400;  // N/m, whole edge
 haptics::ContactModel build_contact_model(const World& world, const ContactBuild& build);

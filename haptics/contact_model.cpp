@@ -1,5 +1,6 @@
 #include "haptics/contact_model.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -31,12 +32,23 @@ void validate(const ContactModel& model) {
     if (!(c.compliance >= 0))
       throw std::invalid_argument(at + ".compliance " + std::to_string(c.compliance) + " is not >= 0");
   }
+  require_finite_vector(model.linearised_at, "ContactModel.linearised_at");
+  require_finite(model.valid_radius, "ContactModel.valid_radius");
+  if (!(model.valid_radius >= 0))
+    throw std::invalid_argument("ContactModel.valid_radius " + std::to_string(model.valid_radius) + " is not >= 0");
   require_finite_vector(model.proxy_position, "ContactModel.proxy_position");
   require_finite_vector(model.proxy_velocity, "ContactModel.proxy_velocity");
 }
 
 Vector3 contact_force(const ContactModel& model, const Vector3& x, const Vector3& x_dot, double period_s) {
   Vector3 force{};
+  double weight = 1;
+  if (model.valid_radius > 0) {
+    const Vector3 away{x[0] - model.linearised_at[0], x[1] - model.linearised_at[1], x[2] - model.linearised_at[2]};
+    const double d = std::sqrt(dot(away, away));
+    weight = std::clamp(2 * (model.valid_radius - d) / model.valid_radius, 0.0, 1.0);
+    if (weight == 0) return force;
+  }
   const int count = model.count < 0 ? 0 : (model.count > ContactModel::kCapacity ? ContactModel::kCapacity : model.count);
   for (int i = 0; i < count; ++i) {
     const ContactPoint& c = model.contacts[i];
@@ -47,7 +59,7 @@ Vector3 contact_force(const ContactModel& model, const Vector3& x, const Vector3
     const double normal_velocity = dot(x_dot, c.normal);
     double magnitude = k_eff * depth - k_eff * period_s * normal_velocity;
     if (magnitude < 0) magnitude = 0;
-    for (int a = 0; a < 3; ++a) force[a] += magnitude * c.normal[a];
+    for (int a = 0; a < 3; ++a) force[a] += weight * magnitude * c.normal[a];
   }
   return force;
 }

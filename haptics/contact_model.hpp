@@ -43,6 +43,14 @@ struct ContactModel {
   std::array<ContactPoint, kCapacity> contacts{};
   int count = 0;
 
+  // The domain of the linearisation: the contacts hold near the tool position they were built
+  // at. Beyond valid_radius / 2 from `linearised_at` their force fades linearly to zero at
+  // valid_radius (continuously: no step when the hand leaves the domain), so a model that
+  // physics has not refreshed while the hand moved on (physics slower than real time) renders
+  // nothing rather than a surface that is no longer where the hand is. 0: no limit.
+  Vector3 linearised_at{};  // m
+  double valid_radius = 0;  // m, >= 0
+
   bool has_proxy = false;  // false: no tool proxy yet, the coupling force is zero
   Vector3 proxy_position{};  // m
   Vector3 proxy_velocity{};  // m/s

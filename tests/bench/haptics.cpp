@@ -151,6 +151,7 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
         {"sim_time_s", sim},
         {"wall_time_s", wall},
         {"real_time_factor", wall > 0 ? sim / wall : 0},
+        {"lag_behind_hand_s_at_end", wall - sim},
         {"ms_per_step_median", step_ms.empty() ? 0 : step_ms[step_ms.size() / 2]},
         {"ms_per_step_max", step_ms.empty() ? 0 : step_ms.back()}}},
   };

@@ -118,6 +118,19 @@ TEST(HapticsContactModel, ForceIsTheSeriesSpringAlongTheNormalAndNeverPulls) {
   expect_near(contact_force(m, {0, 0, 0.0019}, {0, 0, 10}, 1e-3), {0, 0, 0}, 0, "leaving");
 }
 
+TEST(HapticsContactModel, ForceFadesOutsideTheDomainOfTheLinearisation) {
+  ContactModel m = known_model();
+  const double k_eff = 1.0 / (1.0 / 500 + 0.001);
+  m.linearised_at = {0, 0, 0};
+  m.valid_radius = 0.01;
+  // Within half the radius: the full force; half way between R / 2 and R: half; beyond: none.
+  expect_near(contact_force(m, {0.004, 0, 0.001}, {0, 0, 0}, 1e-3), {0, 0, k_eff * 0.001}, 1e-15, "inside");
+  expect_near(contact_force(m, {0.0075, 0, 0}, {0, 0, 0}, 1e-3), {0, 0, 0.5 * k_eff * 0.002}, 1e-12, "fading");
+  expect_near(contact_force(m, {0.02, 0, 0.001}, {0, 0, 0}, 1e-3), {0, 0, 0}, 0, "outside");
+  m.valid_radius = -1;
+  EXPECT_NE(error_of([&] { validate(m); }).find("valid_radius"), std::string::npos);
+}
+
 TEST(HapticsCoupling, ForceIsClampedToTheDeviceLimitKeepingItsDirection) {
   bool clamped = false;
   const Vector3 f = clamp_force({3, 4, 0}, 2.5, &clamped);
