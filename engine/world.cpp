@@ -453,16 +453,16 @@ void World::append_tool_samples(std::span<const ToolSample> samples) {
   auto& held = trajectory_->samples;
   for (std::size_t k = 0; k < samples.size(); ++k) {
     const ToolSample& s = samples[k];
-    const std::string at = "live tool sample " + std::to_string(k) + " (t = " + std::to_string(s.time) + " s)";
+    const auto at = [&] { return "live tool sample " + std::to_string(k) + " (t = " + std::to_string(s.time) + " s)"; };
     bool finite = std::isfinite(s.time);
     for (double v : s.position) finite = finite && std::isfinite(v);
     for (double v : s.orientation) finite = finite && std::isfinite(v);
-    if (!finite) throw std::invalid_argument(at + ": a time, position or orientation is not finite");
+    if (!finite) throw std::invalid_argument(at() + ": a time, position or orientation is not finite");
     const double norm = std::sqrt(s.orientation[0] * s.orientation[0] + s.orientation[1] * s.orientation[1] +
                                   s.orientation[2] * s.orientation[2] + s.orientation[3] * s.orientation[3]);
-    if (std::abs(norm - 1) > 1e-3) throw std::invalid_argument(at + ": orientation |q| = " + std::to_string(norm) + " is not 1");
+    if (std::abs(norm - 1) > 1e-3) throw std::invalid_argument(at() + ": orientation |q| = " + std::to_string(norm) + " is not 1");
     if (!held.empty() && s.time < held.back().time)
-      throw std::invalid_argument(at + ": earlier than the previous sample (t = " + std::to_string(held.back().time) + " s)");
+      throw std::invalid_argument(at() + ": earlier than the previous sample (t = " + std::to_string(held.back().time) + " s)");
     held.push_back(s);
   }
   // The next step starts at time_ (computed there as end - dt, which may round below time_):
