@@ -271,6 +271,17 @@ CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, 
         }
       }
   cube_count_ = static_cast<int>(mesh.tets.size() / cube_tets.size());
+  // The cubes with an outside neighbour: the surface's, until cuts add theirs.
+  surface_cubes_.clear();
+  for (int k = 1; k + 1 < counts_[2]; ++k)
+    for (int j = 1; j + 1 < counts_[1]; ++j)
+      for (int i = 1; i + 1 < counts_[0]; ++i) {
+        if (!inside_[cube_index(i, j, k)]) continue;
+        const bool outer = !inside_[cube_index(i - 1, j, k)] || !inside_[cube_index(i + 1, j, k)] ||
+                           !inside_[cube_index(i, j - 1, k)] || !inside_[cube_index(i, j + 1, k)] ||
+                           !inside_[cube_index(i, j, k - 1)] || !inside_[cube_index(i, j, k + 1)];
+        if (outer) surface_cubes_.push_back(cube_index(i, j, k));
+      }
   // The outer nodes onto the true surface, as for the tetrahedral bodies.
   snap_boundary_to_surface(mesh, inside, 1.5 * cell, 0.1);
   node_rest_.resize(static_cast<size_t>(nodes));
@@ -306,6 +317,8 @@ int CutSurface::cut(std::span<const RestTriangle> triangles) {
             if (!inside_[other] || face_cut_[3 * static_cast<size_t>(cube) + axis]) continue;
             if (segment_crosses_triangle(cube_centre(i, j, k), cube_centre(next[0], next[1], next[2]), triangle)) {
               face_cut_[3 * static_cast<size_t>(cube) + axis] = 1;
+              new_surface_cubes_.push_back(cube);
+              new_surface_cubes_.push_back(other);
               ++newly;
             }
           }
@@ -318,6 +331,12 @@ int CutSurface::cut(std::span<const RestTriangle> triangles) {
 }
 
 void CutSurface::rebuild() {
+  if (!new_surface_cubes_.empty()) {
+    surface_cubes_.insert(surface_cubes_.end(), new_surface_cubes_.begin(), new_surface_cubes_.end());
+    new_surface_cubes_.clear();
+    std::sort(surface_cubes_.begin(), surface_cubes_.end());
+    surface_cubes_.erase(std::unique(surface_cubes_.begin(), surface_cubes_.end()), surface_cubes_.end());
+  }
   // The faces shown start from every cut face; pinches hide some (until the cut grows around
   // them), never more than a few passes' worth.
   face_shown_ = face_cut_;
@@ -408,11 +427,11 @@ int CutSurface::build_surface(bool fill_empty) {
     return id;
   };
 
-  for (int k = 1; k + 1 < counts_[2]; ++k) {
-    for (int j = 1; j + 1 < counts_[1]; ++j) {
-      for (int i = 1; i + 1 < counts_[0]; ++i) {
+  // Every cube while building (pinches fill empty cubes); afterwards the surface cubes, in
+  // the same increasing order.
+  const auto faces_of_cube = [&](int i, int j, int k) {
         const int cube = cube_index(i, j, k);
-        if (!inside_[cube]) continue;
+        if (!inside_[cube]) return;
         const std::array<int, 3> at{i, j, k};
         for (int axis = 0; axis < 3; ++axis) {
           for (int side = 0; side < 2; ++side) {  // 0: the -axis face, 1: the +axis face
@@ -451,8 +470,14 @@ int CutSurface::build_surface(bool fill_empty) {
             from_cut_face.push_back(cut_face ? 1 : 0);
           }
         }
-      }
-    }
+  };
+  if (fill_empty) {
+    for (int k = 1; k + 1 < counts_[2]; ++k)
+      for (int j = 1; j + 1 < counts_[1]; ++j)
+        for (int i = 1; i + 1 < counts_[0]; ++i) faces_of_cube(i, j, k);
+  } else {
+    const int nx = counts_[0], ny = counts_[1];
+    for (int cube : surface_cubes_) faces_of_cube(cube % nx, (cube / nx) % ny, cube / (nx * ny));
   }
   // Pinches: edges used by four triangles. The four cubes around such an edge alternate
   // full, gap, full, gap; the first gap (in slot order) is closed.

@@ -142,6 +142,11 @@ class CutSurface {
   std::vector<std::uint8_t> inside_;         // per cube
   std::vector<std::uint8_t> face_cut_;       // per cube x 3: its +x, +y, +z face
   std::vector<std::uint8_t> face_shown_;     // the cut faces the surface shows (pinches hidden)
+  // The inside cubes with a face on the surface (an outside neighbour or a cut face), by
+  // increasing index: after the build only these can hold faces, so a rebuild walks them
+  // instead of every cube, in the same order. cut() adds the cubes of the faces it cuts.
+  std::vector<int> surface_cubes_;
+  std::vector<int> new_surface_cubes_;
   std::vector<Vec3> node_rest_;              // per grid node, snapped onto the surface
   int cube_count_ = 0;
   int cut_faces_ = 0;
