@@ -1,0 +1,381 @@
+#include "physics/gpu/efg_kernels.hpp"
+
+#include <cctype>
+
+namespace incise::physics::gpu {
+
+namespace {
+
+// Binding points. Row data and node data have fixed bindings; the vectors a kernel reads or
+// writes are bound per dispatch to the slots 19 to 24.
+const char* const kCommon = R"(
+layout(std430, binding = 0) readonly buffer Neighbours { int neighbours[]; };
+layout(std430, binding = 1) readonly buffer Gradients { real gradients[]; };
+layout(std430, binding = 2) readonly buffer Values { real shape_values[]; };
+layout(std430, binding = 3) readonly buffer Lengths { int lengths[]; };
+layout(std430, binding = 4) readonly buffer Volumes { real volumes[]; };
+layout(std430, binding = 5) readonly buffer RestGradients { real rest_gradients[]; };
+layout(std430, binding = 6) readonly buffer Rotations { real rotation_offsets[]; };
+layout(std430, binding = 7) buffer Stresses { real stresses[]; };
+layout(std430, binding = 8) readonly buffer Incidence { int incidence[]; };
+layout(std430, binding = 9) readonly buffer IncidenceLengths { int incidence_lengths[]; };
+layout(std430, binding = 10) readonly buffer Rest { real rest[]; };
+layout(std430, binding = 11) readonly buffer Masses { real masses[]; };
+layout(std430, binding = 12) readonly buffer Free { real free_dof[]; };
+layout(std430, binding = 13) readonly buffer SpringIndex { int spring_index[]; };
+layout(std430, binding = 14) readonly buffer SpringForce { real spring_force[]; };
+layout(std430, binding = 15) readonly buffer SpringStiffness { real spring_stiffness[]; };
+// 0 lambda, 1 mu, 2 dt, 3 alpha, 4 beta, 5 mass coefficient, 6 stiffness coefficient
+layout(std430, binding = 16) readonly buffer Parameters { real parameters[]; };
+layout(std430, binding = 17) buffer Scalars { real scalars[]; };
+layout(std430, binding = 18) buffer Partials { real partials[]; };
+layout(std430, binding = 19) buffer A { real va[]; };
+layout(std430, binding = 20) buffer B { real vb[]; };
+layout(std430, binding = 21) buffer C { real vc[]; };
+layout(std430, binding = 22) buffer D { real vd[]; };
+layout(std430, binding = 23) buffer E { real ve[]; };
+layout(std430, binding = 24) buffer F { real vf[]; };
+
+uniform int count;
+uniform int stride;
+uniform int incidence_stride;
+uniform int mode;
+uniform int slot0;
+uniform int slot1;
+
+// Macros rather than functions, since GLSL cannot pass a buffer's array to a function; a
+// kernel declares only the blocks it names (Mesa counts declared blocks against its limit of
+// 16 per compute shader).
+#define LOADA(i) vec3r(va[3 * (i)], va[3 * (i) + 1], va[3 * (i) + 2])
+#define LOADB(i) vec3r(vb[3 * (i)], vb[3 * (i) + 1], vb[3 * (i) + 2])
+#define GRADIENT(slot) vec3r(gradients[3 * (slot)], gradients[3 * (slot) + 1], gradients[3 * (slot) + 2])
+// Row-major 3x3 blocks of 9 reals; GLSL matrices are column-major, hence m[column][row].
+#define LOAD_MATRIX(m, array, e) \
+  for (int r_ = 0; r_ < 3; ++r_) for (int c_ = 0; c_ < 3; ++c_) m[c_][r_] = array[9 * (e) + 3 * r_ + c_]
+bool finite(real x) { return !isnan(x) && !isinf(x); }
+)";
+
+// mode 0: elastic forces from the displacements in A; mode 1: K p for p in A.
+// S_e = -V (I + W) sigma (forces) or +V (I + W) sigma (K p), sigma of grad u (file comment of
+// efg_step.hpp: grad u = H + W^T (G0 + H), and for K p: P + W^T P).
+const char* const kElementStress = R"(
+void main() {
+  int e = int(gl_GlobalInvocationID.x);
+  if (e >= count) return;
+  int base = e * stride;
+  int length = lengths[e];
+  real volume = volumes[e];
+  if (!(volume > real(0))) {
+    for (int i = 0; i < 9; ++i) stresses[9 * e + i] = real(0);
+    return;
+  }
+  int first = neighbours[base];
+  vec3r reference = LOADA(first);
+  mat3r h = mat3r(0);
+  for (int k = 0; k < length; ++k) {
+    vec3r d = LOADA(neighbours[base + k]) - reference;
+    h += outerProduct(d, GRADIENT(base + k));  // column-major: h[c][r] = d[r] g[c]
+  }
+  mat3r w, rest_gradient;
+  LOAD_MATRIX(w, rotation_offsets, e);
+  LOAD_MATRIX(rest_gradient, rest_gradients, e);
+  mat3r g = mode == 0 ? h + transpose(w) * (rest_gradient + h) : h + transpose(w) * h;
+  mat3r strain = real(0.5) * (g + transpose(g));
+  real trace = strain[0][0] + strain[1][1] + strain[2][2];
+  mat3r sigma = real(2) * parameters[1] * strain + parameters[0] * trace * mat3r(1);
+  mat3r s = (mode == 0 ? -volume : volume) * (sigma + w * sigma);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) stresses[9 * e + 3 * r + c] = s[c][r];
+}
+)";
+
+// Per node: the sum of S_e grad phi over its incidence row, then by mode
+//   0: C = B (external) + elastic + spring force
+//   1: C = K A + K_spring A
+//   2: C = free (mc M A + kc (K A + K_spring A))
+const char* const kNodeGather = R"(
+void main() {
+  int n = int(gl_GlobalInvocationID.x);
+  if (n >= count) return;
+  vec3r sum = vec3r(0);
+  int length = incidence_lengths[n];
+  for (int i = 0; i < length; ++i) {
+    int slot = incidence[n * incidence_stride + i];
+    int e = slot / stride;
+    mat3r s;
+    LOAD_MATRIX(s, stresses, e);
+    sum += s * GRADIENT(slot);
+  }
+  int spring = spring_index[n];
+  vec3r result;
+  if (mode == 0) {
+    result = LOADB(n) + sum;
+    if (spring >= 0) result += vec3r(spring_force[3 * spring], spring_force[3 * spring + 1], spring_force[3 * spring + 2]);
+  } else {
+    vec3r p = LOADA(n);
+    vec3r stiffness = sum;
+    if (spring >= 0) {
+      mat3r k;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) k[c][r] = spring_stiffness[9 * spring + 3 * r + c];
+      stiffness += k * p;
+    }
+    result = mode == 1 ? stiffness
+                       : free_dof[n] * (parameters[5] * masses[n] * p + parameters[6] * stiffness);
+  }
+  vc[3 * n] = result.x;
+  vc[3 * n + 1] = result.y;
+  vc[3 * n + 2] = result.z;
+}
+)";
+
+// C = 1 / diag(mc M + kc (K + K_spring)), 1 where that is not positive and finite.
+// K_nn = V R (lambda g g^T + mu g g^T + mu |g|^2 I) R^T, whose diagonal needs only R g.
+const char* const kDiagonal = R"(
+void main() {
+  int n = int(gl_GlobalInvocationID.x);
+  if (n >= count) return;
+  vec3r sum = vec3r(0);
+  real lambda = parameters[0], mu = parameters[1];
+  int length = incidence_lengths[n];
+  for (int i = 0; i < length; ++i) {
+    int slot = incidence[n * incidence_stride + i];
+    int e = slot / stride;
+    vec3r g = GRADIENT(slot);
+    mat3r w;
+    LOAD_MATRIX(w, rotation_offsets, e);
+    vec3r turned = g + w * g;
+    sum += volumes[e] * ((lambda + mu) * turned * turned + vec3r(mu * dot(g, g)));
+  }
+  int spring = spring_index[n];
+  if (spring >= 0)
+    sum += vec3r(spring_stiffness[9 * spring], spring_stiffness[9 * spring + 4], spring_stiffness[9 * spring + 8]);
+  for (int c = 0; c < 3; ++c) {
+    real d = parameters[5] * masses[n] + parameters[6] * sum[c];
+    vc[3 * n + c] = (d > real(0) && finite(d)) ? real(1) / d : real(1);
+  }
+}
+)";
+
+// D = free dt (A - (dt + beta) B - alpha M C): A forces, B K v, C v.
+const char* const kRightHandSide = R"(
+void main() {
+  int i = int(gl_GlobalInvocationID.x);
+  if (i >= count) return;
+  real dt = parameters[2];
+  real b = dt * (va[i] - (dt + parameters[4]) * vb[i] - parameters[3] * (masses[i / 3] * vc[i]));
+  vd[i] = free_dof[i / 3] > real(0) ? b : real(0);
+}
+)";
+
+// r = free (b - A x), z = M^-1 r, p = z: A = A x, B = b, C = r, D = z, E = p, F = M^-1.
+const char* const kResidualInit = R"(
+void main() {
+  int i = int(gl_GlobalInvocationID.x);
+  if (i >= count) return;
+  real r = free_dof[i / 3] > real(0) ? vb[i] - va[i] : real(0);
+  vc[i] = r;
+  vd[i] = vf[i] * r;
+  ve[i] = vd[i];
+}
+)";
+
+// First pass of up to two dot products (A.B, and C.D when mode is 2), kReduceGroups groups
+// striding over the entries in a fixed order; partials[2 group + j].
+const char* const kDotPartial = R"(
+shared real first[REDUCE_GROUP];
+shared real second[REDUCE_GROUP];
+void main() {
+  int local = int(gl_LocalInvocationID.x);
+  int start = int(gl_GlobalInvocationID.x);
+  int step = REDUCE_GROUP * REDUCE_GROUPS;
+  real s0 = real(0), s1 = real(0);
+  for (int i = start; i < count; i += step) {
+    s0 += va[i] * vb[i];
+    if (mode == 2) s1 += vc[i] * vd[i];
+  }
+  first[local] = s0;
+  second[local] = s1;
+  barrier();
+  for (int width = REDUCE_GROUP / 2; width > 0; width /= 2) {
+    if (local < width) {
+      first[local] += first[local + width];
+      second[local] += second[local + width];
+    }
+    barrier();
+  }
+  if (local == 0) {
+    partials[2 * int(gl_WorkGroupID.x)] = first[0];
+    partials[2 * int(gl_WorkGroupID.x) + 1] = second[0];
+  }
+}
+)";
+
+// Second pass: one group of REDUCE_GROUPS sums the partials into scalars[slot0] (and slot1).
+const char* const kDotFinal = R"(
+shared real first[REDUCE_GROUPS];
+shared real second[REDUCE_GROUPS];
+void main() {
+  int local = int(gl_LocalInvocationID.x);
+  first[local] = partials[2 * local];
+  second[local] = partials[2 * local + 1];
+  barrier();
+  for (int width = REDUCE_GROUPS / 2; width > 0; width /= 2) {
+    if (local < width) {
+      first[local] += first[local + width];
+      second[local] += second[local + width];
+    }
+    barrier();
+  }
+  if (local == 0) {
+    scalars[slot0] = first[0];
+    if (mode == 2) scalars[slot1] = second[0];
+  }
+}
+)";
+
+// x += s p, r -= s Ap, z = M^-1 r with s = scalars[slot1] / scalars[slot0] (r.z / p.Ap),
+// skipped when p.Ap is not positive or s not finite (the host then stops, x unchanged).
+// A = x, B = p, C = r, D = Ap, E = z, F = M^-1.
+const char* const kCgUpdate = R"(
+void main() {
+  int i = int(gl_GlobalInvocationID.x);
+  if (i >= count) return;
+  real curvature = scalars[slot0];
+  real s = scalars[slot1] / curvature;
+  if (!(curvature > real(0)) || !finite(s)) return;
+  va[i] += s * vb[i];
+  vc[i] -= s * vd[i];
+  ve[i] = vf[i] * vc[i];
+}
+)";
+
+// p = z + beta p, beta = scalars[slot1] / scalars[slot0] (new r.z / old r.z). A = z, B = p.
+const char* const kCgDirection = R"(
+void main() {
+  int i = int(gl_GlobalInvocationID.x);
+  if (i >= count) return;
+  real beta = scalars[slot1] / scalars[slot0];
+  vb[i] = va[i] + beta * vb[i];
+}
+)";
+
+// Per node: C (v next) = free (B (v) + D (dv)), E (u next) = free ? A (u) + dt C : A.
+const char* const kIntegrate = R"(
+void main() {
+  int i = int(gl_GlobalInvocationID.x);
+  if (i >= count) return;
+  bool is_free = free_dof[i / 3] > real(0);
+  real v = is_free ? vb[i] + vd[i] : real(0);
+  vc[i] = v;
+  ve[i] = is_free ? va[i] + parameters[2] * v : va[i];
+}
+)";
+
+// Per surface vertex: C = sum_k w_k (X + A)_particle(k); the mapping rows are bound as
+// Neighbours (particles), Values (weights) and Lengths.
+const char* const kSurface = R"(
+void main() {
+  int v = int(gl_GlobalInvocationID.x);
+  if (v >= count) return;
+  vec3r sum = vec3r(0);
+  int base = v * stride;
+  for (int k = 0; k < lengths[v]; ++k) {
+    int p = neighbours[base + k];
+    sum += shape_values[base + k] * (vec3r(rest[3 * p], rest[3 * p + 1], rest[3 * p + 2]) + LOADA(p));
+  }
+  vc[3 * v] = sum.x;
+  vc[3 * v + 1] = sum.y;
+  vc[3 * v + 2] = sum.z;
+}
+)";
+
+}  // namespace
+
+const char* kernel_name(Kernel kernel) {
+  switch (kernel) {
+    case Kernel::element_stress: return "element_stress";
+    case Kernel::node_gather: return "node_gather";
+    case Kernel::diagonal: return "diagonal";
+    case Kernel::right_hand_side: return "right_hand_side";
+    case Kernel::residual_init: return "residual_init";
+    case Kernel::dot_partial: return "dot_partial";
+    case Kernel::dot_final: return "dot_final";
+    case Kernel::cg_update: return "cg_update";
+    case Kernel::cg_direction: return "cg_direction";
+    case Kernel::integrate: return "integrate";
+    case Kernel::surface: return "surface";
+    case Kernel::integration_points: return "integration_points";
+    case Kernel::count: break;
+  }
+  return "?";
+}
+
+std::string kernel_source(Kernel kernel, bool double_precision) {
+  std::string source = "#version 450\n";
+  if (double_precision) {
+    // GLSL literals are float unless suffixed: the kernels write real(0.5) etc., which is
+    // exact for the constants used, so no float-rounded constant enters double code.
+    source += "#extension GL_ARB_gpu_shader_fp64 : require\n#define real double\n#define vec3r dvec3\n#define mat3r dmat3\n";
+  } else {
+    source += "#define real float\n#define vec3r vec3\n#define mat3r mat3\n";
+  }
+  source += "#define REDUCE_GROUP " + std::to_string(kReduceGroupSize) + "\n";
+  source += "#define REDUCE_GROUPS " + std::to_string(kReduceGroups) + "\n";
+  const int group = kernel == Kernel::dot_partial ? kReduceGroupSize
+                    : kernel == Kernel::dot_final ? kReduceGroups
+                                                  : kGroupSize;
+  source += "layout(local_size_x = " + std::to_string(group) + ") in;\n";
+  std::string body;
+  switch (kernel) {
+    case Kernel::element_stress: body = kElementStress; break;
+    case Kernel::node_gather: body = kNodeGather; break;
+    case Kernel::diagonal: body = kDiagonal; break;
+    case Kernel::right_hand_side: body = kRightHandSide; break;
+    case Kernel::residual_init: body = kResidualInit; break;
+    case Kernel::dot_partial: body = kDotPartial; break;
+    case Kernel::dot_final: body = kDotFinal; break;
+    case Kernel::cg_update: body = kCgUpdate; break;
+    case Kernel::cg_direction: body = kCgDirection; break;
+    case Kernel::integrate: body = kIntegrate; break;
+    // Integration points use the same gather with the element rows and phi bound.
+    case Kernel::surface:
+    case Kernel::integration_points: body = kSurface; break;
+    case Kernel::count: break;
+  }
+  // The common part with only the blocks the body names (directly or through LOADA, LOADB,
+  // GRADIENT).
+  std::string expanded = body;
+  if (body.find("LOADA(") != std::string::npos) expanded += " va ";
+  if (body.find("LOADB(") != std::string::npos) expanded += " vb ";
+  if (body.find("GRADIENT(") != std::string::npos) expanded += " gradients ";
+  const auto names = [&expanded](const std::string& name) {
+    const auto word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
+    for (size_t at = expanded.find(name); at != std::string::npos; at = expanded.find(name, at + 1)) {
+      const bool starts = at == 0 || !word(expanded[at - 1]);
+      const bool ends = at + name.size() >= expanded.size() || !word(expanded[at + name.size()]);
+      if (starts && ends) return true;
+    }
+    return false;
+  };
+  const std::string common = kCommon;
+  size_t line_start = 0;
+  while (line_start < common.size()) {
+    size_t line_end = common.find('\n', line_start);
+    if (line_end == std::string::npos) line_end = common.size();
+    const std::string line = common.substr(line_start, line_end - line_start);
+    line_start = line_end + 1;
+    const size_t open = line.find("{ ");
+    if (line.rfind("layout(std430", 0) == 0 && open != std::string::npos) {
+      // "... { real name[]; };": the array's name.
+      const size_t name_start = line.find(' ', open + 2) + 1;
+      const std::string name = line.substr(name_start, line.find('[', name_start) - name_start);
+      if (!names(name)) continue;
+    }
+    source += line + "\n";
+  }
+  source += body;
+  return source;
+}
+
+}  // namespace incise::physics::gpu

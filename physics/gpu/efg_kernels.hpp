@@ -1,0 +1,34 @@
+// GLSL sources of the EFG step's compute kernels (efg_step.hpp describes the algorithm).
+#pragma once
+
+#include <string>
+
+namespace incise::physics::gpu {
+
+// The work-group size of the per-row kernels, and of the reductions' first pass with its
+// fixed number of groups (a fixed tree, so sums do not depend on scheduling).
+inline constexpr int kGroupSize = 64;
+inline constexpr int kReduceGroupSize = 256;
+inline constexpr int kReduceGroups = 64;
+
+enum class Kernel {
+  element_stress,
+  node_gather,
+  diagonal,
+  right_hand_side,
+  residual_init,
+  dot_partial,
+  dot_final,
+  cg_update,
+  cg_direction,
+  integrate,
+  surface,
+  integration_points,
+  count
+};
+
+// The full source of one kernel with `real` float or double.
+std::string kernel_source(Kernel kernel, bool double_precision);
+const char* kernel_name(Kernel kernel);
+
+}  // namespace incise::physics::gpu
