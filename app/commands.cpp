@@ -28,6 +28,8 @@ std::pair<int, int> parse_size(const std::string& text) {
 
 int replay(const ReplayArgs& args) {
   engine::Scene scene = engine::load_scene(args.scene);
+  if (!args.backend.empty()) scene.solver.backend = args.backend;
+  if (!args.precision.empty()) scene.solver.precision = args.precision;
   engine::ReplayOptions options;
   options.out_dir = args.out;
   if (!args.trajectory.empty()) options.trajectory = args.trajectory;

@@ -15,6 +15,8 @@ struct ReplayArgs {
   std::optional<int> capture_every;
   std::string size;
   std::optional<long> steps;
+  std::string backend;    // overrides solver.backend
+  std::string precision;  // overrides solver.precision
   bool check = false;
   bool quiet = false;
 };

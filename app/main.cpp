@@ -25,6 +25,10 @@ int main(int argc, char** argv) {
   replay_cmd->add_option("--capture-every", replay.capture_every, "Capture a frame every K steps (0: none; default from render.capture_every)");
   replay_cmd->add_option("--size", replay.size, "Frame size WxH, e.g. 640x480 (default from render.size)");
   replay_cmd->add_option("--steps", replay.steps, "Number of steps (default: solver.duration / solver.dt)");
+  replay_cmd->add_option("--backend", replay.backend, "Deformation backend, overrides solver.backend")
+      ->check(CLI::IsMember({"cpu", "gpu"}));
+  replay_cmd->add_option("--precision", replay.precision, "GPU precision, overrides solver.precision")
+      ->check(CLI::IsMember({"single", "double"}));
   replay_cmd->add_flag("--check", replay.check, "Check the scene's `expect` block; exit 1 when one fails");
   replay_cmd->add_flag("--quiet", replay.quiet, "No progress bar or summary");
 

@@ -3,6 +3,7 @@
 #include "engine/publication.hpp"
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
+#include "physics/gpu/efg_step.hpp"
 #include "render/image.hpp"
 #include "render/offscreen.hpp"
 
@@ -178,6 +179,60 @@ std::vector<ExpectationResult> check_expectations(const Scene& scene, const Json
   return results;
 }
 
+namespace {
+
+// metrics.json `backend` {name, device, precision}: the device is the GL renderer string.
+Json backend_json(const World& world) {
+  for (const auto& body : world.bodies()) {
+    if (!body.gpu) continue;
+    return {{"name", "gpu"}, {"device", body.gpu->device()}, {"gl_version", body.gpu->gl_version()},
+            {"precision", physics::gpu::precision_name(body.gpu->precision())}};
+  }
+  return {{"name", "cpu"}, {"device", "cpu"}, {"precision", "double"}};
+}
+
+// metrics.json `gpu`: what went up, over every body (physics/gpu/efg_step.hpp).
+Json gpu_json(const World& world, const std::vector<StepStats>& stats) {
+  physics::gpu::GpuCounters sum;
+  long long full_row_bytes = 0;
+  for (const auto& body : world.bodies()) {
+    if (!body.gpu) continue;
+    const auto& c = body.gpu->counters();
+    sum.row_bytes += c.row_bytes;
+    sum.row_batches += c.row_batches;
+    sum.element_batches += c.element_batches;
+    sum.incidence_batches += c.incidence_batches;
+    sum.surface_batches += c.surface_batches;
+    sum.state_bytes += c.state_bytes;
+    sum.rotation_bytes += c.rotation_bytes;
+    sum.reallocations += c.reallocations;
+    sum.ms_upload += c.ms_upload;
+    full_row_bytes += body.gpu->full_row_bytes();
+  }
+  long cut_steps = 0;
+  long long cut_step_row_bytes = 0;
+  for (const auto& s : stats) {
+    if (!s.cut_event) continue;
+    ++cut_steps;
+    cut_step_row_bytes += s.gpu_row_bytes;
+  }
+  return {{"bytes_uploaded", sum.bytes_uploaded()},
+          {"batches_uploaded", sum.row_batches},
+          {"ms_upload", sum.ms_upload},
+          {"row_bytes", sum.row_bytes},
+          {"state_bytes", sum.state_bytes},
+          {"rotation_bytes", sum.rotation_bytes},
+          {"element_batches", sum.element_batches},
+          {"incidence_batches", sum.incidence_batches},
+          {"surface_batches", sum.surface_batches},
+          {"reallocations", sum.reallocations},
+          {"full_row_bytes", full_row_bytes},
+          {"cut_steps", cut_steps},
+          {"row_bytes_per_cut_step", cut_steps > 0 ? static_cast<double>(cut_step_row_bytes) / cut_steps : 0.0}};
+}
+
+}  // namespace
+
 ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
   std::optional<Trajectory> trajectory;
   std::optional<std::filesystem::path> trajectory_file = options.trajectory;
@@ -329,7 +384,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
   Json metrics = {
       {"scene", scene.name},
       {"scene_file", scene.file.string()},
-      {"backend", {{"name", "cpu"}, {"precision", "double"}}},
+      {"backend", backend_json(world)},
       {"steps", stats.size()},
       {"steps_requested", steps},
       {"dt_s", scene.solver.dt},
@@ -355,6 +410,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
       {"dofs", {{"initial", dofs_initial}, {"final", dofs_final}}},
       {"trajectory", trajectory_json},
   };
+  if (scene.solver.backend == "gpu") metrics["gpu"] = gpu_json(world, stats);
   if (capture) {
     metrics["frames"] = {{"count", capture->frames()},
                          {"every_steps", capture_every},

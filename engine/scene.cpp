@@ -364,6 +364,8 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
       s.tolerance = sr.number("tolerance", false, 1e-6, 0, 1, true, true);
       s.max_iterations = sr.integer("max_iterations", false, 200, 1, 100000);
       s.backend = sr.text("backend", false, "cpu", {"cpu", "gpu"});
+      s.precision = sr.text("precision", false, "single", {"single", "double"});
+      s.batch_rows = sr.integer("batch_rows", false, 256, 1, 1000000);
       s.gravity = sr.point("gravity", false, {0, 0, -9.81}, -1e4, 1e4);
       s.duration = sr.number("duration", true, 1, 0, 1e5, true);
       s.max_retries = sr.integer("max_retries", false, 3, 0, 20);

@@ -92,6 +92,8 @@ struct SolverSpec {
   double tolerance = 1e-6;
   int max_iterations = 200;
   std::string backend = "cpu";
+  std::string precision = "single";  // gpu backend: "single" or "double" (the cpu one is double)
+  int batch_rows = 256;              // gpu backend: rows per upload batch
   Point gravity{0, 0, -9.81};
   double duration = 0;  // s of simulated time for a replay
   int max_retries = 3;  // halvings of dt after a non-finite step

@@ -7,6 +7,7 @@
 #include "physics/fem/static_solve.hpp"
 #include "physics/fem/surface_snap.hpp"
 #include "physics/fem/tet_mesh.hpp"
+#include "physics/gpu/efg_step.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -364,13 +365,11 @@ Body build_body(const BodySpec& spec, const SolverSpec& solver) {
 
 World::World(const Scene& scene, std::optional<Trajectory> trajectory)
     : scene_(scene), trajectory_(std::move(trajectory)) {
-  if (scene_.solver.backend != "cpu")
-    throw std::runtime_error(scene_.file.string() + ": solver.backend: '" + scene_.solver.backend +
-                             "' is not available in this build (only 'cpu'; the GPU backend is issue 6)");
   bounds_min_ = {1e300, 1e300, 1e300};
   bounds_max_ = {-1e300, -1e300, -1e300};
   for (const auto& spec : scene_.bodies) {
     bodies_.push_back(build_body(spec, scene_.solver));
+    if (scene_.solver.backend == "gpu") make_gpu_backend(bodies_.back(), bodies_.size() - 1);
     // Particles of a meshless body can lie outside it: frame what is seen.
     const Body& built = bodies_.back();
     const auto& x = built.embedding ? built.surface_positions : built.state.positions;
@@ -715,7 +714,26 @@ void World::cut_body(Body& body, StepStats& stats) {
 
 void World::update_surface(Body& body) const {
   if (!body.embedding) return;  // the surface vertices are nodes
-  physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
+  if (body.gpu)
+    body.gpu->surface_positions(*body.embedding, body.surface_positions);
+  else
+    physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
+}
+
+void World::make_gpu_backend(Body& body, std::size_t index) const {
+  const std::string where = scene_.file.string() + ": solver.backend: 'gpu': ";
+  if (!body.efg)
+    throw std::runtime_error(where + "bodies[" + std::to_string(index) + "] ('" + body.name + "') has model '" +
+                             body.model_name + "'; the GPU backend runs efg bodies only");
+  physics::gpu::GpuSettings settings;
+  settings.precision = scene_.solver.precision == "double" ? physics::gpu::Precision::double_precision
+                                                           : physics::gpu::Precision::single;
+  settings.batch_rows = scene_.solver.batch_rows;
+  try {
+    body.gpu = std::make_shared<physics::gpu::EfgStep>(*body.efg, settings);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(where + e.what());
+  }
 }
 
 void World::solve_body(Body& body, const std::vector<physics::NodalSpring>& springs,
@@ -743,8 +761,10 @@ void World::solve_body(Body& body, const std::vector<physics::NodalSpring>& spri
     bool failed = false;
     physics::StepReport report;
     for (int s = 0; s < substeps && !failed; ++s) {
-      report = physics::implicit_euler_step(*body.model, body.state, body.fixed, external, springs,
-                                            settings, &body.velocity_change);
+      report = body.gpu ? body.gpu->step(*body.efg, body.state, body.fixed, external, springs, settings,
+                                         &body.velocity_change)
+                        : physics::implicit_euler_step(*body.model, body.state, body.fixed, external, springs,
+                                                       settings, &body.velocity_change);
       stats.cg_iterations += report.cg.iterations;
       stats.cg_residual = std::max(stats.cg_residual, report.cg.relative_residual);
       if (!report.cg.converged && !report.nonfinite) {
@@ -808,6 +828,13 @@ void World::log_guard(const std::string& body, const std::string& kind, const st
 
 StepStats World::step() {
   StepStats stats;
+  const auto gpu_bytes = [this](bool rows) {
+    long long bytes = 0;
+    for (const auto& body : bodies_)
+      if (body.gpu) bytes += rows ? body.gpu->counters().row_bytes : body.gpu->counters().bytes_uploaded();
+    return bytes;
+  };
+  const long long gpu_bytes_before = gpu_bytes(false), gpu_row_bytes_before = gpu_bytes(true);
   auto start = Clock::now();
   auto phase = start;
   const double end_time = static_cast<double>(steps_ + 1) * scene_.solver.dt;
@@ -828,6 +855,8 @@ StepStats World::step() {
   ++steps_;
   time_ = end_time;
   stats.ms_total = ms_since(start);
+  stats.gpu_bytes = gpu_bytes(false) - gpu_bytes_before;
+  stats.gpu_row_bytes = gpu_bytes(true) - gpu_row_bytes_before;
   return stats;
 }
 

@@ -26,6 +26,10 @@
 #include <string>
 #include <vector>
 
+namespace incise::physics::gpu {
+class EfgStep;  // physics/gpu/efg_step.hpp
+}
+
 namespace incise::engine {
 
 // Raised when a step stays non-finite after every retry; names the body and the step.
@@ -68,6 +72,8 @@ struct Body {
   std::vector<std::uint8_t> linked_across;          // per element, kept by update_elements_linked_across
   physics::Vector gravity;                         // 3n, constant
   physics::ImplicitEulerSettings integrator;
+  // solver.backend "gpu": the body's step, surface and rows on the GPU (its own context).
+  std::shared_ptr<physics::gpu::EfgStep> gpu;
   std::vector<std::vector<int>> load_nodes;        // per scene load aimed at this body
   std::vector<std::size_t> load_index;             // which scene load
   std::size_t elements = 0;
@@ -100,6 +106,9 @@ struct StepStats {
   int links_severed = 0;
   double elastic_energy = 0;
   double kinetic_energy = 0;
+  // GPU backend: bytes uploaded this step, and of them the rows (element, incidence, surface).
+  long long gpu_bytes = 0;
+  long long gpu_row_bytes = 0;
 };
 
 // A guard that fired: always counted, and logged with the step and the body.
@@ -193,6 +202,8 @@ class World {
   void take_tool_input(double time);
   std::vector<physics::NodalSpring> contact(const Body& body, StepStats& stats) const;
   void update_surface(Body& body) const;
+  // solver.backend "gpu": the body's GPU step (throws naming the field when it cannot be).
+  void make_gpu_backend(Body& body, std::size_t index) const;
   // detect_cuts -> apply_topology for one body (seed 004 §2.7): CCD of the step's blade
   // sweep against its links, re-selection, the cut surface and its mapping.
   void cut_body(Body& body, StepStats& stats);

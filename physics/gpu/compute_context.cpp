@@ -155,6 +155,7 @@ std::unique_ptr<ComputeContext> ComputeContext::create(GlVersion required) {
     context->double_precision_ = gl_extension("GL_ARB_gpu_shader_fp64") && !(hide && std::strcmp(hide, "1") == 0);
     context->float_atomics_ = gl_extension("GL_NV_shader_atomic_float");
     context->egl_ = std::move(egl);
+    context->release();
     return context;
   }
   throw ComputeUnavailable("GPU backend: " + wanted + " is unavailable:" + notes);
@@ -167,5 +168,12 @@ void ComputeContext::make_current() {
   if (!eglMakeCurrent(egl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, egl_->context))
     throw ComputeUnavailable("GPU backend: eglMakeCurrent failed (" + egl_error() + ")");
 }
+
+void ComputeContext::release() {
+  if (eglGetCurrentContext() == egl_->context) eglMakeCurrent(egl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+}
+
+CurrentScope::CurrentScope(ComputeContext& context) : context_(context) { context_.make_current(); }
+CurrentScope::~CurrentScope() { context_.release(); }
 
 }  // namespace incise::physics::gpu

@@ -25,6 +25,21 @@ struct GlVersion {
   int minor = 5;
 };
 
+// Makes the context current for a scope and releases it at the end: the backend's calls may
+// come from whichever thread steps the physics, and a context current on a finished thread
+// could not be made current anywhere else.
+class ComputeContext;
+class CurrentScope {
+ public:
+  explicit CurrentScope(ComputeContext& context);
+  ~CurrentScope();
+  CurrentScope(const CurrentScope&) = delete;
+  CurrentScope& operator=(const CurrentScope&) = delete;
+
+ private:
+  ComputeContext& context_;
+};
+
 class ComputeContext {
  public:
   // Throws ComputeUnavailable when no context of at least `required` (core profile, with
@@ -37,6 +52,9 @@ class ComputeContext {
   // Makes the context current on the calling thread if it is not (a render context may have
   // been made current there in between).
   void make_current();
+  // Leaves the calling thread with no current context, so that another thread (the physics
+  // thread of a replay) may make it current next.
+  void release();
   // GL_VERSION and GL_RENDERER, e.g. "4.5 (Core Profile) Mesa 22.3.6", "llvmpipe (LLVM 15.0.6, 256 bits)".
   const std::string& version() const { return version_; }
   const std::string& renderer() const { return renderer_; }

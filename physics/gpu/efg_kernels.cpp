@@ -180,57 +180,34 @@ void main() {
 }
 )";
 
-// First pass of up to two dot products (A.B, and C.D when mode is 2), kReduceGroups groups
-// striding over the entries in a fixed order; partials[2 group + j].
+// First pass of up to two dot products (A.B, and C.D when mode is 2): REDUCE_THREADS
+// invocations each sum a fixed stride of the entries into partials[2 t + j]. No shared
+// memory and no barrier(): llvmpipe runs barriers as coroutine switches per invocation,
+// which made a shared-memory tree the slowest kernel of the step.
 const char* const kDotPartial = R"(
-shared real first[REDUCE_GROUP];
-shared real second[REDUCE_GROUP];
 void main() {
-  int local = int(gl_LocalInvocationID.x);
-  int start = int(gl_GlobalInvocationID.x);
-  int step = REDUCE_GROUP * REDUCE_GROUPS;
+  int t = int(gl_GlobalInvocationID.x);
   real s0 = real(0), s1 = real(0);
-  for (int i = start; i < count; i += step) {
+  for (int i = t; i < count; i += REDUCE_THREADS) {
     s0 += va[i] * vb[i];
     if (mode == 2) s1 += vc[i] * vd[i];
   }
-  first[local] = s0;
-  second[local] = s1;
-  barrier();
-  for (int width = REDUCE_GROUP / 2; width > 0; width /= 2) {
-    if (local < width) {
-      first[local] += first[local + width];
-      second[local] += second[local + width];
-    }
-    barrier();
-  }
-  if (local == 0) {
-    partials[2 * int(gl_WorkGroupID.x)] = first[0];
-    partials[2 * int(gl_WorkGroupID.x) + 1] = second[0];
-  }
+  partials[2 * t] = s0;
+  partials[2 * t + 1] = s1;
 }
 )";
 
-// Second pass: one group of REDUCE_GROUPS sums the partials into scalars[slot0] (and slot1).
+// Second pass: one invocation sums the partials in order into scalars[slot0] (and slot1).
 const char* const kDotFinal = R"(
-shared real first[REDUCE_GROUPS];
-shared real second[REDUCE_GROUPS];
 void main() {
-  int local = int(gl_LocalInvocationID.x);
-  first[local] = partials[2 * local];
-  second[local] = partials[2 * local + 1];
-  barrier();
-  for (int width = REDUCE_GROUPS / 2; width > 0; width /= 2) {
-    if (local < width) {
-      first[local] += first[local + width];
-      second[local] += second[local + width];
-    }
-    barrier();
+  if (gl_GlobalInvocationID.x != 0u) return;
+  real s0 = real(0), s1 = real(0);
+  for (int t = 0; t < REDUCE_THREADS; ++t) {
+    s0 += partials[2 * t];
+    s1 += partials[2 * t + 1];
   }
-  if (local == 0) {
-    scalars[slot0] = first[0];
-    if (mode == 2) scalars[slot1] = second[0];
-  }
+  scalars[slot0] = s0;
+  if (mode == 2) scalars[slot1] = s1;
 }
 )";
 
@@ -320,11 +297,8 @@ std::string kernel_source(Kernel kernel, bool double_precision) {
   } else {
     source += "#define real float\n#define vec3r vec3\n#define mat3r mat3\n";
   }
-  source += "#define REDUCE_GROUP " + std::to_string(kReduceGroupSize) + "\n";
-  source += "#define REDUCE_GROUPS " + std::to_string(kReduceGroups) + "\n";
-  const int group = kernel == Kernel::dot_partial ? kReduceGroupSize
-                    : kernel == Kernel::dot_final ? kReduceGroups
-                                                  : kGroupSize;
+  source += "#define REDUCE_THREADS " + std::to_string(kReduceGroups * kGroupSize) + "\n";
+  const int group = kernel == Kernel::dot_final ? 1 : kGroupSize;
   source += "layout(local_size_x = " + std::to_string(group) + ") in;\n";
   std::string body;
   switch (kernel) {

@@ -5,11 +5,10 @@
 
 namespace incise::physics::gpu {
 
-// The work-group size of the per-row kernels, and of the reductions' first pass with its
-// fixed number of groups (a fixed tree, so sums do not depend on scheduling).
+// The work-group size of the kernels, and the groups of the reductions' first pass (each of
+// its invocations sums a fixed stride, so sums do not depend on scheduling).
 inline constexpr int kGroupSize = 64;
-inline constexpr int kReduceGroupSize = 256;
-inline constexpr int kReduceGroups = 64;
+inline constexpr int kReduceGroups = 16;
 
 enum class Kernel {
   element_stress,

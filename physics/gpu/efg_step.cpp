@@ -8,6 +8,8 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <initializer_list>
 #include <map>
@@ -136,6 +138,7 @@ struct EfgStep::Impl {
   std::vector<int> ints;
 
   ~Impl() {
+    print_profile();
     for (auto& program : programs)
       if (program.id) glDeleteProgram(program.id);
     for (Buffer* b : all_buffers())
@@ -260,8 +263,28 @@ struct EfgStep::Impl {
     if (kernel == Kernel::dot_partial) groups = kReduceGroups;
     else if (kernel == Kernel::dot_final) groups = 1;
     else groups = static_cast<GLuint>((count + kGroupSize - 1) / kGroupSize);
+    const auto start = profile ? Clock::now() : Clock::time_point{};
     if (groups > 0) glDispatchCompute(groups, 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    if (profile) {
+      glFinish();
+      kernel_ms[static_cast<size_t>(kernel)] += std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+      kernel_runs[static_cast<size_t>(kernel)]++;
+    }
+  }
+
+  // INCISE_GPU_PROFILE=1: glFinish after every dispatch and the time per kernel on stderr
+  // when the step is destroyed (a measurement aid; it serialises the pipeline).
+  bool profile = false;
+  std::array<double, static_cast<size_t>(Kernel::count)> kernel_ms{};
+  std::array<long, static_cast<size_t>(Kernel::count)> kernel_runs{};
+  void print_profile() const {
+    if (!profile) return;
+    for (int k = 0; k < static_cast<int>(Kernel::count); ++k)
+      if (kernel_runs[static_cast<size_t>(k)] > 0)
+        std::fprintf(stderr, "gpu kernel %-20s %8ld runs %10.2f ms %8.4f ms/run\n", kernel_name(static_cast<Kernel>(k)),
+                     kernel_runs[static_cast<size_t>(k)], kernel_ms[static_cast<size_t>(k)],
+                     kernel_ms[static_cast<size_t>(k)] / kernel_runs[static_cast<size_t>(k)]);
   }
 
   // Two dot products a.b -> scalars[slot0] and (c.d -> scalars[slot1] when c is given).
@@ -502,6 +525,7 @@ EfgStep::EfgStep(const CorotationalEfg& model, const GpuSettings& settings) : se
   if (!(settings.surface_headroom >= 1) || !std::isfinite(settings.surface_headroom))
     throw std::invalid_argument("gpu surface_headroom must be at least 1, got " + std::to_string(settings.surface_headroom));
   context_ = ComputeContext::create(settings.required);
+  CurrentScope current(*context_);
   const bool want_double = settings.precision == Precision::double_precision;
   if (want_double && !context_->double_precision()) {
     throw ComputeUnavailable("GPU backend: double precision needs GL_ARB_gpu_shader_fp64, which OpenGL " +
@@ -518,6 +542,8 @@ EfgStep::EfgStep(const CorotationalEfg& model, const GpuSettings& settings) : se
   impl_ = std::make_unique<Impl>();
   Impl& s = *impl_;
   s.double_precision = want_double;
+  const char* profile = std::getenv("INCISE_GPU_PROFILE");
+  s.profile = profile && std::strcmp(profile, "1") == 0;
   s.real_bytes = want_double ? 8 : 4;
   s.counters = &counters_;
   s.settings = &settings_;
@@ -537,7 +563,7 @@ EfgStep::EfgStep(const CorotationalEfg& model, const GpuSettings& settings) : se
   s.allocate_reals(s.spring_stiffness, 9);
   s.allocate_reals(s.parameters, 8);
   s.allocate_reals(s.scalars, 8);
-  s.allocate_reals(s.partials, 2 * kReduceGroups);
+  s.allocate_reals(s.partials, 2 * kReduceGroups * kGroupSize);
   for (Buffer* b : {&s.u, &s.v, &s.u_next, &s.v_next, &s.external, &s.forces, &s.stiffness_velocity,
                     &s.rhs, &s.dv, &s.r, &s.z, &s.p, &s.product, &s.inverse_diagonal})
     s.allocate_reals(*b, dofs);
@@ -554,12 +580,17 @@ EfgStep::EfgStep(const CorotationalEfg& model, const GpuSettings& settings) : se
 EfgStep::~EfgStep() {
   if (!context_) return;
   try {
-    context_->make_current();
+    CurrentScope current(*context_);
     impl_.reset();
   } catch (...) {
     // The objects go with the context.
   }
 }
+
+int EfgStep::row_capacity() const { return impl_->stride_capacity; }
+int EfgStep::incidence_capacity() const { return impl_->incidence_capacity; }
+int EfgStep::surface_row_capacity() const { return impl_->surface_stride_capacity; }
+int EfgStep::surface_capacity() const { return impl_->surface_capacity; }
 
 long long EfgStep::full_row_bytes() const {
   const Impl& s = *impl_;
@@ -588,7 +619,7 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
                                   std::to_string(nodes) + ")");
   if (!(settings.dt > 0.0)) throw std::invalid_argument("EfgStep::step: dt must be positive");
 
-  context_->make_current();
+  CurrentScope current(*context_);
   StepReport report;
   const double dt = settings.dt;
   const double alpha = settings.rayleigh_mass, beta = settings.rayleigh_stiffness;
@@ -780,7 +811,7 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
 
 void EfgStep::surface_positions(const SurfaceEmbedding& embedding, Vector& out) {
   Impl& s = *impl_;
-  context_->make_current();
+  CurrentScope current(*context_);
   s.sync_surface(embedding);
   const int vertices = embedding.vertex_count();
   for (int v = 0; v < vertices; ++v)
@@ -802,7 +833,7 @@ void EfgStep::surface_positions(const SurfaceEmbedding& embedding, Vector& out) 
 
 void EfgStep::integration_points(const CorotationalEfg& model, Vector& out) {
   Impl& s = *impl_;
-  context_->make_current();
+  CurrentScope current(*context_);
   s.sync_rows(model);
   s.bind_fixed();
   s.run(Kernel::integration_points, s.elements, {{a_binding, &s.u}, {c_binding, &s.points_out}});

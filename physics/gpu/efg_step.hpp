@@ -99,6 +99,12 @@ class EfgStep {
   // Bytes of one full upload of the rows at the current capacities (the cost of rebuilding
   // everything after a topology change, as SOFA's CUDA path does).
   long long full_row_bytes() const;
+  // Current strides of the GPU's element rows, incidence rows and surface rows, and its
+  // surface vertex capacity (the layouts are in the file comment).
+  int row_capacity() const;
+  int incidence_capacity() const;
+  int surface_row_capacity() const;
+  int surface_capacity() const;
   const std::string& device() const { return context_->renderer(); }
   const std::string& gl_version() const { return context_->version(); }
   Precision precision() const { return settings_.precision; }
