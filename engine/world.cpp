@@ -731,6 +731,7 @@ void World::make_gpu_backend(Body& body, std::size_t index) const {
   settings.batch_rows = scene_.solver.batch_rows;
   try {
     body.gpu = std::make_shared<physics::gpu::EfgStep>(*body.efg, settings);
+    if (body.embedding) body.gpu->upload_surface(*body.embedding);
   } catch (const std::exception& e) {
     throw std::runtime_error(where + e.what());
   }

@@ -40,7 +40,9 @@ enum Binding : GLuint {
 // turn), 4 b.b.
 constexpr int curvature_slot = 0, residual_slot = 1, rz_slot = 2, rhs_slot = 4;
 
-// Incidence rows get this many slots beyond the longest at (re)allocation.
+// Incidence rows get this many slots (at least; a quarter of the longest row if more)
+// beyond the longest at (re)allocation: re-selection after cuts adds particles beyond the
+// cell, so interior particles gain incidences.
 constexpr int incidence_headroom = 8;
 
 struct Buffer {
@@ -376,22 +378,25 @@ struct EfgStep::Impl {
       counters->reallocations++;
       everything = true;
     }
-    if (stride != shadow_stride) everything = true;
+    if (shadow_stride < 0) everything = true;
     const auto& row_lengths = model.row_lengths();
     std::vector<std::uint8_t> dirty(static_cast<size_t>(elements), everything ? 1 : 0);
     bool any = everything;
     if (!everything) {
+      // Row by row, each in its own layout: a restride of the model (a longer row somewhere)
+      // that still fits the GPU's capacity moves no other row there.
       for (int e = 0; e < elements; ++e) {
         const size_t base = static_cast<size_t>(e) * stride;
+        const size_t shadow_base = static_cast<size_t>(e) * shadow_stride;
         const int count = row_lengths[e];
         bool same = shadow_lengths[e] == count && shadow_volumes[e] == model.element_volumes()[e] &&
                     std::equal(model.neighbours().begin() + base, model.neighbours().begin() + base + count,
-                               shadow_neighbours.begin() + base) &&
+                               shadow_neighbours.begin() + shadow_base) &&
                     std::equal(model.shape_values().begin() + base, model.shape_values().begin() + base + count,
-                               shadow_values.begin() + base);
+                               shadow_values.begin() + shadow_base);
         for (int k = 0; same && k < count; ++k)
           for (int c = 0; c < 3; ++c)
-            same = same && shadow_gradients[3 * (base + k) + c] == model.shape_gradients()[base + k][c];
+            same = same && shadow_gradients[3 * (shadow_base + k) + c] == model.shape_gradients()[base + k][c];
         if (!same) dirty[e] = 1, any = true;
       }
     }
@@ -420,7 +425,7 @@ struct EfgStep::Impl {
       for (int k = 0; k < model.row_lengths()[e]; ++k) ++counts[model.neighbours()[static_cast<size_t>(e) * stride + k]];
     const int longest = counts.empty() ? 0 : *std::max_element(counts.begin(), counts.end());
     if (longest > incidence_capacity) {
-      incidence_capacity = longest + incidence_headroom;
+      incidence_capacity = longest + std::max(incidence_headroom, longest / 4);
       allocate_ints(incidence, static_cast<long long>(nodes) * incidence_capacity);
       allocate_ints(incidence_lengths, nodes);
       if (incidence_uploaded) counters->reallocations++;
@@ -458,7 +463,7 @@ struct EfgStep::Impl {
   void sync_surface(const SurfaceEmbedding& embedding) {
     const int vertices = embedding.vertex_count();
     const int stride = embedding.stride;
-    bool everything = stride != surface_shadow_stride;
+    bool everything = surface_shadow_stride < 0;
     if (vertices > surface_capacity || stride > surface_stride_capacity) {
       surface_capacity = std::max(surface_capacity,
                                   static_cast<int>(std::ceil(vertices * settings->surface_headroom)));
@@ -476,14 +481,14 @@ struct EfgStep::Impl {
     for (int first = 0; first < vertices; first += batch) {
       const int last = std::min(vertices, first + batch);
       bool changed = everything || last > surface_vertices;
-      const size_t from = static_cast<size_t>(first) * stride, to = static_cast<size_t>(last) * stride;
-      if (!changed) {
-        changed = !std::equal(embedding.row_lengths.begin() + first, embedding.row_lengths.begin() + last,
-                              surface_shadow_lengths.begin() + first) ||
-                  !std::equal(embedding.particles.begin() + from, embedding.particles.begin() + to,
-                              surface_shadow_particles.begin() + from) ||
-                  !std::equal(embedding.weights.begin() + from, embedding.weights.begin() + to,
-                              surface_shadow_weights.begin() + from);
+      for (int v = first; v < last && !changed; ++v) {
+        const int count = embedding.row_lengths[v];
+        const size_t row = static_cast<size_t>(v) * stride, shadow_row = static_cast<size_t>(v) * surface_shadow_stride;
+        changed = surface_shadow_lengths[v] != count ||
+                  !std::equal(embedding.particles.begin() + row, embedding.particles.begin() + row + count,
+                              surface_shadow_particles.begin() + shadow_row) ||
+                  !std::equal(embedding.weights.begin() + row, embedding.weights.begin() + row + count,
+                              surface_shadow_weights.begin() + shadow_row);
       }
       if (!changed) continue;
       const int rows = last - first;
@@ -807,6 +812,12 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
   report.elastic_energy = model.elastic_energy(state.positions);
   report.kinetic_energy = kinetic_energy(model.lumped_masses(), state.velocities);
   return report;
+}
+
+void EfgStep::upload_surface(const SurfaceEmbedding& embedding) {
+  CurrentScope current(*context_);
+  impl_->sync_surface(embedding);
+  check_gl("uploading the surface mapping");
 }
 
 void EfgStep::surface_positions(const SurfaceEmbedding& embedding, Vector& out) {

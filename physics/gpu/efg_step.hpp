@@ -89,6 +89,9 @@ class EfgStep {
                   const Vector& external_forces, std::span<const NodalSpring> springs,
                   const ImplicitEulerSettings& settings, Vector* velocity_change = nullptr);
 
+  // Uploads the embedding's rows that differ from the GPU's copy (surface_positions does it
+  // too; the engine calls this once at build so that the first step uploads no rows).
+  void upload_surface(const SurfaceEmbedding& embedding);
   // out = the embedded surface vertex positions for the displacements of the last step
   // accepted on the GPU (uploads the embedding's changed batches first).
   void surface_positions(const SurfaceEmbedding& embedding, Vector& out);
