@@ -107,6 +107,10 @@ int main(int argc, char** argv) {
   auto* performance_cmd = bench_cmd->add_subcommand("performance", "Step time by phase while cutting, by element and triangle count");
   performance_cmd->add_flag("--quick", performance_quick, "The two coarser resolutions only");
   performance_cmd->add_option("--out", performance_out, "Output folder (performance.csv)")->capture_default_str();
+  std::string performance_backend = "cpu";
+  performance_cmd->add_option("--backend", performance_backend, "gpu: also run every size on the GPU backend")
+      ->check(CLI::IsMember({"cpu", "gpu"}))
+      ->capture_default_str();
 
   incise::bench::HapticsBenchOptions haptics_bench;
   std::string haptics_scene;
@@ -137,7 +141,7 @@ int main(int argc, char** argv) {
     if (*synth_cmd) return incise::app::trajectory_synth(synth);
     if (*accuracy_cmd) return incise::bench::run_accuracy_bench(accuracy_quick, accuracy_out, std::cerr);
     if (*stability_cmd) return incise::bench::run_stability_bench(stability_quick, stability_out, std::cerr, stability_resume);
-    if (*performance_cmd) return incise::bench::run_performance_bench(performance_quick, performance_out, std::cerr);
+    if (*performance_cmd) return incise::bench::run_performance_bench(performance_quick, performance_out, std::cerr, performance_backend);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "incise: %s\n", e.what());
     return 1;

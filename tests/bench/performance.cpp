@@ -15,6 +15,7 @@
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
+#include "physics/gpu/efg_step.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -57,7 +58,8 @@ struct Resolution {
 
 }  // namespace
 
-int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress) {
+int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress,
+                          const std::string& backend) {
   try {
     std::filesystem::create_directories(out_dir);
     const std::filesystem::path scene_file = find_default_scene();
@@ -69,15 +71,22 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
     // From the press to the end of the stroke of default.traj (0.3 s .. 2.0 s); fewer steps
     // for the finest rows, whose steps are long.
     std::ofstream csv(out_dir / "performance.csv");
+    if (backend != "cpu" && backend != "gpu")
+      throw std::runtime_error("--backend: '" + backend + "' is not cpu or gpu");
     csv << "scene,backend,elements,triangles,ms_ccd,ms_topology,ms_solve,ms_surface,ms_total,"
-           "dofs,steps,ms_topology_max,cut_share_pct,cut_events\n";
+           "dofs,steps,ms_topology_max,cut_share_pct,cut_events,device,bytes_uploaded_per_cut_step,"
+           "bytes_full_upload\n";
+    // --backend gpu: every size runs on the cpu and then on the gpu (single precision).
+    std::vector<std::string> backends{"cpu"};
+    if (backend == "gpu") backends.push_back("gpu");
     progress << "incise bench performance" << (quick ? " --quick" : "") << ": the default scene's incision, "
              << rows.size() << " resolutions, output in " << out_dir.string() << "\n";
     progress << std::setw(8) << "a mm" << std::setw(8) << "s mm" << std::setw(9) << "elements" << std::setw(10)
              << "triangles" << std::setw(9) << "ccd" << std::setw(10) << "topology" << std::setw(9) << "solve"
              << std::setw(9) << "surface" << std::setw(9) << "total" << std::setw(8) << "cut %" << "   (ms, medians)\n";
-    for (const Resolution& resolution : rows) {
+    for (const Resolution& resolution : rows) for (const std::string& row_backend : backends) {
       engine::Scene scene = base;
+      scene.solver.backend = row_backend;
       scene.bodies[0].resolution = resolution.spacing;
       scene.bodies[0].efg.surface_resolution = resolution.surface;
       scene.render.capture_every = 0;
@@ -90,6 +99,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
       std::vector<double> ccd, topology, solve, surface, total;
       long events = 0;
       double topology_max = 0;
+      long long cut_step_bytes = 0;
       for (long k = 0; k < last; ++k) {
         const engine::StepStats stats = world.step();
         if (k < first || !stats.cut_tested) continue;
@@ -100,12 +110,16 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
         total.push_back(stats.ms_total);
         topology_max = std::max(topology_max, stats.ms_topology);
         events += stats.cut_event ? 1 : 0;
+        if (stats.cut_event) cut_step_bytes += stats.gpu_bytes;
       }
+      const std::string device = body.gpu ? body.gpu->device() : "cpu";
+      const double bytes_per_cut_step = events > 0 ? static_cast<double>(cut_step_bytes) / events : 0.0;
+      const long long full_upload = body.gpu ? body.gpu->full_row_bytes() : 0;
       const double share = median(total) > 0 ? 100 * (median(ccd) + median(topology)) / median(total) : 0;
-      csv << "default,cpu," << body.elements << ',' << body.surface.size() << ',' << median(ccd) << ','
+      csv << "default," << row_backend << ',' << body.elements << ',' << body.surface.size() << ',' << median(ccd) << ','
           << median(topology) << ',' << median(solve) << ',' << median(surface) << ',' << median(total) << ','
           << 3 * body.model->node_count() << ',' << ccd.size() << ',' << topology_max << ',' << share << ','
-          << events << '\n';
+          << events << ",\"" << device << "\"," << bytes_per_cut_step << ',' << full_upload << '\n';
       csv.flush();
       progress << std::fixed << std::setprecision(2) << std::setw(8) << 1e3 * resolution.spacing << std::setw(8)
                << 1e3 * resolution.surface << std::setw(9) << body.elements << std::setw(10) << body.surface.size()
@@ -113,7 +127,11 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
                << std::setw(9) << median(surface) << std::setw(9) << median(total) << std::setw(8)
                << std::setprecision(1) << share << "   (" << ccd.size() << " steps, " << events
                << " cut events, topology max " << std::setprecision(1) << topology_max << " ms, built in "
-               << std::setprecision(1) << build_s << " s)\n";
+               << std::setprecision(1) << build_s << " s, " << row_backend;
+      if (body.gpu)
+        progress << " on " << device << ", " << std::setprecision(0) << bytes_per_cut_step
+                 << " bytes uploaded per cut step, a full upload of the rows " << full_upload;
+      progress << ")\n";
     }
     progress << "wrote " << (out_dir / "performance.csv").string() << "\n";
     return 0;

@@ -3,6 +3,7 @@
 
 #include <filesystem>
 #include <ostream>
+#include <string>
 
 namespace incise::bench {
 
@@ -10,8 +11,12 @@ namespace incise::bench {
 // drawn along it) at several resolutions of the integration grid and of the cut surface, and
 // writes DIR/performance.csv: scene,backend,elements,triangles,ms_ccd,ms_topology,ms_solve,
 // ms_surface,ms_total (medians over the steps the blade was engaged near the body), then
-// dofs,steps,ms_topology_max,cut_share_pct,cut_events. Progress and a table go to `progress`.
+// dofs,steps,ms_topology_max,cut_share_pct,cut_events,device,bytes_uploaded_per_cut_step,
+// bytes_full_upload (the last three: "cpu", 0, 0 on the cpu). Progress and a table go to `progress`.
 // Returns 0 on success, 1 on failure (with a message on `progress`).
-int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress);
+// backend "gpu": each size also runs on the GPU backend (rows with backend=gpu, the device
+// and the bytes uploaded per cut step).
+int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress,
+                          const std::string& backend = "cpu");
 
 }  // namespace incise::bench
