@@ -15,7 +15,7 @@ layout(std430, binding = 2) readonly buffer Values { real shape_values[]; };
 layout(std430, binding = 3) readonly buffer Lengths { int lengths[]; };
 layout(std430, binding = 4) readonly buffer Volumes { real volumes[]; };
 layout(std430, binding = 5) readonly buffer RestGradients { real rest_gradients[]; };
-layout(std430, binding = 6) readonly buffer Rotations { real rotation_offsets[]; };
+layout(std430, binding = 6) buffer Rotations { real rotation_offsets[]; };
 layout(std430, binding = 7) buffer Stresses { real stresses[]; };
 layout(std430, binding = 8) readonly buffer Incidence { int incidence[]; };
 layout(std430, binding = 9) readonly buffer IncidenceLengths { int incidence_lengths[]; };
@@ -35,6 +35,8 @@ layout(std430, binding = 21) buffer C { real vc[]; };
 layout(std430, binding = 22) buffer D { real vd[]; };
 layout(std430, binding = 23) buffer E { real ve[]; };
 layout(std430, binding = 24) buffer F { real vf[]; };
+layout(std430, binding = 25) buffer Orientations { real orientations[]; };
+layout(std430, binding = 26) buffer Flags { int flags[]; };
 
 uniform int count;
 uniform int stride;
@@ -267,6 +269,109 @@ void main() {
 }
 )";
 
+
+// Per element: the rotation R_e maximising tr(R^T F_e), F_e = sum_n x_n (x) grad phi_n the
+// MLS deformation gradient (EfgRotation::deformation_gradient), by corotational_efg.cpp's
+// extract_rotation: Newton steps omega = (tr(N) I - sym N)^-1 g on the axis-angle of
+// N = F R^T (g its axial vector), a scaled gradient step where that matrix is not positive
+// definite, warm-started with the last quaternion (orientations, x y z w). F is formed as
+// G0 + H (as in element_stress) so that float keeps its digits. Writes W = R - I from the
+// quaternion directly (-2 (y^2 + z^2) etc.: no 1 - 1 in float). An element that has not
+// settled after 24 steps (the CPU then takes the SVD polar) sets flags[0]; the host then
+// takes this step's rotations from the CPU instead.
+const char* const kElementRotation = R"(
+// sin and cos of angle / 2. GLSL has them for float only: in double, a Taylor series for the
+// small angles of the last Newton steps (error below 1e-16 for angle < 1), float trig for
+// larger ones, whose error the next steps remove.
+void half_angle_sine_cosine(real angle, out real s, out real c) {
+  real x = angle * real(0.5);
+#ifdef DOUBLE_PRECISION
+  if (x < 0.5lf) {
+    real x2 = x * x;
+    s = x * (1.0lf - x2 / 6.0lf * (1.0lf - x2 / 20.0lf * (1.0lf - x2 / 42.0lf * (1.0lf - x2 / 72.0lf *
+        (1.0lf - x2 / 110.0lf * (1.0lf - x2 / 156.0lf * (1.0lf - x2 / 210.0lf)))))));
+    c = 1.0lf - x2 / 2.0lf * (1.0lf - x2 / 12.0lf * (1.0lf - x2 / 30.0lf * (1.0lf - x2 / 56.0lf *
+        (1.0lf - x2 / 90.0lf * (1.0lf - x2 / 132.0lf * (1.0lf - x2 / 182.0lf * (1.0lf - x2 / 240.0lf)))))));
+    return;
+  }
+  s = real(sin(float(x)));
+  c = real(cos(float(x)));
+#else
+  s = sin(x);
+  c = cos(x);
+#endif
+}
+
+void main() {
+  int e = int(gl_GlobalInvocationID.x);
+  if (e >= count) return;
+  int base = e * stride;
+  int row_length = lengths[e];
+  int first = neighbours[base];
+  vec3r reference = LOADA(first);
+  mat3r h = mat3r(0);
+  for (int k = 0; k < row_length; ++k) h += outerProduct(LOADA(neighbours[base + k]) - reference, GRADIENT(base + k));
+  mat3r rest_gradient;
+  LOAD_MATRIX(rest_gradient, rest_gradients, e);
+  mat3r f = rest_gradient + h;
+  real x = orientations[4 * e], y = orientations[4 * e + 1], z = orientations[4 * e + 2], w = orientations[4 * e + 3];
+  bool settled = false;
+  bool finite_f = true;
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r) finite_f = finite_f && finite(f[c][r]);
+  if (!finite_f) settled = true;
+  for (int iteration = 0; iteration < 24 && !settled; ++iteration) {
+    mat3r rotation;  // column-major: rotation[c][r] = R(r, c)
+    rotation[0][0] = real(1) - real(2) * (y * y + z * z);
+    rotation[1][0] = real(2) * (x * y - z * w);
+    rotation[2][0] = real(2) * (x * z + y * w);
+    rotation[0][1] = real(2) * (x * y + z * w);
+    rotation[1][1] = real(1) - real(2) * (x * x + z * z);
+    rotation[2][1] = real(2) * (y * z - x * w);
+    rotation[0][2] = real(2) * (x * z - y * w);
+    rotation[1][2] = real(2) * (y * z + x * w);
+    rotation[2][2] = real(1) - real(2) * (x * x + y * y);
+    mat3r n = f * transpose(rotation);
+    vec3r g = vec3r(n[1][2] - n[2][1], n[2][0] - n[0][2], n[0][1] - n[1][0]);  // N(2,1)-N(1,2), ...
+    real trace = n[0][0] + n[1][1] + n[2][2];
+    mat3r hessian = trace * mat3r(1) - real(0.5) * (n + transpose(n));
+    // Positive definite (Sylvester) -> Newton step, else the scaled gradient step.
+    real a = hessian[0][0], b = hessian[1][0], d = hessian[1][1];
+    real minor2 = a * d - b * b;
+    real det = determinant(hessian);
+    vec3r omega;
+    if (a > real(0) && minor2 > real(0) && det > real(0)) omega = inverse(hessian) * g;
+    else omega = g / (abs(trace) + TINY);
+    real angle = length(omega);
+    if (!(angle > real(0))) {
+      settled = true;  // N is symmetric: R is the polar rotation already
+      break;
+    }
+    vec3r axis = omega / angle;
+    real s, cw;
+    half_angle_sine_cosine(angle, s, cw);
+    real ax = axis.x * s, ay = axis.y * s, az = axis.z * s;
+    // (ax, ay, az, cw) * (x, y, z, w), Hamilton product, then normalised.
+    real nx = cw * x + ax * w + ay * z - az * y;
+    real ny = cw * y - ax * z + ay * w + az * x;
+    real nz = cw * z + ax * y - ay * x + az * w;
+    real nw = cw * w - ax * x - ay * y - az * z;
+    real norm = sqrt(nx * nx + ny * ny + nz * nz + nw * nw);
+    x = nx / norm; y = ny / norm; z = nz / norm; w = nw / norm;
+    if (angle < SETTLED_ANGLE) settled = true;
+  }
+  if (!settled) flags[0] = 1;
+  orientations[4 * e] = x;
+  orientations[4 * e + 1] = y;
+  orientations[4 * e + 2] = z;
+  orientations[4 * e + 3] = w;
+  real offsets[9] = real[9](-real(2) * (y * y + z * z), real(2) * (x * y - z * w), real(2) * (x * z + y * w),
+                            real(2) * (x * y + z * w), -real(2) * (x * x + z * z), real(2) * (y * z - x * w),
+                            real(2) * (x * z - y * w), real(2) * (y * z + x * w), -real(2) * (x * x + y * y));
+  for (int i = 0; i < 9; ++i) rotation_offsets[9 * e + i] = offsets[i];
+}
+)";
+
 }  // namespace
 
 const char* kernel_name(Kernel kernel) {
@@ -283,6 +388,7 @@ const char* kernel_name(Kernel kernel) {
     case Kernel::integrate: return "integrate";
     case Kernel::surface: return "surface";
     case Kernel::integration_points: return "integration_points";
+    case Kernel::element_rotation: return "element_rotation";
     case Kernel::count: break;
   }
   return "?";
@@ -293,10 +399,13 @@ std::string kernel_source(Kernel kernel, bool double_precision) {
   if (double_precision) {
     // GLSL literals are float unless suffixed: the kernels write real(0.5) etc., which is
     // exact for the constants used, so no float-rounded constant enters double code.
-    source += "#extension GL_ARB_gpu_shader_fp64 : require\n#define real double\n#define vec3r dvec3\n#define mat3r dmat3\n";
+    source += "#extension GL_ARB_gpu_shader_fp64 : require\n#define DOUBLE_PRECISION 1\n#define real double\n#define vec3r dvec3\n#define mat3r dmat3\n";
   } else {
     source += "#define real float\n#define vec3r vec3\n#define mat3r mat3\n";
   }
+  // The Newton steps are quadratic: a step below this leaves an error of its square.
+  source += double_precision ? "#define SETTLED_ANGLE 1e-8lf\n#define TINY 1e-9lf\n"
+                              : "#define SETTLED_ANGLE 3e-5\n#define TINY 1e-9\n";
   source += "#define REDUCE_THREADS " + std::to_string(kReduceGroups * kGroupSize) + "\n";
   const int group = kernel == Kernel::dot_final ? 1 : kGroupSize;
   source += "layout(local_size_x = " + std::to_string(group) + ") in;\n";
@@ -315,6 +424,7 @@ std::string kernel_source(Kernel kernel, bool double_precision) {
     // Integration points use the same gather with the element rows and phi bound.
     case Kernel::surface:
     case Kernel::integration_points: body = kSurface; break;
+    case Kernel::element_rotation: body = kElementRotation; break;
     case Kernel::count: break;
   }
   // The common part with only the blocks the body names (directly or through LOADA, LOADB,

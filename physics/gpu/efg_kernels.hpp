@@ -23,6 +23,7 @@ enum class Kernel {
   integrate,
   surface,
   integration_points,
+  element_rotation,
   count
 };
 

@@ -33,7 +33,8 @@ enum Binding : GLuint {
   rest_gradients_binding, rotations_binding, stresses_binding, incidence_binding,
   incidence_lengths_binding, rest_binding, masses_binding, free_binding, spring_index_binding,
   spring_force_binding, spring_stiffness_binding, parameters_binding, scalars_binding,
-  partials_binding, a_binding, b_binding, c_binding, d_binding, e_binding, f_binding
+  partials_binding, a_binding, b_binding, c_binding, d_binding, e_binding, f_binding, orientations_binding,
+  flags_binding
 };
 
 // Scalars: 0 p.Ap, 1 r.r (the two read back per iteration), 2 and 3 r.z (old and new in
@@ -115,7 +116,7 @@ struct EfgStep::Impl {
   Buffer surface_particles, surface_weights, surface_lengths, surface_out, points_out;
   // Per step.
   Buffer rotations, stresses, rest, masses, free, spring_index, spring_force, spring_stiffness;
-  Buffer parameters, scalars, partials;
+  Buffer parameters, scalars, partials, orientations, flags;
   Buffer u, v, u_next, v_next, external, forces, stiffness_velocity, rhs, dv, r, z, p, product,
       inverse_diagonal;
 
@@ -151,7 +152,7 @@ struct EfgStep::Impl {
     return {&neighbours, &gradients, &values, &lengths, &volumes, &rest_gradients, &incidence,
             &incidence_lengths, &surface_particles, &surface_weights, &surface_lengths,
             &surface_out, &points_out, &rotations, &stresses, &rest, &masses, &free,
-            &spring_index, &spring_force, &spring_stiffness, &parameters, &scalars, &partials,
+            &spring_index, &spring_force, &spring_stiffness, &parameters, &scalars, &partials, &orientations, &flags,
             &u, &v, &u_next, &v_next, &external, &forces, &stiffness_velocity, &rhs, &dv, &r,
             &z, &p, &product, &inverse_diagonal};
   }
@@ -248,6 +249,8 @@ struct EfgStep::Impl {
     bind(parameters_binding, parameters);
     bind(scalars_binding, scalars);
     bind(partials_binding, partials);
+    bind(orientations_binding, orientations);
+    bind(flags_binding, flags);
   }
 
   void run(Kernel kernel, int count, std::initializer_list<std::pair<GLuint, const Buffer*>> vectors,
@@ -539,8 +542,8 @@ EfgStep::EfgStep(const CorotationalEfg& model, const GpuSettings& settings) : se
   GLint bindings = 0, blocks = 0;
   glGetIntegerv(GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS, &bindings);
   glGetIntegerv(GL_MAX_COMPUTE_SHADER_STORAGE_BLOCKS, &blocks);
-  if (bindings < 25 || blocks < 13) {
-    throw ComputeUnavailable("GPU backend: the kernels need 25 storage buffer bindings and 13 blocks per compute "
+  if (bindings < 27 || blocks < 13) {
+    throw ComputeUnavailable("GPU backend: the kernels need 27 storage buffer bindings and 13 blocks per compute "
                              "shader; OpenGL " + context_->version() + " on '" + context_->renderer() + "' has " +
                              std::to_string(bindings) + " and " + std::to_string(blocks));
   }
@@ -573,6 +576,13 @@ EfgStep::EfgStep(const CorotationalEfg& model, const GpuSettings& settings) : se
                     &s.rhs, &s.dv, &s.r, &s.z, &s.p, &s.product, &s.inverse_diagonal})
     s.allocate_reals(*b, dofs);
   s.allocate_reals(s.points_out, 3LL * s.elements);
+  s.allocate_reals(s.orientations, 4LL * s.elements);
+  s.allocate_ints(s.flags, 4);
+  {
+    std::vector<double> identity(4 * static_cast<size_t>(s.elements), 0.0);
+    for (int e = 0; e < s.elements; ++e) identity[4 * static_cast<size_t>(e) + 3] = 1.0;
+    s.state_upload(s.orientations, identity.data(), static_cast<long long>(identity.size()));
+  }
   const std::vector<int> no_springs(static_cast<size_t>(s.nodes), -1);
   counters_.state_bytes += s.upload_ints(s.spring_index, 0, no_springs.data(), s.nodes);
   const std::vector<double> zeros(static_cast<size_t>(dofs), 0.0);
@@ -590,6 +600,10 @@ EfgStep::~EfgStep() {
   } catch (...) {
     // The objects go with the context.
   }
+}
+
+bool EfgStep::rotations_on_gpu(const CorotationalEfg& model) const {
+  return settings_.rotations_on_gpu && model.settings().rotation == EfgRotation::deformation_gradient;
 }
 
 int EfgStep::row_capacity() const { return impl_->stride_capacity; }
@@ -634,8 +648,8 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
   // Topology (only the changed batches), then this step's state.
   s.sync_rows(model);
   s.bind_fixed();
-  model.update_rotations(state.positions);
-  {
+  const auto upload_cpu_rotations = [&] {
+    model.update_rotations(state.positions);
     const auto& rotations = model.rotations();
     std::vector<double> offsets(9 * static_cast<size_t>(s.elements));
     for (int e = 0; e < s.elements; ++e)
@@ -643,7 +657,9 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
         for (int j = 0; j < 3; ++j) offsets[9 * static_cast<size_t>(e) + 3 * i + j] = rotations[e](i, j) - (i == j ? 1.0 : 0.0);
     const long long bytes = s.state_upload(s.rotations, offsets.data(), static_cast<long long>(offsets.size()));
     counters_.rotation_bytes += bytes;
-  }
+  };
+  const bool gpu_rotations = rotations_on_gpu(model);
+  if (!gpu_rotations) upload_cpu_rotations();
   const double parameters[8] = {lame_lambda(model.material()), lame_mu(model.material()), dt, alpha, beta,
                                 mass_coefficient, stiffness_coefficient, 0};
   s.state_upload(s.parameters, parameters, 8);
@@ -698,6 +714,20 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
     if (fixed[n]) guess.segment<3>(3 * n).setZero();
   s.state_upload(s.dv, guess.data(), size);
   check_gl("uploading the state");
+  if (gpu_rotations) {
+    const int clear = 0;
+    counters_.state_bytes += s.upload_ints(s.flags, 0, &clear, 1);
+    s.run(Kernel::element_rotation, s.elements, {{a_binding, &s.u}});
+    int unsettled = 0;
+    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    glGetNamedBufferSubData(s.flags.id, 0, 4, &unsettled);
+    if (unsettled != 0) {
+      // An element's Newton steps did not settle (a strongly inverted or degenerate one):
+      // this step takes the CPU's rotations, which fall back to the SVD polar.
+      counters_.rotation_fallbacks++;
+      upload_cpu_rotations();
+    }
+  }
 
   // Right-hand side dt [f(x) - (dt + beta) K v - alpha M v], free entries only.
   s.run(Kernel::element_stress, s.elements, {{a_binding, &s.u}}, 0);

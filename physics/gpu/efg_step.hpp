@@ -6,11 +6,17 @@
 // reductions, the velocity and position update, and the surface-vertex and integration-point
 // positions from their mapping weights. Per CG iteration two scalars are read back (p.Ap and
 // r.r, all the stop test needs); step lengths and beta stay on the GPU.
-// On the CPU: the per-element rotations. model.update_rotations(x) runs there, as for the
-// CPU backend, and the rotations are uploaded every step as W = R - I (9 reals per element,
-// counted in GpuCounters::rotation_bytes): R - I keeps full float precision for the small
-// rotations of most elements, where R itself would lose it to the 1 on its diagonal. The
-// elastic energy of the watchdog is also computed on the CPU (model.elastic_energy).
+// The per-element rotations: by default on the GPU (kernel element_rotation: the polar
+// rotation of the MLS deformation gradient by the same warm-started Newton steps as
+// corotational_efg.cpp, quaternions kept on the GPU), read back only as one flag per step
+// saying whether every element settled; if one did not, or for a shape-matching model, or
+// with GpuSettings::rotations_on_gpu false, model.update_rotations(x) runs on the CPU and
+// the rotations go up as W = R - I (9 reals per element per step, GpuCounters::
+// rotation_bytes). The rotations are kept as W = R - I in both cases: that keeps full float
+// precision for the small rotations of most elements, where R itself would lose it to the 1
+// on its diagonal. The model's own rotations() are then not updated by the GPU step. The
+// elastic energy of the watchdog is computed on the CPU (model.elastic_energy, which extracts
+// its rotations itself).
 //
 // Scatter without races: not by atomics (llvmpipe offers no GL_NV_shader_atomic_float, and
 // no GL driver has double atomics) and not by colouring, but by a gather in two passes: each
@@ -58,6 +64,10 @@ struct GpuSettings {
   int row_headroom = 4;             // extra slots per row beyond the model's stride
   double surface_headroom = 1.25;   // surface vertex capacity / vertices (>= 1)
   GlVersion required{4, 5};
+  // Rotations from the deformation gradient computed on the GPU (EfgRotation::
+  // deformation_gradient, the model's default); false, or a shape-matching model: computed on
+  // the CPU by model.update_rotations and uploaded each step.
+  bool rotations_on_gpu = true;
 };
 
 // What went up, cumulative.
@@ -70,6 +80,7 @@ struct GpuCounters {
   long long state_bytes = 0;       // per-step state, rotations included
   long long rotation_bytes = 0;
   long long reallocations = 0;     // arrays reallocated and uploaded whole
+  long long rotation_fallbacks = 0;  // steps whose GPU rotations did not settle (CPU ones used)
   double ms_upload = 0;            // wall time of the uploads
   long long bytes_uploaded() const { return row_bytes + state_bytes; }
 };
@@ -105,6 +116,7 @@ class EfgStep {
   // Current strides of the GPU's element rows, incidence rows and surface rows, and its
   // surface vertex capacity (the layouts are in the file comment).
   int row_capacity() const;
+  bool rotations_on_gpu(const CorotationalEfg& model) const;
   int incidence_capacity() const;
   int surface_row_capacity() const;
   int surface_capacity() const;

@@ -32,3 +32,17 @@ if(INCISE_SANITIZE STREQUAL "")
   set_tests_properties(bench_stability_quick PROPERTIES TIMEOUT 600 LABELS "bench")
 endif()
 include(${CMAKE_CURRENT_LIST_DIR}/cut_scenes.cmake)
+
+# The GPU backend from the command line (issue 6), on llvmpipe here: cut_organ until its
+# first cuts (step 60; links are first severed at step 55), and the refusal when compute is
+# unavailable. Under the sanitizers a shorter replay (the compute runs uninstrumented in Mesa).
+if(INCISE_SANITIZE STREQUAL "")
+  set(incise_gpu_replay_steps 60)
+else()
+  set(incise_gpu_replay_steps 8)
+endif()
+add_test(NAME replay_gpu
+         COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/replay_gpu.sh $<TARGET_FILE:incise>
+                 ${PROJECT_SOURCE_DIR}/assets/scenes/cut_organ.json ${CMAKE_CURRENT_BINARY_DIR}/replay_gpu
+                 ${incise_gpu_replay_steps})
+set_tests_properties(replay_gpu PROPERTIES TIMEOUT 600 LABELS "gpu")
