@@ -184,6 +184,7 @@ struct Body {
   // blade polyline at time t, applied every step. single_use: the run edits the model, so each
   // run needs a fresh body.
   std::unique_ptr<physics::VolumeCutter> cutter;
+  const CorotationalEfg* efg = nullptr;  // the model, when it is an EFG one
   std::function<std::vector<Vec3>(double)> blade;
   bool single_use = false;
   std::string note;  // set-up figures for the summary
@@ -307,11 +308,23 @@ void squeeze_heights(Vector& positions) {
 }
 
 // Common completion: state at rest, gravity, size.
+// Particles a cut left with no element (EFG orphans) carry no stiffness: fixed, as the engine
+// pins them (engine/world.cpp), else they would fall away under gravity as if the body had
+// diverged.
+void pin_orphans(Body& body, State* state = nullptr) {
+  if (!body.efg) return;
+  for (int p : body.efg->orphaned_particles()) {
+    body.fixed[static_cast<size_t>(p)] = 1;
+    if (state) state->velocities.segment<3>(3 * static_cast<Index>(p)).setZero();
+  }
+}
+
 void finish_body(Body& body, const std::string& case_name) {
   const Vector& rest = body.model->rest_positions();
   if (body.initial.positions.size() == 0) body.initial.positions = rest;
   body.initial.velocities = Vector::Zero(rest.size());
   body.fixed = clamped_nodes(case_name, rest);
+  pin_orphans(body);
   body.external = physics::gravity_forces(body.model->lumped_masses(), gravity);
   body.size = (case_max(case_name) - case_min(case_name)).maxCoeff();
 }
@@ -436,6 +449,7 @@ Body make_efg_body(const std::string& case_name, const Material& material,
     body.inverted = body.count_inverted(positions);
   }
   body.initial.positions = positions;
+  body.efg = model.get();
   body.model = std::move(model);
   finish_body(body, case_name);
   return body;
@@ -487,6 +501,7 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
       const physics::VolumeCutReport report =
           body.cutter->cut(from, to, before_last_solve, state.positions);
       if (report.any()) {
+        pin_orphans(body, &state);
         body.external = physics::gravity_forces(model.lumped_masses(), gravity);
         cuts.elements_reselected += report.elements_reselected;
         cuts.elements_isolated += report.elements_isolated;
