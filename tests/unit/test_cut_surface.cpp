@@ -52,6 +52,14 @@ std::vector<RestTriangle> plane_cut(double x_cut, double z_bottom) {
   return {{p0, p1, p2}, {p0, p2, p3}};
 }
 
+// The EFG model of the bar in_box describes (a = 2.5 mm, single-threaded).
+CorotationalEfg bar_model() {
+  EfgSettings settings;
+  settings.spacing = 0.0025;
+  settings.threaded_elements = 0;
+  return CorotationalEfg(Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), Material{1e5, 0.3, 1000}, settings);
+}
+
 }  // namespace
 
 TEST(CutSurface, TheUncutSurfaceIsClosedAndEnclosesTheBody) {
@@ -126,10 +134,7 @@ TEST(CutSurface, AnObliqueCutThroughACurvedBodyStaysClosed) {
 }
 
 TEST(CutSurface, VerticesMapToTheirOwnSideAndAgreeWithTheVolumeCut) {
-  EfgSettings settings;
-  settings.spacing = 0.0025;
-  settings.threaded_elements = 0;
-  CorotationalEfg model(Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), Material{1e5, 0.3, 1000}, settings);
+  CorotationalEfg model = bar_model();
   const Vector rest = model.rest_positions();
   VolumeCutter cutter(model, 1e-6, 0.002);
   const double x_cut = 0.0512;
@@ -160,10 +165,7 @@ TEST(CutSurface, VerticesMapToTheirOwnSideAndAgreeWithTheVolumeCut) {
 TEST(CutSurface, EachVertexMapsToTheNearestVisibleIntegrationPoint) {
   // map_surface searches ring by ring of cubes; the answer must be the brute-force one: the
   // nearest active integration point whose segment to the vertex's anchor crosses no cut.
-  EfgSettings settings;
-  settings.spacing = 0.0025;
-  settings.threaded_elements = 0;
-  CorotationalEfg model(Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), Material{1e5, 0.3, 1000}, settings);
+  CorotationalEfg model = bar_model();
   const Vector rest = model.rest_positions();
   VolumeCutter cutter(model, 1e-6, 0.002);
   const double x_cut = 0.0512;
@@ -198,10 +200,7 @@ TEST(CutSurface, LinkedAcrossKeptUpToDateEqualsTheFullCount) {
   // The surface's cut grows strip by strip while the volume is not cut, so elements linked
   // across appear at every strip; the incremental count (elements near the new strip and the
   // ones marked changed) must equal a full recount each time.
-  EfgSettings settings;
-  settings.spacing = 0.0025;
-  settings.threaded_elements = 0;
-  CorotationalEfg model(Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), Material{1e5, 0.3, 1000}, settings);
+  CorotationalEfg model = bar_model();
   CutSurface surface(in_box, Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), 0.00125);
   std::vector<std::uint8_t> linked;
   int previous = 0;
