@@ -66,6 +66,7 @@
 #include "physics/fem/static_solve.hpp"
 #include "physics/fem/tet_mesh.hpp"
 
+#include <Eigen/CholmodSupport>
 #include <Eigen/LU>
 #include <Eigen/SparseCholesky>
 
@@ -77,6 +78,7 @@
 #include <fstream>
 #include <iomanip>
 #include <map>
+#include <memory>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -208,20 +210,52 @@ double triangle_area(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const E
   return 0.5 * std::abs(u.x() * v.y() - u.y() * v.x());
 }
 
-// Grades the hexagon towards z = 0, where the cut ends: z' = H sign(z) |z / H|^power, and y
-// scaled so that the border stays the hexagon's (|y| <= R - |z| / sqrt 3). Lattice lines of
-// constant z stay straight, so z = 0 remains a line of the mesh.
-Section graded_towards_crack_front(Section section, double power) {
+// The cut references' section: rows of constant z graded towards z = 0, where the cut ends
+// (z_j = H sign(j) |j / nz|^power, j = -nz..nz), each row split into `ny` equal intervals
+// across the hexagon's width there (|y| <= R - |z| / sqrt 3), neighbouring rows joined by two
+// triangles per interval. Unlike the lattice, the resolution across the crack front (z) is
+// independent of the one along it (y): the crack's field varies along y only near the
+// section's corners, so y needs few intervals (stretch_cut at nz = 2: ny 4 -> 8 changes the
+// tip by 0.30 %, 8 -> 16 by 0.07 %), while the reference needs many rows (see crack_layers).
+Section hexagon_row_section(int ny, int nz, double power) {
   const double h = hexagon_half_height();
-  for (Eigen::Vector2d& point : section.points) {
-    const double z = point.y();
-    const double graded = std::copysign(h * std::pow(std::abs(z) / h, power), z);
-    point.x() *= (hexagon_radius - std::abs(graded) / std::sqrt(3.0)) /
-                 (hexagon_radius - std::abs(z) / std::sqrt(3.0));
-    point.y() = graded;
+  Section section;
+  for (int j = -nz; j <= nz; ++j) {
+    const double z = std::copysign(h * std::pow(std::abs(static_cast<double>(j)) / nz, power), j);
+    const double half_width = hexagon_radius - std::abs(z) / std::sqrt(3.0);
+    for (int i = 0; i <= ny; ++i) section.points.emplace_back(half_width * (2.0 * i / ny - 1), z);
+  }
+  const auto at = [ny](int row, int i) { return row * (ny + 1) + i; };
+  for (int row = 0; row < 2 * nz; ++row) {
+    for (int i = 0; i < ny; ++i) {
+      section.triangles.push_back({at(row, i), at(row, i + 1), at(row + 1, i)});
+      section.triangles.push_back({at(row, i + 1), at(row + 1, i + 1), at(row + 1, i)});
+    }
   }
   return section;
 }
+
+// The cut references' layers along x: within H of the crack plane, the section's rows mirrored
+// (x = cut_x +- z_j), so the elements around the crack front are as long in x as in z; beyond,
+// layers twice the size of the outermost graded one, graded towards the clamp with `power`
+// and uniform towards the tip (their count barely matters: stretch_cut at nz = 3 moves by
+// 0.12 % between twice and half that size, while nz = 3 -> 4 moves it by 0.85 %).
+std::vector<double> crack_layers(int nz, double power) {
+  const double h = hexagon_half_height();
+  std::vector<double> offsets;  // from the crack plane, 0 .. H
+  for (int j = 0; j <= nz; ++j) offsets.push_back(h * std::pow(static_cast<double>(j) / nz, power));
+  const double far = 2 * (offsets[nz] - offsets[nz - 1]);
+  std::vector<double> x;
+  const int clamp_side = std::max(1, static_cast<int>(std::ceil((cut_x - h) / far)));
+  for (int k = 0; k < clamp_side; ++k) x.push_back((cut_x - h) * std::pow(static_cast<double>(k) / clamp_side, power));
+  for (int j = nz; j >= 1; --j) x.push_back(cut_x - offsets[j]);
+  for (int j = 0; j <= nz; ++j) x.push_back(cut_x + offsets[j]);
+  const int tip_side = std::max(1, static_cast<int>(std::ceil((beam_length - cut_x - h) / far)));
+  for (int k = 1; k <= tip_side; ++k) x.push_back(cut_x + h + (beam_length - cut_x - h) * k / tip_side);
+  return x;
+}
+// Intervals along y in the cut references' sections.
+constexpr int crack_section_ny = 8;
 
 // Layer positions along x, graded with the power law `power` towards the singular lines: the
 // clamped end x = 0 and, for the cut, both sides of x = cut_x (`layers` even, so that x = cut_x
@@ -396,21 +430,24 @@ std::vector<uint8_t> clamped_nodes(const Vector& rest) {
 }
 
 // A tet mesh of a case's body at a resolution: `section` lattice subdivisions (hexagon) or
-// cells per side (square), `layers` along x. `graded`: refined towards the crack front of the
-// cut cases (used for their references; the real-time tet4 rows stay uniform).
+// cells per side (square), `layers` along x. `graded`: refined towards the clamp, and for the
+// cut cases (their references) towards the crack front: then `section` is the number of rows
+// on either side of z = 0 (hexagon_row_section, crack_layers) and `layers` is not used. The
+// real-time tet4 rows stay uniform.
 constexpr double grading_power = 2.0;
 // The cut references: quarter-point elements take the crack front's singularity, so a milder
-// grading does better (stretch_cut, the two finest levels' change: power 2 1.22 %, 1.5 0.85 %,
-// 1 1.59 %; without quarter points, power 2: 2.1 %, power 4: 2.5 %).
+// grading does better (stretch_cut on 3 lattice rows, the tip: power 1 -91.6, 1.5 -92.3, 2.5
+// -91.5 um; without quarter points, at the same rows, -86.7 um).
 constexpr double crack_grading_power = 1.5;
 TetMesh case_mesh(const Case& c, int section, int layers, bool graded = false) {
   const double power = graded ? (c.cut ? crack_grading_power : grading_power) : 1.0;
   if (c.shape == Shape::square) {
     return extrude(square_section(section), layer_positions(layers, false, power));
   }
-  const Section hexagon = graded && c.cut ? graded_towards_crack_front(hexagon_section(section), power)
-                                          : hexagon_section(section);
-  return extrude(hexagon, layer_positions(layers, c.cut, power));
+  if (graded && c.cut) {
+    return extrude(hexagon_row_section(crack_section_ny, section, power), crack_layers(section, power));
+  }
+  return extrude(hexagon_section(section), layer_positions(layers, c.cut, power));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -475,15 +512,22 @@ std::vector<Vector> solve_static_loads(const SparseMatrix& stiffness, const std:
   }
   SparseMatrix reduced(free_count, free_count);
   reduced.setFromTriplets(triplets.begin(), triplets.end());
-  const Eigen::SimplicialLDLT<SparseMatrix> factor(reduced);
-  if (factor.info() != Eigen::Success) throw std::runtime_error("static solve: factorisation failed");
+  // CHOLMOD's supernodal Cholesky (dense BLAS on supernodes): the references' 97k-dof mesh
+  // factors in 4.4 s against 117 s for SimplicialLDLT, which stays as the fallback for a
+  // matrix that is not positive definite.
+  Eigen::CholmodSupernodalLLT<SparseMatrix> cholmod(reduced);
+  std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix>> ldlt;
+  if (cholmod.info() != Eigen::Success) {
+    ldlt = std::make_unique<Eigen::SimplicialLDLT<SparseMatrix>>(reduced);
+    if (ldlt->info() != Eigen::Success) throw std::runtime_error("static solve: factorisation failed");
+  }
   std::vector<Vector> solutions;
   for (const Vector& load : loads) {
     Vector reduced_load(free_count);
     for (Index i = 0; i < stiffness.rows(); ++i) {
       if (free_of[i] >= 0) reduced_load[free_of[i]] = load[i];
     }
-    const Vector reduced_solution = factor.solve(reduced_load);
+    const Vector reduced_solution = ldlt ? Vector(ldlt->solve(reduced_load)) : Vector(cholmod.solve(reduced_load));
     Vector u = Vector::Zero(stiffness.rows());
     for (Index i = 0; i < stiffness.rows(); ++i) {
       if (free_of[i] >= 0) u[i] = reduced_solution[free_of[i]];
@@ -532,6 +576,7 @@ struct Row {
   long long dofs = 0, elements = 0;
   double ms_per_step = 0, cg_iterations = 0, error_pct = 0;
   bool converged = true;
+  Vec3 tip = Vec3::Zero();  // the mean tip displacement (printed, not in the CSV)
 };
 
 struct Reference {
@@ -698,6 +743,11 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
                                         : Levels{{1, 10}, {2, 20}, {3, 30}, {4, 40}};
     const Levels square_levels = quick ? Levels{{2, 10}, {3, 15}, {4, 20}}
                                        : Levels{{2, 10}, {4, 20}, {6, 30}, {8, 40}};
+    // The cut cases (rows either side of the crack front, layers from crack_layers): their
+    // tip converges at about h^1.5 even with quarter points, so they need finer meshes (at 12
+    // rows 404k dofs, 44 s with CHOLMOD).
+    const Levels crack_levels = quick ? Levels{{2, 0}, {3, 0}, {6, 0}, {9, 0}, {12, 0}}
+                                      : Levels{{2, 0}, {3, 0}, {4, 0}, {6, 0}, {8, 0}, {12, 0}, {16, 0}};
     // Linear tets (the real-time baseline), uniform, about 1k, 3k and 10k dofs (more in full).
     const Levels hexagon_linear = quick ? Levels{{2, 20}, {3, 30}, {4, 50}}
                                         : Levels{{2, 20}, {3, 30}, {4, 50}, {6, 80}};
@@ -748,7 +798,7 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
     int total = 0;
     for (const Body& body : bodies) {
       const bool hexagon = body.shape == Shape::hexagon;
-      total += static_cast<int>((hexagon ? hexagon_levels : square_levels).size() + (quick && body.cut ? 1 : 0) +
+      total += static_cast<int>((body.cut ? crack_levels : hexagon ? hexagon_levels : square_levels).size() +
                                 (hexagon ? hexagon_linear : square_linear).size() +
                                 efg_cells.size() * (efg_variants.size() + (body.cut ? cutter_variants.size() : 0)));
     }
@@ -777,6 +827,10 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
       const std::string body_name = std::string(hexagon ? "hexagon" : "square") + (body.cut ? " cut" : "");
       const std::string cut_suffix = body.cut ? "_geomcut" : "";
       const auto describe = [&](int section, int layers, bool graded) {
+        if (body.cut && graded) {
+          return "hexagon_rows" + std::to_string(section) + "_y" + std::to_string(crack_section_ny) + "_x" +
+                 std::to_string(layers) + "_graded";
+        }
         return hexagon ? "hexagon_lattice" + std::to_string(section) + "_x" + std::to_string(layers) +
                              (graded ? "_graded" : "")
                        : "square_" + std::to_string(section) + "x" + std::to_string(section) + "_x" +
@@ -794,16 +848,13 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
         int section = 0;  // the mesh size is proportional to 1 / section
       };
       std::vector<Level> levels;
-      // The cut references get one more level in the quick run: their crack front converges
-      // slowest, and the issue asks the two finest to agree within 0.2 %.
-      Levels reference_levels = hexagon ? hexagon_levels : square_levels;
-      if (quick && body.cut) reference_levels.push_back({4, 40});
+      const Levels& reference_levels = body.cut ? crack_levels : hexagon ? hexagon_levels : square_levels;
       for (const auto& [section, layers] : reference_levels) {
         Level level;
-        level.name = describe(section, layers, true);
         level.section = section;
-        progress.draw(body_name + " reference tet10 " + level.name);
         level.linear = case_mesh(first, section, layers, true);
+        level.name = describe(section, body.cut ? static_cast<int>(crack_layers(section, crack_grading_power).size()) - 1 : layers, true);
+        progress.draw(body_name + " reference tet10 " + level.name);
         level.quadratic = make_quadratic(level.linear);
         if (body.cut) {
           quarter_points_at_crack_front(level.quadratic);
@@ -872,10 +923,12 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
         references[c.name] = reference;
       }
 
-      // tet10 rows: the coarser reference levels, timed with the assembled linear model.
+      // tet10 rows: the coarser reference levels up to 40k dofs (beyond, one implicit step
+      // with Jacobi-CG takes minutes), timed with the assembled linear model.
       for (size_t l = 0; l + 1 < levels.size(); ++l) {
         const Level& level = levels[l];
         const QuadraticTetMesh& mesh = level.quadratic.mesh;
+        if (mesh.rest.size() > 40000) continue;
         AssembledLinearModel model(physics::assemble_stiffness(mesh, beam_material), mesh.rest,
                                    quadratic_lumped_masses(mesh, beam_material.density));
         for (size_t i = 0; i < body.cases.size(); ++i) {
@@ -1023,7 +1076,7 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
             rows.push_back({c.name, "efg", variant_name, resolution,
                             3 * static_cast<long long>(model.node_count()), model.element_count(),
                             timing.ms_per_step, timing.cg_iterations,
-                            relative_error_pct(tip, references[c.name].tip), timing.converged});
+                            relative_error_pct(tip, references[c.name].tip), timing.converged, tip});
           }
           progress.step(body_name + " efg " + variant_name + " " + resolution);
         }
@@ -1058,7 +1111,8 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
         progress_stream << c.name << " efg " << variant << " at " << largest->dofs << " dofs: "
                         << format(largest->ms_per_step, 4) << " ms per step ("
                         << format(1000 / largest->ms_per_step, 3) << " steps/s, " << format(largest->cg_iterations, 4)
-                        << " CG iterations), error " << format(largest->error_pct, 3) << " %";
+                        << " CG iterations), error " << format(largest->error_pct, 3) << " %, tip " << mm(largest->tip)
+                        << " against " << mm(references.at(c.name).tip);
         const auto report = cut_reports.find(variant + " " + largest->resolution);
         if (report != cut_reports.end()) {
           const physics::VolumeCutReport& r = report->second;
