@@ -11,7 +11,9 @@
 // - a particle-particle link no longer joins its particles in the graph distances below;
 // - an integration point-particle link takes the particle out of the element's neighbourhood.
 // Each element that lost a neighbour is re-selected in the rest configuration (§2.4): its
-// still-linked neighbours are kept, and candidates are added in order of graph distance from
+// still-linked neighbours are kept; each severed neighbour is replaced by its mirror through
+// the kept neighbour nearest it (one step further from the cut on the element's side, when
+// that particle is within the graph distance), and candidates are added in order of graph distance from
 // them over the particle-particle links that remain, nearest (rest distance to the
 // integration point) first within a distance, skipping any candidate whose link to the
 // integration point the blade crosses this step, until the neighbourhood has its nominal size
@@ -75,7 +77,7 @@ class VolumeCutter {
   // whether the blade cuts during sub-interval j (engaged). One broad-phase refit per call.
   // `rest_cut`, when given, is the cut surface in the rest configuration (the caller's record
   // of every sweep so far, this one included): re-selection never takes a particle whose
-  // link it blocks, and the elements whose integration point lies in [lo, hi] (the region of
+  // link it blocks, and the elements with a link reaching into [lo, hi] (the region of
   // this step's sweep) drop the neighbours it blocks, so that the volume agrees with the
   // surface where the CCD's deformed-configuration test and the rest mapping differ by
   // rounding (counted in links_severed_at_rest).
@@ -118,7 +120,8 @@ class VolumeCutter {
   // endpoints go linearly from (a0, b0) at fraction 0 to (a1, b1) at fraction 1.
   std::optional<PolylineHit> sweep_hit(const Sweep& sweep, const Vec3& a0, const Vec3& b0,
                                        const Vec3& a1, const Vec3& b1) const;
-  std::vector<int> reselect(int element, const std::vector<int>& kept, const Sweep& sweep, bool& isolated);
+  std::vector<int> reselect(int element, const std::vector<int>& kept, const std::vector<int>& severed,
+                            const Sweep& sweep, bool& isolated);
 
   CorotationalEfg& model_;
   EdgeBroadPhase broad_phase_;
