@@ -257,8 +257,13 @@ CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, 
   node_rest_.resize(static_cast<size_t>(nodes));
   for (int n = 0; n < nodes; ++n) node_rest_[n] = mesh.rest.segment<3>(3 * static_cast<Eigen::Index>(n));
   // Fill the voxel set's pinches first, so that the snapped shape is the final one.
-  for (int pass = 0; pass < 16 && build_surface(true) > 0; ++pass) {
+  node_groups_.assign(static_cast<size_t>(nodes), {});
+  node_groups_done_.assign(static_cast<size_t>(nodes), 0);
+  vertex_of_.assign(8 * static_cast<size_t>(nodes), -1);
+  for (int pass = 0; pass < 16 && fill_pinches() > 0; ++pass) {
   }
+  std::fill(node_groups_done_.begin(), node_groups_done_.end(), 0);
+  std::fill(vertex_of_.begin(), vertex_of_.end(), -1);
   mesh.tets.clear();
   for (int k = 1; k + 1 < counts_[2]; ++k)
     for (int j = 1; j + 1 < counts_[1]; ++j)
@@ -286,7 +291,14 @@ CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, 
   snap_boundary_to_surface(mesh, inside, 1.5 * cell, 0.1);
   node_rest_.resize(static_cast<size_t>(nodes));
   for (int n = 0; n < nodes; ++n) node_rest_[n] = mesh.rest.segment<3>(3 * static_cast<Eigen::Index>(n));
-  rebuild();
+  // The whole surface, numbered as its faces meet the vertices.
+  std::vector<int> surface_nodes;
+  for (int cube : surface_cubes_)
+    for (int s = 0; s < 8; ++s) {
+      const int i = cube % counts_[0], j = (cube / counts_[0]) % counts_[1], k = cube / (counts_[0] * counts_[1]);
+      surface_nodes.push_back(node_index(i + (s & 1), j + ((s >> 1) & 1), k + ((s >> 2) & 1)));
+    }
+  refresh(std::move(surface_nodes));
 }
 
 Vec3 CutSurface::cube_centre(int i, int j, int k) const {
@@ -317,6 +329,7 @@ int CutSurface::cut(std::span<const RestTriangle> triangles) {
             if (!inside_[other] || face_cut_[3 * static_cast<size_t>(cube) + axis]) continue;
             if (segment_crosses_triangle(cube_centre(i, j, k), cube_centre(next[0], next[1], next[2]), triangle)) {
               face_cut_[3 * static_cast<size_t>(cube) + axis] = 1;
+              pending_faces_.push_back(3 * cube + axis);
               new_surface_cubes_.push_back(cube);
               new_surface_cubes_.push_back(other);
               ++newly;
@@ -337,167 +350,173 @@ void CutSurface::rebuild() {
     std::sort(surface_cubes_.begin(), surface_cubes_.end());
     surface_cubes_.erase(std::unique(surface_cubes_.begin(), surface_cubes_.end()), surface_cubes_.end());
   }
-  // The faces shown start from every cut face; pinches hide some (until the cut grows around
-  // them), never more than a few passes' worth.
-  face_shown_ = face_cut_;
-  pinches_closed_ = 0;
-  for (int pass = 0; pass < 64; ++pass) {
-    const int closed = build_surface(false);
-    pinches_closed_ += closed;
-    if (closed == 0) return;
+  // The faces whose state changes: the newly cut ones, and those the last rebuild hid (shown
+  // again, then hidden anew if they still pinch), so that the faces shown are as if every
+  // cut face had been shown and the pinches closed from scratch.
+  std::vector<int> nodes;
+  for (int face : pending_faces_) face_shown_[face] = 1, add_face_corners(face, nodes);
+  for (int face : hidden_faces_) face_shown_[face] = 1, add_face_corners(face, nodes);
+  pending_faces_.clear();
+  hidden_faces_.clear();
+  refresh(std::move(nodes));
+}
+
+void CutSurface::add_face_corners(int face, std::vector<int>& nodes) {
+  const int cube = face / 3, axis = face % 3;
+  const int nx = counts_[0], ny = counts_[1];
+  std::array<int, 3> at{cube % nx, (cube / nx) % ny, cube / (nx * ny)};
+  at[axis] += 1;  // the +axis face of the cube
+  const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+  for (int c = 0; c < 4; ++c) {
+    std::array<int, 3> node = at;
+    node[u] += c & 1;
+    node[v] += (c >> 1) & 1;
+    nodes.push_back(node_index(node[0], node[1], node[2]));
   }
 }
 
-int CutSurface::build_surface(bool fill_empty) {
-  // Per grid node, its (up to) 8 cubes grouped by the uncut faces they share around it.
-  // Local cube slot s = dx + 2 dy + 4 dz for the cube (i - 1 + dx, j - 1 + dy, k - 1 + dz).
-  // Dense per-node scratch, reset only where used (the surface touches few of the nodes).
-  const size_t nodes = node_rest_.size();
-  if (node_groups_.size() != nodes) {
-    node_groups_.assign(nodes, {});
-    node_groups_done_.assign(nodes, 0);
-    vertex_of_.assign(8 * nodes, -1);
+const std::array<std::int8_t, 8>& CutSurface::node_groups(int node) {
+  std::array<std::int8_t, 8>& label = node_groups_[node];
+  if (node_groups_done_[node]) return label;
+  node_groups_done_[node] = 1;
+  const int nx = counts_[0] + 1, ny = counts_[1] + 1;
+  const int i = node % nx, j = (node / nx) % ny, k = node / (nx * ny);
+  std::array<int, 8> cube{};
+  for (int s = 0; s < 8; ++s) {
+    const int ci = i - 1 + (s & 1), cj = j - 1 + ((s >> 1) & 1), ck = k - 1 + ((s >> 2) & 1);
+    const bool valid = ci >= 0 && cj >= 0 && ck >= 0 && ci < counts_[0] && cj < counts_[1] && ck < counts_[2];
+    cube[s] = valid ? cube_index(ci, cj, ck) : -1;
+    label[s] = static_cast<std::int8_t>(cube[s] >= 0 && inside_[cube[s]] ? s : -1);
   }
-  for (int node : touched_nodes_) {
-    node_groups_done_[node] = 0;
-    for (int g = 0; g < 8; ++g) vertex_of_[8 * static_cast<size_t>(node) + g] = -1;
-  }
-  touched_nodes_.clear();
-  const auto groups = [&](int i, int j, int k) -> const std::array<std::int8_t, 8>& {
-    const int node = node_index(i, j, k);
-    if (node_groups_done_[node]) return node_groups_[node];
-    node_groups_done_[node] = 1;
-    touched_nodes_.push_back(node);
-    std::array<std::int8_t, 8>& label = node_groups_[node];
-    std::array<int, 8> cube{};
+  // Union by smallest slot over the 12 face adjacencies of the 2 x 2 x 2 block.
+  bool changed = true;
+  while (changed) {
+    changed = false;
     for (int s = 0; s < 8; ++s) {
-      const int ci = i - 1 + (s & 1), cj = j - 1 + ((s >> 1) & 1), ck = k - 1 + ((s >> 2) & 1);
-      const bool valid = ci >= 0 && cj >= 0 && ck >= 0 && ci < counts_[0] && cj < counts_[1] && ck < counts_[2];
-      cube[s] = valid ? cube_index(ci, cj, ck) : -1;
-      label[s] = static_cast<std::int8_t>(cube[s] >= 0 && inside_[cube[s]] ? s : -1);
-    }
-    // Union by smallest slot over the 12 face adjacencies of the 2 x 2 x 2 block.
-    bool changed = true;
-    while (changed) {
-      changed = false;
-      for (int s = 0; s < 8; ++s) {
-        if (label[s] < 0) continue;
-        for (int axis = 0; axis < 3; ++axis) {
-          const int bit = 1 << axis;
-          if (s & bit) continue;
-          const int t = s | bit;
-          if (label[t] < 0) continue;
-          if (face_shown_[3 * static_cast<size_t>(cube[s]) + axis]) continue;  // s's +axis face is t's -axis face
-          const std::int8_t joined = std::min(label[s], label[t]);
-          if (label[s] != joined || label[t] != joined) {
-            // Relabel both groups to the smaller label.
-            const std::int8_t from_s = label[s], from_t = label[t];
-            for (auto& l : label)
-              if (l == from_s || l == from_t) l = joined;
-            changed = true;
-          }
+      if (label[s] < 0) continue;
+      for (int axis = 0; axis < 3; ++axis) {
+        const int bit = 1 << axis;
+        if (s & bit) continue;
+        const int t = s | bit;
+        if (label[t] < 0) continue;
+        if (face_shown_[3 * static_cast<size_t>(cube[s]) + axis]) continue;  // s's +axis face is t's -axis face
+        const std::int8_t joined = std::min(label[s], label[t]);
+        if (label[s] != joined || label[t] != joined) {
+          // Relabel both groups to the smaller label.
+          const std::int8_t from_s = label[s], from_t = label[t];
+          for (auto& l : label)
+            if (l == from_s || l == from_t) l = joined;
+          changed = true;
         }
       }
     }
-    return label;
-  };
-
-  std::vector<Vec3> positions;
-  anchors_.clear();
-  on_cut_.clear();
-  triangles_.clear();
-  vertex_node_.clear();
-  vertex_keys_.clear();
-  std::vector<std::uint8_t> from_cut_face;  // per triangle
-  const auto vertex = [&](int i, int j, int k, int cube_i, int cube_j, int cube_k, bool cut_face) {
-    const int slot = (cube_i - (i - 1)) + 2 * (cube_j - (j - 1)) + 4 * (cube_k - (k - 1));
-    const int group = groups(i, j, k)[slot];
-    const size_t key = static_cast<size_t>(node_index(i, j, k)) * 8 + static_cast<size_t>(group);
-    const bool created = vertex_of_[key] < 0;
-    if (created) vertex_of_[key] = static_cast<int>(positions.size());
-    const int id = vertex_of_[key];
-    if (created) {
-      vertex_keys_.push_back(static_cast<long long>(key));
-      positions.push_back(node_rest_[node_index(i, j, k)]);
-      vertex_node_.push_back(node_index(i, j, k));
-      anchors_.push_back(cube_centre(cube_i, cube_j, cube_k));
-      on_cut_.push_back(0);
-    }
-    if (cut_face) on_cut_[id] = 1;
-    return id;
-  };
-
-  // Every cube while building (pinches fill empty cubes); afterwards the surface cubes, in
-  // the same increasing order.
-  const auto faces_of_cube = [&](int i, int j, int k) {
-        const int cube = cube_index(i, j, k);
-        if (!inside_[cube]) return;
-        const std::array<int, 3> at{i, j, k};
-        for (int axis = 0; axis < 3; ++axis) {
-          for (int side = 0; side < 2; ++side) {  // 0: the -axis face, 1: the +axis face
-            std::array<int, 3> next = at;
-            next[axis] += side ? 1 : -1;
-            const int other = cube_index(next[0], next[1], next[2]);
-            const bool cut_face = inside_[other] &&
-                                  face_shown_[3 * static_cast<size_t>(side ? cube : other) + axis] != 0;
-            if (inside_[other] && !cut_face) continue;
-            // The face's corners, counter-clockwise seen from outside the cube.
-            const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-            std::array<std::array<int, 3>, 4> corners{};
-            const std::array<std::array<int, 2>, 4> square{{{0, 0}, {1, 0}, {1, 1}, {0, 1}}};
-            for (int c = 0; c < 4; ++c) {
-              std::array<int, 3> node = at;
-              node[axis] += side;
-              node[u] += square[c][0];
-              node[v] += square[c][1];
-              corners[c] = node;
-            }
-            if (!side) std::swap(corners[1], corners[3]);
-            std::array<int, 4> ids{};
-            for (int c = 0; c < 4; ++c) ids[c] = vertex(corners[c][0], corners[c][1], corners[c][2], i, j, k, cut_face);
-            // The two sides of a cut face share the corners the cut has not separated yet
-            // (a crack of a few faces inside the body has all four shared: a closed pillow
-            // of zero volume). Splitting the two sides' quads along different diagonals keeps
-            // every edge used by exactly two triangles whatever is shared.
-            if (cut_face && side == 0) {
-              triangles_.push_back({ids[1], ids[2], ids[3]});
-              triangles_.push_back({ids[1], ids[3], ids[0]});
-            } else {
-              triangles_.push_back({ids[0], ids[1], ids[2]});
-              triangles_.push_back({ids[0], ids[2], ids[3]});
-            }
-            from_cut_face.push_back(cut_face ? 1 : 0);
-            from_cut_face.push_back(cut_face ? 1 : 0);
-          }
-        }
-  };
-  if (fill_empty) {
-    for (int k = 1; k + 1 < counts_[2]; ++k)
-      for (int j = 1; j + 1 < counts_[1]; ++j)
-        for (int i = 1; i + 1 < counts_[0]; ++i) faces_of_cube(i, j, k);
-  } else {
-    const int nx = counts_[0], ny = counts_[1];
-    for (int cube : surface_cubes_) faces_of_cube(cube % nx, (cube / nx) % ny, cube / (nx * ny));
   }
-  // Pinches: edges used by four triangles. The four cubes around such an edge alternate
-  // full, gap, full, gap; the first gap (in slot order) is closed.
-  {
-    // Edges used more than twice. At build every edge is a suspect; after a cut only the
-    // edges of triangles that touch a cut-face vertex can be (the rest is as at build).
-    std::vector<std::uint8_t> suspect_vertex(positions.size(), fill_empty ? 1 : 0);
-    if (!fill_empty) {
-      for (size_t t = 0; t < triangles_.size(); ++t)
-        if (from_cut_face[t])
-          for (int v : triangles_[t]) suspect_vertex[v] = 1;
+  return label;
+}
+
+namespace {
+
+// A face of the surface: its corners' keys, counter-clockwise seen from outside its cube.
+struct Quad {
+  std::array<long long, 4> key{};
+  int cube = 0;
+  bool cut = false;   // a cut face (else one towards an empty cube)
+  bool flip = false;  // split along the other diagonal (the -axis side of a cut face)
+  std::array<std::array<int, 3>, 2> triangles() const {
+    if (flip) return {{{1, 2, 3}, {1, 3, 0}}};
+    return {{{0, 1, 2}, {0, 2, 3}}};
+  }
+};
+
+}  // namespace
+
+void CutSurface::refresh(std::vector<int> nodes) {
+  const int nx = counts_[0], ny = counts_[1];
+  const int node_nx = counts_[0] + 1, node_ny = counts_[1] + 1;
+  if (node_mark_.size() != node_rest_.size()) node_mark_.assign(node_rest_.size(), 0);
+  if (cube_mark_.size() != inside_.size()) cube_mark_.assign(inside_.size(), 0);
+  // The dirty nodes (each once), and the cubes around them.
+  std::vector<int> dirty, region;
+  const auto add_nodes = [&](const std::vector<int>& more) {
+    for (int node : more) {
+      if (node_mark_[node]) continue;
+      node_mark_[node] = 1;
+      dirty.push_back(node);
+      const int i = node % node_nx, j = (node / node_nx) % node_ny, k = node / (node_nx * node_ny);
+      for (int s = 0; s < 8; ++s) {
+        const int ci = i - 1 + (s & 1), cj = j - 1 + ((s >> 1) & 1), ck = k - 1 + ((s >> 2) & 1);
+        if (ci < 0 || cj < 0 || ck < 0 || ci >= counts_[0] || cj >= counts_[1] || ck >= counts_[2]) continue;
+        const int cube = cube_index(ci, cj, ck);
+        if (cube_mark_[cube] || !inside_[cube]) continue;
+        cube_mark_[cube] = 1;
+        region.push_back(cube);
+      }
     }
-    std::vector<std::pair<int, int>> edges;
-    for (const auto& t : triangles_) {
-      if (!suspect_vertex[t[0]] && !suspect_vertex[t[1]] && !suspect_vertex[t[2]]) continue;
-      for (int e = 0; e < 3; ++e) edges.emplace_back(std::min(t[e], t[(e + 1) % 3]), std::max(t[e], t[(e + 1) % 3]));
+    std::sort(region.begin(), region.end());
+  };
+  add_nodes(nodes);
+  std::vector<Quad> quads;
+  std::vector<std::pair<long long, long long>> edges;
+  std::vector<int> more;
+  pinches_closed_ = 0;
+  for (int pass = 0; pass < 64; ++pass) {
+    // The region's faces, cube by cube in increasing order, as a full rebuild walks them.
+    for (int node : dirty) node_groups_done_[node] = 0;
+    quads.clear();
+    for (int cube : region) {
+      const std::array<int, 3> at{cube % nx, (cube / nx) % ny, cube / (nx * ny)};
+      for (int axis = 0; axis < 3; ++axis) {
+        for (int side = 0; side < 2; ++side) {  // 0: the -axis face, 1: the +axis face
+          std::array<int, 3> next = at;
+          next[axis] += side ? 1 : -1;
+          const int other = cube_index(next[0], next[1], next[2]);
+          const bool cut_face = inside_[other] && face_shown_[3 * static_cast<size_t>(side ? cube : other) + axis] != 0;
+          if (inside_[other] && !cut_face) continue;
+          const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+          std::array<std::array<int, 3>, 4> corners{};
+          const std::array<std::array<int, 2>, 4> square{{{0, 0}, {1, 0}, {1, 1}, {0, 1}}};
+          for (int c = 0; c < 4; ++c) {
+            std::array<int, 3> node = at;
+            node[axis] += side;
+            node[u] += square[c][0];
+            node[v] += square[c][1];
+            corners[c] = node;
+          }
+          if (!side) std::swap(corners[1], corners[3]);
+          Quad quad;
+          quad.cube = cube;
+          quad.cut = cut_face;
+          // The two sides of a cut face share the corners the cut has not separated yet
+          // (a crack of a few faces inside the body has all four shared: a closed pillow
+          // of zero volume). Splitting the two sides' quads along different diagonals keeps
+          // every edge used by exactly two triangles whatever is shared.
+          quad.flip = cut_face && side == 0;
+          for (int c = 0; c < 4; ++c) {
+            const auto& n = corners[c];
+            const int node = node_index(n[0], n[1], n[2]);
+            // The corner's cube slot at that node.
+            const int slot = (at[0] - (n[0] - 1)) + 2 * (at[1] - (n[1] - 1)) + 4 * (at[2] - (n[2] - 1));
+            quad.key[c] = 8LL * node + node_groups(node)[slot];
+          }
+          quads.push_back(quad);
+        }
+      }
     }
+    // Pinches: edges used by four triangles. Every edge with a dirty end has all its
+    // triangles in the region (they belong to the cubes around that end) and the others are
+    // as after the last rebuild, closed, so the region's edges are the only suspects. The
+    // four cubes around such an edge alternate full, gap, full, gap; the first gap (in slot
+    // order) that is a cut face between two full cubes is hidden.
+    edges.clear();
+    for (const Quad& quad : quads)
+      for (const auto& t : quad.triangles())
+        for (int e = 0; e < 3; ++e) {
+          const long long a = quad.key[t[e]], b = quad.key[t[(e + 1) % 3]];
+          edges.emplace_back(std::min(a, b), std::max(a, b));
+        }
     std::sort(edges.begin(), edges.end());
     int closed = 0;
-    const int nx = counts_[0] + 1, ny = counts_[1] + 1;
+    more.clear();
     for (size_t first = 0; first < edges.size();) {
       size_t last = first;
       while (last < edges.size() && edges[last] == edges[first]) ++last;
@@ -505,11 +524,11 @@ int CutSurface::build_surface(bool fill_empty) {
       const size_t count = last - first;
       first = last;
       if (count <= 2) continue;
-      const int n1 = std::min(vertex_node_[edge.first], vertex_node_[edge.second]);
-      const int n2 = std::max(vertex_node_[edge.first], vertex_node_[edge.second]);
-      const int i = n1 % nx, j = (n1 / nx) % ny, k = n1 / (nx * ny);
+      const int n1 = static_cast<int>(std::min(edge.first / 8, edge.second / 8));
+      const int n2 = static_cast<int>(std::max(edge.first / 8, edge.second / 8));
+      const int i = n1 % node_nx, j = (n1 / node_nx) % node_ny, k = n1 / (node_nx * node_ny);
       const int step = n2 - n1;
-      const int axis = step == 1 ? 0 : step == nx ? 1 : 2;
+      const int axis = step == 1 ? 0 : step == node_nx ? 1 : 2;
       const int u = (axis + 1) % 3, v = (axis + 2) % 3;
       // The cubes around the edge: offsets (0 or -1) along u and v, in cyclic order.
       const std::array<std::array<int, 2>, 4> around{{{0, 0}, {-1, 0}, {-1, -1}, {0, -1}}};
@@ -523,15 +542,7 @@ int CutSurface::build_surface(bool fill_empty) {
       }
       for (int c = 0; c < 4; ++c) {
         const int gap = c, previous = (c + 3) % 4;
-        const int gap_cube = cube_index(cube[gap][0], cube[gap][1], cube[gap][2]);
-        if (!full[gap]) {
-          bool margin = false;
-          for (int d = 0; d < 3; ++d) margin = margin || cube[gap][d] <= 0 || cube[gap][d] >= counts_[d] - 1;
-          if (!fill_empty || margin) continue;
-          inside_[gap_cube] = 1;
-          ++closed;
-          break;
-        }
+        if (!full[gap]) continue;  // empty cubes are filled at build only
         // A full cube cut from its neighbour: restore the face between them.
         const auto& a = cube[previous];
         const auto& b = cube[gap];
@@ -539,25 +550,214 @@ int CutSurface::build_surface(bool fill_empty) {
         while (differ < 3 && a[differ] == b[differ]) ++differ;
         const bool a_lower = a[differ] < b[differ];
         const auto& lower = a_lower ? a : b;
-        std::uint8_t& flag = face_shown_[3 * static_cast<size_t>(cube_index(lower[0], lower[1], lower[2])) + differ];
+        const int face = 3 * cube_index(lower[0], lower[1], lower[2]) + differ;
+        std::uint8_t& flag = face_shown_[static_cast<size_t>(face)];
         if (full[previous] && flag) {
           flag = 0;  // hidden from the surface for now; the cut itself stays
+          hidden_faces_.push_back(face);
+          add_face_corners(face, more);
           ++closed;
           break;
         }
       }
     }
-    if (closed > 0) return closed;
+    pinches_closed_ += closed;
+    if (closed == 0) break;
+    add_nodes(more);
   }
-  // Cut-face vertices onto the cut itself.
+
+  // Vertices. The keys the region's faces use at the dirty nodes are the live ones there;
+  // the other vertices of those nodes are freed first, then new keys take the lowest free
+  // index (or the next one), in the order the faces meet them.
+  std::vector<long long> live;
+  for (const Quad& quad : quads)
+    for (long long key : quad.key)
+      if (node_mark_[static_cast<size_t>(key / 8)]) live.push_back(key);
+  std::sort(live.begin(), live.end());
+  live.erase(std::unique(live.begin(), live.end()), live.end());
+  for (int node : dirty)
+    for (int g = 0; g < 8; ++g) {
+      const long long key = 8LL * node + g;
+      int& id = vertex_of_[static_cast<size_t>(key)];
+      if (id < 0 || std::binary_search(live.begin(), live.end(), key)) continue;
+      vertex_keys_[id] = -1;
+      on_cut_[id] = 0;
+      free_vertices_.push_back(id);
+      std::push_heap(free_vertices_.begin(), free_vertices_.end(), std::greater<>());
+      --used_vertices_;
+      id = -1;
+    }
+  if (++stamp_ == 0) stamp_ = 1, std::fill(vertex_stamp_.begin(), vertex_stamp_.end(), 0);
+  std::vector<int> redone;  // the dirty nodes' vertices, each once
+  const auto id_of = [&](long long key, int cube, bool cut_face) {
+    int& id = vertex_of_[static_cast<size_t>(key)];
+    if (!node_mark_[static_cast<size_t>(key / 8)]) return id;
+    if (id < 0) {
+      if (!free_vertices_.empty()) {
+        std::pop_heap(free_vertices_.begin(), free_vertices_.end(), std::greater<>());
+        id = free_vertices_.back();
+        free_vertices_.pop_back();
+      } else {
+        id = static_cast<int>(vertex_keys_.size());
+        vertex_keys_.push_back(-1);
+        vertex_node_.push_back(0);
+        anchors_.push_back(Vec3::Zero());
+        on_cut_.push_back(0);
+        positions_.push_back(Vec3::Zero());
+        vertex_stamp_.push_back(0);
+      }
+      vertex_keys_[id] = key;
+      vertex_node_[id] = static_cast<int>(key / 8);
+      ++used_vertices_;
+    }
+    if (vertex_stamp_[id] != stamp_) {
+      // The first cube that meets it (the lowest): its anchor, as a full rebuild finds it.
+      vertex_stamp_[id] = stamp_;
+      const int nxy = nx * ny;
+      anchors_[id] = cube_centre(cube % nx, (cube / nx) % ny, cube / nxy);
+      on_cut_[id] = 0;
+      redone.push_back(id);
+    }
+    if (cut_face) on_cut_[id] = 1;
+    return id;
+  };
+  std::vector<std::array<int, 3>> region_triangles;
+  region_triangles.reserve(2 * quads.size());
+  for (const Quad& quad : quads) {
+    std::array<int, 4> ids{};
+    for (int c = 0; c < 4; ++c) ids[c] = id_of(quad.key[c], quad.cube, quad.cut);
+    for (const auto& t : quad.triangles()) region_triangles.push_back({ids[t[0]], ids[t[1]], ids[t[2]]});
+  }
+  // Positions: the redone vertices from their nodes, cut-face ones onto the cut; the other
+  // cut-face vertices again where the cut gained triangles within reach.
   const double reach = std::sqrt(3.0) * cell_;
-  for (size_t v = 0; v < positions.size(); ++v) {
-    if (!on_cut_[v]) continue;
-    if (const auto nearest = rest_cut_.nearest_point(positions[v], reach)) positions[v] = *nearest;
+  const auto place = [&](int id) {
+    positions_[id] = node_rest_[vertex_node_[id]];
+    if (!on_cut_[id]) return;
+    if (const auto nearest = rest_cut_.nearest_point(positions_[id], reach)) positions_[id] = *nearest;
+  };
+  for (int id : redone) place(id);
+  if (rest_cut_.size() > projected_triangles_) {
+    Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+    for (int t = projected_triangles_; t < rest_cut_.size(); ++t) {
+      const auto box = box_of(rest_cut_.triangles()[t]);
+      lo = lo.cwiseMin(box[0]), hi = hi.cwiseMax(box[1]);
+    }
+    lo -= Vec3::Constant(reach), hi += Vec3::Constant(reach);
+    for (size_t id = 0; id < positions_.size(); ++id) {
+      if (!on_cut_[id] || vertex_stamp_[id] == stamp_) continue;
+      const Vec3& p = node_rest_[vertex_node_[id]];
+      if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all()) place(static_cast<int>(id));
+    }
+    projected_triangles_ = rest_cut_.size();
   }
-  rest_vertices_.resize(3 * static_cast<Eigen::Index>(positions.size()));
-  for (size_t v = 0; v < positions.size(); ++v) rest_vertices_.segment<3>(3 * static_cast<Eigen::Index>(v)) = positions[v];
-  return 0;
+  rest_vertices_.resize(3 * static_cast<Eigen::Index>(positions_.size()));
+  for (size_t v = 0; v < positions_.size(); ++v) rest_vertices_.segment<3>(3 * static_cast<Eigen::Index>(v)) = positions_[v];
+
+  // Triangles: the surface cubes' in increasing order, the region's new, the others' kept.
+  if (cube_first_.size() != inside_.size()) cube_first_.assign(inside_.size(), 0), cube_triangles_.assign(inside_.size(), 0);
+  std::vector<std::array<int, 3>> triangles;
+  triangles.reserve(triangles_.size() + region_triangles.size());
+  size_t q = 0;
+  for (int cube : surface_cubes_) {
+    const int first = static_cast<int>(triangles.size());
+    if (cube_mark_[cube]) {
+      for (; q < quads.size() && quads[q].cube == cube; ++q) {
+        triangles.push_back(region_triangles[2 * q]);
+        triangles.push_back(region_triangles[2 * q + 1]);
+      }
+    } else {
+      const auto from = triangles_.begin() + cube_first_[cube];
+      triangles.insert(triangles.end(), from, from + cube_triangles_[cube]);
+    }
+    cube_first_[cube] = first;
+    cube_triangles_[cube] = static_cast<std::uint8_t>(static_cast<int>(triangles.size()) - first);
+  }
+  if (q != quads.size()) throw std::logic_error("CutSurface: a face outside the surface cubes");
+  triangles_ = std::move(triangles);
+  for (int node : dirty) node_mark_[node] = 0;
+  for (int cube : region) cube_mark_[cube] = 0;
+}
+
+int CutSurface::fill_pinches() {
+  // The voxel set's surface numbered as the faces meet its vertices, cube by cube, and its
+  // edges used more than twice (sorted by vertex, so the order of the fills is that order).
+  std::fill(node_groups_done_.begin(), node_groups_done_.end(), 0);
+  std::fill(vertex_of_.begin(), vertex_of_.end(), -1);
+  std::vector<int> vertex_node;
+  std::vector<std::array<int, 3>> triangles;
+  for (int k = 1; k + 1 < counts_[2]; ++k)
+    for (int j = 1; j + 1 < counts_[1]; ++j)
+      for (int i = 1; i + 1 < counts_[0]; ++i) {
+        const int cube = cube_index(i, j, k);
+        if (!inside_[cube]) continue;
+        const std::array<int, 3> at{i, j, k};
+        for (int axis = 0; axis < 3; ++axis)
+          for (int side = 0; side < 2; ++side) {
+            std::array<int, 3> next = at;
+            next[axis] += side ? 1 : -1;
+            if (inside_[cube_index(next[0], next[1], next[2])]) continue;
+            const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+            std::array<std::array<int, 3>, 4> corners{};
+            const std::array<std::array<int, 2>, 4> square{{{0, 0}, {1, 0}, {1, 1}, {0, 1}}};
+            for (int c = 0; c < 4; ++c) {
+              std::array<int, 3> node = at;
+              node[axis] += side;
+              node[u] += square[c][0];
+              node[v] += square[c][1];
+              corners[c] = node;
+            }
+            if (!side) std::swap(corners[1], corners[3]);
+            std::array<int, 4> ids{};
+            for (int c = 0; c < 4; ++c) {
+              const auto& n = corners[c];
+              const int node = node_index(n[0], n[1], n[2]);
+              const int slot = (i - (n[0] - 1)) + 2 * (j - (n[1] - 1)) + 4 * (k - (n[2] - 1));
+              int& id = vertex_of_[8 * static_cast<size_t>(node) + static_cast<size_t>(node_groups(node)[slot])];
+              if (id < 0) id = static_cast<int>(vertex_node.size()), vertex_node.push_back(node);
+              ids[c] = id;
+            }
+            triangles.push_back({ids[0], ids[1], ids[2]});
+            triangles.push_back({ids[0], ids[2], ids[3]});
+          }
+      }
+  std::vector<std::pair<int, int>> edges;
+  for (const auto& t : triangles)
+    for (int e = 0; e < 3; ++e) edges.emplace_back(std::min(t[e], t[(e + 1) % 3]), std::max(t[e], t[(e + 1) % 3]));
+  std::sort(edges.begin(), edges.end());
+  // The four cubes around an edge used four times alternate full, empty, full, empty: the
+  // first empty one (in slot order) off the margin is filled.
+  int filled = 0;
+  const int nx = counts_[0] + 1, ny = counts_[1] + 1;
+  for (size_t first = 0; first < edges.size();) {
+    size_t last = first;
+    while (last < edges.size() && edges[last] == edges[first]) ++last;
+    const auto edge = edges[first];
+    const size_t count = last - first;
+    first = last;
+    if (count <= 2) continue;
+    const int n1 = std::min(vertex_node[edge.first], vertex_node[edge.second]);
+    const int n2 = std::max(vertex_node[edge.first], vertex_node[edge.second]);
+    const int i = n1 % nx, j = (n1 / nx) % ny, k = n1 / (nx * ny);
+    const int step = n2 - n1;
+    const int axis = step == 1 ? 0 : step == nx ? 1 : 2;
+    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+    const std::array<std::array<int, 2>, 4> around{{{0, 0}, {-1, 0}, {-1, -1}, {0, -1}}};
+    for (int c = 0; c < 4; ++c) {
+      std::array<int, 3> gap{i, j, k};
+      gap[u] += around[c][0];
+      gap[v] += around[c][1];
+      const int gap_cube = cube_index(gap[0], gap[1], gap[2]);
+      if (inside_[gap_cube]) continue;
+      bool margin = false;
+      for (int d = 0; d < 3; ++d) margin = margin || gap[d] <= 0 || gap[d] >= counts_[d] - 1;
+      if (margin) continue;
+      inside_[gap_cube] = 1;
+      ++filled;
+      break;
+    }
+  }
+  return filled;
 }
 
 SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& surface,
@@ -606,20 +806,34 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
     long long space = surface.key_space();
     for (long long k : *reuse->keys) space = std::max(space, k + 1);
     if (static_cast<long long>(previous_of->size()) < space) previous_of->resize(static_cast<size_t>(space), -1);
-    for (size_t v = 0; v < reuse->keys->size(); ++v) (*previous_of)[static_cast<size_t>((*reuse->keys)[v])] = static_cast<int>(v);
+    for (size_t v = 0; v < reuse->keys->size(); ++v)
+      if ((*reuse->keys)[v] >= 0) (*previous_of)[static_cast<size_t>((*reuse->keys)[v])] = static_cast<int>(v);
   }
   struct ResetTable {
     std::vector<int>* table;
     const std::vector<long long>* keys;
     ~ResetTable() {
       if (table)
-        for (long long k : *keys) (*table)[static_cast<size_t>(k)] = -1;
+        for (long long k : *keys)
+          if (k >= 0) (*table)[static_cast<size_t>(k)] = -1;
     }
   } reset{previous_of, reusing ? reuse->keys : nullptr};
   for (int v = 0; v < vertices; ++v) {
     const Vec3 vertex = rest_vertices.segment<3>(3 * static_cast<Eigen::Index>(v));
     const Vec3 anchor = surface.anchors()[v];
-    if (previous_of) {
+    if (previous_of && !surface.vertex_used(v) && v < static_cast<int>(reuse->embedding->row_lengths.size()) &&
+        reuse->embedding->row_lengths[v] <= stride) {
+      // An unused index (in no triangle) keeps the row it had, if any: it stays where it was.
+      const size_t from = static_cast<size_t>(v) * reuse->embedding->stride;
+      const size_t to = static_cast<size_t>(v) * stride;
+      const int length = reuse->embedding->row_lengths[v];
+      embedding.elements[v] = reuse->embedding->elements[v];
+      embedding.row_lengths[v] = length;
+      std::copy_n(reuse->embedding->particles.begin() + from, length, embedding.particles.begin() + to);
+      std::copy_n(reuse->embedding->weights.begin() + from, length, embedding.weights.begin() + to);
+      continue;
+    }
+    if (previous_of && surface.vertex_used(v)) {
       const long long key = surface.vertex_keys()[v];
       const int p = key < static_cast<long long>(previous_of->size()) ? (*previous_of)[static_cast<size_t>(key)] : -1;
       bool dirty = true;
@@ -644,7 +858,8 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
         }
       }
     }
-    ++report.mapped;
+    const bool used = surface.vertex_used(v);  // unused indices are mapped, not counted
+    report.mapped += used ? 1 : 0;
     nearby.clear();
     std::array<long long, 3> cube{};
     for (int axis = 0; axis < 3; ++axis) cube[axis] = static_cast<long long>(std::floor((vertex[axis] - origin[axis]) / a));
@@ -677,7 +892,7 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
     if (chosen < 0) {
       // Relaxed: the nearest integration point whatever the cut (or, with none nearby, the
       // nearest of all), counted.
-      ++report.relaxed_fallbacks;
+      report.relaxed_fallbacks += used ? 1 : 0;
       if (!nearby.empty()) {
         chosen = nearby.front().second;
       } else {
@@ -688,7 +903,7 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
           if (chosen < 0 || d < best) chosen = e, best = d;
         }
       }
-      if (near_cut && cut.crosses(anchor, model.element_centres()[chosen])) ++report.wrong_side;
+      if (used && near_cut && cut.crosses(anchor, model.element_centres()[chosen])) ++report.wrong_side;
     }
     // MLS weights of the chosen element's neighbourhood at the vertex, with its support
     // widened as needed so that every neighbour keeps a positive weight.

@@ -27,6 +27,15 @@
 //   nearest point is taken and the vertex is counted as a relaxed fallback.
 // The cut advances by cube faces: its resolution is the surface cell (the volume's is
 // about half an integration element, §4.3.1).
+// A rebuild after a cut is local: only the grid nodes at the corners of the faces whose
+// state changed (newly cut, or hidden or shown again by pinch closing) can change their
+// groups, so only their vertices and the faces of the cubes around them are redone; every
+// other vertex keeps its index, key, anchor and position (cut-face vertices are projected
+// again only near the cut's new triangles). A vertex keeps its index as long as its key
+// lives; new vertices take the lowest free index, else are appended. An index whose key
+// died (groups merged again) stays allocated but unused: key -1, in no triangle, its last
+// rest position and anchor kept so that it can stay mapped (vertex_count() counts only the
+// used ones). The result equals a rebuild from scratch with the same cut, up to numbering.
 #pragma once
 
 #include "physics/efg/corotational_efg.hpp"
@@ -109,17 +118,23 @@ class CutSurface {
   // filled (at build); a cut face there is not shown (after a cut: a crack one face wide
   // whose rim is still joined all round, e.g. the first faces the blade enters). The cut
   // itself is kept, so the face appears once the cut has grown around it;
-  // pinches_closed() counts the faces hidden by the last rebuild.
+  // pinches_closed() counts the faces hidden by the last rebuild. Every rebuild shows the
+  // faces hidden before again and closes the pinches anew (the outcome depends on the cut,
+  // not on its history); only the nodes around the changed faces are redone (file comment).
   void rebuild();
   int pinches_closed() const { return pinches_closed_; }
 
   const Vector& rest_vertices() const { return rest_vertices_; }
   const std::vector<std::array<int, 3>>& triangles() const { return triangles_; }
-  const std::vector<Vec3>& anchors() const { return anchors_; }  // per vertex, see above
-  const std::vector<std::uint8_t>& on_cut() const { return on_cut_; }  // per vertex
-  // Per vertex: grid node x 8 + its group there. A vertex keeps its key across rebuilds as
-  // long as the cut does not split its group, which lets a mapping be reused.
+  // Per vertex index (used or not, see the file comment; rest_vertices() has as many).
+  const std::vector<Vec3>& anchors() const { return anchors_; }
+  const std::vector<std::uint8_t>& on_cut() const { return on_cut_; }  // 0 for unused indices
+  // Per vertex: grid node x 8 + its group there, -1 for an unused index. A vertex keeps its
+  // key and its index across rebuilds as long as the cut does not split its group, which
+  // lets a mapping (and the GPU's copy of its rows) be reused.
   const std::vector<long long>& vertex_keys() const { return vertex_keys_; }
+  bool vertex_used(int v) const { return vertex_keys_[static_cast<size_t>(v)] >= 0; }
+  int vertex_count() const { return used_vertices_; }  // the used indices
   // Keys are below this bound (grid nodes x 8): a table indexed by key can replace a map.
   long long key_space() const {
     return 8LL * (counts_[0] + 1) * (counts_[1] + 1) * (counts_[2] + 1);
@@ -133,8 +148,15 @@ class CutSurface {
   int cube_index(int i, int j, int k) const { return i + counts_[0] * (j + counts_[1] * k); }
   int node_index(int i, int j, int k) const { return i + (counts_[0] + 1) * (j + (counts_[1] + 1) * k); }
   Vec3 cube_centre(int i, int j, int k) const;
-  // One pass; returns the number of pinches closed (0: the surface is final).
-  int build_surface(bool fill_empty);
+  // At construction: one pass over every cube filling the empty cubes at pinches; returns
+  // the number filled (0: the voxel set is final).
+  int fill_pinches();
+  // The groups of a node's 8 cubes (slot s = dx + 2 dy + 4 dz), cached until marked stale.
+  const std::array<std::int8_t, 8>& node_groups(int node);
+  // Redoes the vertices of `nodes` and the faces of the cubes around them, closing the
+  // pinches this makes (see rebuild()); the rest of the surface is kept.
+  void refresh(std::vector<int> nodes);
+  void add_face_corners(int face, std::vector<int>& nodes);
 
   double cell_ = 0;
   Vec3 origin_ = Vec3::Zero();
@@ -152,13 +174,23 @@ class CutSurface {
   int cut_faces_ = 0;
   int pinches_closed_ = 0;
   RestCut rest_cut_;
+  std::vector<int> pending_faces_;  // faces cut since the last rebuild (cube x 3 + axis)
+  std::vector<int> hidden_faces_;   // cut faces the last rebuild hid (pinches)
+  int projected_triangles_ = 0;     // rest-cut triangles the cut-face vertices were projected on
   std::vector<int> vertex_node_;  // grid node of each vertex
   std::vector<long long> vertex_keys_;  // node * 8 + group: the same vertex across rebuilds
-  // Scratch of build_surface, kept to avoid reallocating.
-  std::vector<std::array<std::int8_t, 8>> node_groups_;
+  std::vector<std::array<std::int8_t, 8>> node_groups_;  // per grid node, see node_groups()
   std::vector<std::uint8_t> node_groups_done_;
-  std::vector<int> vertex_of_;
-  std::vector<int> touched_nodes_;
+  std::vector<int> vertex_of_;      // per key (node x 8 + group): its vertex, or -1
+  std::vector<int> free_vertices_;  // unused indices, a min-heap
+  int used_vertices_ = 0;
+  std::vector<int> cube_first_;                // per cube: its first triangle in triangles_
+  std::vector<std::uint8_t> cube_triangles_;   // per cube: how many triangles it has there
+  // Scratch of refresh, kept to avoid reallocating.
+  std::vector<std::uint8_t> node_mark_, cube_mark_;
+  std::vector<int> vertex_stamp_;
+  int stamp_ = 0;
+  std::vector<Vec3> positions_;     // per vertex index, as rest_vertices_
 
   Vector rest_vertices_;
   std::vector<std::array<int, 3>> triangles_;
