@@ -5,6 +5,7 @@ add_executable(test_cut
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_ccd.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_volume.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_surface.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_cut_surface_incremental.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_accuracy.cpp
 )
 target_link_libraries(test_cut PRIVATE incise_cut GTest::gtest_main)
