@@ -7,7 +7,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <algorithm>
 #include <map>
+#include <random>
 #include <set>
 #include <string>
 #include <vector>
@@ -131,4 +133,76 @@ TEST(CutSurfaceIncremental, VerticesAwayFromANewCutKeepTheirIndexAndTheSurfaceSt
   }
   // New vertices were appended: the cut split groups at many nodes.
   EXPECT_GT(static_cast<int>(surface.vertex_keys().size()), 1500);
+}
+
+TEST(CutSurfaceIncremental, RandomBladeWalksStayClosedAndEqualTheCutMadeAtOnce) {
+  // Blades wandering through an ellipsoid, a few random triangles per step: many pinches,
+  // and (seed 17) groups joined again, which frees indices that later steps reuse.
+  const auto ellipsoid = [](const Vec3& p) {
+    return std::pow(p.x() / 0.03, 2) + std::pow(p.y() / 0.02, 2) + std::pow(p.z() / 0.015, 2) <= 1;
+  };
+  const Vec3 lo(-0.03, -0.02, -0.015), hi(0.03, 0.02, 0.015);
+  int pinches = 0, most_unused = 0, reused = 0;
+  for (unsigned seed = 15; seed < 21; ++seed) {
+    std::mt19937 random(seed);
+    const auto uniform = [&random] { return random() / 2147483648.0 - 1.0; };  // in [-1, 1)
+    const auto jitter = [&uniform] { return Vec3(uniform(), uniform(), uniform()); };
+    const double size = seed % 3 == 0 ? 0.002 : seed % 3 == 1 ? 0.004 : 0.008;
+    CutSurface surface(ellipsoid, lo, hi, 0.002);
+    std::vector<RestTriangle> all;
+    Vec3 p(0.02 * uniform(), 0.015 * uniform(), 0.02);
+    Vec3 direction(uniform(), uniform(), -0.5);
+    direction.normalize();
+    int unused_before = 0;
+    for (int step = 0; step < 25; ++step) {
+      const std::string what = "seed " + std::to_string(seed) + " step " + std::to_string(step);
+      std::vector<RestTriangle> triangles;
+      const int count = 1 + static_cast<int>(random() % 3);
+      for (int t = 0; t < count; ++t) {
+        const Vec3 q = p + size * jitter(), r = p + size * jitter();
+        triangles.push_back({p, q, r});
+        p += 0.003 * direction + 0.0015 * jitter();
+      }
+      const std::vector<long long> keys = surface.vertex_keys();
+      surface.cut(triangles);
+      surface.rebuild();
+      all.insert(all.end(), triangles.begin(), triangles.end());
+      pinches += surface.pinches_closed();
+      ASSERT_TRUE(surface_topology(surface.triangles()).watertight()) << what;
+      std::set<int> in_triangles;
+      for (const auto& t : surface.triangles())
+        for (int v : t) in_triangles.insert(v);
+      ASSERT_EQ(static_cast<int>(in_triangles.size()), surface.vertex_count()) << what;
+      const int indices = static_cast<int>(surface.vertex_keys().size());
+      std::set<long long> used_keys;
+      for (int v : in_triangles) used_keys.insert(surface.vertex_keys()[v]);
+      for (int v = 0; v < indices; ++v) {
+        ASSERT_EQ(surface.vertex_used(v), in_triangles.count(v) == 1) << what << ": vertex " << v;
+        if (!surface.vertex_used(v)) {
+          ASSERT_EQ(surface.on_cut()[v], 0) << what << ": vertex " << v;
+        }
+        // A key still in use is at the index it had (a freed index may hold a new key).
+        if (v < static_cast<int>(keys.size()) && keys[v] >= 0 && used_keys.count(keys[v])) {
+          ASSERT_EQ(surface.vertex_keys()[v], keys[v]) << what << ": vertex " << v;
+        }
+      }
+      const int unused = indices - surface.vertex_count();
+      most_unused = std::max(most_unused, unused);
+      // Freed indices taken again: fewer unused than before without growing, or a used index
+      // whose key changed.
+      for (int v = 0; v < static_cast<int>(keys.size()); ++v)
+        reused += keys[v] >= 0 && surface.vertex_used(v) && surface.vertex_keys()[v] != keys[v] ? 1 : 0;
+      reused += unused < unused_before && indices == static_cast<int>(keys.size()) ? 1 : 0;
+      unused_before = unused;
+      if (step % 5 == 4) {
+        CutSurface at_once(ellipsoid, lo, hi, 0.002);
+        at_once.cut(all);
+        at_once.rebuild();
+        expect_same_surface(surface, at_once, what);
+      }
+    }
+  }
+  EXPECT_GT(pinches, 100) << "the walks exercise pinch closing";
+  EXPECT_GT(most_unused, 0) << "the walks exercise freed indices";
+  EXPECT_GT(reused, 0) << "the walks exercise reusing freed indices";
 }
