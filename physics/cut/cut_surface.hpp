@@ -206,7 +206,9 @@ struct SurfaceMappingReport {
 };
 // What an earlier mapping can lend a new one: a vertex with the same key and rest position
 // keeps its row, unless it lies in the dirty box (around the cut's latest change) or its
-// integration point's neighbourhood changed (element_changed).
+// integration point's neighbourhood changed (element_changed). An unused index (key -1)
+// keeps the row it had at the same index, so that it stays where it was; unused indices are
+// not counted in the report.
 struct MappingReuse {
   const SurfaceEmbedding* embedding = nullptr;
   const std::vector<long long>* keys = nullptr;
