@@ -459,7 +459,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
   std::vector<std::pair<long long, long long>> edges;
   std::vector<int> more;
   pinches_closed_ = 0;
-  for (int pass = 0; pass < 64; ++pass) {
+  for (int pass = 0;; ++pass) {
     // The region's faces, cube by cube in increasing order, as a full rebuild walks them.
     for (int node : dirty) node_groups_done_[node] = 0;
     quads.clear();
@@ -502,6 +502,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
         }
       }
     }
+    if (pass == 64) break;  // never seen: the faces are kept as they are, the checks will tell
     // Pinches: edges used by four triangles. Every edge with a dirty end has all its
     // triangles in the region (they belong to the cubes around that end) and the others are
     // as after the last rebuild, closed, so the region's edges are the only suspects. The
@@ -591,7 +592,11 @@ void CutSurface::refresh(std::vector<int> nodes) {
   std::vector<int> redone;  // the dirty nodes' vertices, each once
   const auto id_of = [&](long long key, int cube, bool cut_face) {
     int& id = vertex_of_[static_cast<size_t>(key)];
-    if (!node_mark_[static_cast<size_t>(key / 8)]) return id;
+    if (!node_mark_[static_cast<size_t>(key / 8)]) {
+      // A node left as it was: its vertices are the ones it had.
+      if (id < 0) throw std::logic_error("CutSurface: a kept node lost its vertex");
+      return id;
+    }
     if (id < 0) {
       if (!free_vertices_.empty()) {
         std::pop_heap(free_vertices_.begin(), free_vertices_.end(), std::greater<>());
