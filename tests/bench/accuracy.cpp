@@ -568,6 +568,113 @@ Timing time_steps(DeformableModel& model, const std::vector<uint8_t>& fixed, con
 }
 
 // ---------------------------------------------------------------------------------------------
+// The models of a case, shared by the report and by the tests' entry points (accuracy.hpp).
+
+// One reference mesh: 10-node tets (quarter points and the opened cut for the cut cases),
+// solved statically for each case's load; `tips` per case.
+struct ReferenceLevel {
+  QuadraticMesh quadratic;
+  TetMesh linear;
+  std::vector<uint8_t> fixed;
+  std::vector<Vec3> tips;
+};
+ReferenceLevel solve_reference_level(const std::vector<Case>& cases, int section, int layers) {
+  const Case& first = cases.front();
+  ReferenceLevel level;
+  level.linear = case_mesh(first, section, layers, true);
+  level.quadratic = make_quadratic(level.linear);
+  if (first.cut) {
+    quarter_points_at_crack_front(level.quadratic);
+    open_cut(level.quadratic.mesh.rest, level.quadratic.mesh.tets);
+  }
+  level.fixed = clamped_nodes(level.quadratic.mesh.rest);
+  std::vector<Vector> loads;
+  for (const Case& c : cases) {
+    loads.push_back(physics::assemble_body_load(level.quadratic.mesh, beam_material.density * c.acceleration));
+  }
+  const std::vector<Vector> solutions =
+      solve_static_loads(physics::assemble_stiffness(level.quadratic.mesh, beam_material), loads, level.fixed);
+  for (const Vector& u : solutions) level.tips.push_back(tip_mean(level.linear, u, &level.quadratic));
+  return level;
+}
+
+// The EFG models' tip face: the centroids of a fine triangulation, with their areas.
+struct TipFace {
+  Vector points;
+  std::vector<double> weights;
+  double area = 0;
+};
+TipFace make_tip_face(Shape shape) {
+  const Section face = shape == Shape::hexagon ? hexagon_section(8) : square_section(10);
+  TipFace result;
+  result.points.resize(3 * static_cast<Index>(face.triangles.size()));
+  for (size_t t = 0; t < face.triangles.size(); ++t) {
+    const auto& corners = face.triangles[t];
+    const Eigen::Vector2d centroid = (face.points[corners[0]] + face.points[corners[1]] + face.points[corners[2]]) / 3;
+    result.points.segment<3>(3 * static_cast<Index>(t)) = Vec3(beam_length, centroid.x(), centroid.y());
+    result.weights.push_back(triangle_area(face.points[corners[0]], face.points[corners[1]], face.points[corners[2]]));
+    result.area += result.weights.back();
+  }
+  return result;
+}
+
+// The area-weighted mean displacement over the tip face, through the surface embedding.
+Vec3 efg_tip_mean(const CorotationalEfg& model, const physics::SurfaceEmbedding& embedding, const TipFace& face,
+                  const Vector& u) {
+  Vector moved;
+  CorotationalEfg::surface_positions(embedding, model.rest_positions() + u, moved);
+  Vec3 tip = Vec3::Zero();
+  for (size_t t = 0; t < face.weights.size(); ++t) {
+    const Index at = 3 * static_cast<Index>(t);
+    tip += face.weights[t] / face.area * (moved.segment<3>(at) - face.points.segment<3>(at));
+  }
+  return tip;
+}
+
+// An EFG model of a case's body (settings.spacing set), the cut cases cut by the geometry
+// (`cutter` false: settings.cuts) or by the cutter (the report in `cut_report`).
+std::unique_ptr<CorotationalEfg> make_case_efg(Shape shape, bool cut, bool cutter, EfgSettings settings,
+                                               physics::VolumeCutReport* cut_report = nullptr) {
+  const double spacing = settings.spacing;
+  if (cut && !cutter) {
+    // From the top down to z = 0 across the whole width. Particles on the plane count on
+    // the +x side; links through the rim z = 0 stay (the crack front is shared).
+    settings.cuts.push_back({Vec3(cut_x, -1, 0), Vec3(0, 2, 0), Vec3(0, 0, 1)});
+  }
+  Vec3 grid_min = box_min(shape), grid_max = box_max(shape);
+  if (cut) {
+    // The grid's z extent widened to a multiple of 4a, so that a row of particles lies on
+    // the crack front z = 0 (shared by both sides, like the conforming FEM's front nodes).
+    // Otherwise the front falls mid-cell at every other resolution and the effective
+    // crack depth jumps by about a between sizes (stretch_cut: +220 %, -28 %, +46 % at
+    // a = 5, 3.3, 2 mm against -37 %, -28 % aligned).
+    const int cubes = static_cast<int>(std::ceil((grid_max.z() - grid_min.z()) / spacing * (1 - 1e-12)));
+    const int aligned = (cubes + 3) / 4 * 4;
+    grid_min.z() = -0.5 * aligned * spacing;
+    grid_max.z() = 0.5 * aligned * spacing;
+  }
+  auto model = std::make_unique<CorotationalEfg>([shape](const Vec3& p) { return inside_shape(shape, p); },
+                                                 grid_min, grid_max, beam_material, settings);
+  if (cut && cutter) {
+    // One step of a straight blade along y (twice the beam's width), on the plane x =
+    // cut_x, from 2a above the grid down to 1e-3 a above the front row z = 0; the
+    // particles at rest (start = end). The file comment says why there.
+    const double width = 2 * hexagon_radius;
+    const std::vector<Vec3> blade_start{Vec3(cut_x, -width, grid_max.z() + 2 * spacing),
+                                        Vec3(cut_x, width, grid_max.z() + 2 * spacing)};
+    const std::vector<Vec3> blade_end{Vec3(cut_x, -width, 1e-3 * spacing), Vec3(cut_x, width, 1e-3 * spacing)};
+    // Broad-phase margin 1 um (well above the CCD's touching distance, 1e-8 of the
+    // problem's size), no slack: one refit only.
+    physics::VolumeCutter volume_cutter(*model, 1e-6, 0);
+    const Vector rest = model->rest_positions();
+    const physics::VolumeCutReport report = volume_cutter.cut(blade_start, blade_end, rest, rest);
+    if (cut_report != nullptr) *cut_report = report;
+  }
+  model->update_rotations(model->rest_positions());
+  return model;
+}
+
+// ---------------------------------------------------------------------------------------------
 // Output.
 
 struct Row {
@@ -839,35 +946,19 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
 
       // References: 10-node tets on a refinement sequence graded towards the singular lines
       // (clamp, crack front); the finest is the reference.
-      struct Level {
-        QuadraticMesh quadratic;
-        TetMesh linear;
-        std::vector<uint8_t> fixed;
-        std::vector<Vec3> tips;  // per case
+      struct Level : ReferenceLevel {
         std::string name;
         int section = 0;  // the mesh size is proportional to 1 / section
       };
       std::vector<Level> levels;
       const Levels& reference_levels = body.cut ? crack_levels : hexagon ? hexagon_levels : square_levels;
       for (const auto& [section, layers] : reference_levels) {
+        const std::string name = describe(section, body.cut ? static_cast<int>(crack_layers(section, crack_grading_power).size()) - 1 : layers, true);
+        progress.draw(body_name + " reference tet10 " + name);
         Level level;
+        static_cast<ReferenceLevel&>(level) = solve_reference_level(body.cases, section, layers);
+        level.name = name;
         level.section = section;
-        level.linear = case_mesh(first, section, layers, true);
-        level.name = describe(section, body.cut ? static_cast<int>(crack_layers(section, crack_grading_power).size()) - 1 : layers, true);
-        progress.draw(body_name + " reference tet10 " + level.name);
-        level.quadratic = make_quadratic(level.linear);
-        if (body.cut) {
-          quarter_points_at_crack_front(level.quadratic);
-          open_cut(level.quadratic.mesh.rest, level.quadratic.mesh.tets);
-        }
-        level.fixed = clamped_nodes(level.quadratic.mesh.rest);
-        std::vector<Vector> loads;
-        for (const Case& c : body.cases) {
-          loads.push_back(physics::assemble_body_load(level.quadratic.mesh, beam_material.density * c.acceleration));
-        }
-        const std::vector<Vector> solutions = solve_static_loads(
-            physics::assemble_stiffness(level.quadratic.mesh, beam_material), loads, level.fixed);
-        for (const Vector& u : solutions) level.tips.push_back(tip_mean(level.linear, u, &level.quadratic));
         levels.push_back(std::move(level));
         progress.step(body_name + " reference tet10 " + levels.back().name);
       }
@@ -969,19 +1060,7 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
       }
 
       // EFG rows. The tip face is sampled at the centroids of a fine triangulation.
-      const Section face = hexagon ? hexagon_section(8) : square_section(10);
-      std::vector<double> face_weights;
-      Vector face_points(3 * static_cast<Index>(face.triangles.size()));
-      double face_area = 0;
-      for (size_t t = 0; t < face.triangles.size(); ++t) {
-        const auto& corners = face.triangles[t];
-        const Eigen::Vector2d centroid =
-            (face.points[corners[0]] + face.points[corners[1]] + face.points[corners[2]]) / 3;
-        face_points.segment<3>(3 * static_cast<Index>(t)) = Vec3(beam_length, centroid.x(), centroid.y());
-        face_weights.push_back(
-            triangle_area(face.points[corners[0]], face.points[corners[1]], face.points[corners[2]]));
-        face_area += face_weights.back();
-      }
+      const TipFace face = make_tip_face(body.shape);
       // The EFG runs: every variant (with the geometry cut for the cut cases), then for the cut
       // cases the cutter variants on the uncut model.
       struct EfgRun {
@@ -1011,41 +1090,10 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
           settings.support_factor = variant.support_factor;
           settings.centroid_points = variant.centroid_points;
           settings.samples_per_axis = variant.samples_per_axis;
-          if (body.cut && !run.cutter) {
-            // From the top down to z = 0 across the whole width. Particles on the plane count on
-            // the +x side; links through the rim z = 0 stay (the crack front is shared).
-            settings.cuts.push_back({Vec3(cut_x, -1, 0), Vec3(0, 2, 0), Vec3(0, 0, 1)});
-          }
-          const Shape shape = body.shape;
-          Vec3 grid_min = box_min(shape), grid_max = box_max(shape);
-          if (body.cut) {
-            // The grid's z extent widened to a multiple of 4a, so that a row of particles lies on
-            // the crack front z = 0 (shared by both sides, like the conforming FEM's front nodes).
-            // Otherwise the front falls mid-cell at every other resolution and the effective
-            // crack depth jumps by about a between sizes (stretch_cut: +220 %, -28 %, +46 % at
-            // a = 5, 3.3, 2 mm against -37 %, -28 % aligned).
-            const int cubes = static_cast<int>(std::ceil((grid_max.z() - grid_min.z()) / spacing * (1 - 1e-12)));
-            const int aligned = (cubes + 3) / 4 * 4;
-            grid_min.z() = -0.5 * aligned * spacing;
-            grid_max.z() = 0.5 * aligned * spacing;
-          }
-          CorotationalEfg model([shape](const Vec3& p) { return inside_shape(shape, p); },
-                                grid_min, grid_max, beam_material, settings);
+          physics::VolumeCutReport report;
+          const std::unique_ptr<CorotationalEfg> built = make_case_efg(body.shape, body.cut, run.cutter, settings, &report);
+          CorotationalEfg& model = *built;
           if (run.cutter) {
-            // One step of a straight blade along y (twice the beam's width), on the plane x =
-            // cut_x, from 2a above the grid down to 1e-3 a above the front row z = 0; the
-            // particles at rest (start = end). The file comment says why there.
-            const double blade_x = cut_x;
-            const double width = 2 * hexagon_radius;
-            const std::vector<Vec3> blade_start{Vec3(blade_x, -width, grid_max.z() + 2 * spacing),
-                                                Vec3(blade_x, width, grid_max.z() + 2 * spacing)};
-            const std::vector<Vec3> blade_end{Vec3(blade_x, -width, 1e-3 * spacing),
-                                              Vec3(blade_x, width, 1e-3 * spacing)};
-            // Broad-phase margin 1 um (well above the CCD's touching distance, 1e-8 of the
-            // problem's size), no slack: one refit only.
-            physics::VolumeCutter cutter(model, 1e-6, 0);
-            const Vector rest = model.rest_positions();
-            const physics::VolumeCutReport report = cutter.cut(blade_start, blade_end, rest, rest);
             progress.note("  " + body_name + " efg " + variant_name + " " + resolution + ": the cutter severed " +
                           std::to_string(report.particle_links_severed) + " particle links and " +
                           std::to_string(report.element_links_severed) + " element links (" +
@@ -1056,22 +1104,15 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
                           format(report.ms_ccd, 3) + " ms, topology " + format(report.ms_topology, 3) + " ms)");
             cut_reports[variant_name + " " + resolution] = report;
           }
-          model.update_rotations(model.rest_positions());
           const std::vector<uint8_t> fixed = clamped_nodes(model.rest_positions());
           std::vector<Vector> loads;
           for (const Case& c : body.cases) loads.push_back(physics::gravity_forces(model.lumped_masses(), c.acceleration));
           const std::vector<Vector> solutions =
               solve_static_loads(physics::assemble_stiffness(model), loads, fixed);
-          const physics::SurfaceEmbedding embedding = model.embed_surface(face_points);
+          const physics::SurfaceEmbedding embedding = model.embed_surface(face.points);
           for (size_t i = 0; i < body.cases.size(); ++i) {
             const Case& c = body.cases[i];
-            Vector moved;
-            CorotationalEfg::surface_positions(embedding, model.rest_positions() + solutions[i], moved);
-            Vec3 tip = Vec3::Zero();
-            for (size_t t = 0; t < face_weights.size(); ++t) {
-              const Index at = 3 * static_cast<Index>(t);
-              tip += face_weights[t] / face_area * (moved.segment<3>(at) - face_points.segment<3>(at));
-            }
+            const Vec3 tip = efg_tip_mean(model, embedding, face, solutions[i]);
             const Timing timing = time_steps(model, fixed, loads[i], timed_steps);
             rows.push_back({c.name, "efg", variant_name, resolution,
                             3 * static_cast<long long>(model.node_count()), model.element_count(),
@@ -1153,6 +1194,33 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
     progress_stream << "\nbench accuracy failed: " << error.what() << "\n";
     return 1;
   }
+}
+
+CutBeamTips cut_beam_reference(int rows) {
+  const std::vector<Case> all = all_cases();
+  std::vector<Case> cut;
+  for (const Case& c : all) {
+    if (c.cut) cut.push_back(c);
+  }
+  const ReferenceLevel level = solve_reference_level(cut, rows, 0);
+  return {level.tips[0], level.tips[1], 3 * static_cast<long long>(level.quadratic.mesh.rest.size() / 3)};
+}
+
+CutBeamTips cut_beam_efg(int cells, bool cutter) {
+  const std::vector<Case> all = all_cases();
+  EfgSettings settings;
+  settings.spacing = beam_length / (2 * cells);
+  const std::unique_ptr<CorotationalEfg> model = make_case_efg(Shape::hexagon, true, cutter, settings);
+  const std::vector<uint8_t> fixed = clamped_nodes(model->rest_positions());
+  std::vector<Vector> loads;
+  for (const Case& c : all) {
+    if (c.cut) loads.push_back(physics::gravity_forces(model->lumped_masses(), c.acceleration));
+  }
+  const std::vector<Vector> solutions = solve_static_loads(physics::assemble_stiffness(*model), loads, fixed);
+  const TipFace face = make_tip_face(Shape::hexagon);
+  const physics::SurfaceEmbedding embedding = model->embed_surface(face.points);
+  return {efg_tip_mean(*model, embedding, face, solutions[0]), efg_tip_mean(*model, embedding, face, solutions[1]),
+          3 * static_cast<long long>(model->node_count())};
 }
 
 }  // namespace incise::bench
