@@ -17,6 +17,24 @@ namespace incise::physics {
 
 namespace {
 
+// The grid nodes of a cube's face (cube at `at`, the -axis face for side 0, +axis for 1), in
+// the order the surface's quads take them (the -axis face's reversed, so that both wind the
+// same way relative to the outward normal).
+std::array<std::array<int, 3>, 4> face_corners(const std::array<int, 3>& at, int axis, int side) {
+  const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+  const std::array<std::array<int, 2>, 4> square{{{0, 0}, {1, 0}, {1, 1}, {0, 1}}};
+  std::array<std::array<int, 3>, 4> corners{};
+  for (int c = 0; c < 4; ++c) {
+    std::array<int, 3> node = at;
+    node[axis] += side;
+    node[u] += square[c][0];
+    node[v] += square[c][1];
+    corners[c] = node;
+  }
+  if (!side) std::swap(corners[1], corners[3]);
+  return corners;
+}
+
 std::array<Vec3, 2> box_of(const RestTriangle& t) {
   return {t.a.cwiseMin(t.b).cwiseMin(t.c), t.a.cwiseMax(t.b).cwiseMax(t.c)};
 }
@@ -472,17 +490,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
           const int other = cube_index(next[0], next[1], next[2]);
           const bool cut_face = inside_[other] && face_shown_[3 * static_cast<size_t>(side ? cube : other) + axis] != 0;
           if (inside_[other] && !cut_face) continue;
-          const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-          std::array<std::array<int, 3>, 4> corners{};
-          const std::array<std::array<int, 2>, 4> square{{{0, 0}, {1, 0}, {1, 1}, {0, 1}}};
-          for (int c = 0; c < 4; ++c) {
-            std::array<int, 3> node = at;
-            node[axis] += side;
-            node[u] += square[c][0];
-            node[v] += square[c][1];
-            corners[c] = node;
-          }
-          if (!side) std::swap(corners[1], corners[3]);
+          const std::array<std::array<int, 3>, 4> corners = face_corners(at, axis, side);
           Quad quad;
           quad.cube = cube;
           quad.cut = cut_face;
@@ -702,17 +710,7 @@ int CutSurface::fill_pinches() {
             std::array<int, 3> next = at;
             next[axis] += side ? 1 : -1;
             if (inside_[cube_index(next[0], next[1], next[2])]) continue;
-            const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-            std::array<std::array<int, 3>, 4> corners{};
-            const std::array<std::array<int, 2>, 4> square{{{0, 0}, {1, 0}, {1, 1}, {0, 1}}};
-            for (int c = 0; c < 4; ++c) {
-              std::array<int, 3> node = at;
-              node[axis] += side;
-              node[u] += square[c][0];
-              node[v] += square[c][1];
-              corners[c] = node;
-            }
-            if (!side) std::swap(corners[1], corners[3]);
+            const std::array<std::array<int, 3>, 4> corners = face_corners(at, axis, side);
             std::array<int, 4> ids{};
             for (int c = 0; c < 4; ++c) {
               const auto& n = corners[c];
