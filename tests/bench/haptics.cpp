@@ -1,4 +1,5 @@
 #include "tests/bench/haptics.hpp"
+#include "tests/bench/repo_files.hpp"
 
 #include "engine/haptic_session.hpp"
 #include "engine/scene.hpp"
@@ -19,17 +20,6 @@ namespace incise::bench {
 namespace {
 
 using Json = nlohmann::json;
-
-std::filesystem::path find_scene(const std::filesystem::path& relative) {
-  if (std::filesystem::exists(relative)) return relative;
-  std::error_code error;
-  const auto exe = std::filesystem::read_symlink("/proc/self/exe", error);
-  if (!error) {
-    const auto candidate = exe.parent_path().parent_path().parent_path() / relative;
-    if (std::filesystem::exists(candidate)) return candidate;
-  }
-  throw std::runtime_error("bench haptics: cannot find " + relative.string() + " (run it from the repository's root)");
-}
 
 // The scripted hand: strokes of 2 s, each a centimetre aside of the last (five lanes, then
 // again): from 1 cm above the block's top (z = 0.03) at x = -0.03, press 10 mm in over 0.3 s,
@@ -174,7 +164,7 @@ int run_haptics_bench(const HapticsBenchOptions& options, std::ostream& progress
       throw std::runtime_error("--seconds " + std::to_string(options.seconds) + " must be in (0, 3600]");
     if (!(options.spin_us >= 0 && options.spin_us < 1000))
       throw std::runtime_error("--spin-us " + std::to_string(options.spin_us) + " must be in [0, 1000)");
-    const auto scene_file = options.scene.empty() ? find_scene("assets/scenes/haptics_block.json") : options.scene;
+    const auto scene_file = options.scene.empty() ? find_repo_file("assets/scenes/haptics_block.json", "haptics") : options.scene;
     const engine::Scene scene = engine::load_scene(scene_file);
     std::filesystem::create_directories(options.out_dir);
     progress << "bench haptics: " << scene.name << ", " << options.seconds << " s per run, spin " << options.spin_us

@@ -11,6 +11,7 @@
 // (ms_ccd + ms_topology) / ms_total of the medians, the thesis's H3 asks for <= 10 %.
 // Timings are this machine's (2 shared cores): figures to read, never to assert.
 #include "tests/bench/performance.hpp"
+#include "tests/bench/repo_files.hpp"
 
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
@@ -30,20 +31,6 @@ namespace incise::bench {
 
 namespace {
 
-std::filesystem::path find_default_scene() {
-  const std::filesystem::path relative = "assets/scenes/default.json";
-  if (std::filesystem::exists(relative)) return relative;
-  // Next to the binary: build/bin/incise -> assets/ two levels up.
-  std::error_code error;
-  const auto exe = std::filesystem::read_symlink("/proc/self/exe", error);
-  if (!error) {
-    const auto candidate = exe.parent_path().parent_path().parent_path() / relative;
-    if (std::filesystem::exists(candidate)) return candidate;
-  }
-  throw std::runtime_error("bench performance: cannot find " + relative.string() +
-                           " (run it from the repository's root)");
-}
-
 double median(std::vector<double> v) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
@@ -62,7 +49,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
                           const std::string& backend) {
   try {
     std::filesystem::create_directories(out_dir);
-    const std::filesystem::path scene_file = find_default_scene();
+    const std::filesystem::path scene_file = find_repo_file("assets/scenes/default.json", "performance");
     const engine::Scene base = engine::load_scene(scene_file);
     const std::vector<Resolution> rows =
         quick ? std::vector<Resolution>{{0.005, 0.0025}, {0.0035, 0.00175}}
