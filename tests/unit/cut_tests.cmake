@@ -12,7 +12,8 @@ target_link_libraries(test_cut PRIVATE incise_cut GTest::gtest_main)
 gtest_discover_tests(test_cut DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
 
 # The accuracy report's cut beams against the conforming FEM (uses the bench library, whose
-# reference solves need CHOLMOD).
+# reference solves use CHOLMOD; under ThreadSanitizer they fall back to SimplicialLDLT, see
+# solve_static_loads).
 add_executable(test_cut_beam_accuracy ${CMAKE_CURRENT_LIST_DIR}/test_cut_beam_accuracy.cpp)
 target_link_libraries(test_cut_beam_accuracy PRIVATE incise_bench GTest::gtest_main)
 gtest_discover_tests(test_cut_beam_accuracy DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics" TIMEOUT 900)
