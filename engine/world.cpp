@@ -302,8 +302,10 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
       body.cutter = std::make_unique<physics::VolumeCutter>(*model, 1e-6, 0.5 * spec.resolution);
       physics::SurfaceMappingReport mapping;
       body.embedding = physics::map_surface(*model, *body.cut_surface, mapping);
-      body.surface_keys = body.cut_surface->vertex_keys();
-      body.surface_rest = body.cut_surface->rest_vertices();
+      body.mapping_reuse.keys = body.cut_surface->vertex_keys();
+      body.mapping_reuse.rest_vertices = body.cut_surface->rest_vertices();
+      body.mapping_reuse.anchors = body.cut_surface->anchors();
+      body.mapping_reuse.triangles_mapped = body.cut_surface->rest_cut().size();
       body.surface = body.cut_surface->triangles();
       body.render_triangles.clear();
       for (const auto& t : body.surface)
@@ -517,7 +519,7 @@ std::vector<physics::NodalSpring> World::contact(const Body& body, StepStats& st
 
 void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
                                 const std::vector<std::uint8_t>& changed, bool surface_changed,
-                                StepStats& stats) {
+                                bool fixed_changed, StepStats& stats) {
   // Only the volume changed (links cut, no cube face): the surface is the same, its
   // vertices near the changed elements are remapped.
   auto start = Clock::now();
@@ -525,28 +527,51 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
   stats.ms_surface_rebuild += ms_since(start);
   start = Clock::now();
   physics::SurfaceMappingReport mapping;
-  physics::MappingReuse reuse;
-  reuse.embedding = body.embedding ? &*body.embedding : nullptr;
-  reuse.keys = &body.surface_keys;
-  reuse.rest_vertices = &body.surface_rest;
+  physics::MappingReuse& reuse = body.mapping_reuse;
   reuse.element_changed = &changed;
-  reuse.dirty_lo = dirty_lo;
-  reuse.dirty_hi = dirty_hi;
-  reuse.key_table = &body.surface_key_table;
-  body.embedding = physics::map_surface(*body.efg, *body.cut_surface, mapping, body.surface_keys.empty() ? nullptr : &reuse);
-  body.surface_keys = body.cut_surface->vertex_keys();
-  body.surface_rest = body.cut_surface->rest_vertices();
-  body.surface = body.cut_surface->triangles();
-  body.render_triangles.clear();
-  body.render_triangles.reserve(3 * body.surface.size());
-  for (const auto& t : body.surface)
-    for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
-  set_fixed_vertices(body);
-  physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
+  physics::remap_surface(*body.efg, *body.cut_surface, *body.embedding, mapping, reuse);
+  reuse.element_changed = nullptr;
+  if (surface_changed) {
+    body.surface = body.cut_surface->triangles();
+    body.render_triangles.clear();
+    body.render_triangles.reserve(3 * body.surface.size());
+    for (const auto& t : body.surface)
+      for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
+  }
+  // Only the remapped rows changed, so only their vertices' fixed flags and positions are
+  // redone: the others' positions are those update_surface took from the same particle
+  // positions (on the CPU; the GPU's are single precision, so all are taken again), and
+  // their flags stand unless particles were pinned this step (an unused index's kept row
+  // may hold a particle left orphaned).
+  if (fixed_changed) {
+    set_fixed_vertices(body);
+  } else {
+    const auto& embedding = *body.embedding;
+    body.fixed_vertices.resize(static_cast<std::size_t>(embedding.vertex_count()), 1);
+    for (int v : reuse.remapped) {
+      body.fixed_vertices[v] = 1;
+      for (int k = 0; k < embedding.row_lengths[v]; ++k)
+        if (!body.fixed[embedding.particles[static_cast<std::size_t>(v) * embedding.stride + k]]) body.fixed_vertices[v] = 0;
+    }
+  }
+  if (body.gpu) {
+    physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
+  } else {
+    const auto& embedding = *body.embedding;
+    body.surface_positions.conservativeResize(3 * static_cast<Eigen::Index>(embedding.vertex_count()));
+    for (int v : reuse.remapped) {
+      const std::size_t row = static_cast<std::size_t>(v) * embedding.stride;
+      physics::Vec3 position = physics::Vec3::Zero();
+      for (int k = 0; k < embedding.row_lengths[v]; ++k)
+        position += embedding.weights[row + k] *
+                    body.state.positions.segment<3>(3 * static_cast<Eigen::Index>(embedding.particles[row + k]));
+      body.surface_positions.segment<3>(3 * static_cast<Eigen::Index>(v)) = position;
+    }
+  }
   stats.ms_mapping += ms_since(start);
   start = Clock::now();
   if (surface_changed) {
-    const physics::SurfaceTopology topology = physics::surface_topology(body.surface);
+    const physics::SurfaceTopology topology = body.cut_surface->topology();
     cut_totals_.worst_boundary_edges = std::max(cut_totals_.worst_boundary_edges, topology.boundary_edges);
     cut_totals_.worst_nonmanifold_edges = std::max(cut_totals_.worst_nonmanifold_edges, topology.nonmanifold_edges);
   }
@@ -683,6 +708,7 @@ void World::cut_body(Body& body, StepStats& stats) {
     body.state.velocities.segment<3>(3 * orphans[k]).setZero();
     body.velocity_change.segment<3>(3 * orphans[k]).setZero();
   }
+  const bool pinned = orphans.size() > body.orphans_pinned;
   body.orphans_pinned = orphans.size();
   cut_totals_.orphaned_particles = static_cast<long>(orphans.size());
   cut_totals_.positive_mass_elements = body.efg->positive_mass_elements();
@@ -692,12 +718,12 @@ void World::cut_body(Body& body, StepStats& stats) {
   if (changed) {
     // The masses moved with the neighbourhoods: so does their weight.
     body.gravity = physics::gravity_forces(body.model->lumped_masses(), vec(scene_.solver.gravity));
-    // Remap around this step's cut (the reach of the mapping's search) and wherever an
-    // element was re-selected.
+    // Remap what the cut's new triangles hide and wherever an element was re-selected
+    // (physics::remap_surface); the linked-across check looks around this step's cut.
     std::vector<std::uint8_t> element_changed(static_cast<std::size_t>(body.efg->element_count()), 0);
     for (int e : report.changed_elements) element_changed[e] = 1;
     const physics::Vec3 reach = physics::Vec3::Constant(4 * a);
-    rebuild_cut_surface(body, visibility.lo - reach, visibility.hi + reach, element_changed, faces > 0, stats);
+    rebuild_cut_surface(body, visibility.lo - reach, visibility.hi + reach, element_changed, faces > 0, pinned, stats);
   }
   stats.ms_topology += ms_rest + report.ms_topology + ms_since(topology_start);
   stats.links_severed += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;

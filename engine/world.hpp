@@ -65,10 +65,10 @@ struct Body {
   std::unique_ptr<physics::CutSurface> cut_surface;
   physics::Vector previous_positions;
   std::size_t orphans_pinned = 0;       // of efg->orphaned_particles()
-  std::vector<long long> surface_keys;  // the cut surface's vertex keys and rest positions at the
-  physics::Vector surface_rest;         // last mapping, so the next one reuses what did not change
+  // The cut surface's vertex keys and rest positions at the last mapping (mapping_reuse.keys,
+  // .rest_vertices), so the next one reuses what did not change (physics::remap_surface).
+  physics::MappingReuse mapping_reuse;
   physics::Vec3 surface_min = physics::Vec3::Zero(), surface_max = physics::Vec3::Zero();  // rest box
-  std::vector<int> surface_key_table;               // map_surface's scratch (MappingReuse::key_table)
   std::vector<std::uint8_t> linked_across;          // per element, kept by update_elements_linked_across
   physics::Vector gravity;                         // 3n, constant
   physics::ImplicitEulerSettings integrator;
@@ -207,10 +207,13 @@ class World {
   // detect_cuts -> apply_topology for one body (seed 004 §2.7): CCD of the step's blade
   // sweep against its links, re-selection, the cut surface and its mapping.
   void cut_body(Body& body, StepStats& stats);
-  // dirty_lo/hi: rest box around what the cut changed; changed: per element, re-selected;
-  // surface_changed: cube faces were cut (else only the mapping is redone).
+  // dirty_lo/hi: rest box around what the cut changed (for the linked-across check);
+  // changed: per element, re-selected;
+  // surface_changed: cube faces were cut (else only the mapping is redone); fixed_changed:
+  // particles were pinned this step (every vertex's fixed flag is taken again).
   void rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
-                           const std::vector<std::uint8_t>& changed, bool surface_changed, StepStats& stats);
+                           const std::vector<std::uint8_t>& changed, bool surface_changed, bool fixed_changed,
+                           StepStats& stats);
   void solve_body(Body& body, const std::vector<physics::NodalSpring>& springs, double end_time,
                   StepStats& stats);
 

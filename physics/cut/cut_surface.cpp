@@ -7,7 +7,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -379,6 +381,12 @@ void CutSurface::rebuild() {
   refresh(std::move(nodes));
 }
 
+SurfaceTopology CutSurface::topology() const {
+  SurfaceTopology topology;
+  for (const auto& [edge, count] : bad_edges_) (count == 1 ? topology.boundary_edges : topology.nonmanifold_edges) += 1;
+  return topology;
+}
+
 void CutSurface::add_face_corners(int face, std::vector<int>& nodes) {
   const int cube = face / 3, axis = face % 3;
   const int nx = counts_[0], ny = counts_[1];
@@ -578,6 +586,13 @@ void CutSurface::refresh(std::vector<int> nodes) {
   // Vertices. The keys the region's faces use at the dirty nodes are the live ones there;
   // the other vertices of those nodes are freed first, then new keys take the lowest free
   // index (or the next one), in the order the faces meet them.
+  // The edges with a dirty end are redone below (their triangles are all in the region);
+  // the others keep their triangles, so their counts stand.
+  for (auto it = bad_edges_.begin(); it != bad_edges_.end();) {
+    const bool redone = node_mark_[static_cast<size_t>(vertex_node_[it->first.first])] ||
+                        node_mark_[static_cast<size_t>(vertex_node_[it->first.second])];
+    it = redone ? bad_edges_.erase(it) : std::next(it);
+  }
   std::vector<long long> live;
   for (const Quad& quad : quads)
     for (long long key : quad.key)
@@ -640,6 +655,22 @@ void CutSurface::refresh(std::vector<int> nodes) {
     std::array<int, 4> ids{};
     for (int c = 0; c < 4; ++c) ids[c] = id_of(quad.key[c], quad.cube, quad.cut);
     for (const auto& t : quad.triangles()) region_triangles.push_back({ids[t[0]], ids[t[1]], ids[t[2]]});
+  }
+  {
+    std::vector<std::pair<int, int>> redone_edges;
+    for (const auto& t : region_triangles)
+      for (int e = 0; e < 3; ++e) {
+        const int a = t[e], b = t[(e + 1) % 3];
+        if (node_mark_[static_cast<size_t>(vertex_node_[a])] || node_mark_[static_cast<size_t>(vertex_node_[b])])
+          redone_edges.emplace_back(std::min(a, b), std::max(a, b));
+      }
+    std::sort(redone_edges.begin(), redone_edges.end());
+    for (size_t first = 0; first < redone_edges.size();) {
+      size_t last = first;
+      while (last < redone_edges.size() && redone_edges[last] == redone_edges[first]) ++last;
+      if (last - first != 2) bad_edges_[redone_edges[first]] = static_cast<int>(last - first);
+      first = last;
+    }
   }
   // Positions: the redone vertices from their nodes, cut-face ones onto the cut; the other
   // cut-face vertices again where the cut gained triangles within reach.
@@ -763,107 +794,39 @@ int CutSurface::fill_pinches() {
   return filled;
 }
 
-SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& surface,
-                             SurfaceMappingReport& report, const MappingReuse* reuse) {
-  const double a = model.spacing();
-  const Vec3 origin = model.grid_origin();
-  // Elements by integration cube, in a dense table over the cubes' range.
-  const auto& cubes = model.element_grid_coordinates();
-  std::array<long long, 3> cube_lo{0, 0, 0}, cube_count{0, 0, 0};
-  if (!cubes.empty()) {
-    std::array<long long, 3> cube_hi{};
-    for (int axis = 0; axis < 3; ++axis) cube_lo[axis] = cube_hi[axis] = cubes[0][axis];
-    for (const auto& c : cubes)
-      for (int axis = 0; axis < 3; ++axis)
-        cube_lo[axis] = std::min<long long>(cube_lo[axis], c[axis]), cube_hi[axis] = std::max<long long>(cube_hi[axis], c[axis]);
-    for (int axis = 0; axis < 3; ++axis) cube_count[axis] = cube_hi[axis] - cube_lo[axis] + 1;
-  }
-  std::vector<int> element_at(static_cast<size_t>(cube_count[0] * cube_count[1] * cube_count[2]), -1);
-  const auto cube_slot = [&](long long i, long long j, long long k) -> long long {
-    i -= cube_lo[0], j -= cube_lo[1], k -= cube_lo[2];
-    if (i < 0 || j < 0 || k < 0 || i >= cube_count[0] || j >= cube_count[1] || k >= cube_count[2]) return -1;
-    return i + cube_count[0] * (j + cube_count[1] * k);
-  };
-  for (int e = 0; e < model.element_count(); ++e) element_at[cube_slot(cubes[e][0], cubes[e][1], cubes[e][2])] = e;
+namespace {
 
-  const Vector& rest_vertices = surface.rest_vertices();
-  const RestCut& cut = surface.rest_cut();
-  const int vertices = static_cast<int>(rest_vertices.size() / 3);
-  const int stride = model.row_stride();
-  SurfaceEmbedding embedding;
-  embedding.stride = stride;
-  embedding.elements.resize(static_cast<size_t>(vertices));
-  embedding.row_lengths.resize(static_cast<size_t>(vertices));
-  embedding.particles.assign(static_cast<size_t>(vertices) * stride, 0);
-  embedding.weights.assign(static_cast<size_t>(vertices) * stride, 0.0);
-  constexpr int shells = 3;  // search radius, in integration cubes
-  std::vector<std::pair<double, int>> nearby;
-  std::vector<Vec3> positions;
-  // The previous vertex of each key: a table over the key space, -1 where there is none
-  // (left all -1 on return).
-  std::vector<int> local_table;
-  std::vector<int>* previous_of = nullptr;
-  const bool reusing = reuse && reuse->embedding && reuse->keys && reuse->rest_vertices && !reuse->keys->empty();
-  if (reusing) {
-    previous_of = reuse->key_table ? reuse->key_table : &local_table;
-    long long space = surface.key_space();
-    for (long long k : *reuse->keys) space = std::max(space, k + 1);
-    if (static_cast<long long>(previous_of->size()) < space) previous_of->resize(static_cast<size_t>(space), -1);
-    for (size_t v = 0; v < reuse->keys->size(); ++v)
-      if ((*reuse->keys)[v] >= 0) (*previous_of)[static_cast<size_t>((*reuse->keys)[v])] = static_cast<int>(v);
-  }
-  struct ResetTable {
-    std::vector<int>* table;
-    const std::vector<long long>* keys;
-    ~ResetTable() {
-      if (table)
-        for (long long k : *keys)
-          if (k >= 0) (*table)[static_cast<size_t>(k)] = -1;
-    }
-  } reset{previous_of, reusing ? reuse->keys : nullptr};
-  for (int v = 0; v < vertices; ++v) {
-    const Vec3 vertex = rest_vertices.segment<3>(3 * static_cast<Eigen::Index>(v));
-    const Vec3 anchor = surface.anchors()[v];
-    if (previous_of && !surface.vertex_used(v) && v < static_cast<int>(reuse->embedding->row_lengths.size()) &&
-        reuse->embedding->row_lengths[v] <= stride) {
-      // An unused index (in no triangle) keeps the row it had, if any: it stays where it was.
-      const size_t from = static_cast<size_t>(v) * reuse->embedding->stride;
-      const size_t to = static_cast<size_t>(v) * stride;
-      const int length = reuse->embedding->row_lengths[v];
-      embedding.elements[v] = reuse->embedding->elements[v];
-      embedding.row_lengths[v] = length;
-      std::copy_n(reuse->embedding->particles.begin() + from, length, embedding.particles.begin() + to);
-      std::copy_n(reuse->embedding->weights.begin() + from, length, embedding.weights.begin() + to);
-      continue;
-    }
-    if (previous_of && surface.vertex_used(v)) {
-      const long long key = surface.vertex_keys()[v];
-      const int p = key < static_cast<long long>(previous_of->size()) ? (*previous_of)[static_cast<size_t>(key)] : -1;
-      bool dirty = true;
-      if (p >= 0) {
-        const int e = reuse->embedding->elements[p];
-        dirty = reuse->rest_vertices->segment<3>(3 * static_cast<Eigen::Index>(p)) != vertex ||
-                (reuse->element_changed && (*reuse->element_changed)[e]) ||
-                reuse->embedding->row_lengths[p] > stride;
-        bool in_box = true;
+// What mapping one vertex needs: the elements by integration cube, in a dense table over the
+// cubes' range, and scratch.
+class VertexMapper {
+ public:
+  VertexMapper(const CorotationalEfg& model, const CutSurface& surface) : model_(model), surface_(surface) {
+    const auto& cubes = model.element_grid_coordinates();
+    if (!cubes.empty()) {
+      std::array<long long, 3> cube_hi{};
+      for (int axis = 0; axis < 3; ++axis) cube_lo_[axis] = cube_hi[axis] = cubes[0][axis];
+      for (const auto& c : cubes)
         for (int axis = 0; axis < 3; ++axis)
-          in_box = in_box && vertex[axis] >= reuse->dirty_lo[axis] && vertex[axis] <= reuse->dirty_hi[axis];
-        dirty = dirty || in_box;
-        if (!dirty) {
-          const size_t from = static_cast<size_t>(p) * reuse->embedding->stride;
-          const size_t to = static_cast<size_t>(v) * stride;
-          const int length = reuse->embedding->row_lengths[p];
-          embedding.elements[v] = e;
-          embedding.row_lengths[v] = length;
-          std::copy_n(reuse->embedding->particles.begin() + from, length, embedding.particles.begin() + to);
-          std::copy_n(reuse->embedding->weights.begin() + from, length, embedding.weights.begin() + to);
-          continue;
-        }
-      }
+          cube_lo_[axis] = std::min<long long>(cube_lo_[axis], c[axis]), cube_hi[axis] = std::max<long long>(cube_hi[axis], c[axis]);
+      for (int axis = 0; axis < 3; ++axis) cube_count_[axis] = cube_hi[axis] - cube_lo_[axis] + 1;
     }
-    const bool used = surface.vertex_used(v);  // unused indices are mapped, not counted
+    element_at_.assign(static_cast<size_t>(cube_count_[0] * cube_count_[1] * cube_count_[2]), -1);
+    for (int e = 0; e < model.element_count(); ++e) element_at_[cube_slot(cubes[e][0], cubes[e][1], cubes[e][2])] = e;
+  }
+
+  // Maps vertex v into row v of `embedding` (stride the model's).
+  void map(int v, SurfaceEmbedding& embedding, SurfaceMappingReport& report) {
+    const CorotationalEfg& model = model_;
+    const double a = model.spacing();
+    const Vec3 origin = model.grid_origin();
+    const RestCut& cut = surface_.rest_cut();
+    const int stride = model.row_stride();
+    constexpr int shells = 3;  // search radius, in integration cubes
+    const Vec3 vertex = surface_.rest_vertices().segment<3>(3 * static_cast<Eigen::Index>(v));
+    const Vec3 anchor = surface_.anchors()[v];
+    const bool used = surface_.vertex_used(v);  // unused indices are mapped, not counted
     report.mapped += used ? 1 : 0;
-    nearby.clear();
+    nearby_.clear();
     std::array<long long, 3> cube{};
     for (int axis = 0; axis < 3; ++axis) cube[axis] = static_cast<long long>(std::floor((vertex[axis] - origin[axis]) / a));
     int chosen = -1;
@@ -878,13 +841,13 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
           for (long long dx = -ring; dx <= ring; ++dx) {
             if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != ring) continue;
             const long long slot = cube_slot(cube[0] + dx, cube[1] + dy, cube[2] + dz);
-            const int e = slot < 0 ? -1 : element_at[static_cast<size_t>(slot)];
+            const int e = slot < 0 ? -1 : element_at_[static_cast<size_t>(slot)];
             if (e < 0 || !model.element_active(e)) continue;
-            nearby.emplace_back((model.element_centres()[e] - vertex).squaredNorm(), e);
+            nearby_.emplace_back((model.element_centres()[e] - vertex).squaredNorm(), e);
           }
-      std::sort(nearby.begin(), nearby.end());
+      std::sort(nearby_.begin(), nearby_.end());
       const double bound = static_cast<double>(ring) * a;
-      for (const auto& [distance, e] : nearby) {
+      for (const auto& [distance, e] : nearby_) {
         if (ring < shells && !(distance < bound * bound)) break;  // a farther ring may hold a nearer one
         if (!near_cut || !cut.crosses(anchor, model.element_centres()[e])) {
           chosen = e;
@@ -896,8 +859,8 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
       // Relaxed: the nearest integration point whatever the cut (or, with none nearby, the
       // nearest of all), counted.
       report.relaxed_fallbacks += used ? 1 : 0;
-      if (!nearby.empty()) {
-        chosen = nearby.front().second;
+      if (!nearby_.empty()) {
+        chosen = nearby_.front().second;
       } else {
         double best = 0;
         for (int e = 0; e < model.element_count(); ++e) {
@@ -912,15 +875,15 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
     // widened as needed so that every neighbour keeps a positive weight.
     const size_t base = static_cast<size_t>(chosen) * stride;
     const int length = model.row_lengths()[chosen];
-    positions.clear();
+    positions_.clear();
     double farthest = 0;
     for (int k = 0; k < length; ++k) {
-      positions.push_back(model.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(model.neighbours()[base + k])));
-      farthest = std::max(farthest, (positions.back() - vertex).norm());
+      positions_.push_back(model.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(model.neighbours()[base + k])));
+      farthest = std::max(farthest, (positions_.back() - vertex).norm());
     }
     const double support = std::max(model.element_supports()[chosen], 1.05 * farthest);
     const size_t row = static_cast<size_t>(v) * stride;
-    if (!mls_shape_functions(vertex, positions, support, a, std::span<double>(&embedding.weights[row], length), {})) {
+    if (!mls_shape_functions(vertex, positions_, support, a, std::span<double>(&embedding.weights[row], length), {})) {
       throw std::runtime_error("map_surface: no MLS weights for vertex " + std::to_string(v) +
                                " on element " + std::to_string(chosen));
     }
@@ -928,7 +891,110 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
     embedding.row_lengths[v] = length;
     for (int k = 0; k < length; ++k) embedding.particles[row + k] = model.neighbours()[base + k];
   }
+
+ private:
+  long long cube_slot(long long i, long long j, long long k) const {
+    i -= cube_lo_[0], j -= cube_lo_[1], k -= cube_lo_[2];
+    if (i < 0 || j < 0 || k < 0 || i >= cube_count_[0] || j >= cube_count_[1] || k >= cube_count_[2]) return -1;
+    return i + cube_count_[0] * (j + cube_count_[1] * k);
+  }
+
+  const CorotationalEfg& model_;
+  const CutSurface& surface_;
+  std::array<long long, 3> cube_lo_{0, 0, 0}, cube_count_{0, 0, 0};
+  std::vector<int> element_at_;
+  std::vector<std::pair<double, int>> nearby_;
+  std::vector<Vec3> positions_;
+};
+
+// Rows sized for `vertices` at the model's stride; existing rows are kept (moved to the new
+// stride if it changed).
+void fit_rows(SurfaceEmbedding& embedding, int vertices, int stride) {
+  if (embedding.stride != stride && !embedding.elements.empty()) {
+    std::vector<int> particles(embedding.elements.size() * static_cast<size_t>(stride), 0);
+    std::vector<double> weights(particles.size(), 0.0);
+    for (size_t v = 0; v < embedding.elements.size(); ++v) {
+      const int length = std::min(embedding.row_lengths[v], stride);
+      std::copy_n(embedding.particles.begin() + static_cast<std::ptrdiff_t>(v * embedding.stride), length,
+                  particles.begin() + static_cast<std::ptrdiff_t>(v * stride));
+      std::copy_n(embedding.weights.begin() + static_cast<std::ptrdiff_t>(v * embedding.stride), length,
+                  weights.begin() + static_cast<std::ptrdiff_t>(v * stride));
+    }
+    embedding.particles.swap(particles);
+    embedding.weights.swap(weights);
+  }
+  embedding.stride = stride;
+  embedding.elements.resize(static_cast<size_t>(vertices), 0);
+  embedding.row_lengths.resize(static_cast<size_t>(vertices), 0);
+  embedding.particles.resize(static_cast<size_t>(vertices) * stride, 0);
+  embedding.weights.resize(static_cast<size_t>(vertices) * stride, 0.0);
+}
+
+}  // namespace
+
+SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& surface, SurfaceMappingReport& report) {
+  SurfaceEmbedding embedding;
+  const int vertices = static_cast<int>(surface.rest_vertices().size() / 3);
+  fit_rows(embedding, vertices, model.row_stride());
+  VertexMapper mapper(model, surface);
+  for (int v = 0; v < vertices; ++v) mapper.map(v, embedding, report);
   return embedding;
+}
+
+void remap_surface(const CorotationalEfg& model, const CutSurface& surface, SurfaceEmbedding& embedding,
+                   SurfaceMappingReport& report, MappingReuse& reuse) {
+  const Vector& rest_vertices = surface.rest_vertices();
+  const int vertices = static_cast<int>(rest_vertices.size() / 3);
+  const int stride = model.row_stride();
+  const int previous = embedding.vertex_count();
+  if (static_cast<int>(reuse.keys.size()) != previous || reuse.rest_vertices.size() != 3 * static_cast<Eigen::Index>(previous) ||
+      static_cast<int>(reuse.anchors.size()) != previous)
+    throw std::invalid_argument("remap_surface: the keys, rest positions and anchors are not those of the embedding's vertices");
+  if (vertices < previous) throw std::invalid_argument("remap_surface: the surface has fewer vertex indices than the embedding");
+  const RestCut& cut = surface.rest_cut();
+  if (reuse.triangles_mapped > cut.size()) throw std::invalid_argument("remap_surface: the cut lost triangles");
+  // The box of the triangles the cut gained since the last mapping.
+  Vec3 cut_lo = Vec3::Constant(std::numeric_limits<double>::infinity()), cut_hi = -cut_lo;
+  for (int t = reuse.triangles_mapped; t < cut.size(); ++t) {
+    const auto box = box_of(cut.triangles()[t]);
+    cut_lo = cut_lo.cwiseMin(box[0]), cut_hi = cut_hi.cwiseMax(box[1]);
+  }
+  const bool cut_grew = reuse.triangles_mapped < cut.size();
+  fit_rows(embedding, vertices, stride);
+  reuse.keys.resize(static_cast<size_t>(vertices), -1);
+  reuse.rest_vertices.conservativeResize(3 * static_cast<Eigen::Index>(vertices));
+  reuse.anchors.resize(static_cast<size_t>(vertices), Vec3::Zero());
+  reuse.remapped.clear();
+  std::optional<VertexMapper> mapper;
+  const auto& keys = surface.vertex_keys();
+  const auto& anchors = surface.anchors();
+  for (int v = 0; v < vertices; ++v) {
+    const Eigen::Index at = 3 * static_cast<Eigen::Index>(v);
+    bool dirty = v >= previous || embedding.row_lengths[v] > stride;
+    if (!dirty && keys[v] >= 0) {
+      // A used index: the same vertex (key, rest position, anchor) on an element whose
+      // neighbourhood did not change. Its point is then still the nearest visible one unless
+      // a new triangle hides it from the anchor: the cut only grows, so points hidden before
+      // stay hidden and the chosen one is the only one that can be lost.
+      const Vec3& anchor = anchors[v];
+      const int e = embedding.elements[v];
+      dirty = reuse.keys[v] != keys[v] || Vec3(reuse.rest_vertices.segment<3>(at)) != Vec3(rest_vertices.segment<3>(at)) ||
+              reuse.anchors[v] != anchor || (reuse.element_changed && (*reuse.element_changed)[e]);
+      if (!dirty && cut_grew) {
+        const Vec3& centre = model.element_centres()[e];
+        const Vec3 lo = anchor.cwiseMin(centre), hi = anchor.cwiseMax(centre);
+        if ((lo.array() <= cut_hi.array()).all() && (hi.array() >= cut_lo.array()).all()) dirty = cut.crosses(anchor, centre);
+      }
+    }
+    reuse.keys[v] = keys[v];
+    reuse.rest_vertices.segment<3>(at) = rest_vertices.segment<3>(at);
+    reuse.anchors[v] = anchors[v];
+    if (!dirty) continue;  // an unused index keeps the row it had: it stays where it was
+    if (!mapper) mapper.emplace(model, surface);
+    mapper->map(v, embedding, report);
+    reuse.remapped.push_back(v);
+  }
+  reuse.triangles_mapped = cut.size();
 }
 
 namespace {

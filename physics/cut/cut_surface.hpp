@@ -43,9 +43,11 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <optional>
 #include <span>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 namespace incise::physics {
@@ -123,6 +125,9 @@ class CutSurface {
   // not on its history); only the nodes around the changed faces are redone (file comment).
   void rebuild();
   int pinches_closed() const { return pinches_closed_; }
+  // surface_topology(triangles()), kept up to date by each rebuild: the edges with an end at
+  // a redone node are counted again, the others keep their triangles and so their count.
+  SurfaceTopology topology() const;
 
   const Vector& rest_vertices() const { return rest_vertices_; }
   const std::vector<std::array<int, 3>>& triangles() const { return triangles_; }
@@ -176,6 +181,7 @@ class CutSurface {
   RestCut rest_cut_;
   std::vector<int> pending_faces_;  // faces cut since the last rebuild (cube x 3 + axis)
   std::vector<int> hidden_faces_;   // cut faces the last rebuild hid (pinches)
+  std::map<std::pair<int, int>, int> bad_edges_;  // vertex pairs used by other than 2 triangles
   int projected_triangles_ = 0;     // rest-cut triangles the cut-face vertices were projected on
   std::vector<int> vertex_node_;  // grid node of each vertex
   std::vector<long long> vertex_keys_;  // node * 8 + group: the same vertex across rebuilds
@@ -204,23 +210,29 @@ struct SurfaceMappingReport {
   int relaxed_fallbacks = 0;  // no visible integration point within reach
   int wrong_side = 0;         // chosen point across the cut from the vertex's anchor
 };
-// What an earlier mapping can lend a new one: a vertex with the same key and rest position
-// keeps its row, unless it lies in the dirty box (around the cut's latest change) or its
-// integration point's neighbourhood changed (element_changed). An unused index (key -1)
-// keeps the row it had at the same index, so that it stays where it was; unused indices are
-// not counted in the report.
+SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& surface, SurfaceMappingReport& report);
+// Keeping a mapping up to date across cuts, in place. Vertex indices are stable (file
+// comment), so a row is reused by index: a used index keeps its row when its key, rest
+// position and anchor are those of the last mapping, its integration point's neighbourhood
+// did not change (element_changed) and no triangle the cut gained since then crosses the
+// segment from its anchor to that point. That row is then the one map_surface would find:
+// the cut only grows, so the points hidden from the anchor before stay hidden, and the
+// chosen point, still visible, still has the same neighbourhood. An unused index (key -1)
+// keeps the row it had, so that it stays where it was (it is mapped, not counted, only when
+// it has none).
 struct MappingReuse {
-  const SurfaceEmbedding* embedding = nullptr;
-  const std::vector<long long>* keys = nullptr;
-  const Vector* rest_vertices = nullptr;
+  std::vector<long long> keys;  // per index at the last mapping, updated by remap_surface
+  Vector rest_vertices;         // the same for the rest positions
+  std::vector<Vec3> anchors;    // and the anchors
+  int triangles_mapped = 0;     // rest-cut triangles at the last mapping
   const std::vector<std::uint8_t>* element_changed = nullptr;  // per element, may be null
-  Vec3 dirty_lo = Vec3::Zero(), dirty_hi = Vec3::Zero();
-  // Scratch the caller keeps between calls (may be null): a key -> previous vertex table,
-  // every entry -1 between calls, so each call costs the vertices, not the key space.
-  std::vector<int>* key_table = nullptr;
+  std::vector<int> remapped;  // out: the indices whose row was recomputed, increasing
 };
-SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& surface,
-                             SurfaceMappingReport& report, const MappingReuse* reuse = nullptr);
+// `embedding` is the mapping of the surface's last state (as many rows as `reuse.keys`);
+// the rows the surface's indices gained are appended. Throws std::invalid_argument when
+// the sizes disagree.
+void remap_surface(const CorotationalEfg& model, const CutSurface& surface, SurfaceEmbedding& embedding,
+                   SurfaceMappingReport& report, MappingReuse& reuse);
 
 // Elements with a neighbour across the rest cut (its link to the integration point crosses a
 // cut triangle): zero when the volume cut agrees with the surface's.

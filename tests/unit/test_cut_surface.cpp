@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -233,4 +234,59 @@ TEST(SurfaceTopology, CountsBoundaryAndNonManifoldEdges) {
   fin.push_back({0, 1, 4});
   EXPECT_EQ(surface_topology(fin).nonmanifold_edges, 1);
   EXPECT_EQ(surface_topology(fin).boundary_edges, 2);
+}
+
+TEST(CutSurface, RemappingInPlaceEqualsAFreshMappingAtEveryStepOfAProgressiveCut) {
+  // remap_surface reuses rows by index where nothing near changed; after every step of a cut
+  // made strip by strip (volume and surface), every used vertex's row must be the one a
+  // fresh map_surface gives, and rows away from the cut must not have been recomputed.
+  CorotationalEfg model = bar_model();
+  const Vector rest = model.rest_positions();
+  VolumeCutter cutter(model, 1e-6, 0.002);
+  CutSurface surface(in_box, Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), 0.00125);
+  SurfaceMappingReport first;
+  SurfaceEmbedding embedding = map_surface(model, surface, first);
+  MappingReuse reuse;
+  reuse.keys = surface.vertex_keys();
+  reuse.rest_vertices = surface.rest_vertices();
+  reuse.anchors = surface.anchors();
+  const double x_cut = 0.0512;
+  int reused_somewhere = 0;
+  for (int step = 0; step < 6; ++step) {
+    const double z0 = 0.012 - 0.004 * step, z1 = z0 - 0.004;
+    const VolumeCutReport cut = cutter.cut(std::vector<Vec3>{Vec3(x_cut, -0.03, z0), Vec3(x_cut, 0.03, z0)},
+                                           std::vector<Vec3>{Vec3(x_cut, -0.03, z1), Vec3(x_cut, 0.03, z1)}, rest, rest);
+    const Vec3 p0(x_cut, -0.03, z0), p1(x_cut, 0.03, z0), p2(x_cut, 0.03, z1), p3(x_cut, -0.03, z1);
+    surface.cut(std::vector<RestTriangle>{{p0, p1, p2}, {p0, p2, p3}});
+    surface.rebuild();
+    std::vector<std::uint8_t> changed(static_cast<size_t>(model.element_count()), 0);
+    for (int e : cut.changed_elements) changed[e] = 1;
+    reuse.element_changed = &changed;
+    SurfaceMappingReport report;
+    remap_surface(model, surface, embedding, report, reuse);
+    SurfaceMappingReport fresh_report;
+    const SurfaceEmbedding fresh = map_surface(model, surface, fresh_report);
+    ASSERT_EQ(embedding.vertex_count(), fresh.vertex_count());
+    ASSERT_EQ(embedding.stride, fresh.stride);
+    EXPECT_EQ(reuse.keys, surface.vertex_keys());
+    int used = 0;
+    for (int v = 0; v < fresh.vertex_count(); ++v) {
+      if (!surface.vertex_used(v)) continue;
+      ++used;
+      ASSERT_EQ(embedding.elements[v], fresh.elements[v]) << "step " << step << " vertex " << v;
+      ASSERT_EQ(embedding.row_lengths[v], fresh.row_lengths[v]) << "step " << step << " vertex " << v;
+      for (int k = 0; k < fresh.row_lengths[v]; ++k) {
+        const size_t at = static_cast<size_t>(v) * fresh.stride + k;
+        ASSERT_EQ(embedding.particles[at], fresh.particles[at]) << "step " << step << " vertex " << v;
+        ASSERT_EQ(embedding.weights[at], fresh.weights[at]) << "step " << step << " vertex " << v;
+      }
+    }
+    EXPECT_EQ(report.wrong_side, 0);
+    EXPECT_LE(report.mapped, used);
+    EXPECT_EQ(report.mapped, static_cast<int>(std::count_if(reuse.remapped.begin(), reuse.remapped.end(),
+                                                            [&](int v) { return surface.vertex_used(v); })));
+    reused_somewhere += report.mapped < used ? 1 : 0;
+    EXPECT_LT(report.mapped, used / 4) << "step " << step << ": most vertices are far from the cut";
+  }
+  EXPECT_EQ(reused_somewhere, 6);
 }

@@ -96,6 +96,9 @@ TEST(CutSurfaceIncremental, VerticesAwayFromANewCutKeepTheirIndexAndTheSurfaceSt
     const SurfaceTopology topology = surface_topology(surface.triangles());
     EXPECT_TRUE(topology.watertight()) << what << ": " << topology.boundary_edges << " boundary, "
                                        << topology.nonmanifold_edges << " non-manifold";
+    // The count the rebuild keeps is the full one.
+    EXPECT_EQ(surface.topology().boundary_edges, topology.boundary_edges) << what;
+    EXPECT_EQ(surface.topology().nonmanifold_edges, topology.nonmanifold_edges) << what;
     // The used indices are exactly those the triangles use.
     std::set<int> in_triangles;
     for (const auto& t : surface.triangles())
@@ -169,6 +172,7 @@ TEST(CutSurfaceIncremental, RandomBladeWalksStayClosedAndEqualTheCutMadeAtOnce) 
       all.insert(all.end(), triangles.begin(), triangles.end());
       pinches += surface.pinches_closed();
       ASSERT_TRUE(surface_topology(surface.triangles()).watertight()) << what;
+      ASSERT_TRUE(surface.topology().watertight()) << what;
       std::set<int> in_triangles;
       for (const auto& t : surface.triangles())
         for (int v : t) in_triangles.insert(v);

@@ -116,7 +116,7 @@ void cut_beam_on_both(const std::string& precision, double tolerance, double agr
   double surface_difference = 0;
   int placed_differently = 0;
   for (int v = 0; v < body.embedding->vertex_count(); ++v) {
-    if ((reference.surface_rest.segment<3>(3 * v) - body.surface_rest.segment<3>(3 * v)).norm() > agreement * 0.005) {
+    if ((reference.mapping_reuse.rest_vertices.segment<3>(3 * v) - body.mapping_reuse.rest_vertices.segment<3>(3 * v)).norm() > agreement * 0.005) {
       ++placed_differently;
       continue;
     }

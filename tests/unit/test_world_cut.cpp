@@ -55,6 +55,26 @@ Scene beam_cut_scene(const TempDir& dir, double cut_seconds, double blade_x = 0.
   return parse_scene(scene.dump(), dir.path / "scene.json");
 }
 
+// Used vertices whose row in the body's mapping (kept up to date in place cut after cut)
+// differs from a fresh map_surface of its cut surface.
+int rows_unlike_a_fresh_mapping(const Body& body) {
+  physics::SurfaceMappingReport report;
+  const physics::SurfaceEmbedding fresh = physics::map_surface(*body.efg, *body.cut_surface, report);
+  const physics::SurfaceEmbedding& kept = *body.embedding;
+  if (fresh.vertex_count() != kept.vertex_count() || fresh.stride != kept.stride) return -1;
+  int differ = 0;
+  for (int v = 0; v < fresh.vertex_count(); ++v) {
+    if (!body.cut_surface->vertex_used(v)) continue;
+    bool same = fresh.elements[v] == kept.elements[v] && fresh.row_lengths[v] == kept.row_lengths[v];
+    for (int k = 0; same && k < fresh.row_lengths[v]; ++k) {
+      const std::size_t at = static_cast<std::size_t>(v) * fresh.stride + k;
+      same = fresh.particles[at] == kept.particles[at] && fresh.weights[at] == kept.weights[at];
+    }
+    differ += same ? 0 : 1;
+  }
+  return differ;
+}
+
 }  // namespace
 
 TEST(WorldCut, ABladeThroughTheBeamCutsItInTwoClosedPiecesAndTheFreeOneFalls) {
@@ -77,6 +97,10 @@ TEST(WorldCut, ABladeThroughTheBeamCutsItInTwoClosedPiecesAndTheFreeOneFalls) {
     EXPECT_TRUE(now.watertight()) << "step " << step << ": " << now.boundary_edges << " boundary, "
                                   << now.nonmanifold_edges << " non-manifold edges";
     EXPECT_EQ(3 * body.model->node_count(), dofs);
+    // The watertightness the rebuild keeps is the full count; the mapping is a fresh one.
+    EXPECT_EQ(body.cut_surface->topology().boundary_edges, now.boundary_edges) << "step " << step;
+    EXPECT_EQ(body.cut_surface->topology().nonmanifold_edges, now.nonmanifold_edges) << "step " << step;
+    EXPECT_EQ(rows_unlike_a_fresh_mapping(body), 0) << "step " << step;
   }
   EXPECT_GT(events, 0);
   std::vector<int> piece;
@@ -147,4 +171,27 @@ TEST(WorldCut, ABladeThatMissesCutsNothing) {
   for (int k = 0; k < 12; ++k) EXPECT_FALSE(world.step().cut_event);
   EXPECT_EQ(world.bodies()[0].surface.size(), triangles);
   EXPECT_EQ(world.cut_totals().events, 0);
+}
+
+TEST(WorldCut, TheMappingKeptAcrossTheShippedCutScenesIsAFreshOneAtEveryEvent) {
+  // The body's surface mapping is updated in place, only where the cut can have changed it
+  // (physics::remap_surface); after every cut event of these shipped scenes (a pinch, a
+  // falling body cut by a static blade, a blade cutting upwards) it must equal map_surface.
+  for (const char* name : {"cut_twisting_blade", "cut_falling_cylinder", "cut_rising_blade"}) {
+    const std::filesystem::path file = std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes" / (std::string(name) + ".json");
+    const Scene scene = load_scene(file);
+    World world(scene, read_trajectory(*scene.tool->trajectory));
+    const Body& body = world.bodies()[0];
+    const long steps = std::lround(scene.solver.duration / scene.solver.dt);
+    int events = 0;
+    for (long k = 0; k < steps; ++k) {
+      if (!world.step().cut_event) continue;
+      ++events;
+      ASSERT_EQ(rows_unlike_a_fresh_mapping(body), 0) << name << ", step " << k;
+      const physics::SurfaceTopology full = physics::surface_topology(body.surface);
+      ASSERT_EQ(body.cut_surface->topology().boundary_edges, full.boundary_edges) << name << ", step " << k;
+      ASSERT_EQ(body.cut_surface->topology().nonmanifold_edges, full.nonmanifold_edges) << name << ", step " << k;
+    }
+    EXPECT_GT(events, 5) << name;
+  }
 }
