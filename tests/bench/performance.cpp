@@ -9,6 +9,8 @@
 // re-selection, MLS and masses, surface rebuild and mapping), ms_solve (implicit Euler + CG),
 // ms_surface (embedded vertex positions), ms_total (the whole step). cut_share_pct is
 // (ms_ccd + ms_topology) / ms_total of the medians, the thesis's H3 asks for <= 10 %.
+// The full run's rows go up to the issue's benchmark size: a = 2.8 mm (20248 elements) with
+// s = 1.4 mm and s = 0.6 mm (about 230k triangles; the issue asks for surfaces up to 200k).
 // Timings are this machine's (2 shared cores): figures to read, never to assert.
 #include "tests/bench/performance.hpp"
 #include "tests/bench/repo_files.hpp"
@@ -54,7 +56,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
     const std::vector<Resolution> rows =
         quick ? std::vector<Resolution>{{0.005, 0.0025}, {0.0035, 0.00175}}
               : std::vector<Resolution>{{0.005, 0.0025}, {0.0035, 0.00175}, {0.0028, 0.0014},
-                                        {0.0028, 0.0007}};
+                                        {0.0028, 0.0006}};
     // From the press to the end of the stroke of default.traj (0.3 s .. 2.0 s); fewer steps
     // for the finest rows, whose steps are long.
     std::ofstream csv(out_dir / "performance.csv");
