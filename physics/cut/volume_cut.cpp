@@ -445,6 +445,59 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
   return row;
 }
 
+namespace {
+
+// The integration points binned in cubes of side `cell` over their box (built per call: the
+// points move with the body), each bin's elements by increasing index.
+struct PointBins {
+  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
+  double cell = 1;
+  std::array<long long, 3> count{0, 0, 0};
+  std::vector<int> start, items;
+
+  bool build(const std::vector<Vec3>& points, double spacing) {
+    if (points.empty()) return false;
+    hi = points[0];
+    lo = points[0];
+    for (const Vec3& p : points) {
+      if (!p.allFinite()) return false;
+      lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    }
+    // About one point per bin; coarser when the body is spread out (never more bins than 8
+    // per point).
+    cell = spacing;
+    for (;;) {
+      long long total = 1;
+      for (int axis = 0; axis < 3; ++axis) {
+        count[axis] = static_cast<long long>((hi[axis] - lo[axis]) / cell) + 1;
+        total *= count[axis];
+      }
+      if (total <= 8 * static_cast<long long>(points.size()) + 64) break;
+      cell *= 2;
+    }
+    start.assign(static_cast<size_t>(count[0] * count[1] * count[2]) + 1, 0);
+    std::vector<long long> slot_of(points.size());
+    for (size_t e = 0; e < points.size(); ++e) {
+      const auto c = coordinates(points[e]);
+      slot_of[e] = c[0] + count[0] * (c[1] + count[1] * c[2]);
+      ++start[static_cast<size_t>(slot_of[e]) + 1];
+    }
+    for (size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
+    items.resize(points.size());
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (size_t e = 0; e < points.size(); ++e) items[static_cast<size_t>(fill[static_cast<size_t>(slot_of[e])]++)] = static_cast<int>(e);
+    return true;
+  }
+  std::array<long long, 3> coordinates(const Vec3& p) const {
+    std::array<long long, 3> c{};
+    for (int axis = 0; axis < 3; ++axis)
+      c[axis] = std::clamp(static_cast<long long>(std::floor((p[axis] - lo[axis]) / cell)), 0LL, count[axis] - 1);
+    return c;
+  }
+};
+
+}  // namespace
+
 void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world, std::vector<Vec3>& rest,
                            std::vector<double>* distance) const {
   std::vector<Vec3> points;
@@ -452,15 +505,91 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
   rest.resize(world.size());
   if (distance) distance->resize(world.size());
   const int stride = model_.row_stride();
+  const int elements = model_.element_count();
+  PointBins bins;
+  const bool binned = bins.build(points, model_.spacing());
+  std::vector<std::pair<int, double>> candidates;  // element, squared distance
+  int hint = -1;  // the previous point's choice: its distance bounds this point's nearest
   for (size_t w = 0; w < world.size(); ++w) {
     int nearest = 0;
     double best = std::numeric_limits<double>::infinity();
     // The nearest up to a relative 1e-9, the lowest index among ties: where two points are
     // equally near (a blade midway between two layers of them), roundoff in the positions
     // (another thread count, the GPU backend) must not pick the other one, whose fit differs.
-    for (int e = 0; e < model_.element_count(); ++e) {
-      const double d = (points[e] - world[w]).squaredNorm();
-      if (d < best * (1 - 1e-9)) best = d, nearest = e;
+    // The rule is a scan in element order keeping a point only when it is nearer than the
+    // kept one by that margin; scanning only the set S of points nearer than a bound D, with
+    // no point at all within a relative 1e-8 of D, gives the same choice: the scan over every
+    // point keeps the first of S it meets (all points before it are beyond D by more than the
+    // margin), and no point outside S can then replace one of S.
+    const auto scan = [&](const auto& order) {
+      for (const auto& [e, d] : order)
+        if (d < best * (1 - 1e-9)) best = d, nearest = e;
+    };
+    bool found = false;
+    const Vec3 q = world[w];
+    if (binned && q.allFinite()) {
+      // Boxes [q - R, q + R] of growing R: every point within R of q is in the box's bins.
+      // The first R: just beyond the previous choice's distance (the points of a polyline
+      // come in order), else beyond q's distance to the points' box.
+      double reach = bins.cell;
+      if (hint >= 0) {
+        reach = std::max(reach, 1.001 * (points[hint] - q).norm() + 1e-12);
+      } else {
+        const Vec3 outside = (bins.lo - q).cwiseMax(q - bins.hi).cwiseMax(Vec3::Zero());
+        reach = std::max(reach, outside.norm() + bins.cell);
+      }
+      for (int attempt = 0; attempt < 64 && !found; ++attempt) {
+        const auto first = bins.coordinates(q - Vec3::Constant(reach));
+        const auto last = bins.coordinates(q + Vec3::Constant(reach));
+        const bool everything = first[0] == 0 && first[1] == 0 && first[2] == 0 && last[0] == bins.count[0] - 1 &&
+                                last[1] == bins.count[1] - 1 && last[2] == bins.count[2] - 1;
+        candidates.clear();
+        double least = std::numeric_limits<double>::infinity();
+        for (long long k = first[2]; k <= last[2]; ++k)
+          for (long long j = first[1]; j <= last[1]; ++j)
+            for (long long i = first[0]; i <= last[0]; ++i) {
+              const size_t b = static_cast<size_t>(i + bins.count[0] * (j + bins.count[1] * k));
+              for (int s = bins.start[b]; s < bins.start[b + 1]; ++s) {
+                const int e = bins.items[static_cast<size_t>(s)];
+                const double d = (points[e] - q).squaredNorm();
+                candidates.emplace_back(e, d);
+                least = std::min(least, d);
+              }
+            }
+        if (!std::isfinite(least)) {
+          if (everything) break;  // no finite distance: the scan below decides
+          reach *= 2;
+          continue;
+        }
+        // The bound D: just above the least distance, moved up until no point is near it.
+        double bound = least * (1 + 1e-7) + 1e-300;
+        bool clear = false;
+        for (int tries = 0; tries < 64 && !clear; ++tries) {
+          clear = std::none_of(candidates.begin(), candidates.end(), [&](const auto& c) {
+            return c.second >= bound * (1 - 1e-8) && c.second <= bound * (1 + 1e-8);
+          });
+          if (!clear) bound *= 1 + 1e-7;
+        }
+        if (!clear) break;
+        // Every point within the bound (and its margin) must have been seen.
+        if (!everything && !(bound * (1 + 1e-8) < reach * reach * (1 - 1e-12))) {
+          reach = std::max(2 * reach, 1.01 * std::sqrt(bound * (1 + 1e-8)));
+          continue;
+        }
+        std::erase_if(candidates, [&](const auto& c) { return !(c.second < bound); });
+        std::sort(candidates.begin(), candidates.end());
+        scan(candidates);
+        found = true;
+      }
+    }
+    if (found) hint = nearest;
+    if (!found) {
+      nearest = 0;
+      best = std::numeric_limits<double>::infinity();
+      for (int e = 0; e < elements; ++e) {
+        const double d = (points[e] - q).squaredNorm();
+        if (d < best * (1 - 1e-9)) best = d, nearest = e;
+      }
     }
     Mat3 fit = Mat3::Zero();
     const size_t base = static_cast<size_t>(nearest) * stride;

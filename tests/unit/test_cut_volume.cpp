@@ -4,10 +4,12 @@
 #include "physics/cut/volume_cut.hpp"
 #include "physics/fem/tet_mesh.hpp"
 
+#include <Eigen/LU>
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <vector>
 
 using namespace incise::physics;
@@ -193,4 +195,64 @@ TEST(VolumeCut, TheSeparatedPieceFallsFreely) {
   for (int i = 0; i < n; ++i)
     if (!free_particle[i]) clamped_max = std::max(clamped_max, std::abs(state.positions[3 * i + 2] - rest[3 * i + 2]));
   EXPECT_LT(clamped_max, 0.02);
+}
+
+TEST(VolumeCut, ToRestPicksTheSameIntegrationPointAsAScanOfEveryElement) {
+  // to_rest looks the nearest integration point up in bins; the rule it must keep is the scan
+  // in element order that takes a point only when it is nearer by a relative 1e-9 (the lowest
+  // index among ties). Checked against that scan, written out here, for points inside, on
+  // ties between points, just outside and far outside a deformed beam.
+  CorotationalEfg model = make_beam();
+  VolumeCutter cutter(model, 1e-6, 0.002);
+  Vector x = model.rest_positions();
+  for (int i = 0; i < model.node_count(); ++i) {
+    const double s = x[3 * i];
+    x[3 * i + 2] += 0.02 * s * s;                 // a bend
+    x[3 * i + 1] += 0.05 * s * x[3 * i + 2];      // and a shear
+  }
+  std::vector<Vec3> points;
+  cutter.integration_points(x, points);
+  std::vector<Vec3> world;
+  unsigned state = 12345;
+  const auto uniform = [&]() {
+    state = state * 1664525u + 1013904223u;
+    return static_cast<double>(state >> 8) / static_cast<double>(1u << 24);
+  };
+  for (int k = 0; k < 400; ++k)
+    world.emplace_back(-0.02 + 0.14 * uniform(), -0.03 + 0.06 * uniform(), -0.03 + 0.06 * uniform());
+  // Midway between two neighbouring points, and nearly so (ties and near-ties).
+  for (int e = 0; e + 1 < model.element_count(); e += 37) {
+    const Vec3 middle = 0.5 * (points[e] + points[e + 1]);
+    world.push_back(middle);
+    world.push_back(middle + 1e-12 * (points[e + 1] - points[e]));
+    world.push_back(points[e]);
+  }
+  world.emplace_back(1.0, 2.0, -3.0);  // far away
+  std::vector<Vec3> rest;
+  std::vector<double> distance;
+  cutter.to_rest(x, world, rest, &distance);
+  ASSERT_EQ(rest.size(), world.size());
+  int ties = 0;
+  for (size_t w = 0; w < world.size(); ++w) {
+    int nearest = 0;
+    double best = std::numeric_limits<double>::infinity();
+    for (int e = 0; e < model.element_count(); ++e) {
+      const double d = (points[e] - world[w]).squaredNorm();
+      if (d < best * (1 - 1e-9)) best = d, nearest = e;
+    }
+    int close = 0;
+    for (int e = 0; e < model.element_count(); ++e) close += (points[e] - world[w]).squaredNorm() <= best * (1 + 1e-9) ? 1 : 0;
+    ties += close > 1 ? 1 : 0;
+    ASSERT_EQ(distance[w], std::sqrt(best)) << "point " << w;
+    // The mapped point is the chosen element's: X_e + F_e^-1 (x - x_e).
+    Mat3 fit = Mat3::Zero();
+    const size_t base = static_cast<size_t>(nearest) * model.row_stride();
+    for (int k = 0; k < model.row_lengths()[nearest]; ++k)
+      fit += x.segment<3>(3 * model.neighbours()[base + k]) * model.matching_coefficients()[base + k].transpose();
+    const Eigen::FullPivLU<Mat3> lu(fit);
+    const Vec3 offset = world[w] - points[nearest];
+    const Vec3 expected = model.element_centres()[nearest] + (lu.isInvertible() ? Vec3(lu.solve(offset)) : offset);
+    ASSERT_EQ(rest[w], expected) << "point " << w << ": expected element " << nearest;
+  }
+  EXPECT_GT(ties, 10) << "the case exercises ties";
 }
