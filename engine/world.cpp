@@ -581,7 +581,8 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
   cut_totals_.pinches_closed = body.cut_surface->pinches_closed();
   // Every triangle the cut gained this step lies in the dirty box (the sweep's, grown).
   cut_totals_.elements_linked_across = physics::update_elements_linked_across(
-      *body.efg, body.cut_surface->rest_cut(), body.linked_across, dirty_lo, dirty_hi, &changed);
+      *body.efg, body.cut_surface->rest_cut(), body.linked_across, dirty_lo, dirty_hi, &changed,
+      &body.link_boxes);
   stats.ms_checks += ms_since(start);
 }
 
@@ -719,11 +720,11 @@ void World::cut_body(Body& body, StepStats& stats) {
     // The masses moved with the neighbourhoods: so does their weight.
     body.gravity = physics::gravity_forces(body.model->lumped_masses(), vec(scene_.solver.gravity));
     // Remap what the cut's new triangles hide and wherever an element was re-selected
-    // (physics::remap_surface); the linked-across check looks around this step's cut.
+    // (physics::remap_surface); the linked-across check takes the re-selected elements and
+    // those with a link reaching into the box of this step's triangles (grown by 2 a).
     std::vector<std::uint8_t> element_changed(static_cast<std::size_t>(body.efg->element_count()), 0);
     for (int e : report.changed_elements) element_changed[e] = 1;
-    const physics::Vec3 reach = physics::Vec3::Constant(4 * a);
-    rebuild_cut_surface(body, visibility.lo - reach, visibility.hi + reach, element_changed, faces > 0, pinned, stats);
+    rebuild_cut_surface(body, visibility.lo, visibility.hi, element_changed, faces > 0, pinned, stats);
   }
   stats.ms_topology += ms_rest + report.ms_topology + ms_since(topology_start);
   stats.links_severed += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;

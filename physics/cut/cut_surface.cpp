@@ -484,6 +484,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
   std::vector<Quad> quads;
   std::vector<std::pair<long long, long long>> edges;
   std::vector<int> more;
+  bool edges_final = false;
   pinches_closed_ = 0;
   for (int pass = 0;; ++pass) {
     // The region's faces, cube by cube in increasing order, as a full rebuild walks them.
@@ -518,6 +519,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
         }
       }
     }
+    edges_final = false;
     if (pass == 64) break;  // never seen: the faces are kept as they are, the checks will tell
     // Pinches: edges used by four triangles. Every edge with a dirty end has all its
     // triangles in the region (they belong to the cubes around that end) and the others are
@@ -579,6 +581,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
       }
     }
     pinches_closed_ += closed;
+    edges_final = closed == 0;  // `edges` are then those of the final faces
     if (closed == 0) break;
     add_nodes(more);
   }
@@ -657,19 +660,27 @@ void CutSurface::refresh(std::vector<int> nodes) {
     for (const auto& t : quad.triangles()) region_triangles.push_back({ids[t[0]], ids[t[1]], ids[t[2]]});
   }
   {
-    std::vector<std::pair<int, int>> redone_edges;
-    for (const auto& t : region_triangles)
-      for (int e = 0; e < 3; ++e) {
-        const int a = t[e], b = t[(e + 1) % 3];
-        if (node_mark_[static_cast<size_t>(vertex_node_[a])] || node_mark_[static_cast<size_t>(vertex_node_[b])])
-          redone_edges.emplace_back(std::min(a, b), std::max(a, b));
-      }
-    std::sort(redone_edges.begin(), redone_edges.end());
-    for (size_t first = 0; first < redone_edges.size();) {
+    // The region's edges by key, sorted, as the pinch pass left them (else taken again): a
+    // key is one vertex, so counts by key are counts by vertex.
+    if (!edges_final) {
+      edges.clear();
+      for (const Quad& quad : quads)
+        for (const auto& t : quad.triangles())
+          for (int e = 0; e < 3; ++e) {
+            const long long a = quad.key[t[e]], b = quad.key[t[(e + 1) % 3]];
+            edges.emplace_back(std::min(a, b), std::max(a, b));
+          }
+      std::sort(edges.begin(), edges.end());
+    }
+    for (size_t first = 0; first < edges.size();) {
       size_t last = first;
-      while (last < redone_edges.size() && redone_edges[last] == redone_edges[first]) ++last;
-      if (last - first != 2) bad_edges_[redone_edges[first]] = static_cast<int>(last - first);
+      while (last < edges.size() && edges[last] == edges[first]) ++last;
+      const auto [a, b] = edges[first];
+      const size_t count = last - first;
       first = last;
+      if (count == 2 || !(node_mark_[static_cast<size_t>(a / 8)] || node_mark_[static_cast<size_t>(b / 8)])) continue;
+      const int u = vertex_of_[static_cast<size_t>(a)], v = vertex_of_[static_cast<size_t>(b)];
+      bad_edges_[{std::min(u, v), std::max(u, v)}] = static_cast<int>(count);
     }
   }
   // Positions: the redone vertices from their nodes, cut-face ones onto the cut; the other
@@ -1020,28 +1031,41 @@ int elements_linked_across(const CorotationalEfg& model, const RestCut& cut) {
 }
 
 int update_elements_linked_across(const CorotationalEfg& model, const RestCut& cut, std::vector<std::uint8_t>& linked,
-                                  const Vec3& lo, const Vec3& hi, const std::vector<std::uint8_t>* changed) {
+                                  const Vec3& lo, const Vec3& hi, const std::vector<std::uint8_t>* changed,
+                                  std::vector<std::array<Vec3, 2>>* boxes) {
   const int elements = model.element_count();
   const bool all = static_cast<int>(linked.size()) != elements;
   if (all) linked.assign(static_cast<size_t>(elements), 0);
   if (cut.size() == 0) return 0;
   const int stride = model.row_stride();
+  // The box of an element's links: its centre and its neighbours, at rest.
+  const auto link_box = [&](int e) {
+    Vec3 box_lo = model.element_centres()[e], box_hi = box_lo;
+    const size_t base = static_cast<size_t>(e) * stride;
+    for (int k = 0; k < model.row_lengths()[e]; ++k) {
+      const Vec3 particle = model.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(model.neighbours()[base + k]));
+      box_lo = box_lo.cwiseMin(particle), box_hi = box_hi.cwiseMax(particle);
+    }
+    return std::array<Vec3, 2>{box_lo, box_hi};
+  };
+  // Cached boxes stand for the elements whose neighbourhood did not change.
+  const bool cached = boxes && changed && static_cast<int>(boxes->size()) == elements;
+  if (boxes && !cached) {
+    boxes->resize(static_cast<size_t>(elements));
+    for (int e = 0; e < elements; ++e) (*boxes)[e] = link_box(e);
+  }
   int across = 0;
   for (int e = 0; e < elements; ++e) {
     if (!model.element_active(e)) {
       linked[e] = 0;
       continue;
     }
-    bool check = all || (changed && (*changed)[e]);
+    const bool element_changed = changed && (*changed)[e];
+    if (cached && element_changed) (*boxes)[e] = link_box(e);
+    bool check = all || element_changed;
     if (!check) {
-      // The box of the element's links: its centre and its neighbours, at rest.
-      Vec3 box_lo = model.element_centres()[e], box_hi = box_lo;
-      const size_t base = static_cast<size_t>(e) * stride;
-      for (int k = 0; k < model.row_lengths()[e]; ++k) {
-        const Vec3 particle = model.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(model.neighbours()[base + k]));
-        box_lo = box_lo.cwiseMin(particle), box_hi = box_hi.cwiseMax(particle);
-      }
-      check = (box_lo.array() <= hi.array()).all() && (box_hi.array() >= lo.array()).all();
+      const std::array<Vec3, 2> box = boxes ? (*boxes)[e] : link_box(e);
+      check = (box[0].array() <= hi.array()).all() && (box[1].array() >= lo.array()).all();
     }
     if (check) linked[e] = element_linked_across(model, cut, e) ? 1 : 0;
     across += linked[e];

@@ -241,8 +241,11 @@ int elements_linked_across(const CorotationalEfg& model, const RestCut& cut);
 // `linked` (per element, 1 = linked across) is recomputed for the elements whose links reach
 // into the box or that `changed` marks (may be null), all of them when its size is not the
 // element count; returns the count. Equal to the full count as long as every triangle added
-// since the last call lies in [lo, hi].
+// since the last call lies in [lo, hi]. `boxes` (may be null) caches each element's link box
+// at rest between calls: taken again for the elements `changed` marks, for all when its size
+// is not the element count or `changed` is null.
 int update_elements_linked_across(const CorotationalEfg& model, const RestCut& cut, std::vector<std::uint8_t>& linked,
-                                  const Vec3& lo, const Vec3& hi, const std::vector<std::uint8_t>* changed);
+                                  const Vec3& lo, const Vec3& hi, const std::vector<std::uint8_t>* changed,
+                                  std::vector<std::array<Vec3, 2>>* boxes = nullptr);
 
 }  // namespace incise::physics

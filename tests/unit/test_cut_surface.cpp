@@ -203,7 +203,9 @@ TEST(CutSurface, LinkedAcrossKeptUpToDateEqualsTheFullCount) {
   // ones marked changed) must equal a full recount each time.
   CorotationalEfg model = bar_model();
   CutSurface surface(in_box, Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), 0.00125);
-  std::vector<std::uint8_t> linked;
+  std::vector<std::uint8_t> linked, linked_cached;
+  const std::vector<std::uint8_t> unchanged(static_cast<size_t>(model.element_count()), 0);
+  std::vector<std::array<Vec3, 2>> boxes;
   int previous = 0;
   for (int strip = 0; strip < 8; ++strip) {
     // A slanted strip: x from 0.02 + 0.008 strip, top to bottom.
@@ -214,8 +216,13 @@ TEST(CutSurface, LinkedAcrossKeptUpToDateEqualsTheFullCount) {
     Vec3 lo = p0, hi = p0;
     for (const Vec3& p : {p1, p2, p3}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
     const int incremental = update_elements_linked_across(model, surface.rest_cut(), linked, lo, hi, nullptr);
+    // The same with the elements' link boxes cached between calls (no neighbourhood changes).
+    const int cached = update_elements_linked_across(model, surface.rest_cut(), linked_cached, lo, hi, &unchanged, &boxes);
+    ASSERT_EQ(static_cast<int>(boxes.size()), model.element_count());
     const int full = elements_linked_across(model, surface.rest_cut());
     EXPECT_EQ(incremental, full) << "strip " << strip;
+    EXPECT_EQ(cached, full) << "strip " << strip;
+    EXPECT_EQ(linked_cached, linked) << "strip " << strip;
     EXPECT_GT(full, previous) << "strip " << strip << " links more elements across";
     previous = full;
   }

@@ -176,7 +176,8 @@ TEST(WorldCut, ABladeThatMissesCutsNothing) {
 TEST(WorldCut, TheMappingKeptAcrossTheShippedCutScenesIsAFreshOneAtEveryEvent) {
   // The body's surface mapping is updated in place, only where the cut can have changed it
   // (physics::remap_surface); after every cut event of these shipped scenes (a pinch, a
-  // falling body cut by a static blade, a blade cutting upwards) it must equal map_surface.
+  // falling body cut by a static blade, a blade cutting upwards) it must equal map_surface,
+  // and the watertightness and linked-across counts kept incrementally the full ones.
   for (const char* name : {"cut_twisting_blade", "cut_falling_cylinder", "cut_rising_blade"}) {
     const std::filesystem::path file = std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes" / (std::string(name) + ".json");
     const Scene scene = load_scene(file);
@@ -191,6 +192,9 @@ TEST(WorldCut, TheMappingKeptAcrossTheShippedCutScenesIsAFreshOneAtEveryEvent) {
       const physics::SurfaceTopology full = physics::surface_topology(body.surface);
       ASSERT_EQ(body.cut_surface->topology().boundary_edges, full.boundary_edges) << name << ", step " << k;
       ASSERT_EQ(body.cut_surface->topology().nonmanifold_edges, full.nonmanifold_edges) << name << ", step " << k;
+      // The linked-across count kept around each cut (with cached link boxes) is the full one.
+      ASSERT_EQ(world.cut_totals().elements_linked_across,
+                physics::elements_linked_across(*body.efg, body.cut_surface->rest_cut())) << name << ", step " << k;
     }
     EXPECT_GT(events, 5) << name;
   }
