@@ -65,8 +65,8 @@ struct Body {
   std::unique_ptr<physics::CutSurface> cut_surface;
   physics::Vector previous_positions;
   std::size_t orphans_pinned = 0;       // of efg->orphaned_particles()
-  // The cut surface's vertex keys and rest positions at the last mapping (mapping_reuse.keys,
-  // .rest_vertices), so the next one reuses what did not change (physics::remap_surface).
+  // The cut surface's vertex keys, rest positions and anchors and the rest cut's size at the
+  // last mapping, so the next one reuses what did not change (physics::remap_surface).
   physics::MappingReuse mapping_reuse;
   physics::Vec3 surface_min = physics::Vec3::Zero(), surface_max = physics::Vec3::Zero();  // rest box
   std::vector<std::uint8_t> linked_across;          // per element, kept by update_elements_linked_across
