@@ -278,29 +278,32 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
     for (int e = 0; e < model_.element_count(); ++e) {
       if (!model_.element_active(e)) continue;
       const Vec3& centre = model_.element_centres()[e];
-      // The element's links reach into the region (not only its integration point: a link
-      // to a particle a few spacings away, as re-selection makes, can cross this sweep's
-      // cut from an integration point outside it).
+      // Each link whose box meets the region (not only the links of the integration points
+      // inside it: a link to a particle a few spacings away, as re-selection makes, can
+      // cross this sweep's cut from an integration point outside it). The box test first:
+      // the exact test (RestCut::crosses) is the costly part.
       const size_t base = static_cast<size_t>(e) * stride;
-      Vec3 lo = centre, hi = centre;
-      for (int k = 0; k < model_.row_lengths()[e]; ++k) {
-        const Vec3 p = particle(model_.rest_positions(), model_.neighbours()[base + k]);
-        lo = lo.cwiseMin(p);
-        hi = hi.cwiseMax(p);
-      }
-      bool overlaps = true;
-      for (int axis = 0; axis < 3; ++axis) overlaps = overlaps && hi[axis] >= rest_cut->lo[axis] && lo[axis] <= rest_cut->hi[axis];
-      if (!overlaps) continue;
+      std::vector<int>* severed = nullptr;
+      bool looked_up = false;
       for (int k = 0; k < model_.row_lengths()[e]; ++k) {
         const int p = model_.neighbours()[base + k];
-        auto& severed = cut_from[e];
-        if (std::find(severed.begin(), severed.end(), p) != severed.end()) continue;
-        if (rest_cut->blocked(centre, particle(model_.rest_positions(), p))) {
-          severed.push_back(p);
+        const Vec3 to = particle(model_.rest_positions(), p);
+        const Vec3 lo = centre.cwiseMin(to), hi = centre.cwiseMax(to);
+        bool overlaps = true;
+        for (int axis = 0; axis < 3; ++axis) overlaps = overlaps && hi[axis] >= rest_cut->lo[axis] && lo[axis] <= rest_cut->hi[axis];
+        if (!overlaps) continue;
+        if (!looked_up) {
+          const auto it = cut_from.find(e);
+          severed = it == cut_from.end() ? nullptr : &it->second;
+          looked_up = true;
+        }
+        if (severed != nullptr && std::find(severed->begin(), severed->end(), p) != severed->end()) continue;
+        if (rest_cut->blocked(centre, to)) {
+          if (severed == nullptr) severed = &cut_from[e];
+          severed->push_back(p);
           ++report.links_severed_at_rest;
         }
       }
-      if (cut_from[e].empty()) cut_from.erase(e);
     }
   }
   total_links_severed_ += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;
