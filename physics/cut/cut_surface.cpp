@@ -485,6 +485,17 @@ void CutSurface::refresh(std::vector<int> nodes) {
   std::vector<std::pair<long long, long long>> edges;
   std::vector<int> more;
   bool edges_final = false;
+  // The region's triangle edges by key (min, max), sorted, from the current quads.
+  const auto region_edges = [&]() {
+    edges.clear();
+    for (const Quad& quad : quads)
+      for (const auto& t : quad.triangles())
+        for (int e = 0; e < 3; ++e) {
+          const long long a = quad.key[t[e]], b = quad.key[t[(e + 1) % 3]];
+          edges.emplace_back(std::min(a, b), std::max(a, b));
+        }
+    std::sort(edges.begin(), edges.end());
+  };
   pinches_closed_ = 0;
   for (int pass = 0;; ++pass) {
     // The region's faces, cube by cube in increasing order, as a full rebuild walks them.
@@ -526,14 +537,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
     // as after the last rebuild, closed, so the region's edges are the only suspects. The
     // four cubes around such an edge alternate full, gap, full, gap; the first gap (in slot
     // order) that is a cut face between two full cubes is hidden.
-    edges.clear();
-    for (const Quad& quad : quads)
-      for (const auto& t : quad.triangles())
-        for (int e = 0; e < 3; ++e) {
-          const long long a = quad.key[t[e]], b = quad.key[t[(e + 1) % 3]];
-          edges.emplace_back(std::min(a, b), std::max(a, b));
-        }
-    std::sort(edges.begin(), edges.end());
+    region_edges();
     int closed = 0;
     more.clear();
     for (size_t first = 0; first < edges.size();) {
@@ -662,16 +666,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
   {
     // The region's edges by key, sorted, as the pinch pass left them (else taken again): a
     // key is one vertex, so counts by key are counts by vertex.
-    if (!edges_final) {
-      edges.clear();
-      for (const Quad& quad : quads)
-        for (const auto& t : quad.triangles())
-          for (int e = 0; e < 3; ++e) {
-            const long long a = quad.key[t[e]], b = quad.key[t[(e + 1) % 3]];
-            edges.emplace_back(std::min(a, b), std::max(a, b));
-          }
-      std::sort(edges.begin(), edges.end());
-    }
+    if (!edges_final) region_edges();
     for (size_t first = 0; first < edges.size();) {
       size_t last = first;
       while (last < edges.size() && edges[last] == edges[first]) ++last;
