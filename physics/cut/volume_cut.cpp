@@ -33,7 +33,7 @@ void check_finite(const Vector& v, const char* name) {
 }  // namespace
 
 VolumeCutter::VolumeCutter(CorotationalEfg& model, double margin, double slack)
-    : model_(model), broad_phase_(margin, slack) {
+    : model_(model), broad_phase_(margin, slack), margin_(margin) {
   // 6-connectivity on the particle grid: each particle to its next neighbour along +x, +y, +z
   // when that particle exists (particles outside the body's influence were dropped at build).
   const auto& cells = model_.particle_grid_coordinates();
@@ -54,6 +54,7 @@ VolumeCutter::VolumeCutter(CorotationalEfg& model, double margin, double slack)
   }
   particle_link_severed_.assign(particle_links_.size(), 0);
   element_link_particles_.resize(static_cast<size_t>(model_.element_count()));
+  element_stale_.assign(static_cast<size_t>(model_.element_count()), 0);
 }
 
 int VolumeCutter::element_link_id(int element, int slot) const {
@@ -82,36 +83,41 @@ void VolumeCutter::refit(const std::vector<Vec3>& points_start, const std::vecto
                          const Vector& particles_start, const Vector& particles_end, const Vec3& near_lo,
                          const Vec3& near_hi) {
   const auto particle = [](const Vector& x, int p) { return Vec3(x.segment<3>(3 * static_cast<Eigen::Index>(p))); };
-  // Only links with an endpoint near the sweep are (re)boxed: a link whose endpoints both stay
-  // outside the sweep's box grown by more than a link's length cannot touch the blade, and a
-  // stale box elsewhere only adds candidates the narrow test rejects. Links enter the tree the
-  // first time they come near a sweep, so the first contact does not box the whole body.
-  const auto near = [&](const Vec3& at_start, const Vec3& at_end) {
+  // Only links whose own swept box (both endpoints at the start and at the end of the step)
+  // meets the sweep's region are (re)boxed: any other link cannot touch the blade, and a
+  // stale box elsewhere only adds candidates, which the narrow test, on this step's
+  // endpoints, rejects. Links enter the tree the first time they come near a sweep, so the
+  // first contact does not box the whole body.
+  const auto near = [&](const Vec3& a0, const Vec3& b0, const Vec3& a1, const Vec3& b1) {
     for (int axis = 0; axis < 3; ++axis) {
-      const double lo = std::min(at_start[axis], at_end[axis]), hi = std::max(at_start[axis], at_end[axis]);
+      const double lo = std::min({a0[axis], b0[axis], a1[axis], b1[axis]});
+      const double hi = std::max({a0[axis], b0[axis], a1[axis], b1[axis]});
       if (hi < near_lo[axis] || lo > near_hi[axis]) return false;
     }
     return true;
   };
-  near_particle_.resize(static_cast<size_t>(model_.node_count()));
-  for (int p = 0; p < model_.node_count(); ++p)
-    near_particle_[p] = near(particle(particles_start, p), particle(particles_end, p)) ? 1 : 0;
   for (size_t link = 0; link < particle_links_.size(); ++link) {
     if (particle_link_severed_[link]) continue;
     const auto [a, b] = particle_links_[link];
-    if (!near_particle_[a] && !near_particle_[b]) continue;
-    broad_phase_.set_edge(static_cast<int>(link),
-                          {{particle(particles_start, a), particle(particles_start, b)},
-                           {particle(particles_end, a), particle(particles_end, b)}});
+    const Vec3 a0 = particle(particles_start, a), b0 = particle(particles_start, b);
+    const Vec3 a1 = particle(particles_end, a), b1 = particle(particles_end, b);
+    if (!near(a0, b0, a1, b1)) continue;
+    broad_phase_.set_edge(static_cast<int>(link), {{a0, b0}, {a1, b1}});
   }
   const int stride = model_.row_stride();
   for (int e = 0; e < model_.element_count(); ++e) {
     const size_t base = static_cast<size_t>(e) * stride;
     auto& boxed = element_link_particles_[e];
     const int length = model_.row_lengths()[e];
-    bool touching = near(points_start[e], points_end[e]);
-    for (int k = 0; k < length && !touching; ++k) touching = near_particle_[model_.neighbours()[base + k]] != 0;
+    // An element whose row changed since it was boxed is refit wherever it is: its slots
+    // name the particles a candidate is narrow-tested with, so none may be stale.
+    bool touching = element_stale_[e] != 0;
+    for (int k = 0; k < length && !touching; ++k) {
+      const int p = model_.neighbours()[base + k];
+      touching = near(points_start[e], particle(particles_start, p), points_end[e], particle(particles_end, p));
+    }
     if (!touching) continue;
+    element_stale_[e] = 0;
     // Slots that no longer hold a link (a shorter row after a re-selection) leave the tree.
     for (int k = length; k < static_cast<int>(boxed.size()); ++k) {
       if (boxed[k] >= 0) broad_phase_.remove_edge(element_link_id(e, k));
@@ -187,35 +193,15 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
   std::vector<Vec3> points_start, points_end;
   integration_points(particles_start, points_start);
   integration_points(particles_end, points_end);
-  // The region the blade sweeps this step, grown by the longest link (at the start or the
-  // end of the step): a link with both endpoints outside it cannot reach the blade.
+  // The region the blade sweeps this step, grown by the broad phase's margin (what the narrow
+  // test can touch beyond the blade): a link whose swept box misses it cannot reach the blade.
   Vec3 near_lo = Vec3::Constant(std::numeric_limits<double>::infinity()), near_hi = -near_lo;
   for (size_t j = 0; j + 1 < blade_poses.size(); ++j) {
     if (!active[j]) continue;
     for (size_t end = j; end <= j + 1; ++end)
       for (const Vec3& point : blade_poses[end]) near_lo = near_lo.cwiseMin(point), near_hi = near_hi.cwiseMax(point);
   }
-  double longest = 0;
-  {
-    const auto at = [](const Vector& x, int p) { return x.segment<3>(3 * static_cast<Eigen::Index>(p)); };
-    for (size_t link = 0; link < particle_links_.size(); ++link) {
-      if (particle_link_severed_[link]) continue;
-      const auto [a, b] = particle_links_[link];
-      longest = std::max({longest, (at(particles_start, a) - at(particles_start, b)).squaredNorm(),
-                          (at(particles_end, a) - at(particles_end, b)).squaredNorm()});
-    }
-    const int stride = model_.row_stride();
-    for (int e = 0; e < model_.element_count(); ++e) {
-      const size_t base = static_cast<size_t>(e) * stride;
-      for (int k = 0; k < model_.row_lengths()[e]; ++k) {
-        const int p = model_.neighbours()[base + k];
-        longest = std::max({longest, (points_start[e] - at(particles_start, p)).squaredNorm(),
-                            (points_end[e] - at(particles_end, p)).squaredNorm()});
-      }
-    }
-    longest = std::sqrt(longest);
-  }
-  const Vec3 grow = Vec3::Constant(1.01 * longest + 1e-9);
+  const Vec3 grow = Vec3::Constant(2 * margin_ + 1e-9);
   refit(points_start, points_end, particles_start, particles_end, near_lo - grow, near_hi + grow);
 
   const auto particle = [](const Vector& x, int p) { return Vec3(x.segment<3>(3 * static_cast<Eigen::Index>(p))); };
@@ -343,6 +329,7 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
       model_.deactivate_element(element);
     }
     report.changed_elements.push_back(element);
+    element_stale_[element] = 1;  // its boxed slots are stale until the next refit
   }
   points_start_ = points_end_ = nullptr;
   particles_start_ = particles_end_ = nullptr;

@@ -125,15 +125,16 @@ class VolumeCutter {
 
   CorotationalEfg& model_;
   EdgeBroadPhase broad_phase_;
+  double margin_;
   std::vector<std::array<int, 2>> particle_links_;
   std::vector<std::uint8_t> particle_link_severed_;
   std::vector<std::vector<int>> links_of_particle_;  // link indices per particle
   // Element links in the broad phase: which (element, particle) each slot holds, to remove
   // exactly what is there when a neighbourhood changes.
   std::vector<std::vector<int>> element_link_particles_;
+  std::vector<std::uint8_t> element_stale_;  // 1: the row changed since its links were boxed
   long total_links_severed_ = 0;
   std::vector<int> candidates_;  // reused
-  std::vector<std::uint8_t> near_particle_;  // reused by refit
   // The endpoints of the call in progress (valid only inside cut()).
   const std::vector<Vec3>* points_start_ = nullptr;
   const std::vector<Vec3>* points_end_ = nullptr;
