@@ -30,10 +30,79 @@ void check_finite(const Vector& v, const char* name) {
   if (!v.allFinite()) fail(std::string(name) + " holds a non-finite value");
 }
 
+// The integration points binned in cubes of side `cell` over their box, each bin's elements
+// by increasing index (to_rest's search; rebuilt when the points may have moved a spacing).
+struct PointBins {
+  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
+  double cell = 1;
+  std::array<long long, 3> count{0, 0, 0};
+  std::vector<int> start, items;
+
+  bool build(const std::vector<Vec3>& points, double spacing) {
+    if (points.empty()) return false;
+    hi = points[0];
+    lo = points[0];
+    for (const Vec3& p : points) {
+      if (!p.allFinite()) return false;
+      lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    }
+    // About one point per bin; coarser when the body is spread out (never more bins than 8
+    // per point).
+    cell = spacing;
+    for (;;) {
+      long long total = 1;
+      for (int axis = 0; axis < 3; ++axis) {
+        count[axis] = static_cast<long long>((hi[axis] - lo[axis]) / cell) + 1;
+        total *= count[axis];
+      }
+      if (total <= 8 * static_cast<long long>(points.size()) + 64) break;
+      cell *= 2;
+    }
+    start.assign(static_cast<size_t>(count[0] * count[1] * count[2]) + 1, 0);
+    std::vector<long long> slot_of(points.size());
+    for (size_t e = 0; e < points.size(); ++e) {
+      const auto c = coordinates(points[e]);
+      slot_of[e] = c[0] + count[0] * (c[1] + count[1] * c[2]);
+      ++start[static_cast<size_t>(slot_of[e]) + 1];
+    }
+    for (size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
+    items.resize(points.size());
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (size_t e = 0; e < points.size(); ++e) items[static_cast<size_t>(fill[static_cast<size_t>(slot_of[e])]++)] = static_cast<int>(e);
+    return true;
+  }
+  std::array<long long, 3> coordinates(const Vec3& p) const {
+    std::array<long long, 3> c{};
+    for (int axis = 0; axis < 3; ++axis)
+      c[axis] = std::clamp(static_cast<long long>(std::floor((p[axis] - lo[axis]) / cell)), 0LL, count[axis] - 1);
+    return c;
+  }
+};
+
 }  // namespace
 
+struct VolumeCutter::RestSearch {
+  bool valid = false;
+  PointBins bins;               // of the integration points at the last rebuild
+  Vector particles;             // the particle positions they were formed from
+  double shape_sum = 0;         // max over elements of sum_k |phi_k|, at the last rebuild
+  std::vector<std::uint8_t> loose;  // re-selected since the rebuild: tested apart
+  std::vector<int> loose_list;
+  long rebuilds = 0;
+  // Per call: the points formed so far (stamp == call), so each is formed once.
+  std::vector<Vec3> point;
+  std::vector<unsigned> stamp;
+  unsigned call = 0;
+
+  void mark(int element) {
+    if (!valid || element < 0 || element >= static_cast<int>(loose.size()) || loose[element]) return;
+    loose[element] = 1;
+    loose_list.push_back(element);
+  }
+};
+
 VolumeCutter::VolumeCutter(CorotationalEfg& model, double margin, double slack)
-    : model_(model), broad_phase_(margin, slack), margin_(margin) {
+    : model_(model), broad_phase_(margin, slack), margin_(margin), rest_search_(std::make_unique<RestSearch>()) {
   // 6-connectivity on the particle grid: each particle to its next neighbour along +x, +y, +z
   // when that particle exists (particles outside the body's influence were dropped at build).
   const auto& cells = model_.particle_grid_coordinates();
@@ -330,6 +399,7 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
     }
     report.changed_elements.push_back(element);
     element_stale_[element] = 1;  // its boxed slots are stale until the next refit
+    rest_search_->mark(element);
   }
   points_start_ = points_end_ = nullptr;
   particles_start_ = particles_end_ = nullptr;
@@ -435,69 +505,66 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
   return row;
 }
 
-namespace {
+VolumeCutter::~VolumeCutter() = default;
 
-// The integration points binned in cubes of side `cell` over their box (built per call: the
-// points move with the body), each bin's elements by increasing index.
-struct PointBins {
-  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
-  double cell = 1;
-  std::array<long long, 3> count{0, 0, 0};
-  std::vector<int> start, items;
-
-  bool build(const std::vector<Vec3>& points, double spacing) {
-    if (points.empty()) return false;
-    hi = points[0];
-    lo = points[0];
-    for (const Vec3& p : points) {
-      if (!p.allFinite()) return false;
-      lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-    }
-    // About one point per bin; coarser when the body is spread out (never more bins than 8
-    // per point).
-    cell = spacing;
-    for (;;) {
-      long long total = 1;
-      for (int axis = 0; axis < 3; ++axis) {
-        count[axis] = static_cast<long long>((hi[axis] - lo[axis]) / cell) + 1;
-        total *= count[axis];
-      }
-      if (total <= 8 * static_cast<long long>(points.size()) + 64) break;
-      cell *= 2;
-    }
-    start.assign(static_cast<size_t>(count[0] * count[1] * count[2]) + 1, 0);
-    std::vector<long long> slot_of(points.size());
-    for (size_t e = 0; e < points.size(); ++e) {
-      const auto c = coordinates(points[e]);
-      slot_of[e] = c[0] + count[0] * (c[1] + count[1] * c[2]);
-      ++start[static_cast<size_t>(slot_of[e]) + 1];
-    }
-    for (size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
-    items.resize(points.size());
-    std::vector<int> fill(start.begin(), start.end() - 1);
-    for (size_t e = 0; e < points.size(); ++e) items[static_cast<size_t>(fill[static_cast<size_t>(slot_of[e])]++)] = static_cast<int>(e);
-    return true;
-  }
-  std::array<long long, 3> coordinates(const Vec3& p) const {
-    std::array<long long, 3> c{};
-    for (int axis = 0; axis < 3; ++axis)
-      c[axis] = std::clamp(static_cast<long long>(std::floor((p[axis] - lo[axis]) / cell)), 0LL, count[axis] - 1);
-    return c;
-  }
-};
-
-}  // namespace
+long VolumeCutter::rest_search_rebuilds() const { return rest_search_ ? rest_search_->rebuilds : 0; }
 
 void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world, std::vector<Vec3>& rest,
                            std::vector<double>* distance) const {
-  std::vector<Vec3> points;
-  integration_points(particles, points);
   rest.resize(world.size());
   if (distance) distance->resize(world.size());
   const int stride = model_.row_stride();
   const int elements = model_.element_count();
-  PointBins bins;
-  const bool binned = bins.build(points, model_.spacing());
+  RestSearch& search = *rest_search_;
+  // The integration point of e, formed exactly as integration_points() forms it.
+  const auto form = [&](int e) {
+    Vec3 point = Vec3::Zero();
+    const size_t base = static_cast<size_t>(e) * stride;
+    for (int k = 0; k < model_.row_lengths()[e]; ++k) {
+      point += model_.shape_values()[base + k] * particles.segment<3>(3 * static_cast<Eigen::Index>(model_.neighbours()[base + k]));
+    }
+    return point;
+  };
+  if (++search.call == 0) {  // the stamps wrapped: forget them all
+    std::fill(search.stamp.begin(), search.stamp.end(), 0u);
+    search.call = 1;
+  }
+  search.point.resize(static_cast<size_t>(elements));
+  search.stamp.resize(static_cast<size_t>(elements), 0u);
+  const auto point_of = [&](int e) -> const Vec3& {
+    if (search.stamp[e] != search.call) search.point[e] = form(e), search.stamp[e] = search.call;
+    return search.point[e];
+  };
+  // How far a point can have moved since the bins were built: |sum_k phi_k (x_k - x_k^bin)|
+  // <= sum_k |phi_k| max_k |x_k - x_k^bin|, with room for rounding.
+  double drift = std::numeric_limits<double>::infinity();
+  const bool finite = particles.allFinite();
+  if (search.valid && finite && search.particles.size() == particles.size()) {
+    double moved = 0;
+    for (Eigen::Index i = 0; i < particles.size(); i += 3)
+      moved = std::max(moved, (particles.segment<3>(i) - search.particles.segment<3>(i)).squaredNorm());
+    drift = search.shape_sum * std::sqrt(moved) * (1 + 1e-6) + 1e-9 * model_.spacing();
+  }
+  const bool stale = !(drift <= model_.spacing()) || 8 * search.loose_list.size() > static_cast<size_t>(elements);
+  if (stale && finite) {
+    std::vector<Vec3> points(static_cast<size_t>(elements));
+    search.shape_sum = 0;
+    for (int e = 0; e < elements; ++e) {
+      points[e] = point_of(e);
+      double sum = 0;
+      const size_t base = static_cast<size_t>(e) * stride;
+      for (int k = 0; k < model_.row_lengths()[e]; ++k) sum += std::abs(model_.shape_values()[base + k]);
+      search.shape_sum = std::max(search.shape_sum, sum);
+    }
+    search.valid = search.bins.build(points, model_.spacing());
+    search.particles = particles;
+    search.loose.assign(static_cast<size_t>(elements), 0);
+    search.loose_list.clear();
+    ++search.rebuilds;
+    drift = 1e-9 * model_.spacing();
+  }
+  const bool binned = search.valid && finite;
+  const PointBins& bins = search.bins;
   std::vector<std::pair<int, double>> candidates;  // element, squared distance
   int hint = -1;  // the previous point's choice: its distance bounds this point's nearest
   for (size_t w = 0; w < world.size(); ++w) {
@@ -518,34 +585,39 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
     bool found = false;
     const Vec3 q = world[w];
     if (binned && q.allFinite()) {
-      // Boxes [q - R, q + R] of growing R: every point within R of q is in the box's bins.
-      // The first R: just beyond the previous choice's distance (the points of a polyline
-      // come in order), else beyond q's distance to the points' box.
+      // Boxes [q - R, q + R] of growing R: every point within R of q is in the bins of the
+      // box grown by the drift (points are binned where they were at the rebuild), or among
+      // the loose ones. The first R: just beyond the previous choice's distance (the points
+      // of a polyline come in order), else beyond q's distance to the points' box.
       double reach = bins.cell;
       if (hint >= 0) {
-        reach = std::max(reach, 1.001 * (points[hint] - q).norm() + 1e-12);
+        reach = std::max(reach, 1.001 * (point_of(hint) - q).norm() + 1e-12);
       } else {
         const Vec3 outside = (bins.lo - q).cwiseMax(q - bins.hi).cwiseMax(Vec3::Zero());
-        reach = std::max(reach, outside.norm() + bins.cell);
+        reach = std::max(reach, std::max(0.0, outside.norm() - drift) + bins.cell);
       }
       for (int attempt = 0; attempt < 64 && !found; ++attempt) {
-        const auto first = bins.coordinates(q - Vec3::Constant(reach));
-        const auto last = bins.coordinates(q + Vec3::Constant(reach));
+        const auto first = bins.coordinates(q - Vec3::Constant(reach + drift));
+        const auto last = bins.coordinates(q + Vec3::Constant(reach + drift));
         const bool everything = first[0] == 0 && first[1] == 0 && first[2] == 0 && last[0] == bins.count[0] - 1 &&
                                 last[1] == bins.count[1] - 1 && last[2] == bins.count[2] - 1;
         candidates.clear();
         double least = std::numeric_limits<double>::infinity();
+        const auto consider = [&](int e) {
+          const double d = (point_of(e) - q).squaredNorm();
+          candidates.emplace_back(e, d);
+          least = std::min(least, d);
+        };
         for (long long k = first[2]; k <= last[2]; ++k)
           for (long long j = first[1]; j <= last[1]; ++j)
             for (long long i = first[0]; i <= last[0]; ++i) {
               const size_t b = static_cast<size_t>(i + bins.count[0] * (j + bins.count[1] * k));
               for (int s = bins.start[b]; s < bins.start[b + 1]; ++s) {
                 const int e = bins.items[static_cast<size_t>(s)];
-                const double d = (points[e] - q).squaredNorm();
-                candidates.emplace_back(e, d);
-                least = std::min(least, d);
+                if (!search.loose[e]) consider(e);
               }
             }
+        for (int e : search.loose_list) consider(e);
         if (!std::isfinite(least)) {
           if (everything) break;  // no finite distance: the scan below decides
           reach *= 2;
@@ -577,7 +649,7 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
       nearest = 0;
       best = std::numeric_limits<double>::infinity();
       for (int e = 0; e < elements; ++e) {
-        const double d = (points[e] - q).squaredNorm();
+        const double d = (point_of(e) - q).squaredNorm();
         if (d < best * (1 - 1e-9)) best = d, nearest = e;
       }
     }
@@ -589,7 +661,7 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
     }
     if (distance) (*distance)[w] = std::sqrt(best);
     const Eigen::FullPivLU<Mat3> lu(fit);
-    const Vec3 offset = world[w] - points[nearest];
+    const Vec3 offset = world[w] - point_of(nearest);
     rest[w] = model_.element_centres()[nearest] + (lu.isInvertible() ? Vec3(lu.solve(offset)) : offset);
   }
 }

@@ -37,6 +37,7 @@
 #include <cstdint>
 #include <functional>
 #include <span>
+#include <memory>
 #include <vector>
 
 namespace incise::physics {
@@ -64,6 +65,9 @@ class VolumeCutter {
   // cutter; its neighbourhoods are edited only through cut(). `margin` grows the broad-phase
   // boxes (m; at least the CCD touching distance), `slack` keeps boxes fat between refits.
   VolumeCutter(CorotationalEfg& model, double margin, double slack);
+  ~VolumeCutter();
+  VolumeCutter(const VolumeCutter&) = delete;
+  VolumeCutter& operator=(const VolumeCutter&) = delete;
 
   // One step: the blade polyline at t = 0 and t = 1 (same point count, >= 2) and the particle
   // positions at t = 0 and t = 1 (3n each). Severs what the blade touches and re-selects
@@ -94,8 +98,16 @@ class VolumeCutter {
   // fit (seed 004 §2.3: topology edits are done at rest). Points far outside extrapolate.
   // `distance`, if given, receives each point's distance to that integration point (far means
   // outside the body, where the extrapolation means little).
+  // The nearest point is the one a scan of every element would pick (nearest up to a relative
+  // 1e-9, lowest index among ties), found in bins of the integration points kept from an
+  // earlier call: only the points near the query are formed. The bins stay valid while the
+  // points cannot have moved more than a spacing since they were built (each point moves at
+  // most sum_k |phi_k| times the farthest particle's motion); re-selected elements are tested
+  // apart until the next rebuild. Not safe to call concurrently on one cutter.
   void to_rest(const Vector& particles, std::span<const Vec3> world, std::vector<Vec3>& rest,
                std::vector<double>* distance = nullptr) const;
+  // How many times to_rest rebuilt its bins of integration points (over all calls).
+  long rest_search_rebuilds() const;
 
   // Particle-particle links (a < b) and which are severed.
   const std::vector<std::array<int, 2>>& particle_links() const { return particle_links_; }
@@ -141,6 +153,8 @@ class VolumeCutter {
   const Vector* particles_start_ = nullptr;
   const Vector* particles_end_ = nullptr;
   const RestVisibility* rest_cut_ = nullptr;
+  struct RestSearch;  // to_rest's bins, kept between calls
+  std::unique_ptr<RestSearch> rest_search_;
 };
 
 }  // namespace incise::physics

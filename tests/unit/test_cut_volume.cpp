@@ -198,10 +198,12 @@ TEST(VolumeCut, TheSeparatedPieceFallsFreely) {
 }
 
 TEST(VolumeCut, ToRestPicksTheSameIntegrationPointAsAScanOfEveryElement) {
-  // to_rest looks the nearest integration point up in bins; the rule it must keep is the scan
-  // in element order that takes a point only when it is nearer by a relative 1e-9 (the lowest
-  // index among ties). Checked against that scan, written out here, for points inside, on
-  // ties between points, just outside and far outside a deformed beam.
+  // to_rest looks the nearest integration point up in bins it keeps between calls; the rule it
+  // must keep is the scan in element order that takes a point only when it is nearer by a
+  // relative 1e-9 (the lowest index among ties). Checked against that scan, written out here,
+  // for points inside, on ties between points, just outside and far outside a deformed beam:
+  // on the bins' first build, after a small motion (the kept bins, grown by the drift), after
+  // a cut re-selected elements (tested apart), and after a motion beyond a spacing (rebuilt).
   CorotationalEfg model = make_beam();
   VolumeCutter cutter(model, 1e-6, 0.002);
   Vector x = model.rest_positions();
@@ -210,51 +212,80 @@ TEST(VolumeCut, ToRestPicksTheSameIntegrationPointAsAScanOfEveryElement) {
     x[3 * i + 2] += 0.02 * s * s;                 // a bend
     x[3 * i + 1] += 0.05 * s * x[3 * i + 2];      // and a shear
   }
-  std::vector<Vec3> points;
-  cutter.integration_points(x, points);
-  std::vector<Vec3> world;
   unsigned state = 12345;
   const auto uniform = [&]() {
     state = state * 1664525u + 1013904223u;
     return static_cast<double>(state >> 8) / static_cast<double>(1u << 24);
   };
-  for (int k = 0; k < 400; ++k)
-    world.emplace_back(-0.02 + 0.14 * uniform(), -0.03 + 0.06 * uniform(), -0.03 + 0.06 * uniform());
-  // Midway between two neighbouring points, and nearly so (ties and near-ties).
-  for (int e = 0; e + 1 < model.element_count(); e += 37) {
-    const Vec3 middle = 0.5 * (points[e] + points[e + 1]);
-    world.push_back(middle);
-    world.push_back(middle + 1e-12 * (points[e + 1] - points[e]));
-    world.push_back(points[e]);
-  }
-  world.emplace_back(1.0, 2.0, -3.0);  // far away
-  std::vector<Vec3> rest;
-  std::vector<double> distance;
-  cutter.to_rest(x, world, rest, &distance);
-  ASSERT_EQ(rest.size(), world.size());
-  int ties = 0;
-  for (size_t w = 0; w < world.size(); ++w) {
-    int nearest = 0;
-    double best = std::numeric_limits<double>::infinity();
-    for (int e = 0; e < model.element_count(); ++e) {
-      const double d = (points[e] - world[w]).squaredNorm();
-      if (d < best * (1 - 1e-9)) best = d, nearest = e;
+  const auto check = [&](const Vector& positions, const char* phase, const std::vector<int>& focus = {}) {
+    std::vector<Vec3> points;
+    cutter.integration_points(positions, points);
+    std::vector<Vec3> world;
+    for (int k = 0; k < 400; ++k)
+      world.emplace_back(-0.02 + 0.14 * uniform(), -0.03 + 0.06 * uniform(), -0.03 + 0.06 * uniform());
+    // Midway between two neighbouring points, and nearly so (ties and near-ties).
+    for (int e = 0; e + 1 < model.element_count(); e += 37) {
+      const Vec3 middle = 0.5 * (points[e] + points[e + 1]);
+      world.push_back(middle);
+      world.push_back(middle + 1e-12 * (points[e + 1] - points[e]));
+      world.push_back(points[e]);
     }
-    int close = 0;
-    for (int e = 0; e < model.element_count(); ++e) close += (points[e] - world[w]).squaredNorm() <= best * (1 + 1e-9) ? 1 : 0;
-    ties += close > 1 ? 1 : 0;
-    ASSERT_EQ(distance[w], std::sqrt(best)) << "point " << w;
-    // The mapped point is the chosen element's: X_e + F_e^-1 (x - x_e).
-    Mat3 fit = Mat3::Zero();
-    const size_t base = static_cast<size_t>(nearest) * model.row_stride();
-    for (int k = 0; k < model.row_lengths()[nearest]; ++k)
-      fit += x.segment<3>(3 * model.neighbours()[base + k]) * model.matching_coefficients()[base + k].transpose();
-    const Eigen::FullPivLU<Mat3> lu(fit);
-    const Vec3 offset = world[w] - points[nearest];
-    const Vec3 expected = model.element_centres()[nearest] + (lu.isInvertible() ? Vec3(lu.solve(offset)) : offset);
-    ASSERT_EQ(rest[w], expected) << "point " << w << ": expected element " << nearest;
+    world.emplace_back(1.0, 2.0, -3.0);  // far away
+    // At and between the points of the elements in focus and their neighbours in index.
+    for (int e : focus) {
+      world.push_back(points[e]);
+      for (int other : {e - 1, e + 1})
+        if (other >= 0 && other < model.element_count()) world.push_back(0.5 * (points[e] + points[other]));
+    }
+    std::vector<Vec3> rest;
+    std::vector<double> distance;
+    cutter.to_rest(positions, world, rest, &distance);
+    ASSERT_EQ(rest.size(), world.size());
+    int ties = 0;
+    for (size_t w = 0; w < world.size(); ++w) {
+      int nearest = 0;
+      double best = std::numeric_limits<double>::infinity();
+      for (int e = 0; e < model.element_count(); ++e) {
+        const double d = (points[e] - world[w]).squaredNorm();
+        if (d < best * (1 - 1e-9)) best = d, nearest = e;
+      }
+      int close = 0;
+      for (int e = 0; e < model.element_count(); ++e) close += (points[e] - world[w]).squaredNorm() <= best * (1 + 1e-9) ? 1 : 0;
+      ties += close > 1 ? 1 : 0;
+      ASSERT_EQ(distance[w], std::sqrt(best)) << phase << ", point " << w;
+      // The mapped point is the chosen element's: X_e + F_e^-1 (x - x_e).
+      Mat3 fit = Mat3::Zero();
+      const size_t base = static_cast<size_t>(nearest) * model.row_stride();
+      for (int k = 0; k < model.row_lengths()[nearest]; ++k)
+        fit += positions.segment<3>(3 * model.neighbours()[base + k]) * model.matching_coefficients()[base + k].transpose();
+      const Eigen::FullPivLU<Mat3> lu(fit);
+      const Vec3 offset = world[w] - points[nearest];
+      const Vec3 expected = model.element_centres()[nearest] + (lu.isInvertible() ? Vec3(lu.solve(offset)) : offset);
+      ASSERT_EQ(rest[w], expected) << phase << ", point " << w << ": expected element " << nearest;
+    }
+    EXPECT_GT(ties, 10) << phase << ": the case exercises ties";
+  };
+  check(x, "first build");
+  EXPECT_EQ(cutter.rest_search_rebuilds(), 1);
+  // A motion well under a spacing (a = 2.5 mm): the bins are kept.
+  Vector moved = x;
+  for (int i = 0; i < model.node_count(); ++i) moved[3 * i + 2] += 2e-4 * std::sin(60 * x[3 * i]), moved[3 * i] += 1e-4;
+  check(moved, "small motion");
+  EXPECT_EQ(cutter.rest_search_rebuilds(), 1);
+  // A motion beyond a spacing: rebuilt. The part beyond x = 0.051 is lifted by 4 a, so that
+  // the elements the cut below re-selects there move far: their old fits spanned both parts.
+  for (int i = 0; i < model.node_count(); ++i) {
+    moved[3 * i + 1] += 0.004;
+    if (model.rest_positions()[3 * i] > 0.051) moved[3 * i + 2] += 0.01;
   }
-  EXPECT_GT(ties, 10) << "the case exercises ties";
+  check(moved, "large motion");
+  EXPECT_EQ(cutter.rest_search_rebuilds(), 2);
+  // A cut re-selects elements: their points move by more than the drift (none: the bins were
+  // built at these positions), so they are tested apart.
+  const VolumeCutReport report = cutter.cut(blade_at(0.051, 0.04), blade_at(0.051, 0.0), moved, moved);
+  ASSERT_GT(report.elements_reselected, 0);
+  check(moved, "after a cut", report.changed_elements);
+  EXPECT_EQ(cutter.rest_search_rebuilds(), 2);
 }
 
 // The broad phase only narrows the search: over a progressive cut (a blade lowered in small
