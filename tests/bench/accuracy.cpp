@@ -46,7 +46,7 @@
 // matched to them near the crack (crack_layers): the tip still converges at about h^1.5, so
 // the quick run goes to 12 rows (404k dofs), the full run to 16 (708k).
 //
-// Rows: efg nb8 (8 cell corners with the model's defaults: h = 3 a, 8^3 volume samples,
+// Rows: efg nb8 (8 cell corners with the model's defaults: h = 1.1 x the farthest corner, 8^3 volume samples,
 // partial-cube points at the inside centroid; corotational_efg.hpp says why), nb4, novolume
 // (nb8 with every touched cube counted whole), nb8_support3 (h = 3 x the farthest corner, the
 // literal reading of the thesis's constant) and nb8_thesis (that support, cube-centre points

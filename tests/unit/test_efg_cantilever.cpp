@@ -89,7 +89,7 @@ TEST(EfgCantileverB1, StaticTipDeflectionAgainstQuadraticTets) {
                 spacing, neighbours, support_factor, solve.dofs, solve.tip_mm, 100 * error);
     return error;
   };
-  // The default (8 neighbours, h = 3 a = 1.1547 x the farthest corner): within 1 % at both
+  // The default (8 neighbours, h = 1.1 x the farthest corner, 2.86 a at a cube's centre): within 1 % at both
   // sizes (seed-004 §5.1: 0.4 % in bending at about 10k dofs).
   EXPECT_LT(error_of(0.005, 8, EfgSettings{}.support_factor), 0.01);
   EXPECT_LT(error_of(0.0025, 8, EfgSettings{}.support_factor), 0.01);
