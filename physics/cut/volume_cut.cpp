@@ -330,8 +330,18 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
   // Agreement with the rest cut near this sweep.
   if (rest_cut && rest_cut->blocked) {
     const int stride = model_.row_stride();
+    // Each element's links at rest, boxed (rest positions do not move; a row changes only
+    // here, and its box is taken again below): most elements are far from the region.
+    if (rest_link_boxes_.size() != static_cast<size_t>(model_.element_count())) {
+      rest_link_boxes_.resize(static_cast<size_t>(model_.element_count()));
+      for (int e = 0; e < model_.element_count(); ++e) box_rest_links(e);
+    }
     for (int e = 0; e < model_.element_count(); ++e) {
       if (!model_.element_active(e)) continue;
+      const auto& box = rest_link_boxes_[e];
+      bool near = true;
+      for (int axis = 0; axis < 3; ++axis) near = near && box[1][axis] >= rest_cut->lo[axis] && box[0][axis] <= rest_cut->hi[axis];
+      if (!near) continue;
       const Vec3& centre = model_.element_centres()[e];
       // Each link whose box meets the region (not only the links of the integration points
       // inside it: a link to a particle a few spacings away, as re-selection makes, can
@@ -398,6 +408,7 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
       model_.deactivate_element(element);
     }
     report.changed_elements.push_back(element);
+    if (rest_link_boxes_.size() == static_cast<size_t>(model_.element_count())) box_rest_links(element);
     element_stale_[element] = 1;  // its boxed slots are stale until the next refit
     rest_search_->mark(element);
   }
@@ -506,6 +517,17 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
 }
 
 VolumeCutter::~VolumeCutter() = default;
+
+void VolumeCutter::box_rest_links(int element) {
+  const Vec3& centre = model_.element_centres()[element];
+  Vec3 lo = centre, hi = centre;
+  const size_t base = static_cast<size_t>(element) * model_.row_stride();
+  for (int k = 0; k < model_.row_lengths()[element]; ++k) {
+    const Vec3 to = model_.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(model_.neighbours()[base + k]));
+    lo = lo.cwiseMin(to), hi = hi.cwiseMax(to);
+  }
+  rest_link_boxes_[element] = {lo, hi};
+}
 
 long VolumeCutter::rest_search_rebuilds() const { return rest_search_ ? rest_search_->rebuilds : 0; }
 

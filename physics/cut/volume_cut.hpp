@@ -153,6 +153,9 @@ class VolumeCutter {
   const Vector* particles_start_ = nullptr;
   const Vector* particles_end_ = nullptr;
   const RestVisibility* rest_cut_ = nullptr;
+  // Per element, the box of its links at rest (the rest-cut agreement pass of cut()).
+  std::vector<std::array<Vec3, 2>> rest_link_boxes_;
+  void box_rest_links(int element);
   struct RestSearch;  // to_rest's bins, kept between calls
   std::unique_ptr<RestSearch> rest_search_;
 };
