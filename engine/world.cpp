@@ -532,11 +532,17 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
   physics::remap_surface(*body.efg, *body.cut_surface, *body.embedding, mapping, reuse);
   reuse.element_changed = nullptr;
   if (surface_changed) {
-    body.surface = body.cut_surface->triangles();
-    body.render_triangles.clear();
-    body.render_triangles.reserve(3 * body.surface.size());
-    for (const auto& t : body.surface)
-      for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
+    // The rebuild patched its triangle list in place and says which range it wrote: the
+    // body's and the render's copies (equal to the list before the rebuild) take that range
+    // only, not the whole list.
+    const auto& triangles = body.cut_surface->triangles();
+    const auto [first, last] = body.cut_surface->changed_triangles();
+    body.surface.resize(triangles.size());
+    std::copy(triangles.begin() + first, triangles.begin() + last, body.surface.begin() + first);
+    body.render_triangles.resize(3 * triangles.size());
+    for (int t = first; t < last; ++t)
+      for (int c = 0; c < 3; ++c)
+        body.render_triangles[3 * static_cast<std::size_t>(t) + c] = static_cast<std::uint32_t>(triangles[t][c]);
   }
   // Only the remapped rows changed, so only their vertices' fixed flags and positions are
   // redone: the others' positions are those update_surface took from the same particle

@@ -365,10 +365,27 @@ int CutSurface::cut(std::span<const RestTriangle> triangles) {
 
 void CutSurface::rebuild() {
   if (!new_surface_cubes_.empty()) {
-    surface_cubes_.insert(surface_cubes_.end(), new_surface_cubes_.begin(), new_surface_cubes_.end());
+    // Merged in, sorted: the few new cubes are sorted and merged rather than the whole list.
+    // A cube new to the list has no triangles yet; its first is where its predecessor's end.
+    std::sort(new_surface_cubes_.begin(), new_surface_cubes_.end());
+    new_surface_cubes_.erase(std::unique(new_surface_cubes_.begin(), new_surface_cubes_.end()), new_surface_cubes_.end());
+    size_t added = 0;
+    for (int cube : new_surface_cubes_) {
+      const auto at = std::lower_bound(surface_cubes_.begin(), surface_cubes_.end(), cube);
+      if (at != surface_cubes_.end() && *at == cube) continue;
+      const int before = at == surface_cubes_.begin() ? -1 : *(at - 1);
+      cube_first_[cube] = before < 0 ? 0 : cube_first_[before] + cube_triangles_[before];
+      cube_triangles_[cube] = 0;
+      new_surface_cubes_[added++] = cube;
+    }
+    new_surface_cubes_.resize(added);
+    if (added > 0) {
+      merged_cubes_.resize(surface_cubes_.size() + added);
+      std::merge(surface_cubes_.begin(), surface_cubes_.end(), new_surface_cubes_.begin(), new_surface_cubes_.end(),
+                 merged_cubes_.begin());
+      surface_cubes_.swap(merged_cubes_);
+    }
     new_surface_cubes_.clear();
-    std::sort(surface_cubes_.begin(), surface_cubes_.end());
-    surface_cubes_.erase(std::unique(surface_cubes_.begin(), surface_cubes_.end()), surface_cubes_.end());
   }
   // The faces whose state changes: the newly cut ones, and those the last rebuild hid (shown
   // again, then hidden anew if they still pinch), so that the faces shown are as if every
@@ -681,7 +698,9 @@ void CutSurface::refresh(std::vector<int> nodes) {
   // Positions: the redone vertices from their nodes, cut-face ones onto the cut; the other
   // cut-face vertices again where the cut gained triangles within reach.
   const double reach = std::sqrt(3.0) * cell_;
+  placed_.clear();
   const auto place = [&](int id) {
+    placed_.push_back(id);
     positions_[id] = node_rest_[vertex_node_[id]];
     if (!on_cut_[id]) return;
     if (const auto nearest = rest_cut_.nearest_point(positions_[id], reach)) positions_[id] = *nearest;
@@ -701,30 +720,83 @@ void CutSurface::refresh(std::vector<int> nodes) {
     }
     projected_triangles_ = rest_cut_.size();
   }
-  rest_vertices_.resize(3 * static_cast<Eigen::Index>(positions_.size()));
-  for (size_t v = 0; v < positions_.size(); ++v) rest_vertices_.segment<3>(3 * static_cast<Eigen::Index>(v)) = positions_[v];
+  // Only the placed vertices' rest positions are written (an index keeps its row otherwise).
+  if (rest_vertices_.size() != 3 * static_cast<Eigen::Index>(positions_.size()))
+    rest_vertices_.conservativeResize(3 * static_cast<Eigen::Index>(positions_.size()));
+  for (int id : placed_) rest_vertices_.segment<3>(3 * static_cast<Eigen::Index>(id)) = positions_[id];
 
-  // Triangles: the surface cubes' in increasing order, the region's new, the others' kept.
+  // Triangles: the surface cubes' in increasing order, each cube's contiguous. Only the
+  // region's cubes have new triangles: they are written over their old ones in place while
+  // every cube keeps its count; from the first cube whose count changes on, the rest of the
+  // list moves by the counts' difference (moved as runs, the kept cubes' firsts shifted).
   if (cube_first_.size() != inside_.size()) cube_first_.assign(inside_.size(), 0), cube_triangles_.assign(inside_.size(), 0);
-  std::vector<std::array<int, 3>> triangles;
-  triangles.reserve(triangles_.size() + region_triangles.size());
-  size_t q = 0;
-  for (int cube : surface_cubes_) {
-    const int first = static_cast<int>(triangles.size());
-    if (cube_mark_[cube]) {
-      for (; q < quads.size() && quads[q].cube == cube; ++q) {
-        triangles.push_back(region_triangles[2 * q]);
-        triangles.push_back(region_triangles[2 * q + 1]);
-      }
-    } else {
-      const auto from = triangles_.begin() + cube_first_[cube];
-      triangles.insert(triangles.end(), from, from + cube_triangles_[cube]);
+  struct Segment {
+    int cube, old_first, old_count;
+    size_t quad;  // its first quad; it has (new count) / 2
+    int count;
+  };
+  std::vector<Segment> segments;
+  {
+    size_t q = 0;
+    for (int cube : region) {
+      const size_t from = q;
+      while (q < quads.size() && quads[q].cube == cube) ++q;
+      const int count = static_cast<int>(2 * (q - from));
+      if (count == 0 && cube_triangles_[cube] == 0) continue;  // nothing there, before or now
+      if (count > 0 && !std::binary_search(surface_cubes_.begin(), surface_cubes_.end(), cube))
+        throw std::logic_error("CutSurface: a face outside the surface cubes");
+      segments.push_back({cube, cube_first_[cube], cube_triangles_[cube], from, count});
     }
-    cube_first_[cube] = first;
-    cube_triangles_[cube] = static_cast<std::uint8_t>(static_cast<int>(triangles.size()) - first);
+    if (q != quads.size()) throw std::logic_error("CutSurface: a face outside the surface cubes");
   }
-  if (q != quads.size()) throw std::logic_error("CutSurface: a face outside the surface cubes");
-  triangles_ = std::move(triangles);
+  const auto write = [&](const Segment& s, std::array<int, 3>* to) {
+    for (int t = 0; t < s.count; ++t) to[t] = region_triangles[2 * s.quad + t];
+  };
+  const int old_size = static_cast<int>(triangles_.size());
+  int changed_from = old_size, changed_to = 0;
+  size_t m = 0;
+  for (; m < segments.size() && segments[m].count == segments[m].old_count; ++m) {
+    const Segment& s = segments[m];
+    write(s, triangles_.data() + s.old_first);
+    changed_from = std::min(changed_from, s.old_first);
+    changed_to = std::max(changed_to, s.old_first + s.count);
+  }
+  if (m < segments.size()) {
+    const int from = segments[m].old_first;
+    int delta = 0;
+    for (size_t s = m; s < segments.size(); ++s) delta += segments[s].count - segments[s].old_count;
+    moved_.assign(triangles_.begin() + from, triangles_.end());  // the old tail
+    triangles_.resize(static_cast<size_t>(old_size + delta));
+    // The kept cubes after `from` move by the difference so far.
+    auto cube_at = std::lower_bound(surface_cubes_.begin(), surface_cubes_.end(), segments[m].cube);
+    int read = from, at = from, shift = 0;
+    const auto copy_run = [&](int to_old) {  // old [read, to_old) to `at`
+      std::copy(moved_.begin() + (read - from), moved_.begin() + (to_old - from), triangles_.begin() + at);
+      at += to_old - read;
+      read = to_old;
+    };
+    const auto shift_until = [&](int cube) {  // the kept cubes' firsts below `cube`
+      for (; cube_at != surface_cubes_.end() && *cube_at < cube; ++cube_at) cube_first_[*cube_at] += shift;
+    };
+    for (size_t s = m; s < segments.size(); ++s) {
+      const Segment& segment = segments[s];
+      shift_until(segment.cube);
+      if (cube_at != surface_cubes_.end() && *cube_at == segment.cube) ++cube_at;
+      copy_run(segment.old_first);
+      write(segment, triangles_.data() + at);
+      cube_first_[segment.cube] = at;
+      cube_triangles_[segment.cube] = static_cast<std::uint8_t>(segment.count);
+      at += segment.count;
+      read = segment.old_first + segment.old_count;
+      shift += segment.count - segment.old_count;
+    }
+    shift_until(std::numeric_limits<int>::max());
+    const int last_end = at;  // the last redone cube's end: the rest is as before when delta is 0
+    copy_run(old_size);
+    changed_from = std::min(changed_from, from);
+    changed_to = delta == 0 ? std::max(changed_to, last_end) : static_cast<int>(triangles_.size());
+  }
+  changed_triangles_ = changed_from < changed_to ? std::pair{changed_from, changed_to} : std::pair{0, 0};
   for (int node : dirty) node_mark_[node] = 0;
   for (int cube : region) cube_mark_[cube] = 0;
 }

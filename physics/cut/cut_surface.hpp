@@ -36,6 +36,11 @@
 // died (groups merged again) stays allocated but unused: key -1, in no triangle, its last
 // rest position and anchor kept so that it can stay mapped (vertex_count() counts only the
 // used ones). The result equals a rebuild from scratch with the same cut, up to numbering.
+// The lists are patched in place, not rewritten: the triangles are the surface cubes' in
+// increasing cube order, each cube's contiguous, so only the redone cubes' are written and
+// the part after the first cube whose count changed moves as a block; only the placed
+// vertices' rest positions are written. The rebuild says what it wrote
+// (changed_triangles(), placed_vertices()), so copies of the lists can take only that.
 #pragma once
 
 #include "physics/efg/corotational_efg.hpp"
@@ -131,6 +136,14 @@ class CutSurface {
 
   const Vector& rest_vertices() const { return rest_vertices_; }
   const std::vector<std::array<int, 3>>& triangles() const { return triangles_; }
+  // The triangles the last rebuild wrote, [first, last) in triangles(): the others are those
+  // of the list before it at the same index (when the count changed, last is the new count).
+  // Each rebuild patches the list in place: the redone cubes' triangles are written over
+  // their old ones, and the part after the first cube whose count changed moves as a block.
+  std::pair<int, int> changed_triangles() const { return changed_triangles_; }
+  // The vertex indices whose rest position the last rebuild wrote (each once; appended
+  // indices are among them): the others keep their row of rest_vertices().
+  const std::vector<int>& placed_vertices() const { return placed_; }
   // Per vertex index (used or not, see the file comment; rest_vertices() has as many).
   const std::vector<Vec3>& anchors() const { return anchors_; }
   const std::vector<std::uint8_t>& on_cut() const { return on_cut_; }  // 0 for unused indices
@@ -174,6 +187,7 @@ class CutSurface {
   // instead of every cube, in the same order. cut() adds the cubes of the faces it cuts.
   std::vector<int> surface_cubes_;
   std::vector<int> new_surface_cubes_;
+  std::vector<int> merged_cubes_;  // scratch of the merge
   std::vector<Vec3> node_rest_;              // per grid node, snapped onto the surface
   int cube_count_ = 0;
   int cut_faces_ = 0;
@@ -197,6 +211,9 @@ class CutSurface {
   std::vector<int> vertex_stamp_;
   int stamp_ = 0;
   std::vector<Vec3> positions_;     // per vertex index, as rest_vertices_
+  std::vector<int> placed_;         // the vertices the last rebuild placed (rest position written)
+  std::vector<std::array<int, 3>> moved_;  // scratch: the triangles' tail while it moves
+  std::pair<int, int> changed_triangles_{0, 0};
 
   Vector rest_vertices_;
   std::vector<std::array<int, 3>> triangles_;

@@ -1,7 +1,8 @@
 // The cut surface's rebuild after a cut is local (physics/cut/cut_surface.hpp): vertices
 // away from the new cut keep their index, key and rest position, an index keeps its key as
 // long as the key lives, the surface stays closed after every cut, and the outcome is the
-// surface of the same cut made all at once (up to the numbering).
+// surface of the same cut made all at once (up to the numbering); the lists are patched in
+// place and the rebuild reports exactly what it wrote.
 #include "physics/cut/cut_surface.hpp"
 
 #include <gtest/gtest.h>
@@ -35,6 +36,11 @@ std::vector<RestTriangle> plane_cut(double x_cut, double z_bottom) {
   return quad(Vec3(x_cut, -0.03, 0.03), Vec3(x_cut, 0.03, 0.03), Vec3(x_cut, 0.03, z_bottom), Vec3(x_cut, -0.03, z_bottom));
 }
 
+// The same from the bottom up to z_top.
+std::vector<RestTriangle> plane_cut_from_below(double x_cut, double z_top) {
+  return quad(Vec3(x_cut, -0.03, -0.03), Vec3(x_cut, 0.03, -0.03), Vec3(x_cut, 0.03, z_top), Vec3(x_cut, -0.03, z_top));
+}
+
 // Expects a and b to be the same surface whatever their numbering: the same used keys with
 // the same rest positions, anchors and cut flags, and the same triangles in the same order.
 void expect_same_surface(const CutSurface& a, const CutSurface& b, const std::string& what) {
@@ -62,6 +68,36 @@ void expect_same_surface(const CutSurface& a, const CutSurface& b, const std::st
   EXPECT_EQ(a.pinches_closed(), b.pinches_closed()) << what;
 }
 
+// The rebuild patches its lists in place and reports what it wrote
+// (CutSurface::changed_triangles, placed_vertices): a copy of the lists before it, patched
+// with only that, must be the lists after it.
+void expect_patch_complete(const std::vector<std::array<int, 3>>& triangles_before, const Vector& rest_before,
+                           const CutSurface& surface, const std::string& what) {
+  const auto& triangles = surface.triangles();
+  const auto [first, last] = surface.changed_triangles();
+  ASSERT_LE(0, first) << what;
+  ASSERT_LE(first, last) << what;
+  ASSERT_LE(last, static_cast<int>(triangles.size())) << what;
+  if (triangles.size() != triangles_before.size()) {
+    EXPECT_EQ(last, static_cast<int>(triangles.size())) << what << ": the count changed, the tail moved";
+  }
+  std::vector<std::array<int, 3>> patched = triangles_before;
+  patched.resize(triangles.size());
+  std::copy(triangles.begin() + first, triangles.begin() + last, patched.begin() + first);
+  for (size_t t = 0; t < triangles.size(); ++t) ASSERT_EQ(patched[t], triangles[t]) << what << ": triangle " << t;
+  const Eigen::Index rows = surface.rest_vertices().size();
+  ASSERT_GE(rows, rest_before.size()) << what;
+  Vector rest = rest_before;
+  rest.conservativeResize(rows);
+  std::set<int> placed;
+  for (int v : surface.placed_vertices()) {
+    ASSERT_TRUE(placed.insert(v).second) << what << ": vertex " << v << " placed twice";
+    rest.segment<3>(3 * static_cast<Eigen::Index>(v)) = surface.rest_vertices().segment<3>(3 * static_cast<Eigen::Index>(v));
+  }
+  for (Eigen::Index v = rest_before.size() / 3; v < rows / 3; ++v) EXPECT_TRUE(placed.count(static_cast<int>(v))) << what << ": appended vertex " << v;
+  for (Eigen::Index i = 0; i < rows; ++i) ASSERT_EQ(rest[i], surface.rest_vertices()[i]) << what << ": rest row " << i / 3;
+}
+
 }  // namespace
 
 TEST(CutSurfaceIncremental, VerticesAwayFromANewCutKeepTheirIndexAndTheSurfaceStaysClosed) {
@@ -79,6 +115,11 @@ TEST(CutSurfaceIncremental, VerticesAwayFromANewCutKeepTheirIndexAndTheSurfaceSt
       // Deeper, a little nearer the grid nodes: the shallow cut's faces get their vertices
       // projected onto this plane, where it is nearer, though they are not cut again.
       plane_cut(0.0770, -0.004),
+      // From below, then further up: the second's new faces are in higher cubes (the grid
+      // is numbered x fastest, z slowest) than those whose vertices it splits at the old
+      // crack front, which keep their faces' count (rewritten in place, not moved).
+      plane_cut_from_below(0.0890, -0.004),
+      plane_cut_from_below(0.0890, 0.004),
       // An oblique cut in the left piece, ending inside the bar.
       quad(c - 0.05 * u + 0.05 * w, c + 0.05 * u + 0.05 * w, c + 0.05 * u - 0.005 * w, c - 0.05 * u - 0.005 * w),
   };
@@ -88,8 +129,16 @@ TEST(CutSurfaceIncremental, VerticesAwayFromANewCutKeepTheirIndexAndTheSurfaceSt
     const std::vector<long long> keys = surface.vertex_keys();
     const Vector rest = surface.rest_vertices();
     const std::vector<Vec3> anchors = surface.anchors();
+    const std::vector<std::array<int, 3>> triangles = surface.triangles();
     EXPECT_GT(surface.cut(cuts[step]), 0) << what;
     surface.rebuild();
+    expect_patch_complete(triangles, rest, surface, what);
+    // The cut left the list's head in place; after the first (a pinch: the face is hidden,
+    // the count kept) cubes gained faces, so the tail moved.
+    EXPECT_GT(surface.changed_triangles().first, 0) << what;
+    if (step > 0) {
+      EXPECT_NE(surface.triangles().size(), triangles.size()) << what;
+    }
     if (step == 0) {
       EXPECT_EQ(surface.pinches_closed(), 1) << what;
     }
@@ -145,7 +194,7 @@ TEST(CutSurfaceIncremental, RandomBladeWalksStayClosedAndEqualTheCutMadeAtOnce) 
     return std::pow(p.x() / 0.03, 2) + std::pow(p.y() / 0.02, 2) + std::pow(p.z() / 0.015, 2) <= 1;
   };
   const Vec3 lo(-0.03, -0.02, -0.015), hi(0.03, 0.02, 0.015);
-  int pinches = 0, most_unused = 0, reused = 0;
+  int pinches = 0, most_unused = 0, reused = 0, in_place = 0;
   for (unsigned seed = 15; seed < 21; ++seed) {
     std::mt19937 random(seed);
     const auto uniform = [&random] { return random() / 2147483648.0 - 1.0; };  // in [-1, 1)
@@ -167,8 +216,12 @@ TEST(CutSurfaceIncremental, RandomBladeWalksStayClosedAndEqualTheCutMadeAtOnce) 
         p += 0.003 * direction + 0.0015 * jitter();
       }
       const std::vector<long long> keys = surface.vertex_keys();
+      const std::vector<std::array<int, 3>> triangles_before = surface.triangles();
+      const Vector rest_before = surface.rest_vertices();
       surface.cut(triangles);
       surface.rebuild();
+      expect_patch_complete(triangles_before, rest_before, surface, what);
+      in_place += triangles_before.size() == surface.triangles().size() && surface.changed_triangles().second > 0 ? 1 : 0;
       all.insert(all.end(), triangles.begin(), triangles.end());
       pinches += surface.pinches_closed();
       ASSERT_TRUE(surface_topology(surface.triangles()).watertight()) << what;
@@ -209,4 +262,5 @@ TEST(CutSurfaceIncremental, RandomBladeWalksStayClosedAndEqualTheCutMadeAtOnce) 
   EXPECT_GT(pinches, 100) << "the walks exercise pinch closing";
   EXPECT_GT(most_unused, 0) << "the walks exercise freed indices";
   EXPECT_GT(reused, 0) << "the walks exercise reusing freed indices";
+  EXPECT_GT(in_place, 0) << "the walks exercise rebuilds that keep the triangle count";
 }
