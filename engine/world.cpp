@@ -306,6 +306,7 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
       body.mapping_reuse.rest_vertices = body.cut_surface->rest_vertices();
       body.mapping_reuse.anchors = body.cut_surface->anchors();
       body.mapping_reuse.triangles_mapped = body.cut_surface->rest_cut().size();
+      body.mapping_reuse.revision = body.cut_surface->revision();
       body.surface = body.cut_surface->triangles();
       body.render_triangles.clear();
       for (const auto& t : body.surface)

@@ -474,6 +474,7 @@ struct Quad {
 }  // namespace
 
 void CutSurface::refresh(std::vector<int> nodes) {
+  ++revision_;
   const int nx = counts_[0], ny = counts_[1];
   const int node_nx = counts_[0] + 1, node_ny = counts_[1] + 1;
   if (node_mark_.size() != node_rest_.size()) node_mark_.assign(node_rest_.size(), 0);
@@ -629,6 +630,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
       int& id = vertex_of_[static_cast<size_t>(key)];
       if (id < 0 || std::binary_search(live.begin(), live.end(), key)) continue;
       vertex_keys_[id] = -1;
+      vertex_revision_[id] = revision_;
       on_cut_[id] = 0;
       free_vertices_.push_back(id);
       std::push_heap(free_vertices_.begin(), free_vertices_.end(), std::greater<>());
@@ -656,9 +658,11 @@ void CutSurface::refresh(std::vector<int> nodes) {
         anchors_.push_back(Vec3::Zero());
         on_cut_.push_back(0);
         positions_.push_back(Vec3::Zero());
+        vertex_revision_.push_back(revision_);
         vertex_stamp_.push_back(0);
       }
       vertex_keys_[id] = key;
+      vertex_revision_[id] = revision_;
       vertex_node_[id] = static_cast<int>(key / 8);
       ++used_vertices_;
     }
@@ -667,6 +671,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
       vertex_stamp_[id] = stamp_;
       const int nxy = nx * ny;
       anchors_[id] = cube_centre(cube % nx, (cube / nx) % ny, cube / nxy);
+      vertex_revision_[id] = revision_;
       on_cut_[id] = 0;
       redone.push_back(id);
     }
@@ -701,6 +706,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
   placed_.clear();
   const auto place = [&](int id) {
     placed_.push_back(id);
+    vertex_revision_[id] = revision_;
     positions_[id] = node_rest_[vertex_node_[id]];
     if (!on_cut_[id]) return;
     if (const auto nearest = rest_cut_.nearest_point(positions_[id], reach)) positions_[id] = *nearest;
@@ -1046,9 +1052,14 @@ void remap_surface(const CorotationalEfg& model, const CutSurface& surface, Surf
   std::optional<VertexMapper> mapper;
   const auto& keys = surface.vertex_keys();
   const auto& anchors = surface.anchors();
+  // With the copies taken at a known revision of the surface, an index it has not written
+  // since holds them still: neither compared nor copied again.
+  const bool by_revision = reuse.revision >= 0 && reuse.revision <= surface.revision();
+  const auto& revisions = surface.vertex_revisions();
   for (int v = 0; v < vertices; ++v) {
     const Eigen::Index at = 3 * static_cast<Eigen::Index>(v);
     bool dirty = v >= previous || embedding.row_lengths[v] > stride;
+    const bool written = v >= previous || !by_revision || revisions[v] > reuse.revision;
     if (!dirty && keys[v] >= 0) {
       // A used index: the same vertex (key, rest position, anchor) on an element whose
       // neighbourhood did not change. Its point is then still the nearest visible one unless
@@ -1056,23 +1067,27 @@ void remap_surface(const CorotationalEfg& model, const CutSurface& surface, Surf
       // stay hidden and the chosen one is the only one that can be lost.
       const Vec3& anchor = anchors[v];
       const int e = embedding.elements[v];
-      dirty = reuse.keys[v] != keys[v] || Vec3(reuse.rest_vertices.segment<3>(at)) != Vec3(rest_vertices.segment<3>(at)) ||
-              reuse.anchors[v] != anchor || (reuse.element_changed && (*reuse.element_changed)[e]);
+      dirty = (written && (reuse.keys[v] != keys[v] || Vec3(reuse.rest_vertices.segment<3>(at)) != Vec3(rest_vertices.segment<3>(at)) ||
+                           reuse.anchors[v] != anchor)) ||
+              (reuse.element_changed && (*reuse.element_changed)[e]);
       if (!dirty && cut_grew) {
         const Vec3& centre = model.element_centres()[e];
         const Vec3 lo = anchor.cwiseMin(centre), hi = anchor.cwiseMax(centre);
         if ((lo.array() <= cut_hi.array()).all() && (hi.array() >= cut_lo.array()).all()) dirty = cut.crosses(anchor, centre);
       }
     }
-    reuse.keys[v] = keys[v];
-    reuse.rest_vertices.segment<3>(at) = rest_vertices.segment<3>(at);
-    reuse.anchors[v] = anchors[v];
+    if (written) {
+      reuse.keys[v] = keys[v];
+      reuse.rest_vertices.segment<3>(at) = rest_vertices.segment<3>(at);
+      reuse.anchors[v] = anchors[v];
+    }
     if (!dirty) continue;  // an unused index keeps the row it had: it stays where it was
     if (!mapper) mapper.emplace(model, surface);
     mapper->map(v, embedding, report);
     reuse.remapped.push_back(v);
   }
   reuse.triangles_mapped = cut.size();
+  reuse.revision = surface.revision();
 }
 
 namespace {

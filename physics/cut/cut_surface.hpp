@@ -157,6 +157,11 @@ class CutSurface {
   long long key_space() const {
     return 8LL * (counts_[0] + 1) * (counts_[1] + 1) * (counts_[2] + 1);
   }
+  // Counts the rebuilds (the construction's is 1). Per vertex index: the revision that last
+  // wrote its key, rest position or anchor, so that a copy taken at revision r needs taking
+  // again only at the indices above r.
+  int revision() const { return revision_; }
+  const std::vector<int>& vertex_revisions() const { return vertex_revision_; }
   const RestCut& rest_cut() const { return rest_cut_; }
   int cut_faces() const { return cut_faces_; }
   int cubes() const { return cube_count_; }
@@ -214,6 +219,8 @@ class CutSurface {
   std::vector<int> placed_;         // the vertices the last rebuild placed (rest position written)
   std::vector<std::array<int, 3>> moved_;  // scratch: the triangles' tail while it moves
   std::pair<int, int> changed_triangles_{0, 0};
+  int revision_ = 0;
+  std::vector<int> vertex_revision_;  // per vertex index, see vertex_revisions()
 
   Vector rest_vertices_;
   std::vector<std::array<int, 3>> triangles_;
@@ -242,6 +249,9 @@ struct MappingReuse {
   Vector rest_vertices;         // the same for the rest positions
   std::vector<Vec3> anchors;    // and the anchors
   int triangles_mapped = 0;     // rest-cut triangles at the last mapping
+  // The surface's revision() the copies above were taken at, -1 if unknown: then every
+  // index is compared, else only those the surface wrote since (vertex_revisions()).
+  int revision = -1;
   const std::vector<std::uint8_t>* element_changed = nullptr;  // per element, may be null
   std::vector<int> remapped;  // out: the indices whose row was recomputed, increasing
 };

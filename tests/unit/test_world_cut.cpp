@@ -189,6 +189,13 @@ TEST(WorldCut, TheMappingKeptAcrossTheShippedCutScenesIsAFreshOneAtEveryEvent) {
       if (!world.step().cut_event) continue;
       ++events;
       ASSERT_EQ(rows_unlike_a_fresh_mapping(body), 0) << name << ", step " << k;
+      // The body's and the render's triangles, patched with the range the rebuild wrote, are
+      // the surface's.
+      ASSERT_TRUE(body.surface == body.cut_surface->triangles()) << name << ", step " << k;
+      ASSERT_EQ(body.render_triangles.size(), 3 * body.surface.size()) << name << ", step " << k;
+      for (std::size_t t = 0; t < body.surface.size(); ++t)
+        for (int c = 0; c < 3; ++c)
+          ASSERT_EQ(body.render_triangles[3 * t + c], static_cast<std::uint32_t>(body.surface[t][c])) << name << ", step " << k;
       const physics::SurfaceTopology full = physics::surface_topology(body.surface);
       ASSERT_EQ(body.cut_surface->topology().boundary_edges, full.boundary_edges) << name << ", step " << k;
       ASSERT_EQ(body.cut_surface->topology().nonmanifold_edges, full.nonmanifold_edges) << name << ", step " << k;
