@@ -589,7 +589,7 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
   // Every triangle the cut gained this step lies in the dirty box (the sweep's, grown).
   cut_totals_.elements_linked_across = physics::update_elements_linked_across(
       *body.efg, body.cut_surface->rest_cut(), body.linked_across, dirty_lo, dirty_hi, &changed,
-      &body.link_boxes);
+      &body.link_boxes, &body.linked_seen);
   stats.ms_checks += ms_since(start);
 }
 

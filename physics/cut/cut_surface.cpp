@@ -1114,11 +1114,15 @@ int elements_linked_across(const CorotationalEfg& model, const RestCut& cut) {
 
 int update_elements_linked_across(const CorotationalEfg& model, const RestCut& cut, std::vector<std::uint8_t>& linked,
                                   const Vec3& lo, const Vec3& hi, const std::vector<std::uint8_t>* changed,
-                                  std::vector<std::array<Vec3, 2>>* boxes) {
+                                  std::vector<std::array<Vec3, 2>>* boxes, std::vector<int>* seen) {
   const int elements = model.element_count();
   const bool all = static_cast<int>(linked.size()) != elements;
   if (all) linked.assign(static_cast<size_t>(elements), 0);
-  if (cut.size() == 0) return 0;
+  if (seen && (all || static_cast<int>(seen->size()) != elements)) seen->assign(static_cast<size_t>(elements), -1);
+  if (cut.size() == 0) {
+    if (seen) std::fill(seen->begin(), seen->end(), 0);
+    return 0;
+  }
   const int stride = model.row_stride();
   // The box of an element's links: its centre and its neighbours, at rest.
   const auto link_box = [&](int e) {
@@ -1136,6 +1140,25 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
     boxes->resize(static_cast<size_t>(elements));
     for (int e = 0; e < elements; ++e) (*boxes)[e] = link_box(e);
   }
+  const auto in_box = [&](const std::array<Vec3, 2>& box) {
+    return (box[0].array() <= hi.array()).all() && (box[1].array() >= lo.array()).all();
+  };
+  // The cut only grows and an unchanged element keeps its links: one linked across stays so,
+  // and one that was not becomes so only through a triangle added since its flag was taken
+  // (`seen`, per element). Those unchanged elements to test are tested against the triangles
+  // added since the earliest of their `seen` only (a triangle among them that is older than an
+  // element's own `seen` was in the cut its flag was taken with), the same answer as the full
+  // cut's. Elements are never re-activated (CorotationalEfg::deactivate_element is final).
+  std::optional<RestCut> added;
+  if (seen && cached && !all) {
+    int earliest = cut.size();
+    for (int e = 0; e < elements; ++e)
+      if (model.element_active(e) && !(*changed)[e] && !linked[e] && in_box((*boxes)[e])) earliest = std::min(earliest, (*seen)[e]);
+    if (earliest >= 0) {
+      added.emplace(model.spacing());
+      for (int t = earliest; t < cut.size(); ++t) added->add(cut.triangles()[t]);
+    }
+  }
   int across = 0;
   for (int e = 0; e < elements; ++e) {
     if (!model.element_active(e)) {
@@ -1145,11 +1168,15 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
     const bool element_changed = changed && (*changed)[e];
     if (cached && element_changed) (*boxes)[e] = link_box(e);
     bool check = all || element_changed;
-    if (!check) {
-      const std::array<Vec3, 2> box = boxes ? (*boxes)[e] : link_box(e);
-      check = (box[0].array() <= hi.array()).all() && (box[1].array() >= lo.array()).all();
+    if (!check) check = in_box(boxes ? (*boxes)[e] : link_box(e));
+    if (check) {
+      if (added && !element_changed) {
+        if (!linked[e]) linked[e] = element_linked_across(model, *added, e) ? 1 : 0;
+      } else {
+        linked[e] = element_linked_across(model, cut, e) ? 1 : 0;
+      }
+      if (seen) (*seen)[e] = cut.size();
     }
-    if (check) linked[e] = element_linked_across(model, cut, e) ? 1 : 0;
     across += linked[e];
   }
   return across;

@@ -270,9 +270,12 @@ int elements_linked_across(const CorotationalEfg& model, const RestCut& cut);
 // element count; returns the count. Equal to the full count as long as every triangle added
 // since the last call lies in [lo, hi]. `boxes` (may be null) caches each element's link box
 // at rest between calls: taken again for the elements `changed` marks, for all when its size
-// is not the element count or `changed` is null.
+// is not the element count or `changed` is null. `seen` (may be null; used with `boxes` and
+// `changed`) keeps per element the cut's size when its flag was last taken: an unchanged
+// element is then tested against the triangles added since only (it keeps its links and the
+// cut only grows: linked before, linked still), with the same outcome as the whole cut's.
 int update_elements_linked_across(const CorotationalEfg& model, const RestCut& cut, std::vector<std::uint8_t>& linked,
                                   const Vec3& lo, const Vec3& hi, const std::vector<std::uint8_t>* changed,
-                                  std::vector<std::array<Vec3, 2>>* boxes = nullptr);
+                                  std::vector<std::array<Vec3, 2>>* boxes = nullptr, std::vector<int>* seen = nullptr);
 
 }  // namespace incise::physics

@@ -203,9 +203,10 @@ TEST(CutSurface, LinkedAcrossKeptUpToDateEqualsTheFullCount) {
   // ones marked changed) must equal a full recount each time.
   CorotationalEfg model = bar_model();
   CutSurface surface(in_box, Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), 0.00125);
-  std::vector<std::uint8_t> linked, linked_cached;
+  std::vector<std::uint8_t> linked, linked_cached, linked_seen, linked_skipping, linked_skipping_seen;
   const std::vector<std::uint8_t> unchanged(static_cast<size_t>(model.element_count()), 0);
-  std::vector<std::array<Vec3, 2>> boxes;
+  std::vector<std::array<Vec3, 2>> boxes, boxes_seen, boxes_skipping, boxes_skipping_seen;
+  std::vector<int> seen, skipping_seen;
   int previous = 0;
   for (int strip = 0; strip < 8; ++strip) {
     // A slanted strip: x from 0.02 + 0.008 strip, top to bottom.
@@ -219,10 +220,26 @@ TEST(CutSurface, LinkedAcrossKeptUpToDateEqualsTheFullCount) {
     // The same with the elements' link boxes cached between calls (no neighbourhood changes).
     const int cached = update_elements_linked_across(model, surface.rest_cut(), linked_cached, lo, hi, &unchanged, &boxes);
     ASSERT_EQ(static_cast<int>(boxes.size()), model.element_count());
+    // The same testing only the triangles added since each element's flag was taken.
+    const int since = update_elements_linked_across(model, surface.rest_cut(), linked_seen, lo, hi, &unchanged,
+                                                    &boxes_seen, &seen);
     const int full = elements_linked_across(model, surface.rest_cut());
     EXPECT_EQ(incremental, full) << "strip " << strip;
     EXPECT_EQ(cached, full) << "strip " << strip;
+    EXPECT_EQ(since, full) << "strip " << strip;
     EXPECT_EQ(linked_cached, linked) << "strip " << strip;
+    EXPECT_EQ(linked_seen, linked) << "strip " << strip;
+    // Called only every other strip with that strip's box (the triangles of the strip between
+    // are outside it: the count can miss them), the per-element `seen` must still give
+    // exactly what testing the whole cut gives.
+    if (strip % 2 == 1) {
+      const int skipping = update_elements_linked_across(model, surface.rest_cut(), linked_skipping, lo, hi, &unchanged,
+                                                         &boxes_skipping);
+      const int skipping_since = update_elements_linked_across(model, surface.rest_cut(), linked_skipping_seen, lo, hi,
+                                                               &unchanged, &boxes_skipping_seen, &skipping_seen);
+      EXPECT_EQ(skipping_since, skipping) << "strip " << strip;
+      EXPECT_EQ(linked_skipping_seen, linked_skipping) << "strip " << strip;
+    }
     EXPECT_GT(full, previous) << "strip " << strip << " links more elements across";
     previous = full;
   }
