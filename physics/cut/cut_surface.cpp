@@ -713,16 +713,31 @@ void CutSurface::refresh(std::vector<int> nodes) {
   };
   for (int id : redone) place(id);
   if (rest_cut_.size() > projected_triangles_) {
+    // A kept vertex's position is its node's nearest point on the triangles before these
+    // (the nearer, lower index on ties; none within reach: the node itself): only the new
+    // triangles are searched, and their nearest replaces it when strictly nearer, which is
+    // what a search of the whole cut finds. A vertex at its node (nothing was within reach,
+    // or it lies on the cut) is searched against the whole cut.
+    RestCut added;
     Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
     for (int t = projected_triangles_; t < rest_cut_.size(); ++t) {
       const auto box = box_of(rest_cut_.triangles()[t]);
       lo = lo.cwiseMin(box[0]), hi = hi.cwiseMax(box[1]);
+      added.add(rest_cut_.triangles()[t]);
     }
     lo -= Vec3::Constant(reach), hi += Vec3::Constant(reach);
     for (size_t id = 0; id < positions_.size(); ++id) {
       if (!on_cut_[id] || vertex_stamp_[id] == stamp_) continue;
       const Vec3& p = node_rest_[vertex_node_[id]];
-      if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all()) place(static_cast<int>(id));
+      if (!((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all())) continue;
+      if (positions_[id] == p) {
+        place(static_cast<int>(id));
+        continue;
+      }
+      placed_.push_back(static_cast<int>(id));
+      vertex_revision_[id] = revision_;
+      if (const auto nearest = added.nearest_point(p, reach))
+        if ((*nearest - p).norm() < (positions_[id] - p).norm()) positions_[id] = *nearest;
     }
     projected_triangles_ = rest_cut_.size();
   }
