@@ -475,6 +475,12 @@ struct Quad {
 
 void CutSurface::refresh(std::vector<int> nodes) {
   ++revision_;
+  written_.clear();
+  const auto touch = [&](int id) {  // its key, rest position or anchor written now
+    if (vertex_revision_[id] == revision_) return;
+    vertex_revision_[id] = revision_;
+    written_.push_back(id);
+  };
   const int nx = counts_[0], ny = counts_[1];
   const int node_nx = counts_[0] + 1, node_ny = counts_[1] + 1;
   if (node_mark_.size() != node_rest_.size()) node_mark_.assign(node_rest_.size(), 0);
@@ -630,7 +636,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
       int& id = vertex_of_[static_cast<size_t>(key)];
       if (id < 0 || std::binary_search(live.begin(), live.end(), key)) continue;
       vertex_keys_[id] = -1;
-      vertex_revision_[id] = revision_;
+      touch(id);
       on_cut_[id] = 0;
       free_vertices_.push_back(id);
       std::push_heap(free_vertices_.begin(), free_vertices_.end(), std::greater<>());
@@ -658,11 +664,11 @@ void CutSurface::refresh(std::vector<int> nodes) {
         anchors_.push_back(Vec3::Zero());
         on_cut_.push_back(0);
         positions_.push_back(Vec3::Zero());
-        vertex_revision_.push_back(revision_);
+        vertex_revision_.push_back(0);
         vertex_stamp_.push_back(0);
       }
       vertex_keys_[id] = key;
-      vertex_revision_[id] = revision_;
+      touch(id);
       vertex_node_[id] = static_cast<int>(key / 8);
       ++used_vertices_;
     }
@@ -671,7 +677,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
       vertex_stamp_[id] = stamp_;
       const int nxy = nx * ny;
       anchors_[id] = cube_centre(cube % nx, (cube / nx) % ny, cube / nxy);
-      vertex_revision_[id] = revision_;
+      touch(id);
       on_cut_[id] = 0;
       redone.push_back(id);
     }
@@ -706,7 +712,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
   placed_.clear();
   const auto place = [&](int id) {
     placed_.push_back(id);
-    vertex_revision_[id] = revision_;
+    touch(id);
     positions_[id] = node_rest_[vertex_node_[id]];
     if (!on_cut_[id]) return;
     if (const auto nearest = rest_cut_.nearest_point(positions_[id], reach)) positions_[id] = *nearest;
@@ -735,7 +741,7 @@ void CutSurface::refresh(std::vector<int> nodes) {
         continue;
       }
       placed_.push_back(static_cast<int>(id));
-      vertex_revision_[id] = revision_;
+      touch(static_cast<int>(id));
       if (const auto nearest = added.nearest_point(p, reach))
         if ((*nearest - p).norm() < (positions_[id] - p).norm()) positions_[id] = *nearest;
     }
@@ -1071,7 +1077,35 @@ void remap_surface(const CorotationalEfg& model, const CutSurface& surface, Surf
   // since holds them still: neither compared nor copied again.
   const bool by_revision = reuse.revision >= 0 && reuse.revision <= surface.revision();
   const auto& revisions = surface.vertex_revisions();
-  for (int v = 0; v < vertices; ++v) {
+  const auto& centres = model.element_centres();
+  const int elements = model.element_count();
+  // The indices to look at: all, or (with the rows indexed by element, see MappingReuse) only
+  // those that can be dirty: appended, written since (one rebuild at most: its list), on an
+  // element marked changed, or on an element whose segments' box meets the new triangles'.
+  const bool indexed = by_revision && surface.revision() - reuse.revision <= 1 && reuse.stride == stride &&
+                       static_cast<int>(reuse.by_element.size()) == elements &&
+                       static_cast<int>(reuse.element_boxes.size()) == elements;
+  std::vector<int> candidates;
+  if (indexed) {
+    for (int v = previous; v < vertices; ++v) candidates.push_back(v);
+    if (surface.revision() > reuse.revision)
+      for (int v : surface.written_vertices())
+        if (v < previous) candidates.push_back(v);
+    for (int e = 0; e < elements; ++e) {
+      const auto& box = reuse.element_boxes[e];
+      const bool near = cut_grew && (box[0].array() <= cut_hi.array()).all() && (box[1].array() >= cut_lo.array()).all();
+      if (near || (reuse.element_changed && (*reuse.element_changed)[e]))
+        candidates.insert(candidates.end(), reuse.by_element[e].begin(), reuse.by_element[e].end());
+    }
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+  }
+  const auto grow_box = [&](int v) {
+    auto& box = reuse.element_boxes[embedding.elements[v]];
+    const Vec3& centre = centres[embedding.elements[v]];
+    box[0] = box[0].cwiseMin(anchors[v].cwiseMin(centre)), box[1] = box[1].cwiseMax(anchors[v].cwiseMax(centre));
+  };
+  const auto visit = [&](int v) {
     const Eigen::Index at = 3 * static_cast<Eigen::Index>(v);
     bool dirty = v >= previous || embedding.row_lengths[v] > stride;
     const bool written = v >= previous || !by_revision || revisions[v] > reuse.revision;
@@ -1086,7 +1120,7 @@ void remap_surface(const CorotationalEfg& model, const CutSurface& surface, Surf
                            reuse.anchors[v] != anchor)) ||
               (reuse.element_changed && (*reuse.element_changed)[e]);
       if (!dirty && cut_grew) {
-        const Vec3& centre = model.element_centres()[e];
+        const Vec3& centre = centres[e];
         const Vec3 lo = anchor.cwiseMin(centre), hi = anchor.cwiseMax(centre);
         if ((lo.array() <= cut_hi.array()).all() && (hi.array() >= cut_lo.array()).all()) dirty = cut.crosses(anchor, centre);
       }
@@ -1096,11 +1130,34 @@ void remap_surface(const CorotationalEfg& model, const CutSurface& surface, Surf
       reuse.rest_vertices.segment<3>(at) = rest_vertices.segment<3>(at);
       reuse.anchors[v] = anchors[v];
     }
-    if (!dirty) continue;  // an unused index keeps the row it had: it stays where it was
+    if (!dirty) return;  // an unused index keeps the row it had: it stays where it was
     if (!mapper) mapper.emplace(model, surface);
+    if (indexed && v < previous) {
+      auto& from = reuse.by_element[embedding.elements[v]];
+      const auto it = std::find(from.begin(), from.end(), v);
+      if (it != from.end()) *it = from.back(), from.pop_back();
+    }
     mapper->map(v, embedding, report);
     reuse.remapped.push_back(v);
+    if (indexed) {
+      reuse.by_element[embedding.elements[v]].push_back(v);
+      grow_box(v);
+    }
+  };
+  if (indexed) {
+    for (int v : candidates) visit(v);
+  } else {
+    for (int v = 0; v < vertices; ++v) visit(v);
+    // The index, taken from every row.
+    reuse.by_element.assign(static_cast<size_t>(elements), {});
+    reuse.element_boxes.assign(static_cast<size_t>(elements), {Vec3::Constant(std::numeric_limits<double>::infinity()),
+                                                               Vec3::Constant(-std::numeric_limits<double>::infinity())});
+    for (int v = 0; v < vertices; ++v) {
+      reuse.by_element[embedding.elements[v]].push_back(v);
+      grow_box(v);
+    }
   }
+  reuse.stride = stride;
   reuse.triangles_mapped = cut.size();
   reuse.revision = surface.revision();
 }

@@ -162,6 +162,8 @@ class CutSurface {
   // again only at the indices above r.
   int revision() const { return revision_; }
   const std::vector<int>& vertex_revisions() const { return vertex_revision_; }
+  // The indices the last rebuild wrote so (each once): those whose revision is revision().
+  const std::vector<int>& written_vertices() const { return written_; }
   const RestCut& rest_cut() const { return rest_cut_; }
   int cut_faces() const { return cut_faces_; }
   int cubes() const { return cube_count_; }
@@ -221,6 +223,7 @@ class CutSurface {
   std::pair<int, int> changed_triangles_{0, 0};
   int revision_ = 0;
   std::vector<int> vertex_revision_;  // per vertex index, see vertex_revisions()
+  std::vector<int> written_;          // see written_vertices()
 
   Vector rest_vertices_;
   std::vector<std::array<int, 3>> triangles_;
@@ -252,6 +255,14 @@ struct MappingReuse {
   // The surface's revision() the copies above were taken at, -1 if unknown: then every
   // index is compared, else only those the surface wrote since (vertex_revisions()).
   int revision = -1;
+  // The rows by element, kept by remap_surface (taken from every row when the sizes do not
+  // match): per element the indices whose row is on it, and a box holding the segments from
+  // their anchors to its point (grown, never shrunk). With them, and at most one rebuild
+  // since the copies, only the indices that can be dirty are looked at: appended, written by
+  // that rebuild, on an element marked changed, or on one whose box meets the new triangles'.
+  std::vector<std::vector<int>> by_element;
+  std::vector<std::array<Vec3, 2>> element_boxes;
+  int stride = 0;  // the model's row stride at the last mapping
   const std::vector<std::uint8_t>* element_changed = nullptr;  // per element, may be null
   std::vector<int> remapped;  // out: the indices whose row was recomputed, increasing
 };
