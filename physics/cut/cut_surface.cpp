@@ -899,25 +899,42 @@ int CutSurface::fill_pinches() {
   return filled;
 }
 
-namespace {
-
-// What mapping one vertex needs: the elements by integration cube, in a dense table over the
-// cubes' range, and scratch.
-class VertexMapper {
- public:
-  VertexMapper(const CorotationalEfg& model, const CutSurface& surface) : model_(model), surface_(surface) {
+// The elements by integration cube, in a dense table over the cubes' range.
+struct ElementCubes {
+  explicit ElementCubes(const CorotationalEfg& model) : elements(model.element_count()) {
     const auto& cubes = model.element_grid_coordinates();
     if (!cubes.empty()) {
       std::array<long long, 3> cube_hi{};
-      for (int axis = 0; axis < 3; ++axis) cube_lo_[axis] = cube_hi[axis] = cubes[0][axis];
+      for (int axis = 0; axis < 3; ++axis) lo[axis] = cube_hi[axis] = cubes[0][axis];
       for (const auto& c : cubes)
         for (int axis = 0; axis < 3; ++axis)
-          cube_lo_[axis] = std::min<long long>(cube_lo_[axis], c[axis]), cube_hi[axis] = std::max<long long>(cube_hi[axis], c[axis]);
-      for (int axis = 0; axis < 3; ++axis) cube_count_[axis] = cube_hi[axis] - cube_lo_[axis] + 1;
+          lo[axis] = std::min<long long>(lo[axis], c[axis]), cube_hi[axis] = std::max<long long>(cube_hi[axis], c[axis]);
+      for (int axis = 0; axis < 3; ++axis) count[axis] = cube_hi[axis] - lo[axis] + 1;
     }
-    element_at_.assign(static_cast<size_t>(cube_count_[0] * cube_count_[1] * cube_count_[2]), -1);
-    for (int e = 0; e < model.element_count(); ++e) element_at_[cube_slot(cubes[e][0], cubes[e][1], cubes[e][2])] = e;
+    element_at.assign(static_cast<size_t>(count[0] * count[1] * count[2]), -1);
+    for (int e = 0; e < model.element_count(); ++e) element_at[slot(cubes[e][0], cubes[e][1], cubes[e][2])] = e;
   }
+  long long slot(long long i, long long j, long long k) const {
+    i -= lo[0], j -= lo[1], k -= lo[2];
+    if (i < 0 || j < 0 || k < 0 || i >= count[0] || j >= count[1] || k >= count[2]) return -1;
+    return i + count[0] * (j + count[1] * k);
+  }
+  int at(long long i, long long j, long long k) const {
+    const long long s = slot(i, j, k);
+    return s < 0 ? -1 : element_at[static_cast<size_t>(s)];
+  }
+  int elements = 0;
+  std::array<long long, 3> lo{0, 0, 0}, count{0, 0, 0};
+  std::vector<int> element_at;
+};
+
+namespace {
+
+// What mapping one vertex needs: the elements by integration cube, and scratch.
+class VertexMapper {
+ public:
+  VertexMapper(const CorotationalEfg& model, const CutSurface& surface, const ElementCubes& cubes)
+      : model_(model), surface_(surface), cubes_(cubes) {}
 
   // Maps vertex v into row v of `embedding` (stride the model's).
   void map(int v, SurfaceEmbedding& embedding, SurfaceMappingReport& report) {
@@ -945,8 +962,7 @@ class VertexMapper {
         for (long long dy = -ring; dy <= ring; ++dy)
           for (long long dx = -ring; dx <= ring; ++dx) {
             if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != ring) continue;
-            const long long slot = cube_slot(cube[0] + dx, cube[1] + dy, cube[2] + dz);
-            const int e = slot < 0 ? -1 : element_at_[static_cast<size_t>(slot)];
+            const int e = cubes_.at(cube[0] + dx, cube[1] + dy, cube[2] + dz);
             if (e < 0 || !model.element_active(e)) continue;
             nearby_.emplace_back((model.element_centres()[e] - vertex).squaredNorm(), e);
           }
@@ -998,16 +1014,9 @@ class VertexMapper {
   }
 
  private:
-  long long cube_slot(long long i, long long j, long long k) const {
-    i -= cube_lo_[0], j -= cube_lo_[1], k -= cube_lo_[2];
-    if (i < 0 || j < 0 || k < 0 || i >= cube_count_[0] || j >= cube_count_[1] || k >= cube_count_[2]) return -1;
-    return i + cube_count_[0] * (j + cube_count_[1] * k);
-  }
-
   const CorotationalEfg& model_;
   const CutSurface& surface_;
-  std::array<long long, 3> cube_lo_{0, 0, 0}, cube_count_{0, 0, 0};
-  std::vector<int> element_at_;
+  const ElementCubes& cubes_;
   std::vector<std::pair<double, int>> nearby_;
   std::vector<Vec3> positions_;
 };
@@ -1041,7 +1050,8 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
   SurfaceEmbedding embedding;
   const int vertices = static_cast<int>(surface.rest_vertices().size() / 3);
   fit_rows(embedding, vertices, model.row_stride());
-  VertexMapper mapper(model, surface);
+  const ElementCubes cubes(model);
+  VertexMapper mapper(model, surface, cubes);
   for (int v = 0; v < vertices; ++v) mapper.map(v, embedding, report);
   return embedding;
 }
@@ -1084,19 +1094,26 @@ void remap_surface(const CorotationalEfg& model, const CutSurface& surface, Surf
   // element marked changed, or on an element whose segments' box meets the new triangles'.
   const bool indexed = by_revision && surface.revision() - reuse.revision <= 1 && reuse.stride == stride &&
                        static_cast<int>(reuse.by_element.size()) == elements &&
-                       static_cast<int>(reuse.element_boxes.size()) == elements;
+                       static_cast<int>(reuse.element_boxes.size()) == elements && reuse.element_tree;
   std::vector<int> candidates;
   if (indexed) {
     for (int v = previous; v < vertices; ++v) candidates.push_back(v);
     if (surface.revision() > reuse.revision)
       for (int v : surface.written_vertices())
         if (v < previous) candidates.push_back(v);
-    for (int e = 0; e < elements; ++e) {
-      const auto& box = reuse.element_boxes[e];
-      const bool near = cut_grew && (box[0].array() <= cut_hi.array()).all() && (box[1].array() >= cut_lo.array()).all();
-      if (near || (reuse.element_changed && (*reuse.element_changed)[e]))
-        candidates.insert(candidates.end(), reuse.by_element[e].begin(), reuse.by_element[e].end());
+    const auto take = [&](int e) { candidates.insert(candidates.end(), reuse.by_element[e].begin(), reuse.by_element[e].end()); };
+    if (cut_grew) {
+      // The tree's boxes hold the exact ones (rounded outwards): the exact test decides.
+      std::vector<int> near;
+      reuse.element_tree->query(MovingSegment{{cut_lo, cut_hi}, {cut_lo, cut_hi}}, near);
+      for (int e : near) {
+        const auto& box = reuse.element_boxes[e];
+        if ((box[0].array() <= cut_hi.array()).all() && (box[1].array() >= cut_lo.array()).all()) take(e);
+      }
     }
+    if (reuse.element_changed)
+      for (int e = 0; e < elements; ++e)
+        if ((*reuse.element_changed)[e]) take(e);
     std::sort(candidates.begin(), candidates.end());
     candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
   }
@@ -1131,7 +1148,11 @@ void remap_surface(const CorotationalEfg& model, const CutSurface& surface, Surf
       reuse.anchors[v] = anchors[v];
     }
     if (!dirty) return;  // an unused index keeps the row it had: it stays where it was
-    if (!mapper) mapper.emplace(model, surface);
+    if (!mapper) {
+      if (!reuse.element_cubes || reuse.element_cubes->elements != elements)
+        reuse.element_cubes = std::make_shared<const ElementCubes>(model);
+      mapper.emplace(model, surface, *reuse.element_cubes);
+    }
     if (indexed && v < previous) {
       auto& from = reuse.by_element[embedding.elements[v]];
       const auto it = std::find(from.begin(), from.end(), v);
@@ -1140,8 +1161,11 @@ void remap_surface(const CorotationalEfg& model, const CutSurface& surface, Surf
     mapper->map(v, embedding, report);
     reuse.remapped.push_back(v);
     if (indexed) {
-      reuse.by_element[embedding.elements[v]].push_back(v);
+      const int e = embedding.elements[v];
+      reuse.by_element[e].push_back(v);
       grow_box(v);
+      const auto& box = reuse.element_boxes[e];
+      reuse.element_tree->set_edge(e, MovingSegment{{box[0], box[1]}, {box[0], box[1]}});
     }
   };
   if (indexed) {
@@ -1155,6 +1179,11 @@ void remap_surface(const CorotationalEfg& model, const CutSurface& surface, Surf
     for (int v = 0; v < vertices; ++v) {
       reuse.by_element[embedding.elements[v]].push_back(v);
       grow_box(v);
+    }
+    reuse.element_tree = std::make_unique<EdgeBroadPhase>(0.0);
+    for (int e = 0; e < elements; ++e) {
+      const auto& box = reuse.element_boxes[e];
+      if (!reuse.by_element[e].empty()) reuse.element_tree->set_edge(e, MovingSegment{{box[0], box[1]}, {box[0], box[1]}});
     }
   }
   reuse.stride = stride;
@@ -1191,10 +1220,6 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
   const bool all = static_cast<int>(linked.size()) != elements;
   if (all) linked.assign(static_cast<size_t>(elements), 0);
   if (seen && (all || static_cast<int>(seen->size()) != elements)) seen->assign(static_cast<size_t>(elements), -1);
-  if (cut.size() == 0) {
-    if (seen) std::fill(seen->begin(), seen->end(), 0);
-    return 0;
-  }
   const int stride = model.row_stride();
   // The box of an element's links: its centre and its neighbours, at rest.
   const auto link_box = [&](int e) {
@@ -1211,6 +1236,13 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
   if (boxes && !cached) {
     boxes->resize(static_cast<size_t>(elements));
     for (int e = 0; e < elements; ++e) (*boxes)[e] = link_box(e);
+  }
+  if (cut.size() == 0) {  // nothing to be linked across (the boxes are kept up to date all the same)
+    if (cached)
+      for (int e = 0; e < elements; ++e)
+        if ((*changed)[e]) (*boxes)[e] = link_box(e);
+    if (seen) std::fill(seen->begin(), seen->end(), 0);
+    return 0;
   }
   const auto in_box = [&](const std::array<Vec3, 2>& box) {
     return (box[0].array() <= hi.array()).all() && (box[1].array() >= lo.array()).all();

@@ -43,12 +43,14 @@
 // (changed_triangles(), placed_vertices()), so copies of the lists can take only that.
 #pragma once
 
+#include "physics/cut/broad_phase.hpp"
 #include "physics/efg/corotational_efg.hpp"
 
 #include <array>
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <optional>
 #include <span>
 #include <unordered_map>
@@ -247,6 +249,7 @@ SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& sur
 // chosen point, still visible, still has the same neighbourhood. An unused index (key -1)
 // keeps the row it had, so that it stays where it was (it is mapped, not counted, only when
 // it has none).
+struct ElementCubes;  // cut_surface.cpp
 struct MappingReuse {
   std::vector<long long> keys;  // per index at the last mapping, updated by remap_surface
   Vector rest_vertices;         // the same for the rest positions
@@ -262,6 +265,12 @@ struct MappingReuse {
   // that rebuild, on an element marked changed, or on one whose box meets the new triangles'.
   std::vector<std::vector<int>> by_element;
   std::vector<std::array<Vec3, 2>> element_boxes;
+  // The same boxes in a btDbvt (the elements with rows), refit as they grow: the elements
+  // whose box meets the new triangles' are found without testing every element's box.
+  std::unique_ptr<EdgeBroadPhase> element_tree;
+  // The table of elements by integration cube the vertex search uses (built once: the
+  // elements' cubes never change).
+  std::shared_ptr<const ElementCubes> element_cubes;
   int stride = 0;  // the model's row stride at the last mapping
   const std::vector<std::uint8_t>* element_changed = nullptr;  // per element, may be null
   std::vector<int> remapped;  // out: the indices whose row was recomputed, increasing
@@ -281,7 +290,8 @@ int elements_linked_across(const CorotationalEfg& model, const RestCut& cut);
 // element count; returns the count. Equal to the full count as long as every triangle added
 // since the last call lies in [lo, hi]. `boxes` (may be null) caches each element's link box
 // at rest between calls: taken again for the elements `changed` marks, for all when its size
-// is not the element count or `changed` is null. `seen` (may be null; used with `boxes` and
+// is not the element count or `changed` is null (also while the cut is empty, so a first call
+// can take them before any cut). `seen` (may be null; used with `boxes` and
 // `changed`) keeps per element the cut's size when its flag was last taken: an unchanged
 // element is then tested against the triangles added since only (it keeps its links and the
 // cut only grows: linked before, linked still), with the same outcome as the whole cut's.

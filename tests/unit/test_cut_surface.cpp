@@ -316,6 +316,22 @@ void expect_remapping_equals_fresh(const std::vector<Pass>& passes, bool cut_vol
         ASSERT_EQ(embedding.weights[at], fresh.weights[at]) << "step " << step << " vertex " << v;
       }
     }
+    // What the next remapping's search by element relies on: each row is listed under its
+    // element, whose box holds the segment from the vertex's anchor to the element's point,
+    // and the tree of boxes finds the element from either end of that segment.
+    ASSERT_TRUE(reuse.element_tree);
+    std::vector<int> found;
+    for (int v = 0; v < embedding.vertex_count(); ++v) {
+      const int e = embedding.elements[v];
+      const auto& listed = reuse.by_element[e];
+      ASSERT_NE(std::find(listed.begin(), listed.end(), v), listed.end()) << "step " << step << " vertex " << v;
+      const auto& box = reuse.element_boxes[e];
+      for (const Vec3& end : {surface.anchors()[v], model.element_centres()[e]}) {
+        ASSERT_TRUE((box[0].array() <= end.array()).all() && (box[1].array() >= end.array()).all()) << "step " << step << " vertex " << v;
+        reuse.element_tree->query(MovingSegment{{end, end}, {end, end}}, found);
+        ASSERT_TRUE(std::binary_search(found.begin(), found.end(), e)) << "step " << step << " vertex " << v;
+      }
+    }
     EXPECT_EQ(report.wrong_side, 0);
     EXPECT_LE(report.mapped, used);
     EXPECT_EQ(report.mapped, static_cast<int>(std::count_if(reuse.remapped.begin(), reuse.remapped.end(),
