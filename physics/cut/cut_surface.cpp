@@ -265,11 +265,6 @@ CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, 
         if (!inside(cube_centre(i, j, k))) continue;
         inside_[cube_index(i, j, k)] = 1;
         ++cube_count_;
-        for (const auto& tet : cube_tets) {
-          std::array<int, 4> nodes_of{};
-          for (int c = 0; c < 4; ++c) nodes_of[c] = node_index(i + (tet[c] & 1), j + ((tet[c] >> 1) & 1), k + ((tet[c] >> 2) & 1));
-          mesh.tets.push_back(nodes_of);
-        }
       }
     }
   }
@@ -284,18 +279,50 @@ CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, 
   }
   std::fill(node_groups_done_.begin(), node_groups_done_.end(), 0);
   std::fill(vertex_of_.begin(), vertex_of_.end(), -1);
-  mesh.tets.clear();
-  for (int k = 1; k + 1 < counts_[2]; ++k)
-    for (int j = 1; j + 1 < counts_[1]; ++j)
-      for (int i = 1; i + 1 < counts_[0]; ++i) {
-        if (!inside_[cube_index(i, j, k)]) continue;
-        for (const auto& tet : cube_tets) {
-          std::array<int, 4> nodes_of{};
-          for (int c = 0; c < 4; ++c) nodes_of[c] = node_index(i + (tet[c] & 1), j + ((tet[c] >> 1) & 1), k + ((tet[c] >> 2) & 1));
-          mesh.tets.push_back(nodes_of);
-        }
+  // The snap moves only the nodes on the voxel boundary, judging each move by the elements
+  // around the node, so its mesh needs only the cubes near the boundary: those within two
+  // cubes of a boundary node. The cut-off mesh's inner boundary lies two cubes deeper than
+  // any boundary node, so its moves (if any) touch no element the real ones do, and they
+  // are undone below: the outcome is that of the whole voxel mesh, at a fraction of the cost
+  // (2.3M cubes at 20k elements and s = 0.6 mm, 5 s of the load).
+  cube_count_ = 0;
+  std::vector<std::uint8_t> boundary_node(static_cast<size_t>(nodes), 0), near_node(static_cast<size_t>(nodes), 0);
+  const auto for_cubes = [&](const auto& visit) {
+    for (int k = 1; k + 1 < counts_[2]; ++k)
+      for (int j = 1; j + 1 < counts_[1]; ++j)
+        for (int i = 1; i + 1 < counts_[0]; ++i)
+          if (inside_[cube_index(i, j, k)]) visit(i, j, k);
+  };
+  const auto any_corner = [&](const std::vector<std::uint8_t>& mark, int i, int j, int k) {
+    for (int c = 0; c < 8; ++c)
+      if (mark[node_index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))]) return true;
+    return false;
+  };
+  const auto mark_corners = [&](std::vector<std::uint8_t>& mark, int i, int j, int k) {
+    for (int c = 0; c < 8; ++c) mark[node_index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))] = 1;
+  };
+  for_cubes([&](int i, int j, int k) {
+    ++cube_count_;
+    for (int axis = 0; axis < 3; ++axis)
+      for (int side = 0; side < 2; ++side) {
+        std::array<int, 3> next{i, j, k};
+        next[axis] += side == 0 ? -1 : 1;
+        if (inside_[cube_index(next[0], next[1], next[2])]) continue;
+        for (const auto& corner : face_corners({i, j, k}, axis, side)) boundary_node[node_index(corner[0], corner[1], corner[2])] = 1;
       }
-  cube_count_ = static_cast<int>(mesh.tets.size() / cube_tets.size());
+  });
+  for_cubes([&](int i, int j, int k) {
+    if (any_corner(boundary_node, i, j, k)) mark_corners(near_node, i, j, k);
+  });
+  mesh.tets.clear();
+  for_cubes([&](int i, int j, int k) {
+    if (!any_corner(near_node, i, j, k)) return;
+    for (const auto& tet : cube_tets) {
+      std::array<int, 4> nodes_of{};
+      for (int c = 0; c < 4; ++c) nodes_of[c] = node_index(i + (tet[c] & 1), j + ((tet[c] >> 1) & 1), k + ((tet[c] >> 2) & 1));
+      mesh.tets.push_back(nodes_of);
+    }
+  });
   // The cubes with an outside neighbour: the surface's, until cuts add theirs.
   surface_cubes_.clear();
   for (int k = 1; k + 1 < counts_[2]; ++k)
@@ -309,8 +336,8 @@ CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, 
       }
   // The outer nodes onto the true surface, as for the tetrahedral bodies.
   snap_boundary_to_surface(mesh, inside, 1.5 * cell, 0.1);
-  node_rest_.resize(static_cast<size_t>(nodes));
-  for (int n = 0; n < nodes; ++n) node_rest_[n] = mesh.rest.segment<3>(3 * static_cast<Eigen::Index>(n));
+  for (int n = 0; n < nodes; ++n)
+    if (boundary_node[n]) node_rest_[n] = mesh.rest.segment<3>(3 * static_cast<Eigen::Index>(n));
   // The whole surface, numbered as its faces meet the vertices.
   std::vector<int> surface_nodes;
   for (int cube : surface_cubes_)

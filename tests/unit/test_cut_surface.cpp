@@ -2,12 +2,15 @@
 // exactly where the blade passed, and mapped onto the right side of the cut.
 #include "physics/cut/cut_surface.hpp"
 #include "physics/cut/volume_cut.hpp"
+#include "physics/fem/surface_snap.hpp"
+#include "physics/fem/tet_mesh.hpp"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <map>
 #include <set>
 #include <string>
@@ -377,5 +380,55 @@ TEST(CutSurface, RemappingInPlaceFindsTheRowsANewSurfaceCutHides) {
       passes.push_back({Vec3(x_cut, -0.03, z0), Vec3(x_cut, 0.03, z0), Vec3(x_cut, -0.03, z1), Vec3(x_cut, 0.03, z1)});
     }
     expect_remapping_equals_fresh(passes, false);
+  }
+}
+
+TEST(CutSurface, SnapsItsNodesAsTheWholeVoxelMeshWould) {
+  // CutSurface snaps its outer nodes with a tet mesh of the cubes near the voxel boundary
+  // only. Reference: the whole voxel mesh of the same grid (make_box_tets over the grid,
+  // kept where the cube's centre is inside, the outer layer of cubes left empty as there),
+  // snapped the same way; every vertex of the uncut surface sits on its node's position.
+  struct Shape {
+    const char* name;
+    std::function<bool(const Vec3&)> inside;
+    Vec3 lo, hi;
+    double cell;
+  };
+  const std::vector<Shape> shapes{
+      {"ellipsoid", [](const Vec3& p) { return std::pow(p.x() / 0.03, 2) + std::pow(p.y() / 0.02, 2) + std::pow(p.z() / 0.015, 2) <= 1; },
+       Vec3(-0.03, -0.02, -0.015), Vec3(0.03, 0.02, 0.015), 0.0011},
+      {"peanut", [](const Vec3& p) { return (p - Vec3(-0.012, 0, 0)).norm() <= 0.016 || (p - Vec3(0.012, 0.003, 0)).norm() <= 0.014; },
+       Vec3(-0.028, -0.016, -0.016), Vec3(0.026, 0.017, 0.016), 0.0013}};
+  for (const Shape& shape : shapes) {
+    SCOPED_TRACE(shape.name);
+    const CutSurface surface(shape.inside, shape.lo, shape.hi, shape.cell);
+    const Vec3 origin = shape.lo - Vec3::Constant(shape.cell);
+    std::array<int, 3> counts{};
+    for (int axis = 0; axis < 3; ++axis)
+      counts[axis] = static_cast<int>(std::ceil((shape.hi[axis] - shape.lo[axis]) / shape.cell * (1 - 1e-12))) + 2;
+    TetMesh mesh = make_box_tets(origin, origin + shape.cell * Vec3(counts[0], counts[1], counts[2]), counts);
+    std::vector<std::array<int, 4>> kept;
+    const int per_cube = static_cast<int>(mesh.tets.size()) / (counts[0] * counts[1] * counts[2]);
+    ASSERT_EQ(per_cube, 6);
+    for (int k = 1; k + 1 < counts[2]; ++k)
+      for (int j = 1; j + 1 < counts[1]; ++j)
+        for (int i = 1; i + 1 < counts[0]; ++i) {
+          if (!shape.inside(origin + shape.cell * Vec3(i + 0.5, j + 0.5, k + 0.5))) continue;
+          const size_t cube = static_cast<size_t>(i + counts[0] * (j + counts[1] * k));
+          for (int t = 0; t < per_cube; ++t) kept.push_back(mesh.tets[per_cube * cube + t]);
+        }
+    mesh.tets = kept;
+    const SnapReport snap = snap_boundary_to_surface(mesh, shape.inside, 1.5 * shape.cell, 0.1);
+    ASSERT_GT(snap.moved, 100);
+    int checked = 0;
+    double worst = 0;
+    for (int v = 0; v < static_cast<int>(surface.vertex_keys().size()); ++v) {
+      const long long node = surface.vertex_keys()[v] / 8;
+      const Vec3 expected = mesh.rest.segment<3>(3 * static_cast<Eigen::Index>(node));
+      worst = std::max(worst, (Vec3(surface.rest_vertices().segment<3>(3 * v)) - expected).norm());
+      ++checked;
+    }
+    EXPECT_EQ(checked, surface.vertex_count());
+    EXPECT_LT(worst, 1e-12 * shape.cell) << "a vertex is not where the whole mesh's snap puts its node";
   }
 }
