@@ -235,7 +235,7 @@ SurfaceTopology surface_topology(const std::vector<std::array<int, 3>>& triangle
 }
 
 CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, Vec3 hi, double cell)
-    : cell_(cell) {
+    : cell_(cell), rest_cut_(2 * cell) {
   if (!(cell > 0) || !std::isfinite(cell)) {
     throw std::invalid_argument("CutSurface: cell must be positive and finite, got " + std::to_string(cell));
   }

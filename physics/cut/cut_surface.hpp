@@ -201,6 +201,9 @@ class CutSurface {
   int cube_count_ = 0;
   int cut_faces_ = 0;
   int pinches_closed_ = 0;
+  // Binned at twice the surface cell: the cut advances by cube faces, so its triangles are
+  // about that size (the bins do not change any answer, only what a query reads; at 20k
+  // elements and s = 0.6 mm this took ms_ccd from 3.0 to 2.5 ms against 5 mm bins).
   RestCut rest_cut_;
   std::vector<int> pending_faces_;  // faces cut since the last rebuild (cube x 3 + axis)
   std::vector<int> hidden_faces_;   // cut faces the last rebuild hid (pinches)
