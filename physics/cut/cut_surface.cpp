@@ -346,6 +346,11 @@ CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, 
       surface_nodes.push_back(node_index(i + (s & 1), j + ((s >> 1) & 1), k + ((s >> 2) & 1)));
     }
   refresh(std::move(surface_nodes));
+  // Room for what the cuts add, so that the first cuts grow the per-vertex and per-triangle
+  // lists in place rather than move them (past the room they double as usual).
+  const auto room = [](auto& list) { list.reserve(list.size() + list.size() / 4); };
+  room(triangles_), room(positions_), room(anchors_), room(on_cut_), room(vertex_keys_), room(vertex_node_);
+  room(vertex_revision_), room(vertex_stamp_);
 }
 
 Vec3 CutSurface::cube_centre(int i, int j, int k) const {
