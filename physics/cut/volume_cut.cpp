@@ -79,7 +79,139 @@ struct PointBins {
   }
 };
 
+// Whether the boxes [lo_a, hi_a] and [lo_b, hi_b] overlap (touching counts; a NaN bound
+// meets nothing).
+bool boxes_meet(const Vec3& lo_a, const Vec3& hi_a, const Vec3& lo_b, const Vec3& hi_b) {
+  for (int axis = 0; axis < 3; ++axis)
+    if (!(hi_a[axis] >= lo_b[axis] && lo_a[axis] <= hi_b[axis])) return false;
+  return true;
+}
+
+// The box of a link's two endpoints at the start (a0, b0) and at the end (a1, b1) of a step.
+std::array<Vec3, 2> swept_box(const Vec3& a0, const Vec3& b0, const Vec3& a1, const Vec3& b1) {
+  std::array<Vec3, 2> box;
+  for (int axis = 0; axis < 3; ++axis) {
+    box[0][axis] = std::min({a0[axis], b0[axis], a1[axis], b1[axis]});
+    box[1][axis] = std::max({a0[axis], b0[axis], a1[axis], b1[axis]});
+  }
+  return box;
+}
+
+// Boxes binned by their centres, with the largest half-extent of a box about its centre (the
+// reach): a box that meets a region has its centre in the region grown by the reach, so the
+// bins over that grown region hold every box that can meet it (and some that cannot).
+struct BoxIndex {
+  PointBins bins;
+  double reach = 0;
+  double slack = 0;  // room for the rounding of the centres and of the grown region
+
+  bool build(const std::vector<std::array<Vec3, 2>>& boxes, double spacing) {
+    std::vector<Vec3> centres(boxes.size());
+    reach = 0;
+    double scale = 0;
+    for (size_t i = 0; i < boxes.size(); ++i) {
+      const Vec3 centre = 0.5 * (boxes[i][0] + boxes[i][1]);
+      centres[i] = centre;
+      reach = std::max({reach, (boxes[i][1] - centre).maxCoeff(), (centre - boxes[i][0]).maxCoeff()});
+      scale = std::max({scale, boxes[i][0].cwiseAbs().maxCoeff(), boxes[i][1].cwiseAbs().maxCoeff()});
+    }
+    slack = 1e-9 * (reach + spacing + scale);
+    return std::isfinite(reach) && bins.build(centres, spacing);
+  }
+  // Calls visit(i) once for every box i that can meet [lo - grow, hi + grow] (a superset;
+  // every box when a bound is NaN).
+  template <class Visit>
+  void query(const Vec3& lo, const Vec3& hi, double grow, Visit&& visit) const {
+    const double r = reach + grow + slack;
+    std::array<long long, 3> first{}, last{};
+    for (int axis = 0; axis < 3; ++axis) {
+      const double low = lo[axis] - r, high = hi[axis] + r;
+      const auto cell = [&](double x) {
+        const double c = std::floor((x - bins.lo[axis]) / bins.cell);
+        return static_cast<long long>(std::clamp(c, 0.0, static_cast<double>(bins.count[axis] - 1)));
+      };
+      if (std::isnan(low) || std::isnan(high)) {
+        first[axis] = 0, last[axis] = bins.count[axis] - 1;
+      } else {
+        first[axis] = cell(low), last[axis] = cell(high);
+      }
+    }
+    for (long long k = first[2]; k <= last[2]; ++k)
+      for (long long j = first[1]; j <= last[1]; ++j)
+        for (long long i = first[0]; i <= last[0]; ++i) {
+          const size_t b = static_cast<size_t>(i + bins.count[0] * (j + bins.count[1] * k));
+          for (int s = bins.start[b]; s < bins.start[b + 1]; ++s) visit(bins.items[static_cast<size_t>(s)]);
+        }
+  }
+};
+
+// Elements re-selected (or re-boxed) since a search's bins were built: tested apart.
+struct LooseSet {
+  std::vector<std::uint8_t> loose;
+  std::vector<int> list;
+  void reset(int elements) {
+    loose.assign(static_cast<size_t>(elements), 0);
+    list.clear();
+  }
+  void mark(int element) {
+    if (element < 0 || element >= static_cast<int>(loose.size()) || loose[element]) return;
+    loose[element] = 1;
+    list.push_back(element);
+  }
+};
+
 }  // namespace
+
+// refit's search (see near_search_rebuilds()): the swept box of a link over a step lies in
+// its box at the reference positions grown by how far its endpoints can have moved since: a
+// particle by at most `moved`, the farthest any particle moved (at the start or at the end of
+// the step), an integration point by at most sum_k |phi_k| times that, while its row is the
+// one it had at the reference (loose elements are tested apart).
+struct VolumeCutter::NearSearch {
+  bool valid = false;
+  bool full_scan = false;
+  Vector particles;  // the reference positions
+  double scale = 0;  // their largest coordinate magnitude
+  std::vector<std::array<Vec3, 2>> element_boxes;  // the box of each element's links, at the reference
+  std::vector<std::array<Vec3, 2>> link_boxes;     // the box of each particle link, at the reference
+  std::vector<double> shape_sums;                  // sum_k |phi_k| of each element
+  double shape_sum = 0;                            // their maximum
+  BoxIndex elements, links;
+  LooseSet loose;
+  long rebuilds = 0;
+  std::vector<int> selected;  // reused
+};
+
+// The agreement pass's search: the elements' rest link boxes, binned; rebuilt when too many
+// were re-boxed since (those are tested apart).
+struct VolumeCutter::RestLinkIndex {
+  bool valid = false;
+  BoxIndex boxes;
+  LooseSet loose;
+  std::vector<int> selected;  // reused
+};
+
+struct VolumeCutter::StepPoints {
+  const Vector* particles_start = nullptr;
+  const Vector* particles_end = nullptr;
+  std::vector<Vec3> start, end;
+  std::vector<unsigned> start_stamp, end_stamp;  // == call: formed in this call
+  unsigned call = 0;
+
+  void begin(int elements, const Vector& at_start, const Vector& at_end) {
+    particles_start = &at_start;
+    particles_end = &at_end;
+    if (++call == 0) {  // the stamps wrapped: forget them all
+      std::fill(start_stamp.begin(), start_stamp.end(), 0u);
+      std::fill(end_stamp.begin(), end_stamp.end(), 0u);
+      call = 1;
+    }
+    start.resize(static_cast<size_t>(elements));
+    end.resize(static_cast<size_t>(elements));
+    start_stamp.resize(static_cast<size_t>(elements), 0u);
+    end_stamp.resize(static_cast<size_t>(elements), 0u);
+  }
+};
 
 struct VolumeCutter::RestSearch {
   bool valid = false;
@@ -102,7 +234,13 @@ struct VolumeCutter::RestSearch {
 };
 
 VolumeCutter::VolumeCutter(CorotationalEfg& model, double margin, double slack)
-    : model_(model), broad_phase_(margin, slack), margin_(margin), rest_search_(std::make_unique<RestSearch>()) {
+    : model_(model),
+      broad_phase_(margin, slack),
+      margin_(margin),
+      step_points_(std::make_unique<StepPoints>()),
+      near_search_(std::make_unique<NearSearch>()),
+      rest_link_index_(std::make_unique<RestLinkIndex>()),
+      rest_search_(std::make_unique<RestSearch>()) {
   // 6-connectivity on the particle grid: each particle to its next neighbour along +x, +y, +z
   // when that particle exists (particles outside the body's influence were dropped at build).
   const auto& cells = model_.particle_grid_coordinates();
@@ -134,22 +272,44 @@ int VolumeCutter::severed_particle_links() const {
   return static_cast<int>(std::count(particle_link_severed_.begin(), particle_link_severed_.end(), 1));
 }
 
-void VolumeCutter::integration_points(const Vector& particles, std::vector<Vec3>& out) const {
-  const int elements = model_.element_count();
-  const int stride = model_.row_stride();
-  out.resize(static_cast<size_t>(elements));
-  for (int e = 0; e < elements; ++e) {
-    Vec3 point = Vec3::Zero();
-    const size_t base = static_cast<size_t>(e) * stride;
-    for (int k = 0; k < model_.row_lengths()[e]; ++k) {
-      point += model_.shape_values()[base + k] * particles.segment<3>(3 * static_cast<Eigen::Index>(model_.neighbours()[base + k]));
-    }
-    out[e] = point;
+Vec3 VolumeCutter::integration_point(int element, const Vector& particles) const {
+  Vec3 point = Vec3::Zero();
+  const size_t base = static_cast<size_t>(element) * model_.row_stride();
+  for (int k = 0; k < model_.row_lengths()[element]; ++k) {
+    point += model_.shape_values()[base + k] * particles.segment<3>(3 * static_cast<Eigen::Index>(model_.neighbours()[base + k]));
   }
+  return point;
 }
 
-void VolumeCutter::refit(const std::vector<Vec3>& points_start, const std::vector<Vec3>& points_end,
-                         const Vector& particles_start, const Vector& particles_end, const Vec3& near_lo,
+void VolumeCutter::integration_points(const Vector& particles, std::vector<Vec3>& out) const {
+  const int elements = model_.element_count();
+  out.resize(static_cast<size_t>(elements));
+  for (int e = 0; e < elements; ++e) out[e] = integration_point(e, particles);
+}
+
+const Vec3& VolumeCutter::point_at_start(int element) {
+  StepPoints& points = *step_points_;
+  if (points.start_stamp[element] != points.call) {
+    points.start[element] = integration_point(element, *points.particles_start);
+    points.start_stamp[element] = points.call;
+  }
+  return points.start[element];
+}
+
+const Vec3& VolumeCutter::point_at_end(int element) {
+  StepPoints& points = *step_points_;
+  if (points.end_stamp[element] != points.call) {
+    points.end[element] = integration_point(element, *points.particles_end);
+    points.end_stamp[element] = points.call;
+  }
+  return points.end[element];
+}
+
+long VolumeCutter::near_search_rebuilds() const { return near_search_->rebuilds; }
+
+void VolumeCutter::set_full_scan(bool on) { near_search_->full_scan = on; }
+
+void VolumeCutter::refit(const Vector& particles_start, const Vector& particles_end, const Vec3& near_lo,
                          const Vec3& near_hi) {
   const auto particle = [](const Vector& x, int p) { return Vec3(x.segment<3>(3 * static_cast<Eigen::Index>(p))); };
   // Only links whose own swept box (both endpoints at the start and at the end of the step)
@@ -158,23 +318,110 @@ void VolumeCutter::refit(const std::vector<Vec3>& points_start, const std::vecto
   // endpoints, rejects. Links enter the tree the first time they come near a sweep, so the
   // first contact does not box the whole body.
   const auto near = [&](const Vec3& a0, const Vec3& b0, const Vec3& a1, const Vec3& b1) {
-    for (int axis = 0; axis < 3; ++axis) {
-      const double lo = std::min({a0[axis], b0[axis], a1[axis], b1[axis]});
-      const double hi = std::max({a0[axis], b0[axis], a1[axis], b1[axis]});
-      if (hi < near_lo[axis] || lo > near_hi[axis]) return false;
-    }
-    return true;
+    const auto box = swept_box(a0, b0, a1, b1);
+    return boxes_meet(box[0], box[1], near_lo, near_hi);
   };
-  for (size_t link = 0; link < particle_links_.size(); ++link) {
+  // Which links that test can pass is found in NearSearch's bins, so that only the
+  // integration points of the elements near the sweep are formed: every link whose swept box
+  // can meet the region is selected (a superset), then tested as above, in increasing order,
+  // so that the tree sees exactly the updates a test of every link would make.
+  NearSearch& search = *near_search_;
+  const int elements = model_.element_count();
+  const int link_count = static_cast<int>(particle_links_.size());
+  const double spacing = model_.spacing();
+  const double scale = std::max(particles_start.cwiseAbs().maxCoeff(), particles_end.cwiseAbs().maxCoeff());
+  const auto farthest = [&](const Vector& from) {
+    double moved = 0;
+    for (Eigen::Index i = 0; i < particles_start.size(); i += 3) {
+      moved = std::max({moved, (particles_start.segment<3>(i) - from.segment<3>(i)).squaredNorm(),
+                        (particles_end.segment<3>(i) - from.segment<3>(i)).squaredNorm()});
+    }
+    return std::sqrt(moved);
+  };
+  double moved = std::numeric_limits<double>::infinity();
+  if (search.valid && search.particles.size() == particles_start.size() &&
+      search.loose.loose.size() == static_cast<size_t>(elements)) {
+    moved = farthest(search.particles);
+  }
+  // How far a link's endpoints can be out of its reference box, with room for rounding (of
+  // the points formed, at most ~64 ulps of the coordinates).
+  const auto reach = [&](double shape_sum) {
+    return std::max(1.0, shape_sum) * moved * (1 + 1e-6) + 1e-9 * (spacing + std::max(scale, search.scale));
+  };
+  if (!search.full_scan && (!(reach(search.shape_sum) <= spacing) ||
+                            8 * search.loose.list.size() > static_cast<size_t>(elements))) {
+    // Rebuilt at the start of this step (its points are this step's).
+    search.particles = particles_start;
+    search.scale = particles_start.cwiseAbs().maxCoeff();
+    search.element_boxes.resize(static_cast<size_t>(elements));
+    search.shape_sums.resize(static_cast<size_t>(elements));
+    search.shape_sum = 0;
+    const int stride = model_.row_stride();
+    for (int e = 0; e < elements; ++e) {
+      const Vec3& point = point_at_start(e);
+      Vec3 lo = point, hi = point;
+      double sum = 0;
+      const size_t base = static_cast<size_t>(e) * stride;
+      for (int k = 0; k < model_.row_lengths()[e]; ++k) {
+        const Vec3 to = particle(particles_start, model_.neighbours()[base + k]);
+        lo = lo.cwiseMin(to), hi = hi.cwiseMax(to);
+        sum += std::abs(model_.shape_values()[base + k]);
+      }
+      search.element_boxes[e] = {lo, hi};
+      search.shape_sums[e] = sum;
+      search.shape_sum = std::max(search.shape_sum, sum);
+    }
+    search.link_boxes.resize(particle_links_.size());
+    for (int link = 0; link < link_count; ++link) {
+      const auto [a, b] = particle_links_[link];
+      const Vec3 pa = particle(particles_start, a), pb = particle(particles_start, b);
+      search.link_boxes[link] = {pa.cwiseMin(pb), pa.cwiseMax(pb)};
+    }
+    search.valid = search.elements.build(search.element_boxes, spacing) && search.links.build(search.link_boxes, spacing);
+    search.loose.reset(elements);
+    ++search.rebuilds;
+    moved = farthest(search.particles);
+  }
+  const bool searched = search.valid && !search.full_scan && std::isfinite(reach(search.shape_sum));
+  std::vector<int>& selected = search.selected;
+  selected.clear();
+  if (searched) {
+    const double grow = reach(1.0);
+    search.links.query(near_lo, near_hi, grow, [&](int link) {
+      const auto& box = search.link_boxes[link];
+      if (boxes_meet(box[0] - Vec3::Constant(grow), box[1] + Vec3::Constant(grow), near_lo, near_hi)) selected.push_back(link);
+    });
+    std::sort(selected.begin(), selected.end());
+  } else {
+    for (int link = 0; link < link_count; ++link) selected.push_back(link);
+  }
+  for (const int link : selected) {
     if (particle_link_severed_[link]) continue;
     const auto [a, b] = particle_links_[link];
     const Vec3 a0 = particle(particles_start, a), b0 = particle(particles_start, b);
     const Vec3 a1 = particle(particles_end, a), b1 = particle(particles_end, b);
     if (!near(a0, b0, a1, b1)) continue;
-    broad_phase_.set_edge(static_cast<int>(link), {{a0, b0}, {a1, b1}});
+    broad_phase_.set_edge(link, {{a0, b0}, {a1, b1}});
+  }
+  // The elements: those whose links can meet the region, those re-selected since the bins
+  // were built (their boxes are not the rows'), and the stale ones (below).
+  selected.clear();
+  if (searched) {
+    search.elements.query(near_lo, near_hi, reach(search.shape_sum), [&](int e) {
+      if (search.loose.loose[e]) return;
+      const auto& box = search.element_boxes[e];
+      const Vec3 grow = Vec3::Constant(reach(search.shape_sums[e]));
+      if (boxes_meet(box[0] - grow, box[1] + grow, near_lo, near_hi)) selected.push_back(e);
+    });
+    selected.insert(selected.end(), search.loose.list.begin(), search.loose.list.end());
+    selected.insert(selected.end(), stale_list_.begin(), stale_list_.end());
+    std::sort(selected.begin(), selected.end());
+    selected.erase(std::unique(selected.begin(), selected.end()), selected.end());
+  } else {
+    for (int e = 0; e < elements; ++e) selected.push_back(e);
   }
   const int stride = model_.row_stride();
-  for (int e = 0; e < model_.element_count(); ++e) {
+  for (const int e : selected) {
     const size_t base = static_cast<size_t>(e) * stride;
     auto& boxed = element_link_particles_[e];
     const int length = model_.row_lengths()[e];
@@ -183,7 +430,7 @@ void VolumeCutter::refit(const std::vector<Vec3>& points_start, const std::vecto
     bool touching = element_stale_[e] != 0;
     for (int k = 0; k < length && !touching; ++k) {
       const int p = model_.neighbours()[base + k];
-      touching = near(points_start[e], particle(particles_start, p), points_end[e], particle(particles_end, p));
+      touching = near(point_at_start(e), particle(particles_start, p), point_at_end(e), particle(particles_end, p));
     }
     if (!touching) continue;
     element_stale_[e] = 0;
@@ -195,10 +442,11 @@ void VolumeCutter::refit(const std::vector<Vec3>& points_start, const std::vecto
     for (int k = 0; k < length; ++k) {
       const int p = model_.neighbours()[base + k];
       boxed[k] = p;
-      broad_phase_.set_edge(element_link_id(e, k), {{points_start[e], particle(particles_start, p)},
-                                                    {points_end[e], particle(particles_end, p)}});
+      broad_phase_.set_edge(element_link_id(e, k), {{point_at_start(e), particle(particles_start, p)},
+                                                    {point_at_end(e), particle(particles_end, p)}});
     }
   }
+  stale_list_.clear();  // every stale element was refit above
 }
 
 struct VolumeCutter::Sweep {
@@ -259,9 +507,9 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
   VolumeCutReport report;
   const auto clock_start = std::chrono::steady_clock::now();
   const Sweep sweep{blade_poses, fractions, active};
-  std::vector<Vec3> points_start, points_end;
-  integration_points(particles_start, points_start);
-  integration_points(particles_end, points_end);
+  // The integration points are formed only where they are looked at (near the sweep, the
+  // candidates, the re-selected elements).
+  step_points_->begin(model_.element_count(), particles_start, particles_end);
   // The region the blade sweeps this step, grown by the broad phase's margin (what the narrow
   // test can touch beyond the blade): a link whose swept box misses it cannot reach the blade.
   Vec3 near_lo = Vec3::Constant(std::numeric_limits<double>::infinity()), near_hi = -near_lo;
@@ -271,7 +519,7 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
       for (const Vec3& point : blade_poses[end]) near_lo = near_lo.cwiseMin(point), near_hi = near_hi.cwiseMax(point);
   }
   const Vec3 grow = Vec3::Constant(2 * margin_ + 1e-9);
-  refit(points_start, points_end, particles_start, particles_end, near_lo - grow, near_hi + grow);
+  refit(particles_start, particles_end, near_lo - grow, near_hi + grow);
 
   const auto particle = [](const Vector& x, int p) { return Vec3(x.segment<3>(3 * static_cast<Eigen::Index>(p))); };
   const int link_count = static_cast<int>(particle_links_.size());
@@ -310,8 +558,8 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
       if (!model_.element_active(element)) continue;  // out of the mechanics already
       const int slot = (id - link_count) % slots_per_element;
       slot_particle = element_link_particles_[element][slot];
-      a0 = points_start[element], b0 = particle(particles_start, slot_particle);
-      a1 = points_end[element], b1 = particle(particles_end, slot_particle);
+      a0 = point_at_start(element), b0 = particle(particles_start, slot_particle);
+      a1 = point_at_end(element), b1 = particle(particles_end, slot_particle);
       rest_first = model_.element_centres()[element];
       rest_second = particle(model_.rest_positions(), slot_particle);
     }
@@ -332,16 +580,34 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
     const int stride = model_.row_stride();
     // Each element's links at rest, boxed (rest positions do not move; a row changes only
     // here, and its box is taken again below): most elements are far from the region.
-    if (rest_link_boxes_.size() != static_cast<size_t>(model_.element_count())) {
-      rest_link_boxes_.resize(static_cast<size_t>(model_.element_count()));
-      for (int e = 0; e < model_.element_count(); ++e) box_rest_links(e);
+    const int elements = model_.element_count();
+    RestLinkIndex& index = *rest_link_index_;
+    if (rest_link_boxes_.size() != static_cast<size_t>(elements)) {
+      rest_link_boxes_.resize(static_cast<size_t>(elements));
+      index.valid = false;
+      for (int e = 0; e < elements; ++e) box_rest_links(e);
     }
-    for (int e = 0; e < model_.element_count(); ++e) {
+    // The elements whose box can meet the region, from bins of the boxes (those re-boxed
+    // since the bins were built are tested apart), in increasing order.
+    if (!near_search_->full_scan && (!index.valid || 8 * index.loose.list.size() > static_cast<size_t>(elements))) {
+      index.valid = index.boxes.build(rest_link_boxes_, model_.spacing());
+      index.loose.reset(elements);
+    }
+    std::vector<int>& selected = index.selected;
+    selected.clear();
+    if (index.valid && !near_search_->full_scan) {
+      index.boxes.query(rest_cut->lo, rest_cut->hi, 0.0, [&](int e) {
+        if (!index.loose.loose[e]) selected.push_back(e);
+      });
+      selected.insert(selected.end(), index.loose.list.begin(), index.loose.list.end());
+      std::sort(selected.begin(), selected.end());
+    } else {
+      for (int e = 0; e < elements; ++e) selected.push_back(e);
+    }
+    for (const int e : selected) {
       if (!model_.element_active(e)) continue;
       const auto& box = rest_link_boxes_[e];
-      bool near = true;
-      for (int axis = 0; axis < 3; ++axis) near = near && box[1][axis] >= rest_cut->lo[axis] && box[0][axis] <= rest_cut->hi[axis];
-      if (!near) continue;
+      if (!boxes_meet(box[0], box[1], rest_cut->lo, rest_cut->hi)) continue;
       const Vec3& centre = model_.element_centres()[e];
       // Each link whose box meets the region (not only the links of the integration points
       // inside it: a link to a particle a few spacings away, as re-selection makes, can
@@ -353,10 +619,7 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
       for (int k = 0; k < model_.row_lengths()[e]; ++k) {
         const int p = model_.neighbours()[base + k];
         const Vec3 to = particle(model_.rest_positions(), p);
-        const Vec3 lo = centre.cwiseMin(to), hi = centre.cwiseMax(to);
-        bool overlaps = true;
-        for (int axis = 0; axis < 3; ++axis) overlaps = overlaps && hi[axis] >= rest_cut->lo[axis] && lo[axis] <= rest_cut->hi[axis];
-        if (!overlaps) continue;
+        if (!boxes_meet(centre.cwiseMin(to), centre.cwiseMax(to), rest_cut->lo, rest_cut->hi)) continue;
         if (!looked_up) {
           const auto it = cut_from.find(e);
           severed = it == cut_from.end() ? nullptr : &it->second;
@@ -375,9 +638,12 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
   const auto clock_ccd = std::chrono::steady_clock::now();
   report.ms_ccd = std::chrono::duration<double, std::milli>(clock_ccd - clock_start).count();
 
-  // Re-selection of the broken neighbourhoods, in element order (deterministic).
-  points_start_ = &points_start;
-  points_end_ = &points_end;
+  // Re-selection of the broken neighbourhoods, in element order (deterministic). Each
+  // element's points are formed before any row changes (the test of a candidate's link).
+  for (const auto& cut_element : cut_from) {
+    point_at_start(cut_element.first);
+    point_at_end(cut_element.first);
+  }
   rest_cut_ = rest_cut;
   particles_start_ = &particles_start;
   particles_end_ = &particles_end;
@@ -409,10 +675,11 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
     }
     report.changed_elements.push_back(element);
     if (rest_link_boxes_.size() == static_cast<size_t>(model_.element_count())) box_rest_links(element);
+    if (!element_stale_[element]) stale_list_.push_back(element);
     element_stale_[element] = 1;  // its boxed slots are stale until the next refit
     rest_search_->mark(element);
+    near_search_->loose.mark(element);
   }
-  points_start_ = points_end_ = nullptr;
   particles_start_ = particles_end_ = nullptr;
   rest_cut_ = nullptr;
   report.ms_topology = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - clock_ccd).count();
@@ -470,7 +737,7 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
   // Not across the cut so far (at rest), nor across this very step's sweep.
   const auto eligible = [&](int p) {
     if (rest_cut_ && rest_cut_->blocked && rest_cut_->blocked(centre, rest(p))) return false;
-    return !sweep_hit(sweep, (*points_start_)[element], particle(*particles_start_, p), (*points_end_)[element],
+    return !sweep_hit(sweep, point_at_start(element), particle(*particles_start_, p), point_at_end(element),
                       particle(*particles_end_, p));
   };
   const auto add = [&](int p) {
@@ -527,6 +794,7 @@ void VolumeCutter::box_rest_links(int element) {
     lo = lo.cwiseMin(to), hi = hi.cwiseMax(to);
   }
   rest_link_boxes_[element] = {lo, hi};
+  if (rest_link_index_->valid) rest_link_index_->loose.mark(element);
 }
 
 long VolumeCutter::rest_search_rebuilds() const { return rest_search_ ? rest_search_->rebuilds : 0; }
@@ -538,15 +806,6 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
   const int stride = model_.row_stride();
   const int elements = model_.element_count();
   RestSearch& search = *rest_search_;
-  // The integration point of e, formed exactly as integration_points() forms it.
-  const auto form = [&](int e) {
-    Vec3 point = Vec3::Zero();
-    const size_t base = static_cast<size_t>(e) * stride;
-    for (int k = 0; k < model_.row_lengths()[e]; ++k) {
-      point += model_.shape_values()[base + k] * particles.segment<3>(3 * static_cast<Eigen::Index>(model_.neighbours()[base + k]));
-    }
-    return point;
-  };
   if (++search.call == 0) {  // the stamps wrapped: forget them all
     std::fill(search.stamp.begin(), search.stamp.end(), 0u);
     search.call = 1;
@@ -554,7 +813,7 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
   search.point.resize(static_cast<size_t>(elements));
   search.stamp.resize(static_cast<size_t>(elements), 0u);
   const auto point_of = [&](int e) -> const Vec3& {
-    if (search.stamp[e] != search.call) search.point[e] = form(e), search.stamp[e] = search.call;
+    if (search.stamp[e] != search.call) search.point[e] = integration_point(e, particles), search.stamp[e] = search.call;
     return search.point[e];
   };
   // How far a point can have moved since the bins were built: |sum_k phi_k (x_k - x_k^bin)|

@@ -108,6 +108,14 @@ class VolumeCutter {
                std::vector<double>* distance = nullptr) const;
   // How many times to_rest rebuilt its bins of integration points (over all calls).
   long rest_search_rebuilds() const;
+  // cut() forms the integration points and box-tests the links of the elements near the
+  // sweep only, found in bins of the links' boxes kept from an earlier call (a link moves at
+  // most sum_k |phi_k| times the farthest particle's motion since); rebuilt when that bound
+  // exceeds a spacing. How many times they were rebuilt (over all calls):
+  long near_search_rebuilds() const;
+  // For tests: with `on`, cut() looks at every element and link instead (the scan whose
+  // outcome the search must reproduce exactly).
+  void set_full_scan(bool on);
 
   // Particle-particle links (a < b) and which are severed.
   const std::vector<std::array<int, 2>>& particle_links() const { return particle_links_; }
@@ -125,9 +133,14 @@ class VolumeCutter {
  private:
   struct Sweep;  // the sampled sweep of one call
   int element_link_id(int element, int slot) const;
-  void refit(const std::vector<Vec3>& points_start, const std::vector<Vec3>& points_end,
-             const Vector& particles_start, const Vector& particles_end, const Vec3& near_lo,
-             const Vec3& near_hi);
+  // The integration point of `element` (the MLS interpolation of `particles` at it); every
+  // point this class forms is formed here, so that the same inputs give the same bits.
+  Vec3 integration_point(int element, const Vector& particles) const;
+  // The integration point of `element` at the start and at the end of the call in progress,
+  // each formed once per call, when first asked for.
+  const Vec3& point_at_start(int element);
+  const Vec3& point_at_end(int element);
+  void refit(const Vector& particles_start, const Vector& particles_end, const Vec3& near_lo, const Vec3& near_hi);
   // Whether the blade, over the active sub-intervals, touches the moving segment whose
   // endpoints go linearly from (a0, b0) at fraction 0 to (a1, b1) at fraction 1.
   std::optional<PolylineHit> sweep_hit(const Sweep& sweep, const Vec3& a0, const Vec3& b0,
@@ -145,17 +158,24 @@ class VolumeCutter {
   // exactly what is there when a neighbourhood changes.
   std::vector<std::vector<int>> element_link_particles_;
   std::vector<std::uint8_t> element_stale_;  // 1: the row changed since its links were boxed
+  std::vector<int> stale_list_;               // the elements with element_stale_ set
   long total_links_severed_ = 0;
   std::vector<int> candidates_;  // reused
   // The endpoints of the call in progress (valid only inside cut()).
-  const std::vector<Vec3>* points_start_ = nullptr;
-  const std::vector<Vec3>* points_end_ = nullptr;
+  struct StepPoints;  // the integration points formed in the call in progress
+  std::unique_ptr<StepPoints> step_points_;
   const Vector* particles_start_ = nullptr;
   const Vector* particles_end_ = nullptr;
   const RestVisibility* rest_cut_ = nullptr;
   // Per element, the box of its links at rest (the rest-cut agreement pass of cut()).
   std::vector<std::array<Vec3, 2>> rest_link_boxes_;
   void box_rest_links(int element);
+  // Which elements and particle links can come near a sweep, kept between calls (refit), and
+  // which elements' rest link boxes can meet a region (the agreement pass).
+  struct NearSearch;
+  std::unique_ptr<NearSearch> near_search_;
+  struct RestLinkIndex;
+  std::unique_ptr<RestLinkIndex> rest_link_index_;
   struct RestSearch;  // to_rest's bins, kept between calls
   std::unique_ptr<RestSearch> rest_search_;
 };

@@ -379,3 +379,106 @@ TEST(VolumeCut, EachCallSeversExactlyTheLinksABruteForceTestOfEveryLinkHits) {
   EXPECT_GT(total_particle, 40);
   EXPECT_GT(total_element, 200);
 }
+
+// cut() forms the integration points and box-tests the links near the sweep only, found in
+// bins kept between calls with a bound on how far anything moved since (near_search_rebuilds).
+// Its outcome must be exactly that of a scan of every element and link (set_full_scan): the
+// same candidates from the broad phase (so the same tree updates), the same links severed,
+// at the same places, the same rows. The calls: strokes with a rest cut (the agreement pass);
+// the body moved away while the blade is elsewhere (a rebuild right after a re-selection: the
+// re-selected elements are refit where they are, far from the blade, and their old boxes
+// must leave the blade's way); the body creeping around a blade left in the cut (elements
+// re-selected earlier, not stale, moved beyond their slack); strokes where the body was; a body thrown far away and back
+// through a blade in one call; a body creeping onto a static blade (no rebuild, only the
+// drift bound finds the links that reach it).
+TEST(VolumeCut, TheNearSearchGivesExactlyWhatAScanOfEveryElementAndLinkGives) {
+  CorotationalEfg searched_model = make_beam();
+  CorotationalEfg scanned_model = make_beam();
+  const Vector rest = searched_model.rest_positions();
+  const int n = searched_model.node_count();
+  // Little slack: the boxes of links that moved a fraction of a spacing are updated.
+  VolumeCutter searched(searched_model, 1e-6, 0.0002);
+  VolumeCutter scanned(scanned_model, 1e-6, 0.0002);
+  scanned.set_full_scan(true);
+  const auto shifted = [&](const Vec3& by) {
+    Vector x = rest;
+    for (int i = 0; i < n; ++i) x.segment<3>(3 * i) += by;
+    return x;
+  };
+  struct Call {
+    std::vector<Vec3> from, to;
+    Vec3 body_from, body_to;
+    double rest_x = -1;  // > 0: a rest cut, the plane x = rest_x above z = depth
+    double depth = 0;
+  };
+  std::vector<Call> calls;
+  const Vec3 none = Vec3::Zero(), along(0.02, 0, 0), far(0, 0.5, 0);
+  for (int k = 0; k < 4; ++k) {
+    const double z0 = 0.012 - 0.004 * k, z1 = z0 - 0.004;
+    calls.push_back({blade_at(0.051, z0), blade_at(0.051, z1), none, none, 0.051 + 0.4 * a, z1});
+  }
+  // The body creeping up around a blade left in the cut: the elements re-selected by the
+  // strokes move beyond their boxes' slack (the tree needs their update).
+  const Vec3 step_up(0, 0, 0.15 * a);
+  for (int k = 0; k < 3; ++k)
+    calls.push_back({blade_at(0.0505, -0.003), blade_at(0.0505, -0.003), k * step_up, (k + 1) * step_up});
+  // One more stroke (its re-selected elements are stale), then the body moves away.
+  calls.push_back({blade_at(0.051, -0.004), blade_at(0.051, -0.008), 3 * step_up, 3 * step_up, 0.051 + 0.4 * a,
+                   -0.008 - 3 * step_up.z()});
+  calls.push_back({blade_at(0.051, 0.05), blade_at(0.051, 0.05), 3 * step_up, along});
+  for (int k = 0; k < 4; ++k) {
+    const double z0 = 0.012 - 0.004 * k, z1 = z0 - 0.004;
+    calls.push_back({blade_at(0.051, z0), blade_at(0.051, z1), along, along, 0.031 + 0.4 * a, z1});
+  }
+  calls.push_back({blade_at(0.0763, 0.0), blade_at(0.0763, 0.0), along, along + far});
+  calls.push_back({blade_at(0.0763, 0.0), blade_at(0.0763, 0.0), along + far, along});
+  for (int k = 0; k < 8; ++k) {
+    const Vec3 up0(0, 0, 0.15 * a * k), up1(0, 0, 0.15 * a * (k + 1));
+    calls.push_back({blade_at(0.09, 0.0104), blade_at(0.09, 0.0104), along + up0, along + up1});
+  }
+
+  int severed = 0, at_rest = 0, candidates_far = 0;
+  for (size_t c = 0; c < calls.size(); ++c) {
+    const Call& call = calls[c];
+    const Vector x0 = shifted(call.body_from), x1 = shifted(call.body_to);
+    VolumeCutter::RestVisibility visibility;
+    if (call.rest_x > 0) {
+      const double xc = call.rest_x, depth = call.depth;
+      visibility.blocked = [xc, depth](const Vec3& p, const Vec3& q) {
+        if ((p.x() - xc) * (q.x() - xc) >= 0) return false;
+        const double t = (xc - p.x()) / (q.x() - p.x());
+        return p.z() + t * (q.z() - p.z()) >= depth;
+      };
+      visibility.lo = Vec3(xc - 2 * a, -0.03, depth - 2 * a);
+      visibility.hi = Vec3(xc + 2 * a, 0.03, 0.03);
+    }
+    const std::vector<std::vector<Vec3>> poses{call.from, call.to};
+    const std::vector<double> fractions{0.0, 1.0};
+    const std::vector<std::uint8_t> active{1};
+    const VolumeCutter::RestVisibility* rest_cut = call.rest_x > 0 ? &visibility : nullptr;
+    const VolumeCutReport s = searched.cut(poses, fractions, active, x0, x1, rest_cut);
+    const VolumeCutReport f = scanned.cut(poses, fractions, active, x0, x1, rest_cut);
+    EXPECT_EQ(s.candidates, f.candidates) << "call " << c;
+    EXPECT_EQ(s.particle_links_severed, f.particle_links_severed) << "call " << c;
+    EXPECT_EQ(s.element_links_severed, f.element_links_severed) << "call " << c;
+    EXPECT_EQ(s.links_severed_at_rest, f.links_severed_at_rest) << "call " << c;
+    EXPECT_EQ(s.elements_reselected, f.elements_reselected) << "call " << c;
+    EXPECT_EQ(s.elements_isolated, f.elements_isolated) << "call " << c;
+    EXPECT_EQ(s.reselection_failures, f.reselection_failures) << "call " << c;
+    EXPECT_EQ(s.changed_elements, f.changed_elements) << "call " << c;
+    ASSERT_EQ(s.rest_hits.size(), f.rest_hits.size()) << "call " << c;
+    for (size_t h = 0; h < s.rest_hits.size(); ++h) EXPECT_EQ(s.rest_hits[h], f.rest_hits[h]) << "call " << c << ", hit " << h;
+    EXPECT_EQ(searched.particle_link_severed(), scanned.particle_link_severed()) << "call " << c;
+    EXPECT_EQ(searched_model.row_lengths(), scanned_model.row_lengths()) << "call " << c;
+    EXPECT_EQ(searched_model.neighbours(), scanned_model.neighbours()) << "call " << c;
+    severed += s.particle_links_severed + s.element_links_severed;
+    at_rest += s.links_severed_at_rest;
+    if (c >= 9 && c < 13) candidates_far += s.candidates;
+  }
+  std::printf("%zu calls: %d links severed, %d at rest, %ld rebuilds of the near search\n", calls.size(), severed,
+              at_rest, searched.near_search_rebuilds());
+  // Every phase did something: cuts, the rest cut's agreement, several rebuilds.
+  EXPECT_GT(severed, 200);
+  EXPECT_GT(candidates_far, 0);
+  EXPECT_GE(searched.near_search_rebuilds(), 3);
+}
