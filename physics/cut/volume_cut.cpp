@@ -350,20 +350,21 @@ void VolumeCutter::refit(const Vector& particles_start, const Vector& particles_
   };
   if (!search.full_scan && (!(reach(search.shape_sum) <= spacing) ||
                             8 * search.loose.list.size() > static_cast<size_t>(elements))) {
-    // Rebuilt at the start of this step (its points are this step's).
-    search.particles = particles_start;
-    search.scale = particles_start.cwiseAbs().maxCoeff();
+    // Rebuilt at the end of this step (its points are this step's, and the next step starts
+    // there: its drift is one step's motion).
+    search.particles = particles_end;
+    search.scale = particles_end.cwiseAbs().maxCoeff();
     search.element_boxes.resize(static_cast<size_t>(elements));
     search.shape_sums.resize(static_cast<size_t>(elements));
     search.shape_sum = 0;
     const int stride = model_.row_stride();
     for (int e = 0; e < elements; ++e) {
-      const Vec3& point = point_at_start(e);
+      const Vec3& point = point_at_end(e);
       Vec3 lo = point, hi = point;
       double sum = 0;
       const size_t base = static_cast<size_t>(e) * stride;
       for (int k = 0; k < model_.row_lengths()[e]; ++k) {
-        const Vec3 to = particle(particles_start, model_.neighbours()[base + k]);
+        const Vec3 to = particle(particles_end, model_.neighbours()[base + k]);
         lo = lo.cwiseMin(to), hi = hi.cwiseMax(to);
         sum += std::abs(model_.shape_values()[base + k]);
       }
@@ -374,7 +375,7 @@ void VolumeCutter::refit(const Vector& particles_start, const Vector& particles_
     search.link_boxes.resize(particle_links_.size());
     for (int link = 0; link < link_count; ++link) {
       const auto [a, b] = particle_links_[link];
-      const Vec3 pa = particle(particles_start, a), pb = particle(particles_start, b);
+      const Vec3 pa = particle(particles_end, a), pb = particle(particles_end, b);
       search.link_boxes[link] = {pa.cwiseMin(pb), pa.cwiseMax(pb)};
     }
     search.valid = search.elements.build(search.element_boxes, spacing) && search.links.build(search.link_boxes, spacing);
