@@ -160,6 +160,27 @@ struct LooseSet {
   }
 };
 
+// Integration points formed at most once per call: point[e] is this call's when stamp[e] == call.
+struct PointMemo {
+  std::vector<Vec3> point;
+  std::vector<unsigned> stamp;
+  unsigned call = 0;
+
+  void begin(int elements) {
+    if (++call == 0) {  // the stamps wrapped: forget them all
+      std::fill(stamp.begin(), stamp.end(), 0u);
+      call = 1;
+    }
+    point.resize(static_cast<size_t>(elements));
+    stamp.resize(static_cast<size_t>(elements), 0u);
+  }
+  template <class Form>
+  const Vec3& get(int element, const Form& form) {
+    if (stamp[element] != call) point[element] = form(element), stamp[element] = call;
+    return point[element];
+  }
+};
+
 }  // namespace
 
 // refit's search (see near_search_rebuilds()): the swept box of a link over a step lies in
@@ -194,22 +215,13 @@ struct VolumeCutter::RestLinkIndex {
 struct VolumeCutter::StepPoints {
   const Vector* particles_start = nullptr;
   const Vector* particles_end = nullptr;
-  std::vector<Vec3> start, end;
-  std::vector<unsigned> start_stamp, end_stamp;  // == call: formed in this call
-  unsigned call = 0;
+  PointMemo start, end;
 
   void begin(int elements, const Vector& at_start, const Vector& at_end) {
     particles_start = &at_start;
     particles_end = &at_end;
-    if (++call == 0) {  // the stamps wrapped: forget them all
-      std::fill(start_stamp.begin(), start_stamp.end(), 0u);
-      std::fill(end_stamp.begin(), end_stamp.end(), 0u);
-      call = 1;
-    }
-    start.resize(static_cast<size_t>(elements));
-    end.resize(static_cast<size_t>(elements));
-    start_stamp.resize(static_cast<size_t>(elements), 0u);
-    end_stamp.resize(static_cast<size_t>(elements), 0u);
+    start.begin(elements);
+    end.begin(elements);
   }
 };
 
@@ -218,19 +230,9 @@ struct VolumeCutter::RestSearch {
   PointBins bins;               // of the integration points at the last rebuild
   Vector particles;             // the particle positions they were formed from
   double shape_sum = 0;         // max over elements of sum_k |phi_k|, at the last rebuild
-  std::vector<std::uint8_t> loose;  // re-selected since the rebuild: tested apart
-  std::vector<int> loose_list;
+  LooseSet loose;               // re-selected since the rebuild: tested apart
   long rebuilds = 0;
-  // Per call: the points formed so far (stamp == call), so each is formed once.
-  std::vector<Vec3> point;
-  std::vector<unsigned> stamp;
-  unsigned call = 0;
-
-  void mark(int element) {
-    if (!valid || element < 0 || element >= static_cast<int>(loose.size()) || loose[element]) return;
-    loose[element] = 1;
-    loose_list.push_back(element);
-  }
+  PointMemo points;             // per call: the points formed so far
 };
 
 VolumeCutter::VolumeCutter(CorotationalEfg& model, double margin, double slack)
@@ -289,20 +291,12 @@ void VolumeCutter::integration_points(const Vector& particles, std::vector<Vec3>
 
 const Vec3& VolumeCutter::point_at_start(int element) {
   StepPoints& points = *step_points_;
-  if (points.start_stamp[element] != points.call) {
-    points.start[element] = integration_point(element, *points.particles_start);
-    points.start_stamp[element] = points.call;
-  }
-  return points.start[element];
+  return points.start.get(element, [&](int e) { return integration_point(e, *points.particles_start); });
 }
 
 const Vec3& VolumeCutter::point_at_end(int element) {
   StepPoints& points = *step_points_;
-  if (points.end_stamp[element] != points.call) {
-    points.end[element] = integration_point(element, *points.particles_end);
-    points.end_stamp[element] = points.call;
-  }
-  return points.end[element];
+  return points.end.get(element, [&](int e) { return integration_point(e, *points.particles_end); });
 }
 
 long VolumeCutter::near_search_rebuilds() const { return near_search_->rebuilds; }
@@ -678,7 +672,7 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
     if (rest_link_boxes_.size() == static_cast<size_t>(model_.element_count())) box_rest_links(element);
     if (!element_stale_[element]) stale_list_.push_back(element);
     element_stale_[element] = 1;  // its boxed slots are stale until the next refit
-    rest_search_->mark(element);
+    if (rest_search_->valid) rest_search_->loose.mark(element);
     near_search_->loose.mark(element);
   }
   particles_start_ = particles_end_ = nullptr;
@@ -807,15 +801,9 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
   const int stride = model_.row_stride();
   const int elements = model_.element_count();
   RestSearch& search = *rest_search_;
-  if (++search.call == 0) {  // the stamps wrapped: forget them all
-    std::fill(search.stamp.begin(), search.stamp.end(), 0u);
-    search.call = 1;
-  }
-  search.point.resize(static_cast<size_t>(elements));
-  search.stamp.resize(static_cast<size_t>(elements), 0u);
+  search.points.begin(elements);
   const auto point_of = [&](int e) -> const Vec3& {
-    if (search.stamp[e] != search.call) search.point[e] = integration_point(e, particles), search.stamp[e] = search.call;
-    return search.point[e];
+    return search.points.get(e, [&](int element) { return integration_point(element, particles); });
   };
   // How far a point can have moved since the bins were built: |sum_k phi_k (x_k - x_k^bin)|
   // <= sum_k |phi_k| max_k |x_k - x_k^bin|, with room for rounding.
@@ -827,7 +815,7 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
       moved = std::max(moved, (particles.segment<3>(i) - search.particles.segment<3>(i)).squaredNorm());
     drift = search.shape_sum * std::sqrt(moved) * (1 + 1e-6) + 1e-9 * model_.spacing();
   }
-  const bool stale = !(drift <= model_.spacing()) || 8 * search.loose_list.size() > static_cast<size_t>(elements);
+  const bool stale = !(drift <= model_.spacing()) || 8 * search.loose.list.size() > static_cast<size_t>(elements);
   if (stale && finite) {
     std::vector<Vec3> points(static_cast<size_t>(elements));
     search.shape_sum = 0;
@@ -840,8 +828,7 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
     }
     search.valid = search.bins.build(points, model_.spacing());
     search.particles = particles;
-    search.loose.assign(static_cast<size_t>(elements), 0);
-    search.loose_list.clear();
+    search.loose.reset(elements);
     ++search.rebuilds;
     drift = 1e-9 * model_.spacing();
   }
@@ -896,10 +883,10 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
               const size_t b = static_cast<size_t>(i + bins.count[0] * (j + bins.count[1] * k));
               for (int s = bins.start[b]; s < bins.start[b + 1]; ++s) {
                 const int e = bins.items[static_cast<size_t>(s)];
-                if (!search.loose[e]) consider(e);
+                if (!search.loose.loose[e]) consider(e);
               }
             }
-        for (int e : search.loose_list) consider(e);
+        for (int e : search.loose.list) consider(e);
         if (!std::isfinite(least)) {
           if (everything) break;  // no finite distance: the scan below decides
           reach *= 2;
