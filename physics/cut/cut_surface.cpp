@@ -295,11 +295,11 @@ CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, 
   };
   const auto any_corner = [&](const std::vector<std::uint8_t>& mark, int i, int j, int k) {
     for (int c = 0; c < 8; ++c)
-      if (mark[node_index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))]) return true;
+      if (mark[corner_node(i, j, k, c)]) return true;
     return false;
   };
   const auto mark_corners = [&](std::vector<std::uint8_t>& mark, int i, int j, int k) {
-    for (int c = 0; c < 8; ++c) mark[node_index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))] = 1;
+    for (int c = 0; c < 8; ++c) mark[corner_node(i, j, k, c)] = 1;
   };
   for_cubes([&](int i, int j, int k) {
     ++cube_count_;
@@ -319,7 +319,7 @@ CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, 
     if (!any_corner(near_node, i, j, k)) return;
     for (const auto& tet : cube_tets) {
       std::array<int, 4> nodes_of{};
-      for (int c = 0; c < 4; ++c) nodes_of[c] = node_index(i + (tet[c] & 1), j + ((tet[c] >> 1) & 1), k + ((tet[c] >> 2) & 1));
+      for (int c = 0; c < 4; ++c) nodes_of[c] = corner_node(i, j, k, tet[c]);
       mesh.tets.push_back(nodes_of);
     }
   });
@@ -343,7 +343,7 @@ CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, 
   for (int cube : surface_cubes_)
     for (int s = 0; s < 8; ++s) {
       const int i = cube % counts_[0], j = (cube / counts_[0]) % counts_[1], k = cube / (counts_[0] * counts_[1]);
-      surface_nodes.push_back(node_index(i + (s & 1), j + ((s >> 1) & 1), k + ((s >> 2) & 1)));
+      surface_nodes.push_back(corner_node(i, j, k, s));
     }
   refresh(std::move(surface_nodes));
   // Room for what the cuts add, so that the first cuts grow the per-vertex and per-triangle

@@ -174,6 +174,10 @@ class CutSurface {
  private:
   int cube_index(int i, int j, int k) const { return i + counts_[0] * (j + counts_[1] * k); }
   int node_index(int i, int j, int k) const { return i + (counts_[0] + 1) * (j + (counts_[1] + 1) * k); }
+  // The grid node at corner `corner` (bits x = 1, y = 2, z = 4) of cube (i, j, k).
+  int corner_node(int i, int j, int k, int corner) const {
+    return node_index(i + (corner & 1), j + ((corner >> 1) & 1), k + ((corner >> 2) & 1));
+  }
   Vec3 cube_centre(int i, int j, int k) const;
   // At construction: one pass over every cube filling the empty cubes at pinches; returns
   // the number filled (0: the voxel set is final).
