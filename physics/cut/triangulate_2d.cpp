@@ -254,7 +254,6 @@ class Triangulator {
   std::vector<Triangle> triangles_;
   std::vector<int> vertex_triangle_;  // one triangle holding each vertex
   std::vector<int> stack_;            // flip work list: triangle * 3 + edge
-  std::map<std::pair<int, int>, int> boundary_by_vertices_;  // (min, max) -> boundary edge
   std::vector<char> inside_;
   int last_triangle_ = 0;  // where the next point location starts: next to the last point
   std::uint32_t random_state_ = 2463534242u;  // fixed seed: the walk, and so the output, is deterministic
@@ -284,6 +283,7 @@ void Triangulator::validate_points() const {
 void Triangulator::validate_boundary() {
   const int n = static_cast<int>(region_.points.size());
   std::vector<int> balance(n, 0);
+  std::map<std::pair<int, int>, int> boundary_by_vertices;  // (min, max) -> boundary edge
   for (int k = 0; k < static_cast<int>(region_.boundary.size()); ++k) {
     const auto& edge = region_.boundary[k];
     for (int end : edge) {
@@ -294,7 +294,7 @@ void Triangulator::validate_boundary() {
     if (edge[0] == edge[1])
       throw std::invalid_argument("triangulate_region: " + edge_name(k, edge) + " starts and ends at the same point");
     const auto key = std::minmax(edge[0], edge[1]);
-    const auto [it, inserted] = boundary_by_vertices_.emplace(std::pair<int, int>(key.first, key.second), k);
+    const auto [it, inserted] = boundary_by_vertices.emplace(std::pair<int, int>(key.first, key.second), k);
     if (!inserted)
       throw std::invalid_argument("triangulate_region: " + edge_name(it->second, region_.boundary[it->second]) +
                                   " and " + edge_name(k, edge) + " overlap (the same two points)");
@@ -518,14 +518,16 @@ bool Triangulator::beyond_along(int a, int b, int c) const {
 
 void Triangulator::throw_point_on_edge(int point, int index) const {
   const auto& edge = region_.boundary[index];
-  // A point on an edge that is itself the end of a collinear boundary edge along it means
-  // the two boundary edges overlap; say so, it is the more useful message.
-  for (int end : edge) {
-    const auto it = boundary_by_vertices_.find(std::minmax(point, end));
-    if (it != boundary_by_vertices_.end())
+  // A point inside the edge that starts or ends a boundary edge along the same line means
+  // the two boundary edges overlap (the other one runs into this one from its interior
+  // point); say so, it is the more useful message. Only on the error path, so a plain scan.
+  for (int k = 0; k < static_cast<int>(region_.boundary.size()); ++k) {
+    const auto& candidate = region_.boundary[k];
+    const int other = candidate[0] == point ? candidate[1] : candidate[1] == point ? candidate[0] : -1;
+    if (other >= 0 && orient(edge[0], edge[1], other) == 0.0)
       throw std::invalid_argument("triangulate_region: " + edge_name(index, edge) + " and " +
-                                  edge_name(it->second, region_.boundary[it->second]) + " overlap (point " +
-                                  std::to_string(point) + " lies on the first)");
+                                  edge_name(k, candidate) + " overlap (point " + std::to_string(point) +
+                                  " lies on the first)");
   }
   throw std::invalid_argument("triangulate_region: point " + std::to_string(point) + " lies on " +
                               edge_name(index, edge) + " without being one of its endpoints");
