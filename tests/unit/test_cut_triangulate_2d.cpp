@@ -519,6 +519,70 @@ TEST(Triangulate2d, CoversRandomStarShapedPolygonsWithFreePointsForManySeeds) {
   }
 }
 
+// Star-shaped loops through random points of a small integer lattice, all other lattice
+// points free: collinear and cocircular quadruples everywhere, and often a free point
+// exactly on a boundary edge. Either the result passes every check, or the error names a
+// point that really lies on a boundary edge (found here by exact orientation).
+TEST(Triangulate2d, OnALatticeEitherTriangulatesOrNamesAPointLyingOnAnEdge) {
+  int triangulated = 0;
+  int rejected = 0;
+  for (unsigned seed = 0; seed < 300; ++seed) {
+    std::mt19937_64 random(seed);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    const int side = 8;
+    const Vec2 centre(3.5 + 0.0123, 3.5 + 0.0377);  // on no lattice line: no two angles tie
+    std::vector<Vec2> lattice;
+    for (int x = 0; x < side; ++x) {
+      for (int y = 0; y < side; ++y) lattice.emplace_back(x, y);
+    }
+    std::shuffle(lattice.begin(), lattice.end(), random);
+    const int count = 4 + static_cast<int>(unit(random) * 16);
+    std::vector<Vec2> loop(lattice.begin(), lattice.begin() + count);
+    auto angle_of = [&](const Vec2& p) { return std::atan2(p.y() - centre.y(), p.x() - centre.x()); };
+    std::sort(loop.begin(), loop.end(), [&](const Vec2& a, const Vec2& b) { return angle_of(a) < angle_of(b); });
+    double largest_gap = 2.0 * std::numbers::pi + angle_of(loop.front()) - angle_of(loop.back());
+    for (int i = 1; i < count; ++i) largest_gap = std::max(largest_gap, angle_of(loop[i]) - angle_of(loop[i - 1]));
+    if (largest_gap >= 0.99 * std::numbers::pi) continue;  // not star-shaped around the centre
+    PlanarRegion region;
+    add_loop(region, loop);
+    region.points.insert(region.points.end(), lattice.begin() + count, lattice.end());
+    // Points on a boundary edge (free points only: the loop is simple).
+    std::set<int> on_edge;
+    for (const auto& [from, to] : region.boundary) {
+      const Vec2& a = region.points[from];
+      const Vec2& b = region.points[to];
+      for (int v = 0; v < static_cast<int>(region.points.size()); ++v) {
+        const Vec2& p = region.points[v];
+        if (v == from || v == to || exact_orient(a, b, p) != 0) continue;
+        if (p.x() >= std::min(a.x(), b.x()) && p.x() <= std::max(a.x(), b.x()) && p.y() >= std::min(a.y(), b.y()) &&
+            p.y() <= std::max(a.y(), b.y()))
+          on_edge.insert(v);
+      }
+    }
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    if (!on_edge.empty()) {
+      const std::string message = message_of(region);
+      EXPECT_NE(message.find("lies on"), std::string::npos) << message;
+      bool names_one = false;
+      for (int v : on_edge) names_one = names_one || message.find("point " + std::to_string(v) + " ") != std::string::npos;
+      EXPECT_TRUE(names_one) << message;
+      ++rejected;
+      // Without those points the same loop must triangulate.
+      PlanarRegion kept;
+      kept.boundary = region.boundary;
+      for (int v = 0; v < static_cast<int>(region.points.size()); ++v) {
+        if (on_edge.count(v) == 0) kept.points.push_back(region.points[v]);
+      }
+      expect_valid(kept);
+    } else {
+      expect_valid(region);
+    }
+    ++triangulated;
+  }
+  EXPECT_GT(triangulated, 20);
+  EXPECT_GT(rejected, 20);
+}
+
 TEST(Triangulate2d, TriangulatesFiveThousandPointsQuickly) {
   std::mt19937_64 random(3);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
