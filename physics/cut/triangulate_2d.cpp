@@ -412,12 +412,11 @@ void Triangulator::split_fan(int p, const std::array<int, 4>& ring, const std::a
 void Triangulator::insert_point(int p) {
   const int t = locate(p, last_triangle_);
   const Triangle tri = triangles_[t];
-  std::array<double, 3> side{};
+  // p is inside or on t; exactly on one edge (orientation zero) it splits that edge.
   int zeros = 0;
   int zero_edge = -1;
   for (int i = 0; i < 3; ++i) {
-    side[i] = orient(tri.vertex[next(i)], tri.vertex[prev(i)], p);
-    if (side[i] == 0.0) {
+    if (orient(tri.vertex[next(i)], tri.vertex[prev(i)], p) == 0.0) {
       ++zeros;
       zero_edge = i;
     }

@@ -25,9 +25,11 @@
 // precision floating-point arithmetic and fast robust geometric predicates", bounds A);
 // when the value is below the bound the determinant is recomputed exactly as a
 // floating-point expansion (two-sum and two-product error-free transformations, summed and
-// scaled without loss). Exact for any finite input whose intermediate products neither
-// overflow nor underflow (coordinates of magnitude roughly 1e-70 to 1e70 relative to
-// each other's differences; the tests stay well inside).
+// scaled without loss). The sign is exact under the default round-to-nearest mode as long
+// as no intermediate product overflows or underflows: differences between coordinates
+// within about 1e-60 .. 1e75 (incircle's exact path multiplies four of them). The bounds are
+// for separately rounded operations; the project does not build with -march/-mfma, so the
+// compiler fuses nothing (with hardware FMA the error-free product uses it, see two_product).
 //
 // Tie rule: an edge is flipped only when the opposite point is strictly inside the
 // circumcircle. Four cocircular points (a square lattice) keep whichever diagonal the
