@@ -189,11 +189,14 @@ int winding_number(const PlanarRegion& region, const Vec2& p) {
   return winding;
 }
 
+// Relative to one of its points, so a region far from the origin keeps its digits.
 double shoelace_area(const PlanarRegion& region) {
   double area = 0.0;
+  if (region.boundary.empty()) return area;
+  const Vec2 reference = region.points[region.boundary[0][0]];
   for (const auto& [from, to] : region.boundary) {
-    const Vec2& a = region.points[from];
-    const Vec2& b = region.points[to];
+    const Vec2 a = region.points[from] - reference;
+    const Vec2 b = region.points[to] - reference;
     area += 0.5 * (a.x() * b.y() - a.y() * b.x());
   }
   return area;
@@ -581,6 +584,45 @@ TEST(Triangulate2d, OnALatticeEitherTriangulatesOrNamesAPointLyingOnAnEdge) {
   }
   EXPECT_GT(triangulated, 20);
   EXPECT_GT(rejected, 20);
+}
+
+// A small region far from the origin: its differences keep only a few significant bits
+// after the offset is rounded in, so most predicates fall back to exact arithmetic.
+TEST(Triangulate2d, CoversASmallRegionFarFromTheOrigin) {
+  std::mt19937_64 random(17);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const Vec2 offset(1.0e7, -3.0e7);
+  const double scale = 1e-6;
+  PlanarRegion region;
+  std::vector<Vec2> loop;
+  for (int i = 0; i < 40; ++i) {
+    const double angle = 2.0 * std::numbers::pi * (i + unit(random)) / 40.0;
+    const double radius = scale * (0.5 + unit(random));
+    loop.push_back(offset + radius * Vec2(std::cos(angle), std::sin(angle)));
+  }
+  add_loop(region, loop);
+  for (int i = 0; i < 200; ++i) region.points.push_back(offset + scale * Vec2(3.0 * unit(random) - 1.5, 3.0 * unit(random) - 1.5));
+  // Rounding onto the coarse grid near 1e7 can merge points or put one on an edge; keep
+  // only inputs the contract accepts, the point here is the predicates.
+  std::sort(region.points.begin() + 40, region.points.end(),
+            [](const Vec2& a, const Vec2& b) { return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y(); });
+  region.points.erase(std::unique(region.points.begin() + 40, region.points.end()), region.points.end());
+  std::vector<Vec2> kept(region.points.begin(), region.points.begin() + 40);
+  for (std::size_t v = 40; v < region.points.size(); ++v) {
+    const Vec2& p = region.points[v];
+    bool acceptable = std::find(kept.begin(), kept.begin() + 40, p) == kept.begin() + 40;
+    for (const auto& [from, to] : region.boundary) {
+      const Vec2& a = region.points[from];
+      const Vec2& b = region.points[to];
+      if (exact_orient(a, b, p) == 0 && p.x() >= std::min(a.x(), b.x()) && p.x() <= std::max(a.x(), b.x()) &&
+          p.y() >= std::min(a.y(), b.y()) && p.y() <= std::max(a.y(), b.y()))
+        acceptable = false;
+    }
+    if (acceptable) kept.push_back(p);
+  }
+  region.points = kept;
+  ASSERT_GT(region.points.size(), 150u);
+  expect_valid(region);
 }
 
 TEST(Triangulate2d, TriangulatesFiveThousandPointsQuickly) {
