@@ -487,6 +487,23 @@ TEST(Triangulate2d, HandlesBoundaryPointsNearlyCollinearToOneUlp) {
   expect_valid(region);
 }
 
+// Free points rounded onto a circle and onto a line: nearly every quadruple is cocircular
+// and every triple collinear to within rounding, where only the exact predicates decide.
+TEST(Triangulate2d, HandlesFreePointsRoundedOntoACircleAndALine) {
+  PlanarRegion region;
+  add_loop(region, rectangle(-2, -2, 2, 2));
+  const int count = 256;
+  for (int i = 0; i < count; ++i) {
+    const double angle = 2.0 * std::numbers::pi * i / count + 0.1;
+    region.points.emplace_back(1.3 * std::cos(angle), 1.3 * std::sin(angle));
+  }
+  for (int i = 0; i < 100; ++i) {
+    const double x = -1.9 + 3.8 * i / 100.0 + 0.001;
+    region.points.emplace_back(x, 0.3 * x + 0.1);
+  }
+  expect_valid(region);
+}
+
 TEST(Triangulate2d, CoversAThinSliverOfAspectOneInAMillion) {
   PlanarRegion region;
   std::vector<Vec2> loop;
