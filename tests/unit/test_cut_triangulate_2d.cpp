@@ -603,8 +603,10 @@ TEST(Triangulate2d, OnALatticeEitherTriangulatesOrNamesAPointLyingOnAnEdge) {
   EXPECT_GT(rejected, 20);
 }
 
-// A small region far from the origin: its differences keep only a few significant bits
-// after the offset is rounded in, so most predicates fall back to exact arithmetic.
+// A small region far from the origin: near 1e7 doubles are 1.9e-9 apart, so a region of
+// size 1e-6 sits on a grid of about 500 steps across, where exactly collinear and
+// cocircular points occur and absolute coordinates would cancel (the checks here work in
+// differences, which are exact).
 TEST(Triangulate2d, CoversASmallRegionFarFromTheOrigin) {
   std::mt19937_64 random(17);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
