@@ -1,0 +1,925 @@
+#include "physics/cut/front_surface.hpp"
+
+#include "physics/cut/triangulate_2d.hpp"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <set>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+namespace incise::physics {
+
+namespace {
+
+bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
+
+// The sign of an orientation, evaluated on the points in increasing id order and fixed up by
+// the permutation's parity, zero counted as positive: every test that shares the four points
+// sees the same sign (see the header). `value` is the determinant in the caller's order.
+struct Orientation {
+  double value = 0;
+  int sign = 1;
+};
+
+// The stroke's points: the base mesh's vertices, then the sheet's (blade point i of sample j
+// at base + j * points + i).
+struct PointTable {
+  const std::vector<Vec3>* base = nullptr;
+  const std::vector<std::vector<Vec3>>* samples = nullptr;
+  int points_per_sample = 0;
+  int base_count() const { return static_cast<int>(base->size()); }
+  int sheet_id(int point, int sample) const { return base_count() + sample * points_per_sample + point; }
+  const Vec3& operator[](int id) const {
+    if (id < base_count()) return (*base)[static_cast<size_t>(id)];
+    const int local = id - base_count();
+    return (*samples)[static_cast<size_t>(local / points_per_sample)][static_cast<size_t>(local % points_per_sample)];
+  }
+};
+
+Orientation orient(const PointTable& points, int a, int b, int c, int d) {
+  std::array<int, 4> ids{a, b, c, d};
+  int parity = 1;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j + 1 < 4 - i; ++j)
+      if (ids[static_cast<size_t>(j)] > ids[static_cast<size_t>(j + 1)]) {
+        std::swap(ids[static_cast<size_t>(j)], ids[static_cast<size_t>(j + 1)]);
+        parity = -parity;
+      }
+  const Vec3& p = points[ids[0]];
+  const double det = (points[ids[1]] - p).dot((points[ids[2]] - p).cross(points[ids[3]] - p));
+  return {parity * det, parity * (det >= 0 ? 1 : -1)};
+}
+
+// Segment [p, q] against triangle (x, y, z), all ids. `along`: the crossing's fraction from p;
+// `weights`: its barycentric coordinates on x, y, z; `p_sign`: orient(p, x, y, z)'s sign
+// (positive: p is on the side opposite the triangle's normal).
+struct Crossing {
+  double along = 0;
+  std::array<double, 3> weights{};
+  int p_sign = 0;
+};
+
+std::optional<Crossing> segment_crosses(const PointTable& points, int p, int q, int x, int y, int z) {
+  const Orientation sp = orient(points, p, x, y, z), sq = orient(points, q, x, y, z);
+  if (sp.sign == sq.sign) return std::nullopt;
+  const Orientation e_xy = orient(points, p, q, x, y), e_yz = orient(points, p, q, y, z),
+                    e_zx = orient(points, p, q, z, x);
+  if (e_xy.sign != e_yz.sign || e_yz.sign != e_zx.sign) return std::nullopt;
+  Crossing hit;
+  const double denominator = sp.value - sq.value;
+  hit.along = denominator != 0 ? std::clamp(sp.value / denominator, 0.0, 1.0) : 0.5;
+  const double total = e_xy.value + e_yz.value + e_zx.value;
+  if (total != 0)
+    hit.weights = {e_yz.value / total, e_zx.value / total, e_xy.value / total};
+  else
+    hit.weights = {1.0 / 3, 1.0 / 3, 1.0 / 3};
+  hit.p_sign = sp.sign;
+  return hit;
+}
+
+// Whether the segment [p, q] crosses triangle (a, b, c) (Moller-Trumbore), for the parity of
+// a ray: only the "began inside" report rests on it.
+int ray_crosses(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 direction = q - p, e1 = b - a, e2 = c - a;
+  const Vec3 h = direction.cross(e2);
+  const double determinant = e1.dot(h);
+  if (determinant == 0) return 0;
+  const double inverse = 1 / determinant;
+  const Vec3 s = p - a;
+  const double u = inverse * s.dot(h);
+  if (u < 0 || u > 1) return 0;
+  const Vec3 k = s.cross(e1);
+  const double v = inverse * direction.dot(k);
+  if (v < 0 || u + v > 1) return 0;
+  const double along = inverse * e2.dot(k);
+  return along >= 0 && along <= 1 ? 1 : 0;
+}
+
+// Whether the polygon (ids into positions) turns counter-clockwise about n.
+bool oriented_about(const std::vector<int>& polygon, const Vec3& n, const std::vector<Vec3>& positions) {
+  Vec3 area = Vec3::Zero();
+  for (size_t k = 0; k < polygon.size(); ++k)
+    area += positions[static_cast<size_t>(polygon[k])].cross(positions[static_cast<size_t>(polygon[(k + 1) % polygon.size()])]);
+  return area.dot(n) >= 0;
+}
+
+// Triangulates a small simple polygon lying in a plane of normal n by clipping ears, its
+// triangles counter-clockwise about n. A vertex on the line of its neighbours (the slit's
+// middle) is never an ear: it is clipped last, with a vertex off that line.
+void ear_clip(std::vector<int> polygon, const Vec3& n, const std::vector<Vec3>& positions, std::vector<std::array<int, 3>>& out) {
+  if (!oriented_about(polygon, n, positions)) std::reverse(polygon.begin(), polygon.end());
+  const auto at = [&](int id) -> const Vec3& { return positions[static_cast<size_t>(id)]; };
+  const auto turn = [&](int a, int b, int c) { return (at(b) - at(a)).cross(at(c) - at(a)).dot(n); };
+  while (polygon.size() > 3) {
+    const size_t m = polygon.size();
+    size_t best = m;
+    double best_turn = 0;
+    for (size_t k = 0; k < m; ++k) {
+      const int a = polygon[(k + m - 1) % m], b = polygon[k], c = polygon[(k + 1) % m];
+      const double area = turn(a, b, c);
+      if (!(area > 0)) continue;
+      bool empty = true;
+      for (size_t j = 0; j < m && empty; ++j) {
+        const int p = polygon[j];
+        if (p == a || p == b || p == c) continue;
+        empty = !(turn(a, b, p) >= 0 && turn(b, c, p) >= 0 && turn(c, a, p) >= 0);
+      }
+      // The fattest ear, so that slivers are left for last.
+      if (empty && (best == m || area > best_turn)) {
+        best = k;
+        best_turn = area;
+      }
+    }
+    if (best == m) best = 0;  // no ear (a degenerate polygon): clip anyway
+    out.push_back({polygon[(best + m - 1) % m], polygon[best], polygon[(best + 1) % m]});
+    polygon.erase(polygon.begin() + static_cast<long>(best));
+  }
+  out.push_back({polygon[0], polygon[1], polygon[2]});
+}
+
+// Each undirected edge of a closed mesh, with the triangle on each side.
+struct EdgeTable {
+  std::vector<std::array<int, 2>> ends;          // lower id first
+  std::vector<std::array<int, 2>> triangles;     // the two triangles using the edge
+  std::vector<std::array<int, 3>> of_triangle;   // edge k of triangle (t[k], t[k+1])
+};
+
+EdgeTable edge_table(const std::vector<std::array<int, 3>>& triangles) {
+  struct Use {
+    int lower, higher, triangle, corner;
+    bool forward;  // lower -> higher
+  };
+  std::vector<Use> uses;
+  uses.reserve(3 * triangles.size());
+  for (size_t t = 0; t < triangles.size(); ++t)
+    for (int k = 0; k < 3; ++k) {
+      const int a = triangles[t][static_cast<size_t>(k)], b = triangles[t][static_cast<size_t>((k + 1) % 3)];
+      uses.push_back({std::min(a, b), std::max(a, b), static_cast<int>(t), k, a < b});
+    }
+  std::sort(uses.begin(), uses.end(), [](const Use& l, const Use& r) {
+    return l.lower != r.lower ? l.lower < r.lower : l.higher != r.higher ? l.higher < r.higher : l.forward > r.forward;
+  });
+  EdgeTable table;
+  table.of_triangle.assign(triangles.size(), {-1, -1, -1});
+  for (size_t u = 0; u < uses.size();) {
+    size_t v = u;
+    while (v < uses.size() && uses[v].lower == uses[u].lower && uses[v].higher == uses[u].higher) ++v;
+    if (v - u != 2 || !uses[u].forward || uses[u + 1].forward) {
+      std::ostringstream message;
+      message << "FrontSurface: edge (" << uses[u].lower << ", " << uses[u].higher
+              << ") is not used exactly once in each direction: the mesh must be closed and consistently oriented";
+      throw std::invalid_argument(message.str());
+    }
+    const int e = static_cast<int>(table.ends.size());
+    table.ends.push_back({uses[u].lower, uses[u].higher});
+    table.triangles.push_back({uses[u].triangle, uses[u + 1].triangle});
+    table.of_triangle[static_cast<size_t>(uses[u].triangle)][static_cast<size_t>(uses[u].corner)] = e;
+    table.of_triangle[static_cast<size_t>(uses[u + 1].triangle)][static_cast<size_t>(uses[u + 1].corner)] = e;
+    u = v;
+  }
+  return table;
+}
+
+// Items with boxes binned in a uniform grid (compressed rows), for box queries; each item is
+// visited once per query.
+class BoxBins {
+ public:
+  void build(const std::vector<std::array<Vec3, 2>>& boxes, double cell) {
+    boxes_ = boxes;
+    lo_ = boxes.front()[0];
+    Vec3& hi = hi_;
+    hi = boxes.front()[1];
+    for (const auto& box : boxes) {
+      lo_ = lo_.cwiseMin(box[0]);
+      hi = hi.cwiseMax(box[1]);
+    }
+    cell_ = cell;
+    // At most about 2^22 cells: the cell grows for large extents.
+    for (;;) {
+      for (int d = 0; d < 3; ++d) count_[static_cast<size_t>(d)] = std::max(1, static_cast<int>(std::ceil((hi[d] - lo_[d]) / cell_)) + 1);
+      if (static_cast<double>(count_[0]) * count_[1] * count_[2] <= 4.2e6) break;
+      cell_ *= 1.5;
+    }
+    start_.assign(static_cast<size_t>(count_[0]) * count_[1] * count_[2] + 1, 0);
+    for (int pass = 0; pass < 2; ++pass) {
+      std::vector<int> fill;
+      if (pass == 1) {
+        for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
+        items_.assign(static_cast<size_t>(start_.back()), 0);
+        fill.assign(start_.begin(), start_.end() - 1);
+      }
+      for (size_t b = 0; b < boxes.size(); ++b) {
+        const auto first = cell_of(boxes[b][0]), last = cell_of(boxes[b][1]);
+        for (int k = first[2]; k <= last[2]; ++k)
+          for (int j = first[1]; j <= last[1]; ++j)
+            for (int i = first[0]; i <= last[0]; ++i) {
+              const size_t c = index(i, j, k);
+              if (pass == 0)
+                ++start_[c + 1];
+              else
+                items_[static_cast<size_t>(fill[c]++)] = static_cast<int>(b);
+            }
+      }
+    }
+    stamp_.assign(boxes.size(), 0);
+    query_ = 0;
+  }
+  // The diagonal of the box around every item.
+  double extent() const { return (hi_ - lo_).norm(); }
+  template <typename Visit>
+  void near(const Vec3& lo, const Vec3& hi, const Visit& visit) const {
+    if (boxes_.empty()) return;
+    ++query_;
+    const auto first = cell_of(lo), last = cell_of(hi);
+    for (int k = first[2]; k <= last[2]; ++k)
+      for (int j = first[1]; j <= last[1]; ++j)
+        for (int i = first[0]; i <= last[0]; ++i) {
+          const size_t c = index(i, j, k);
+          for (int n = start_[c]; n < start_[c + 1]; ++n) {
+            const int b = items_[static_cast<size_t>(n)];
+            if (stamp_[static_cast<size_t>(b)] == query_) continue;
+            stamp_[static_cast<size_t>(b)] = query_;
+            const auto& box = boxes_[static_cast<size_t>(b)];
+            if ((lo.array() > box[1].array()).any() || (hi.array() < box[0].array()).any()) continue;
+            visit(b);
+          }
+        }
+  }
+
+ private:
+  std::array<int, 3> cell_of(const Vec3& p) const {
+    std::array<int, 3> c{};
+    for (int d = 0; d < 3; ++d)
+      c[static_cast<size_t>(d)] = std::clamp(static_cast<int>(std::floor((p[d] - lo_[d]) / cell_)), 0, count_[static_cast<size_t>(d)] - 1);
+    return c;
+  }
+  size_t index(int i, int j, int k) const {
+    return static_cast<size_t>(i) + static_cast<size_t>(count_[0]) * (static_cast<size_t>(j) + static_cast<size_t>(count_[1]) * static_cast<size_t>(k));
+  }
+  std::vector<std::array<Vec3, 2>> boxes_;
+  Vec3 lo_ = Vec3::Zero(), hi_ = Vec3::Zero();
+  double cell_ = 1;
+  std::array<int, 3> count_{1, 1, 1};
+  std::vector<int> start_, items_;
+  mutable std::vector<int> stamp_;
+  mutable int query_ = 0;
+};
+
+// A base edge the stroke's sheet crosses: a pair of coincident vertices, one per side.
+struct EdgeCut {
+  Vec3 point;
+  Vec2 st;
+  int lower = -1, higher = -1;             // the edge's ends
+  bool lower_on_plus = false;              // the lower end is on the sheet's normal side
+  int copy_lower = -1, copy_higher = -1;   // the output vertices on each end's side
+};
+
+// A base triangle an outline segment crosses, `along` it from its first point.
+struct OutlineHit {
+  int triangle;
+  double along;
+  Vec3 point;
+  bool entering;  // the outline goes into the body here
+};
+
+}  // namespace
+
+struct FrontSurface::Base {
+  EdgeTable edges;
+  BoxBins edge_bins, triangle_bins;
+};
+
+struct FrontSurface::Stroke {
+  int intervals_searched = 0;  // sample intervals whose sheet was searched for crossings
+  std::vector<int> edge_cut;   // per base edge: index into cuts, or -1
+  std::vector<EdgeCut> cuts;
+  std::vector<int> cut_edges;  // the base edge of each cut
+  std::vector<std::string> problems;  // found in the fixed part, kept for the stroke
+  // Hits of the outline's fixed segments: the first sample's, and each interval's segment of
+  // the far end's path (first to last) and the near end's (last to first).
+  std::vector<std::vector<OutlineHit>> first_sample, far_end, near_end;
+};
+
+FrontSurface::~FrontSurface() = default;
+FrontSurface::FrontSurface(FrontSurface&&) noexcept = default;
+FrontSurface& FrontSurface::operator=(FrontSurface&&) noexcept = default;
+
+void FrontSurface::index_base() {
+  base_ = std::make_unique<Base>();
+  base_->edges = edge_table(base_triangles_);
+  double length = 0;
+  std::vector<std::array<Vec3, 2>> boxes;
+  boxes.reserve(base_->edges.ends.size());
+  for (const auto& e : base_->edges.ends) {
+    const Vec3& a = base_vertices_[static_cast<size_t>(e[0])];
+    const Vec3& b = base_vertices_[static_cast<size_t>(e[1])];
+    boxes.push_back({a.cwiseMin(b), a.cwiseMax(b)});
+    length += (b - a).norm();
+  }
+  const double cell = 2 * length / static_cast<double>(std::max<size_t>(1, boxes.size()));
+  base_->edge_bins.build(boxes, cell);
+  boxes.clear();
+  for (const auto& t : base_triangles_) {
+    Vec3 lo = base_vertices_[static_cast<size_t>(t[0])], hi = lo;
+    for (const int v : t) {
+      lo = lo.cwiseMin(base_vertices_[static_cast<size_t>(v)]);
+      hi = hi.cwiseMax(base_vertices_[static_cast<size_t>(v)]);
+    }
+    boxes.push_back({lo, hi});
+  }
+  base_->triangle_bins.build(boxes, cell);
+}
+
+FrontSurface::FrontSurface(std::vector<Vec3> vertices, std::vector<std::array<int, 3>> triangles, double front_width)
+    : front_width_(front_width), base_vertices_(std::move(vertices)), base_triangles_(std::move(triangles)) {
+  if (!(front_width_ > 0) || !std::isfinite(front_width_))
+    throw std::invalid_argument("FrontSurface: front_width must be positive and finite, got " + std::to_string(front_width_));
+  for (size_t v = 0; v < base_vertices_.size(); ++v)
+    if (!finite(base_vertices_[v])) throw std::invalid_argument("FrontSurface: vertex " + std::to_string(v) + " is not finite");
+  const int n = static_cast<int>(base_vertices_.size());
+  for (size_t t = 0; t < base_triangles_.size(); ++t) {
+    const auto& tri = base_triangles_[t];
+    for (const int v : tri)
+      if (v < 0 || v >= n)
+        throw std::invalid_argument("FrontSurface: triangle " + std::to_string(t) + " names vertex " + std::to_string(v) +
+                                    ", out of range [0, " + std::to_string(n) + ")");
+    const Vec3 normal = (base_vertices_[static_cast<size_t>(tri[1])] - base_vertices_[static_cast<size_t>(tri[0])])
+                            .cross(base_vertices_[static_cast<size_t>(tri[2])] - base_vertices_[static_cast<size_t>(tri[0])]);
+    if (!(normal.norm() > 0)) throw std::invalid_argument("FrontSurface: triangle " + std::to_string(t) + " is degenerate");
+  }
+  if (base_triangles_.empty()) throw std::invalid_argument("FrontSurface: the mesh has no triangle");
+  index_base();
+  vertices_ = base_vertices_;
+  triangles_ = base_triangles_;
+}
+
+FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
+  if (blade.size() < 2) throw std::invalid_argument("FrontSurface::advance: the blade needs at least two points");
+  if (!samples_.empty() && blade.size() != samples_.front().size())
+    throw std::invalid_argument("FrontSurface::advance: the blade has " + std::to_string(blade.size()) +
+                                " points, the stroke's first sample had " + std::to_string(samples_.front().size()));
+  for (size_t i = 0; i < blade.size(); ++i)
+    if (!finite(blade[i])) throw std::invalid_argument("FrontSurface::advance: blade point " + std::to_string(i) + " is not finite");
+  FrontCutReport report;
+  if (samples_.empty()) {
+    blade_s_.assign(1, 0.0);
+    for (size_t i = 1; i < blade.size(); ++i) blade_s_.push_back(blade_s_.back() + (blade[i] - blade[i - 1]).norm());
+    sample_t_.assign(1, 0.0);
+    samples_.emplace_back(blade.begin(), blade.end());
+    return report;  // a sheet needs two samples
+  }
+  double moved = 0;
+  for (size_t i = 0; i < blade.size(); ++i) moved += (blade[i] - samples_.back()[i]).norm();
+  moved /= static_cast<double>(blade.size());
+  if (!(moved > 1e-9 * std::max(blade_s_.back(), front_width_))) {
+    recompute(report);  // no motion: the same cut
+    return report;
+  }
+  sample_t_.push_back(sample_t_.back() + moved);
+  samples_.emplace_back(blade.begin(), blade.end());
+  recompute(report);
+  return report;
+}
+
+void FrontSurface::end_stroke() {
+  FrontCutReport report;
+  if (samples_.size() >= 2) recompute(report);
+  if (report.ok() && samples_.size() >= 2) {
+    base_vertices_ = vertices_;
+    base_triangles_ = triangles_;
+    index_base();
+  }
+  stroke_.reset();
+  vertices_ = base_vertices_;
+  triangles_ = base_triangles_;
+  samples_.clear();
+  sample_t_.clear();
+  blade_s_.clear();
+}
+
+void FrontSurface::recompute(FrontCutReport& report) {
+  vertices_ = base_vertices_;
+  triangles_ = base_triangles_;
+  if (samples_.size() < 2) return;
+  const int point_count = static_cast<int>(samples_.front().size());
+  const int sample_count = static_cast<int>(samples_.size());
+  const int segments = point_count - 1, intervals = sample_count - 1;
+  PointTable points{&base_vertices_, &samples_, point_count};
+  const auto problem = [&](const std::string& what) { report.problems.push_back(what); };
+
+  if (!stroke_) {
+    stroke_ = std::make_unique<Stroke>();
+    stroke_->edge_cut.assign(base_->edges.ends.size(), -1);
+  }
+  Stroke& stroke = *stroke_;
+  const auto st_of = [&](int point, int sample) { return Vec2(blade_s_[static_cast<size_t>(point)], sample_t_[static_cast<size_t>(sample)]); };
+  const auto st_of_id = [&](int id) {
+    const int local = id - points.base_count();
+    return st_of(local % point_count, local / point_count);
+  };
+  const auto box_of = [&](std::initializer_list<int> ids) {
+    std::array<Vec3, 2> box{points[*ids.begin()], points[*ids.begin()]};
+    for (const int id : ids) {
+      box[0] = box[0].cwiseMin(points[id]);
+      box[1] = box[1].cwiseMax(points[id]);
+    }
+    return box;
+  };
+
+  // Crossings: base edges through the sheet, searched once per sample interval, when it is
+  // added (the sheet behind the front does not change). Per cell (segment i, interval j) two
+  // triangles, (P00, P10, P11) and (P00, P11, P01), counter-clockwise in (s, t).
+  for (int j = stroke.intervals_searched; j < intervals; ++j)
+    for (int i = 0; i < segments; ++i) {
+      const int p00 = points.sheet_id(i, j), p10 = points.sheet_id(i + 1, j), p01 = points.sheet_id(i, j + 1),
+                p11 = points.sheet_id(i + 1, j + 1);
+      for (const std::array<int, 3>& id : {std::array<int, 3>{p00, p10, p11}, std::array<int, 3>{p00, p11, p01}}) {
+        const auto box = box_of({id[0], id[1], id[2]});
+        base_->edge_bins.near(box[0], box[1], [&](int e) {
+          const int a = base_->edges.ends[static_cast<size_t>(e)][0], b = base_->edges.ends[static_cast<size_t>(e)][1];
+          const auto hit = segment_crosses(points, a, b, id[0], id[1], id[2]);
+          if (!hit) return;
+          if (stroke.edge_cut[static_cast<size_t>(e)] >= 0) {
+            stroke.problems.push_back("base edge (" + std::to_string(a) + ", " + std::to_string(b) + ") is crossed twice by one stroke");
+            return;
+          }
+          EdgeCut cut;
+          cut.point = points[a] + hit->along * (points[b] - points[a]);
+          cut.st = hit->weights[0] * st_of_id(id[0]) + hit->weights[1] * st_of_id(id[1]) + hit->weights[2] * st_of_id(id[2]);
+          cut.lower = a;
+          cut.higher = b;
+          cut.lower_on_plus = hit->p_sign < 0;
+          stroke.edge_cut[static_cast<size_t>(e)] = static_cast<int>(stroke.cuts.size());
+          stroke.cuts.push_back(cut);
+          stroke.cut_edges.push_back(e);
+        });
+      }
+    }
+  stroke.intervals_searched = intervals;
+  report.problems = stroke.problems;
+  std::vector<EdgeCut> cuts = stroke.cuts;  // this call's copy: its output vertices
+  const std::vector<int>& edge_cut = stroke.edge_cut;
+  const EdgeTable& edges = base_->edges;
+  report.crossings = static_cast<int>(cuts.size());
+
+  // The sheet's outline, counter-clockwise in (s, t): the first sample, the far end's path,
+  // the last sample (the front) backwards, the near end's path backwards. Its segments
+  // other than the front's are fixed, their hits kept.
+  const auto hits_of = [&](int x, int y) {
+    std::vector<OutlineHit> here;
+    const auto box = box_of({x, y});
+    base_->triangle_bins.near(box[0], box[1], [&](int t) {
+      const auto& tri = base_triangles_[static_cast<size_t>(t)];
+      const auto hit = segment_crosses(points, x, y, tri[0], tri[1], tri[2]);
+      // x on the side opposite the outward normal is inside: the outline leaves the body.
+      if (hit) here.push_back({t, hit->along, points[x] + hit->along * (points[y] - points[x]), hit->p_sign < 0});
+    });
+    std::sort(here.begin(), here.end(), [](const OutlineHit& l, const OutlineHit& r) {
+      return l.along < r.along || (l.along == r.along && l.triangle < r.triangle);
+    });
+    return here;
+  };
+  if (stroke.first_sample.empty())
+    for (int i = 0; i < segments; ++i) stroke.first_sample.push_back(hits_of(points.sheet_id(i, 0), points.sheet_id(i + 1, 0)));
+  for (int j = static_cast<int>(stroke.far_end.size()); j < intervals; ++j) {
+    stroke.far_end.push_back(hits_of(points.sheet_id(segments, j), points.sheet_id(segments, j + 1)));
+    stroke.near_end.push_back(hits_of(points.sheet_id(0, j + 1), points.sheet_id(0, j)));
+  }
+  struct BoundarySegment {
+    int from, to;
+    const std::vector<OutlineHit>* hits;
+  };
+  std::vector<std::vector<OutlineHit>> front_hits;
+  front_hits.reserve(static_cast<size_t>(segments));
+  std::vector<BoundarySegment> outline;
+  for (int i = 0; i < segments; ++i)
+    outline.push_back({points.sheet_id(i, 0), points.sheet_id(i + 1, 0), &stroke.first_sample[static_cast<size_t>(i)]});
+  for (int j = 0; j < intervals; ++j)
+    outline.push_back({points.sheet_id(segments, j), points.sheet_id(segments, j + 1), &stroke.far_end[static_cast<size_t>(j)]});
+  for (int i = segments; i > 0; --i) {
+    front_hits.push_back(hits_of(points.sheet_id(i, intervals), points.sheet_id(i - 1, intervals)));
+    outline.push_back({points.sheet_id(i, intervals), points.sheet_id(i - 1, intervals), &front_hits.back()});
+  }
+  for (int j = intervals; j > 0; --j)
+    outline.push_back({points.sheet_id(0, j), points.sheet_id(0, j - 1), &stroke.near_end[static_cast<size_t>(j - 1)]});
+
+  // Tips: base triangles the outline crosses, in order along it.
+  struct Tip {
+    int triangle;
+    double position;  // segment index + fraction along the outline
+    Vec3 point;
+    Vec2 st;
+    bool entering;
+    int vertex = -1;
+  };
+  std::vector<Tip> tips;
+  for (size_t o = 0; o < outline.size(); ++o) {
+    const int x = outline[o].from, y = outline[o].to;
+    for (const OutlineHit& hit : *outline[o].hits)
+      tips.push_back({hit.triangle, static_cast<double>(o) + hit.along, hit.point, st_of_id(x) + hit.along * (st_of_id(y) - st_of_id(x)),
+                      hit.entering});
+  }
+  report.tips = static_cast<int>(tips.size());
+  for (size_t k = 0; k < tips.size(); ++k)
+    if (tips[k].entering == tips[(k + 1) % tips.size()].entering) {
+      problem("the sheet's outline goes " + std::string(tips[k].entering ? "into" : "out of") +
+              " the body twice in a row (at base triangles " + std::to_string(tips[k].triangle) + " and " +
+              std::to_string(tips[(k + 1) % tips.size()].triangle) + ")");
+      break;
+    }
+  // With no tip the outline is all inside or all outside: a ray from its first point says which.
+  bool outline_inside = false;
+  if (tips.empty()) {
+    const Vec3 p = points[outline.front().from];
+    const Vec3 far = p + 4 * (base_->triangle_bins.extent() + 1e-9) * Vec3(1, 0.0123, 0.0371).normalized();
+    int crossings = 0;
+    base_->triangle_bins.near(p.cwiseMin(far), p.cwiseMax(far), [&](int t) {
+      const auto& tri = base_triangles_[static_cast<size_t>(t)];
+      crossings += ray_crosses(p, far, points[tri[0]], points[tri[1]], points[tri[2]]);
+    });
+    outline_inside = crossings % 2 == 1;
+  }
+  // Inside parts of the first sample: the stroke began in the body (see the header).
+  const auto first_sample_inside = [&]() {
+    if (tips.empty()) return outline_inside;
+    // The outline starts on the first sample, inside if the first tip leaves the body.
+    if (!tips.front().entering) return true;
+    for (const Tip& tip : tips)
+      if (tip.entering && tip.position < segments) return true;
+    return false;
+  };
+  if (first_sample_inside()) problem("the stroke began with the blade inside the body");
+  if (!report.ok()) {
+    vertices_ = base_vertices_;
+    triangles_ = base_triangles_;
+    return;
+  }
+
+  // The output's vertices: base, then a pair per crossing, then a vertex per tip.
+  for (EdgeCut& cut : cuts) {
+    cut.copy_lower = static_cast<int>(vertices_.size());
+    vertices_.push_back(cut.point);
+    cut.copy_higher = static_cast<int>(vertices_.size());
+    vertices_.push_back(cut.point);
+  }
+  for (Tip& tip : tips) {
+    tip.vertex = static_cast<int>(vertices_.size());
+    vertices_.push_back(tip.point);
+  }
+
+  // Chords: the two cut ends of every base triangle the sheet crosses. An end is a crossing
+  // (>= 0: index into cuts) or a tip (< 0: -1 - index into tips).
+  std::vector<int> touched;  // base triangles with a cut end, increasing
+  for (size_t c = 0; c < stroke.cut_edges.size(); ++c)
+    for (const int t : edges.triangles[static_cast<size_t>(stroke.cut_edges[c])]) touched.push_back(t);
+  for (const Tip& tip : tips) touched.push_back(tip.triangle);
+  std::sort(touched.begin(), touched.end());
+  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+  std::map<int, std::vector<int>> ends_of;
+  for (const int t : touched) {
+    auto& ends = ends_of[t];
+    for (int k = 0; k < 3; ++k)
+      if (const int c = edge_cut[static_cast<size_t>(edges.of_triangle[static_cast<size_t>(t)][static_cast<size_t>(k)])]; c >= 0) ends.push_back(c);
+  }
+  for (size_t k = 0; k < tips.size(); ++k) ends_of[tips[k].triangle].push_back(-1 - static_cast<int>(k));
+
+  // The cut face's boundary in (s, t): directed edges, the face on their left.
+  PlanarRegion region;
+  std::vector<int> region_vertex;  // per region point: output vertex for the minus side (-1: lattice, filled below)
+  std::vector<int> region_vertex_plus;
+  std::vector<int> cut_point(cuts.size(), -1), tip_point(tips.size(), -1);
+  const auto add_point = [&](const Vec2& st, int minus, int plus) {
+    region.points.push_back(st);
+    region_vertex.push_back(minus);
+    region_vertex_plus.push_back(plus);
+    return static_cast<int>(region.points.size()) - 1;
+  };
+  const auto point_of_end = [&](int end) {
+    if (end >= 0) {
+      if (cut_point[static_cast<size_t>(end)] < 0) {
+        const EdgeCut& cut = cuts[static_cast<size_t>(end)];
+        const int minus = cut.lower_on_plus ? cut.copy_higher : cut.copy_lower;
+        const int plus = cut.lower_on_plus ? cut.copy_lower : cut.copy_higher;
+        cut_point[static_cast<size_t>(end)] = add_point(cut.st, minus, plus);
+      }
+      return cut_point[static_cast<size_t>(end)];
+    }
+    const size_t k = static_cast<size_t>(-1 - end);
+    if (tip_point[k] < 0) tip_point[k] = add_point(tips[k].st, tips[k].vertex, tips[k].vertex);
+    return tip_point[k];
+  };
+  const auto copy_on_side_of = [&](int cut_index, int base_vertex) {
+    const EdgeCut& cut = cuts[static_cast<size_t>(cut_index)];
+    return base_vertex == cut.lower ? cut.copy_lower : cut.copy_higher;
+  };
+  std::vector<std::array<int, 3>> split;  // the base triangles' replacements
+  std::vector<std::uint8_t> replaced(base_triangles_.size(), 0);
+  const auto emit = [&](int a, int b, int c) { split.push_back({a, b, c}); };
+  for (const auto& [t, ends] : ends_of) {
+    if (ends.size() != 2) {
+      problem("base triangle " + std::to_string(t) + " has " + std::to_string(ends.size()) +
+              " cut ends in one stroke (this stage handles two)");
+      continue;
+    }
+    replaced[static_cast<size_t>(t)] = 1;
+    ++report.split_triangles;
+    const auto& tri = base_triangles_[static_cast<size_t>(t)];
+    const int crossings = (ends[0] >= 0) + (ends[1] >= 0);
+    if (crossings == 2) {
+      // Rotate so that the crossings are on (a, b) and (b, c): b is alone on its side.
+      int k0 = -1;
+      for (int k = 0; k < 3; ++k)
+        if (edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>(k)])] >= 0 &&
+            edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>((k + 1) % 3)])] >= 0)
+          k0 = k;
+      const int a = tri[static_cast<size_t>(k0)], b = tri[static_cast<size_t>((k0 + 1) % 3)], c = tri[static_cast<size_t>((k0 + 2) % 3)];
+      const int p = edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>(k0)])];
+      const int q = edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>((k0 + 1) % 3)])];
+      const int pb = copy_on_side_of(p, b), qb = copy_on_side_of(q, b), pa = copy_on_side_of(p, a), qc = copy_on_side_of(q, c);
+      emit(pb, b, qb);
+      // The quad (a, p, q, c) is convex (a corner cut off a triangle): its shorter diagonal.
+      if ((vertices_[static_cast<size_t>(a)] - vertices_[static_cast<size_t>(qc)]).norm() <=
+          (vertices_[static_cast<size_t>(pa)] - vertices_[static_cast<size_t>(c)]).norm()) {
+        emit(a, pa, qc);
+        emit(a, qc, c);
+      } else {
+        emit(a, pa, c);
+        emit(pa, qc, c);
+      }
+      // b on the normal side of the sheet: the body (inside, left of the chord in (s, t)) is
+      // reached from q to p.
+      const bool b_plus = cuts[static_cast<size_t>(p)].lower_on_plus == (b == std::min(a, b));
+      const int from = point_of_end(b_plus ? q : p), to = point_of_end(b_plus ? p : q);
+      region.boundary.push_back({from, to});
+    } else if (crossings == 1) {
+      const int cut_index = ends[0] >= 0 ? ends[0] : ends[1];
+      const int tip_end = ends[0] >= 0 ? ends[1] : ends[0];
+      const Tip& tip = tips[static_cast<size_t>(-1 - tip_end)];
+      int k0 = -1;
+      for (int k = 0; k < 3; ++k)
+        if (edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>(k)])] == cut_index) k0 = k;
+      const int a = tri[static_cast<size_t>(k0)], b = tri[static_cast<size_t>((k0 + 1) % 3)], c = tri[static_cast<size_t>((k0 + 2) % 3)];
+      emit(a, copy_on_side_of(cut_index, a), tip.vertex);
+      emit(copy_on_side_of(cut_index, b), b, tip.vertex);
+      emit(b, c, tip.vertex);
+      emit(c, a, tip.vertex);
+      // Where the outline goes into the body, the face's boundary comes along the chord to the
+      // tip and goes on along the outline.
+      const int cut_end = point_of_end(cut_index), tip_end_point = point_of_end(tip_end);
+      if (tip.entering)
+        region.boundary.push_back({cut_end, tip_end_point});
+      else
+        region.boundary.push_back({tip_end_point, cut_end});
+    } else {
+      // A slit between two tips, with a pair of vertices at its middle (so that its two lips
+      // are different edges): seven triangles around it (see the header).
+      const int i1 = -1 - ends[0], i2 = -1 - ends[1];
+      if (tips[static_cast<size_t>(i1)].entering == tips[static_cast<size_t>(i2)].entering) {
+        problem("base triangle " + std::to_string(t) + " holds two tips going the same way");
+        continue;
+      }
+      const int enter = tips[static_cast<size_t>(i1)].entering ? i1 : i2, leave = enter == i1 ? i2 : i1;
+      const Tip& t1 = tips[static_cast<size_t>(leave)];
+      const Tip& t2 = tips[static_cast<size_t>(enter)];
+      const Vec3 n = (vertices_[static_cast<size_t>(tri[1])] - vertices_[static_cast<size_t>(tri[0])])
+                         .cross(vertices_[static_cast<size_t>(tri[2])] - vertices_[static_cast<size_t>(tri[0])]);
+      const Vec3 direction = t2.point - t1.point;
+      std::array<bool, 3> left{};
+      for (int k = 0; k < 3; ++k)
+        left[static_cast<size_t>(k)] = n.dot(direction.cross(vertices_[static_cast<size_t>(tri[static_cast<size_t>(k)])] - t1.point)) >= 0;
+      int lone = 0;
+      for (int k = 0; k < 3; ++k)
+        if (left[static_cast<size_t>(k)] != left[static_cast<size_t>((k + 1) % 3)] && left[static_cast<size_t>(k)] != left[static_cast<size_t>((k + 2) % 3)])
+          lone = k;
+      const int v0 = tri[static_cast<size_t>(lone)], va = tri[static_cast<size_t>((lone + 1) % 3)], vb = tri[static_cast<size_t>((lone + 2) % 3)];
+      // v1 is the one further ahead along t1 -> t2, v2 the other.
+      const bool a_ahead = direction.dot(vertices_[static_cast<size_t>(va)]) >= direction.dot(vertices_[static_cast<size_t>(vb)]);
+      const int v1 = a_ahead ? va : vb, v2 = a_ahead ? vb : va;
+      const int middle_a = static_cast<int>(vertices_.size()), middle_b = middle_a + 1;
+      vertices_.push_back(0.5 * (t1.point + t2.point));
+      vertices_.push_back(0.5 * (t1.point + t2.point));
+      const size_t first = split.size();
+      ear_clip({v0, v1, t2.vertex}, n, vertices_, split);
+      ear_clip({v2, v0, t1.vertex}, n, vertices_, split);
+      std::vector<int> lip_v0{v0, t1.vertex, middle_a, t2.vertex};
+      ear_clip(lip_v0, n, vertices_, split);
+      ear_clip({t2.vertex, v1, v2, t1.vertex, middle_b}, n, vertices_, split);
+      // The face on the sheet's minus side runs leave -> middle -> enter, so the lip of the
+      // minus side runs enter -> middle -> leave (ear_clip orients the polygon about n).
+      const bool a_is_minus = oriented_about(lip_v0, n, vertices_) ? false : true;
+      const int middle_minus = a_is_minus ? middle_a : middle_b, middle_plus = a_is_minus ? middle_b : middle_a;
+      (void)first;
+      const int middle_point = add_point(0.5 * (t1.st + t2.st), middle_minus, middle_plus);
+      region.boundary.push_back({point_of_end(-1 - leave), middle_point});
+      region.boundary.push_back({middle_point, point_of_end(-1 - enter)});
+    }
+  }
+  if (!report.ok()) {
+    vertices_ = base_vertices_;
+    triangles_ = base_triangles_;
+    return;
+  }
+
+  // The outline's inside parts: from each tip where it enters to the next tip, with points at
+  // most w apart (the transient front).
+  const double w = front_width_;
+  std::vector<Vec3> front_rest;  // rest positions of the outline points, per region point
+  const auto outline_point = [&](double position) {
+    const int o = std::min(static_cast<int>(position), static_cast<int>(outline.size()) - 1);
+    const double f = position - o;
+    const int x = outline[static_cast<size_t>(o)].from, y = outline[static_cast<size_t>(o)].to;
+    return std::pair<Vec2, Vec3>{st_of_id(x) + f * (st_of_id(y) - st_of_id(x)), points[x] + f * (points[y] - points[x])};
+  };
+  const auto add_outline_run = [&](int from_point, double from, double to, int to_point) {
+    // Corners of the outline between the two positions, then subdivisions of each piece.
+    std::vector<double> stops{from};
+    for (double corner = std::floor(from) + 1; corner < to; corner += 1) stops.push_back(corner);
+    stops.push_back(to);
+    int previous = from_point;
+    for (size_t k = 0; k + 1 < stops.size(); ++k) {
+      const auto [st0, x0] = outline_point(stops[k]);
+      const auto [st1, x1] = outline_point(stops[k + 1]);
+      const int pieces = std::max(1, static_cast<int>(std::ceil((st1 - st0).norm() / w)));
+      for (int m = 1; m <= pieces; ++m) {
+        int next;
+        if (k + 2 == stops.size() && m == pieces) {
+          next = to_point;
+        } else {
+          const double f = static_cast<double>(m) / pieces;
+          const Vec3 x = x0 + f * (x1 - x0);
+          next = add_point(st0 + f * (st1 - st0), static_cast<int>(vertices_.size()), static_cast<int>(vertices_.size()));
+          vertices_.push_back(x);
+          ++report.front_vertices;
+        }
+        region.boundary.push_back({previous, next});
+        previous = next;
+      }
+    }
+  };
+  const double perimeter = static_cast<double>(outline.size());
+  for (size_t k = 0; k < tips.size(); ++k) {
+    if (!tips[k].entering) continue;
+    const size_t next = (k + 1) % tips.size();
+    double to = tips[next].position;
+    if (to <= tips[k].position) to += perimeter;
+    // Positions past the perimeter wrap to its start.
+    if (to > perimeter) {
+      problem("the cut face's outline wraps past the first sample");
+      break;
+    }
+    add_outline_run(point_of_end(-1 - static_cast<int>(k)), tips[k].position, to, point_of_end(-1 - static_cast<int>(next)));
+  }
+  if (tips.empty() && outline_inside) problem("the blade is inside the body for the whole stroke");
+  if (!report.ok() || region.boundary.empty()) {
+    if (!report.ok()) {
+      vertices_ = base_vertices_;
+      triangles_ = base_triangles_;
+    }
+    return;
+  }
+
+  // Fixed vertices: a triangular lattice of spacing w in (s, t), kept away from the boundary.
+  const double row = w * std::sqrt(3.0) / 2;
+  const double gap = 0.45 * w;
+  const Vec2 extent(blade_s_.back(), sample_t_.back());
+  const auto distance_to_segment = [](const Vec2& p, const Vec2& a, const Vec2& b) {
+    const Vec2 d = b - a;
+    const double length_squared = d.squaredNorm();
+    const double f = length_squared > 0 ? std::clamp((p - a).dot(d) / length_squared, 0.0, 1.0) : 0.0;
+    return (p - (a + f * d)).norm();
+  };
+  // The boundary's edges binned in cells of side w over the (s, t) rectangle.
+  const int columns = std::max(1, static_cast<int>(std::ceil(extent.x() / w))), rows = std::max(1, static_cast<int>(std::ceil(extent.y() / w)));
+  std::vector<std::vector<int>> edge_cells(static_cast<size_t>(columns) * static_cast<size_t>(rows));
+  const auto cell_range = [&](double lo, double hi, int count) {
+    return std::pair{std::clamp(static_cast<int>(std::floor(lo / w)), 0, count - 1), std::clamp(static_cast<int>(std::floor(hi / w)), 0, count - 1)};
+  };
+  for (size_t e = 0; e < region.boundary.size(); ++e) {
+    const Vec2& a = region.points[static_cast<size_t>(region.boundary[e][0])];
+    const Vec2& b = region.points[static_cast<size_t>(region.boundary[e][1])];
+    const auto [c0, c1] = cell_range(std::min(a.x(), b.x()) - gap, std::max(a.x(), b.x()) + gap, columns);
+    const auto [r0, r1] = cell_range(std::min(a.y(), b.y()) - gap, std::max(a.y(), b.y()) + gap, rows);
+    for (int r = r0; r <= r1; ++r)
+      for (int c = c0; c <= c1; ++c) edge_cells[static_cast<size_t>(r) * static_cast<size_t>(columns) + static_cast<size_t>(c)].push_back(static_cast<int>(e));
+  }
+  for (int r = 1; r * row < extent.y(); ++r)
+    for (int c = 0; (c + 0.5 * (r % 2)) * w < extent.x(); ++c) {
+      const Vec2 p((c + 0.5 * (r % 2)) * w, r * row);
+      if (p.x() <= 0) continue;
+      bool near = false;
+      const auto [cc, unused_c] = cell_range(p.x(), p.x(), columns);
+      const auto [rr, unused_r] = cell_range(p.y(), p.y(), rows);
+      for (const int e : edge_cells[static_cast<size_t>(rr) * static_cast<size_t>(columns) + static_cast<size_t>(cc)]) {
+        const auto& edge = region.boundary[static_cast<size_t>(e)];
+        if (distance_to_segment(p, region.points[static_cast<size_t>(edge[0])], region.points[static_cast<size_t>(edge[1])]) < gap) {
+          near = true;
+          break;
+        }
+      }
+      if (near) continue;
+      add_point(p, -1, -1);
+    }
+
+  std::vector<std::array<int, 3>> face;
+  try {
+    face = triangulate_region(region);
+  } catch (const std::invalid_argument& error) {
+    problem(std::string("the cut face could not be triangulated: ") + error.what());
+    vertices_ = base_vertices_;
+    triangles_ = base_triangles_;
+    return;
+  }
+  // Where the blade still is, both sides' faces share the vertices (the crack closes there).
+  // An inner edge of the face joining two of them would be shared by four triangles: split
+  // it at its middle, with a vertex of each side's own.
+  {
+    const auto shared = [&](int p) {
+      return region_vertex[static_cast<size_t>(p)] >= 0 && region_vertex[static_cast<size_t>(p)] == region_vertex_plus[static_cast<size_t>(p)];
+    };
+    std::set<std::pair<int, int>> outline_edges;  // the outline's, between two shared vertices
+    for (const auto& e : region.boundary)
+      if (shared(e[0]) && shared(e[1])) outline_edges.insert({std::min(e[0], e[1]), std::max(e[0], e[1])});
+    // Passes over the face's edges (sorted, not a map); a triangle split in a pass waits for
+    // the next, so a triangle with two such edges is split twice.
+    for (bool again = true; again;) {
+      again = false;
+      std::vector<std::array<int, 4>> uses;  // (lower, higher, triangle, corner before the edge)
+      uses.reserve(3 * face.size());
+      for (size_t f = 0; f < face.size(); ++f)
+        for (int k = 0; k < 3; ++k) {
+          const int u = face[f][static_cast<size_t>(k)], v = face[f][static_cast<size_t>((k + 1) % 3)];
+          if (shared(u) && shared(v)) uses.push_back({std::min(u, v), std::max(u, v), static_cast<int>(f), k});
+        }
+      std::sort(uses.begin(), uses.end());
+      std::vector<std::uint8_t> split_now(face.size(), 0);
+      for (size_t n = 0; n + 1 < uses.size(); ++n) {
+        const auto& x = uses[n];
+        const auto& y = uses[n + 1];
+        if (x[0] != y[0] || x[1] != y[1] || outline_edges.count({x[0], x[1]})) continue;
+        if (split_now[static_cast<size_t>(x[2])] || split_now[static_cast<size_t>(y[2])]) {
+          again = true;
+          continue;
+        }
+        const int middle = add_point(0.5 * (region.points[static_cast<size_t>(x[0])] + region.points[static_cast<size_t>(x[1])]), -1, -1);
+        for (const auto& use : {x, y}) {
+          const size_t f = static_cast<size_t>(use[2]);
+          const std::array<int, 3> old = face[f];
+          const int k = use[3];
+          const int u = old[static_cast<size_t>(k)], v = old[static_cast<size_t>((k + 1) % 3)], opposite = old[static_cast<size_t>((k + 2) % 3)];
+          split_now[f] = 1;
+          face[f] = {u, middle, opposite};
+          face.push_back({middle, v, opposite});
+        }
+        split_now.resize(face.size(), 1);
+        ++n;
+      }
+    }
+  }
+  // Lift the lattice points the face uses onto the sheet.
+  const auto sheet_point = [&](const Vec2& st) {
+    const int i = std::clamp(static_cast<int>(std::upper_bound(blade_s_.begin(), blade_s_.end(), st.x()) - blade_s_.begin()) - 1, 0, segments - 1);
+    const int j = std::clamp(static_cast<int>(std::upper_bound(sample_t_.begin(), sample_t_.end(), st.y()) - sample_t_.begin()) - 1, 0, intervals - 1);
+    const double alpha = (st.x() - blade_s_[static_cast<size_t>(i)]) / (blade_s_[static_cast<size_t>(i + 1)] - blade_s_[static_cast<size_t>(i)]);
+    const double beta = (st.y() - sample_t_[static_cast<size_t>(j)]) / (sample_t_[static_cast<size_t>(j + 1)] - sample_t_[static_cast<size_t>(j)]);
+    const Vec3& p00 = samples_[static_cast<size_t>(j)][static_cast<size_t>(i)];
+    const Vec3& p10 = samples_[static_cast<size_t>(j)][static_cast<size_t>(i + 1)];
+    const Vec3& p01 = samples_[static_cast<size_t>(j + 1)][static_cast<size_t>(i)];
+    const Vec3& p11 = samples_[static_cast<size_t>(j + 1)][static_cast<size_t>(i + 1)];
+    if (alpha >= beta) return Vec3(p00 + alpha * (p10 - p00) + beta * (p11 - p10));
+    return Vec3(p00 + beta * (p01 - p00) + alpha * (p11 - p01));
+  };
+  for (const auto& triangle : face)
+    for (const int p : triangle)
+      if (region_vertex[static_cast<size_t>(p)] < 0) {
+        // Each side's face has its own inner vertices: the two separate as the cut opens.
+        const Vec3 x = sheet_point(region.points[static_cast<size_t>(p)]);
+        region_vertex[static_cast<size_t>(p)] = static_cast<int>(vertices_.size());
+        vertices_.push_back(x);
+        region_vertex_plus[static_cast<size_t>(p)] = static_cast<int>(vertices_.size());
+        vertices_.push_back(x);
+        ++report.lattice_vertices;
+      }
+
+  triangles_.clear();
+  for (size_t t = 0; t < base_triangles_.size(); ++t)
+    if (!replaced[t]) triangles_.push_back(base_triangles_[t]);
+  triangles_.insert(triangles_.end(), split.begin(), split.end());
+  // The body on the sheet's minus side sees the face with the sheet's normal; the plus side
+  // the other way round.
+  for (const auto& triangle : face)
+    triangles_.push_back({region_vertex[static_cast<size_t>(triangle[0])], region_vertex[static_cast<size_t>(triangle[1])],
+                          region_vertex[static_cast<size_t>(triangle[2])]});
+  for (const auto& triangle : face)
+    triangles_.push_back({region_vertex_plus[static_cast<size_t>(triangle[0])], region_vertex_plus[static_cast<size_t>(triangle[2])],
+                          region_vertex_plus[static_cast<size_t>(triangle[1])]});
+  report.cut_face_triangles = static_cast<int>(face.size());
+}
+
+}  // namespace incise::physics

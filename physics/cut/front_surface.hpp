@@ -1,0 +1,116 @@
+// The thesis's explicit surface cut (seed 004 §2.5, Fig. 4.3-4.4): a closed triangle mesh in
+// the rest configuration, split where the blade's sweep crosses it, its exposed cut face
+// meshed behind a moving front. This is the design issue 4 asks for; CutSurface
+// (cut_surface.hpp) is the voxel design the world uses today. This file is the first stage:
+// one stroke at a time, tested on its own (tests/unit/test_cut_front_surface.cpp), not yet
+// wired into the world or mapped onto the volume (see docs/status.md, "Cutting").
+//
+// A stroke is a sequence of blade samples (polylines at rest, same point count). Between two
+// samples each blade segment sweeps a quad, split into two triangles; together they form the
+// sheet, whose parameter plane (s, t) is exact: s is the arc length along the blade (fixed
+// from the first sample) and t the accumulated sweep (the mean distance the blade's points
+// moved), so the sheet is the rectangle [0, S] x [0, T] made of one cell per segment and
+// sample interval, and its boundary is the first sample (t = 0), the paths of the blade's two
+// ends and the last sample, the front (t = T).
+//
+// Each call recomputes the stroke's cut of the mesh as it was when the stroke began (the
+// base): what is behind the front does not depend on the front, so it comes out the same at
+// every call, and only the front's part moves (the thesis's transient vertices):
+// - Crossings: a base edge crossed by the sheet gets a pair of coincident vertices, one for
+//   each side (Fig. 4.3); a base triangle crossed by the sheet's boundary holds a tip, one
+//   vertex where the two sides meet.
+// - Chords: the sheet crosses a base triangle along the straight segment between its two cut
+//   ends. Two crossings: the triangle is split three ways; a crossing and a tip: four ways
+//   around the tip, which moves with the blade until it crosses the next edge; two tips (a
+//   stab that enters and leaves within one triangle): five ways around the slit.
+// - Cut face: the chords and the parts of the sheet's boundary inside the body bound a
+//   region of the (s, t) plane; it is triangulated (constrained Delaunay,
+//   triangulate_2d.hpp) with fixed vertices on a triangular lattice of spacing w behind the
+//   front and transient vertices at most w apart along the front and the other parts of
+//   the boundary, and lifted onto the sheet. Each side of the body gets a copy: on chords
+//   with that side's vertices of the pairs, along the front with the shared ones, so the
+//   crack closes where the blade still is and the surface stays a closed 2-manifold. The
+//   front widens and narrows (its points re-spaced), splits and merges (several regions)
+//   with the region.
+// Orientation predicates are evaluated on the four points in a canonical order (sorted by
+// id, the sign fixed up by the permutation, zero taken as positive), so every test that
+// shares four points sees the same sign and the ends of every triangle pair up: the
+// crossings and tips are consistent by construction, whatever the rounding.
+//
+// What this stage does not do, and reports (FrontCutReport::problems, never silent): a base
+// triangle with more than two cut ends in one stroke (the sweep turning within one triangle,
+// or crossing its own earlier part), a base edge crossed twice in one stroke, a stroke
+// starting with the blade inside the body, chords that cross in the (s, t) plane.
+#pragma once
+
+#include "physics/core/model.hpp"
+
+#include <array>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace incise::physics {
+
+struct FrontCutReport {
+  int crossings = 0;           // base edges the stroke's sheet crosses
+  int tips = 0;                // base triangles the sheet's boundary crosses
+  int split_triangles = 0;     // base triangles replaced by their three-, four- or five-way split
+  int cut_face_triangles = 0;  // per side
+  int front_vertices = 0;      // transient vertices on the front and the other inside boundary
+  int lattice_vertices = 0;    // fixed vertices inside the cut face
+  // What the cut could not handle (each an explanation naming the triangle or edge). When
+  // not empty the surface returned is the base mesh, uncut.
+  std::vector<std::string> problems;
+  bool ok() const { return problems.empty(); }
+};
+
+class FrontSurface {
+ public:
+  // A closed, consistently oriented (counter-clockwise seen from outside) triangle mesh at
+  // rest. `front_width`: the thesis's w, the largest width of the cut face's triangles (m).
+  // Throws std::invalid_argument naming the vertex, triangle or value at fault: a coordinate
+  // not finite, an index out of range, a degenerate triangle, w not positive, an edge not
+  // used exactly once in each direction.
+  FrontSurface(std::vector<Vec3> vertices, std::vector<std::array<int, 3>> triangles, double front_width);
+  ~FrontSurface();
+  FrontSurface(FrontSurface&&) noexcept;
+  FrontSurface& operator=(FrontSurface&&) noexcept;
+
+  // Appends a blade sample to the stroke (the polyline at rest, at least two points, as many
+  // as the stroke's first sample) and recomputes the stroke's cut. Throws
+  // std::invalid_argument naming the point when a coordinate is not finite or the count
+  // differs, before anything changes.
+  FrontCutReport advance(std::span<const Vec3> blade);
+  // Ends the stroke: the surface as cut becomes the base of the next one (its front stays
+  // where it is, a crack that closes inside the body).
+  void end_stroke();
+  int stroke_samples() const { return static_cast<int>(samples_.size()); }
+
+  // The current surface: the base split by the stroke, with its two cut faces.
+  const std::vector<Vec3>& vertices() const { return vertices_; }
+  const std::vector<std::array<int, 3>>& triangles() const { return triangles_; }
+  // Base vertices keep their index; the stroke's vertices come after them.
+  int base_vertex_count() const { return static_cast<int>(base_vertices_.size()); }
+  double front_width() const { return front_width_; }
+
+ private:
+  struct Base;    // the base mesh's edges, and its edges and triangles binned
+  struct Stroke;  // what the stroke's fixed part crossed, kept between calls
+  void index_base();
+  void recompute(FrontCutReport& report);
+
+  double front_width_;
+  std::vector<Vec3> base_vertices_;
+  std::vector<std::array<int, 3>> base_triangles_;
+  std::unique_ptr<Base> base_;
+  std::unique_ptr<Stroke> stroke_;
+  std::vector<std::vector<Vec3>> samples_;
+  std::vector<double> sample_t_;  // t of each sample
+  std::vector<double> blade_s_;   // s of each blade point
+  std::vector<Vec3> vertices_;
+  std::vector<std::array<int, 3>> triangles_;
+};
+
+}  // namespace incise::physics

@@ -1,0 +1,321 @@
+// The explicit surface cut (physics/cut/front_surface): after every blade sample of a stroke
+// the surface is a closed, consistently oriented 2-manifold enclosing the body's volume
+// (divergence theorem, against the uncut mesh's), split three and four ways where the
+// sheet crosses it, its cut face meshed behind a front; a cut through leaves two closed pieces
+// whose volumes are the analytic caps; small motions make no new triangles and what is
+// behind the front stays put.
+#include "physics/cut/front_surface.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+using namespace incise::physics;
+
+namespace {
+
+struct Mesh {
+  std::vector<Vec3> vertices;
+  std::vector<std::array<int, 3>> triangles;
+};
+
+// A unit icosphere (subdivided icosahedron, `levels` times), turned by a fixed rotation so
+// that no vertex lies on the blade's planes below, then scaled by `radius`.
+Mesh icosphere(int levels, double radius) {
+  const double g = (1 + std::sqrt(5.0)) / 2;
+  Mesh mesh;
+  mesh.vertices = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
+                   {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
+  mesh.triangles = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                    {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
+                    {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+  for (Vec3& v : mesh.vertices) v.normalize();
+  for (int level = 0; level < levels; ++level) {
+    std::map<std::pair<int, int>, int> middle;
+    const auto mid = [&](int a, int b) {
+      const std::pair key{std::min(a, b), std::max(a, b)};
+      if (auto it = middle.find(key); it != middle.end()) return it->second;
+      mesh.vertices.push_back((mesh.vertices[static_cast<size_t>(a)] + mesh.vertices[static_cast<size_t>(b)]).normalized());
+      return middle[key] = static_cast<int>(mesh.vertices.size()) - 1;
+    };
+    std::vector<std::array<int, 3>> finer;
+    for (const auto& t : mesh.triangles) {
+      const int ab = mid(t[0], t[1]), bc = mid(t[1], t[2]), ca = mid(t[2], t[0]);
+      finer.push_back({t[0], ab, ca});
+      finer.push_back({t[1], bc, ab});
+      finer.push_back({t[2], ca, bc});
+      finer.push_back({ab, bc, ca});
+    }
+    mesh.triangles = finer;
+  }
+  const Eigen::Matrix3d turn =
+      (Eigen::AngleAxisd(0.3, Vec3::UnitX()) * Eigen::AngleAxisd(0.2, Vec3::UnitY()) * Eigen::AngleAxisd(0.1, Vec3::UnitZ()))
+          .toRotationMatrix();
+  for (Vec3& v : mesh.vertices) v = radius * (turn * v);
+  return mesh;
+}
+
+double volume(const std::vector<Vec3>& v, const std::vector<std::array<int, 3>>& triangles) {
+  double total = 0;
+  for (const auto& t : triangles)
+    total += v[static_cast<size_t>(t[0])].dot(v[static_cast<size_t>(t[1])].cross(v[static_cast<size_t>(t[2])])) / 6;
+  return total;
+}
+
+// Closed and consistently oriented: every directed edge is used once and its reverse once;
+// no triangle repeats a vertex. Returns what is wrong, empty when nothing is.
+std::string closedness(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles) {
+  std::map<std::pair<int, int>, int> directed;
+  for (size_t t = 0; t < triangles.size(); ++t) {
+    const auto& tri = triangles[t];
+    if (tri[0] == tri[1] || tri[1] == tri[2] || tri[2] == tri[0]) return "triangle " + std::to_string(t) + " repeats a vertex";
+    for (const int v : tri)
+      if (v < 0 || v >= static_cast<int>(vertices.size())) return "triangle " + std::to_string(t) + " names a missing vertex";
+    for (int k = 0; k < 3; ++k) ++directed[{tri[static_cast<size_t>(k)], tri[static_cast<size_t>((k + 1) % 3)]}];
+  }
+  for (const auto& [edge, count] : directed) {
+    if (count != 1) return "edge (" + std::to_string(edge.first) + ", " + std::to_string(edge.second) + ") used " + std::to_string(count) + " times";
+    const auto reverse = directed.find({edge.second, edge.first});
+    if (reverse == directed.end() || reverse->second != 1)
+      return "edge (" + std::to_string(edge.first) + ", " + std::to_string(edge.second) + ") has no reverse";
+  }
+  return "";
+}
+
+// Pieces through shared vertices, and each piece's Euler characteristic V - E + F.
+std::vector<std::array<double, 2>> pieces(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles) {
+  std::vector<int> parent(vertices.size());
+  for (size_t v = 0; v < parent.size(); ++v) parent[v] = static_cast<int>(v);
+  const auto root = [&](int v) {
+    while (parent[static_cast<size_t>(v)] != v) v = parent[static_cast<size_t>(v)] = parent[static_cast<size_t>(parent[static_cast<size_t>(v)])];
+    return v;
+  };
+  for (const auto& t : triangles) {
+    parent[static_cast<size_t>(root(t[1]))] = root(t[0]);
+    parent[static_cast<size_t>(root(t[2]))] = root(t[0]);
+  }
+  std::map<int, std::vector<std::array<int, 3>>> by_root;
+  for (const auto& t : triangles) by_root[root(t[0])].push_back(t);
+  std::vector<std::array<double, 2>> out;  // (volume, Euler characteristic)
+  for (const auto& [r, list] : by_root) {
+    std::set<int> used;
+    std::set<std::pair<int, int>> edges;
+    for (const auto& t : list)
+      for (int k = 0; k < 3; ++k) {
+        used.insert(t[static_cast<size_t>(k)]);
+        edges.insert({std::min(t[static_cast<size_t>(k)], t[static_cast<size_t>((k + 1) % 3)]),
+                      std::max(t[static_cast<size_t>(k)], t[static_cast<size_t>((k + 1) % 3)])});
+      }
+    out.push_back({volume(vertices, list),
+                   static_cast<double>(used.size()) - static_cast<double>(edges.size()) + static_cast<double>(list.size())});
+  }
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a[0] < b[0]; });
+  return out;
+}
+
+// Volume of the unit-radius cap beyond a plane at distance d from the centre.
+double cap_volume(double radius, double d) {
+  const double h = radius - d;
+  return std::numbers::pi * h * h * (3 * radius - h) / 3;
+}
+
+void expect_closed_with_volume(const FrontSurface& surface, double expected_volume, const std::string& when) {
+  const std::string problem = closedness(surface.vertices(), surface.triangles());
+  EXPECT_EQ(problem, "") << when;
+  EXPECT_NEAR(volume(surface.vertices(), surface.triangles()), expected_volume, 1e-9 * std::abs(expected_volume)) << when;
+  for (const Vec3& v : surface.vertices()) ASSERT_TRUE(v.allFinite()) << when;
+}
+
+}  // namespace
+
+TEST(FrontSurface, AStraightBladeThroughASphereLeavesTwoClosedCapsAfterEverySample) {
+  const Mesh mesh = icosphere(3, 1.0);
+  const double whole = volume(mesh.vertices, mesh.triangles);
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.08);
+  // The blade, longer than the sphere, goes down through it, tilted, in a plane x = 0.31 + 0.05 z.
+  const int samples = 40;
+  int split_seen = 0, lattice_seen = 0;
+  for (int k = 0; k < samples; ++k) {
+    const double z = 1.3 - 2.6 * k / (samples - 1);
+    const std::vector<Vec3> blade{{0.31 + 0.05 * z, -1.4, z + 0.02}, {0.31 + 0.05 * z, 1.4, z - 0.02}};
+    const FrontCutReport report = surface.advance(blade);
+    ASSERT_TRUE(report.ok()) << "sample " << k << ": " << report.problems.front();
+    expect_closed_with_volume(surface, whole, "sample " + std::to_string(k));
+    split_seen = std::max(split_seen, report.split_triangles);
+    lattice_seen = std::max(lattice_seen, report.lattice_vertices);
+    const auto parts = pieces(surface.vertices(), surface.triangles());
+    if (k < samples - 1 && report.tips > 0) {
+      // Cut part way: one piece, a sphere with a pocket (Euler characteristic 2).
+      ASSERT_EQ(parts.size(), 1u) << "sample " << k;
+      EXPECT_EQ(parts[0][1], 2) << "sample " << k;
+    }
+  }
+  EXPECT_GT(split_seen, 20);
+  EXPECT_GT(lattice_seen, 50);
+  // Through: two closed pieces, each a sphere topologically, with the caps' volumes.
+  const auto parts = pieces(surface.vertices(), surface.triangles());
+  ASSERT_EQ(parts.size(), 2u);
+  EXPECT_EQ(parts[0][1], 2);
+  EXPECT_EQ(parts[1][1], 2);
+  // The plane's distance from the centre, in the sphere's frame: x - 0.05 z = 0.31.
+  const double d = 0.31 / std::sqrt(1 + 0.05 * 0.05);
+  const double discretisation = 1 - whole / (4 * std::numbers::pi / 3);  // the polyhedron's missing volume
+  EXPECT_NEAR(parts[0][0] / cap_volume(1.0, d), 1.0, 2 * discretisation + 0.01);
+  EXPECT_NEAR(parts[0][0] + parts[1][0], whole, 1e-9 * whole);
+}
+
+TEST(FrontSurface, ABladeShorterThanTheBodyLeavesAPocketClosedAlongItsEnds) {
+  const Mesh mesh = icosphere(3, 1.0);
+  const double whole = volume(mesh.vertices, mesh.triangles);
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.07);
+  for (int k = 0; k < 30; ++k) {
+    const double z = 1.25 - 1.6 * k / 29;
+    const std::vector<Vec3> blade{{-0.1, -0.42, z}, {0.05, 0.0, z - 0.03}, {-0.08, 0.45, z + 0.01}};
+    const FrontCutReport report = surface.advance(blade);
+    ASSERT_TRUE(report.ok()) << "sample " << k << ": " << report.problems.front();
+    expect_closed_with_volume(surface, whole, "sample " + std::to_string(k));
+    const auto parts = pieces(surface.vertices(), surface.triangles());
+    ASSERT_EQ(parts.size(), 1u);
+    EXPECT_EQ(parts[0][1], 2) << "sample " << k;
+  }
+  surface.end_stroke();
+  expect_closed_with_volume(surface, whole, "after the stroke");
+}
+
+TEST(FrontSurface, ATwistingCurvedBladeKeepsTheSurfaceClosed) {
+  const Mesh mesh = icosphere(3, 1.0);
+  const double whole = volume(mesh.vertices, mesh.triangles);
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.06);
+  const int samples = 45;
+  for (int k = 0; k < samples; ++k) {
+    const double f = static_cast<double>(k) / (samples - 1);
+    const double z = 1.3 - 2.6 * f, twist = 0.5 * f;
+    std::vector<Vec3> blade;
+    for (int i = 0; i < 6; ++i) {
+      const double y = -1.5 + 3.0 * i / 5;
+      const Vec3 p(0.15 * std::cos(1.2 * y), y, z + 0.1 * y * y);
+      blade.push_back(Eigen::AngleAxisd(twist, Vec3::UnitZ()) * p);
+    }
+    const FrontCutReport report = surface.advance(blade);
+    ASSERT_TRUE(report.ok()) << "sample " << k << ": " << report.problems.front();
+    expect_closed_with_volume(surface, whole, "sample " + std::to_string(k));
+  }
+  const auto parts = pieces(surface.vertices(), surface.triangles());
+  ASSERT_EQ(parts.size(), 2u);
+  EXPECT_NEAR(parts[0][0] + parts[1][0], whole, 1e-9 * whole);
+}
+
+TEST(FrontSurface, AStabInsideOneTriangleOpensASlitClosedAtBothEnds) {
+  const Mesh mesh = icosphere(2, 1.0);  // triangles about 0.3 across
+  const double whole = volume(mesh.vertices, mesh.triangles);
+  // A short blade at the centre of a triangle, pushed in along its normal.
+  const auto& t = mesh.triangles[7];
+  const Vec3 a = mesh.vertices[static_cast<size_t>(t[0])], b = mesh.vertices[static_cast<size_t>(t[1])],
+             c = mesh.vertices[static_cast<size_t>(t[2])];
+  const Vec3 centre = (a + b + c) / 3, normal = (b - a).cross(c - a).normalized();
+  const Vec3 along = (b - a).normalized() * 0.04;
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.02);
+  int slit = 0;
+  for (int k = 0; k < 12; ++k) {
+    const Vec3 at = centre + normal * (0.03 - 0.01 * k);
+    const std::vector<Vec3> blade{at - along, at + along};
+    const FrontCutReport report = surface.advance(blade);
+    ASSERT_TRUE(report.ok()) << "sample " << k << ": " << report.problems.front();
+    expect_closed_with_volume(surface, whole, "sample " + std::to_string(k));
+    if (report.tips == 2 && report.crossings == 0) ++slit;
+  }
+  EXPECT_GT(slit, 5);  // the slit case did happen
+}
+
+TEST(FrontSurface, SmallMotionsMakeNoNewTrianglesAndWhatIsBehindTheFrontStaysPut) {
+  const Mesh mesh = icosphere(3, 1.0);
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.08);
+  const auto blade_at = [](double z) { return std::vector<Vec3>{{0.2, -1.4, z}, {0.25, 1.4, z}}; };
+  for (int k = 0; k < 12; ++k) surface.advance(blade_at(1.3 - 0.1 * k));
+  const auto before = surface.triangles();
+  const auto vertices_before = surface.vertices();
+  // A motion far below the front's width.
+  const FrontCutReport report = surface.advance(blade_at(1.3 - 0.1 * 11 - 1e-4));
+  ASSERT_TRUE(report.ok());
+  EXPECT_EQ(surface.triangles().size(), before.size());
+  // Going on by several widths: every lattice vertex of before (away from the front) is
+  // still there, at the same place.
+  for (int k = 0; k < 5; ++k) surface.advance(blade_at(1.3 - 1.1 - 0.1 * (k + 1)));
+  std::set<std::array<double, 3>> now;
+  for (const Vec3& v : surface.vertices()) now.insert({v.x(), v.y(), v.z()});
+  int kept = 0, checked = 0;
+  const double front_z = 1.3 - 1.1;
+  for (size_t v = static_cast<size_t>(surface.base_vertex_count()); v < vertices_before.size(); ++v) {
+    if (vertices_before[v].z() < front_z + 0.25) continue;  // near the front then
+    ++checked;
+    kept += now.count({vertices_before[v].x(), vertices_before[v].y(), vertices_before[v].z()}) > 0;
+  }
+  EXPECT_GT(checked, 20);
+  EXPECT_EQ(kept, checked);
+}
+
+TEST(FrontSurface, ASecondStrokeCutsBesideTheFirst) {
+  const Mesh mesh = icosphere(3, 1.0);
+  const double whole = volume(mesh.vertices, mesh.triangles);
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.08);
+  for (const double x : {-0.35, 0.3}) {
+    for (int k = 0; k < 20; ++k) {
+      const double z = 1.3 - 1.5 * k / 19;
+      const FrontCutReport report = surface.advance(std::vector<Vec3>{{x, -1.4, z}, {x + 0.02, 1.4, z}});
+      ASSERT_TRUE(report.ok()) << "x " << x << " sample " << k << ": " << report.problems.front();
+      expect_closed_with_volume(surface, whole, "x " + std::to_string(x) + " sample " + std::to_string(k));
+    }
+    surface.end_stroke();
+    expect_closed_with_volume(surface, whole, "after the stroke at x " + std::to_string(x));
+  }
+}
+
+TEST(FrontSurface, ReportsWhatItCannotCutInsteadOfOpeningTheSurface) {
+  const Mesh mesh = icosphere(3, 1.0);
+  const double whole = volume(mesh.vertices, mesh.triangles);
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.08);
+  // A stroke that begins inside the body.
+  surface.advance(std::vector<Vec3>{{0.1, -1.4, 0.2}, {0.1, 1.4, 0.2}});
+  const FrontCutReport report = surface.advance(std::vector<Vec3>{{0.1, -1.4, 0.1}, {0.1, 1.4, 0.1}});
+  ASSERT_FALSE(report.ok());
+  EXPECT_NE(report.problems.front().find("inside the body"), std::string::npos) << report.problems.front();
+  expect_closed_with_volume(surface, whole, "after the refused stroke");
+  EXPECT_EQ(surface.triangles().size(), mesh.triangles.size());
+}
+
+TEST(FrontSurface, RejectsBadInputNamingIt) {
+  const Mesh mesh = icosphere(1, 1.0);
+  const auto message = [](auto&& make) {
+    try {
+      make();
+    } catch (const std::invalid_argument& error) {
+      return std::string(error.what());
+    }
+    return std::string("no exception");
+  };
+  auto open = mesh.triangles;
+  open.pop_back();
+  EXPECT_NE(message([&] { FrontSurface(mesh.vertices, open, 0.1); }).find("edge ("), std::string::npos);
+  auto nan = mesh.vertices;
+  nan[5].y() = std::nan("");
+  EXPECT_NE(message([&] { FrontSurface(nan, mesh.triangles, 0.1); }).find("vertex 5"), std::string::npos);
+  EXPECT_NE(message([&] { FrontSurface(mesh.vertices, mesh.triangles, 0.0); }).find("front_width"), std::string::npos);
+  auto out_of_range = mesh.triangles;
+  out_of_range[3][1] = 999;
+  EXPECT_NE(message([&] { FrontSurface(mesh.vertices, out_of_range, 0.1); }).find("triangle 3"), std::string::npos);
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.1);
+  surface.advance(std::vector<Vec3>{{0, -2, 2}, {0, 2, 2}});
+  EXPECT_NE(message([&] { surface.advance(std::vector<Vec3>{{0, -2, 1}, {0, 0, 1}, {0, 2, 1}}); }).find("3 points"), std::string::npos);
+  EXPECT_NE(message([&] { surface.advance(std::vector<Vec3>{{0, -2, 1}, {0, std::nan(""), 1}}); }).find("blade point 1"),
+            std::string::npos);
+  EXPECT_EQ(surface.stroke_samples(), 1);
+}
