@@ -53,6 +53,14 @@
 
 namespace incise::physics {
 
+// A plane a surface vertex's integration point must lie below, (x - point) . normal <= 0
+// (seed 004 §2.6, criterion 3): attached where a nearby cut was made, its normal pointing
+// across the cut, away from the vertex's side.
+struct ConstraintPlane {
+  Vec3 point = Vec3::Zero();
+  Vec3 normal = Vec3::Zero();
+};
+
 struct FrontCutReport {
   int crossings = 0;           // base edges the stroke's sheet crosses
   int tips = 0;                // base triangles the sheet's boundary crosses
@@ -91,6 +99,11 @@ class FrontSurface {
   // The current surface: the base split by the stroke, with its two cut faces.
   const std::vector<Vec3>& vertices() const { return vertices_; }
   const std::vector<std::array<int, 3>>& triangles() const { return triangles_; }
+  // Per vertex of vertices(): the constraint planes of the cuts next to it. A base vertex
+  // at the end of a cut edge gets the sheet's plane there (facing away from its side) and
+  // keeps it across strokes; each vertex of a pair, and each inner vertex of a cut face,
+  // gets the plane of the sheet on its side; the shared vertices along the front get none.
+  const std::vector<std::vector<ConstraintPlane>>& vertex_planes() const { return vertex_planes_; }
   // Base vertices keep their index; the stroke's vertices come after them.
   int base_vertex_count() const { return static_cast<int>(base_vertices_.size()); }
   double front_width() const { return front_width_; }
@@ -109,8 +122,10 @@ class FrontSurface {
   std::vector<std::vector<Vec3>> samples_;
   std::vector<double> sample_t_;  // t of each sample
   std::vector<double> blade_s_;   // s of each blade point
+  std::vector<std::vector<ConstraintPlane>> base_planes_;
   std::vector<Vec3> vertices_;
   std::vector<std::array<int, 3>> triangles_;
+  std::vector<std::vector<ConstraintPlane>> vertex_planes_;
 };
 
 }  // namespace incise::physics
