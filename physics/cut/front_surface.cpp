@@ -278,6 +278,7 @@ struct EdgeCut {
   Vec2 st;
   int lower = -1, higher = -1;             // the edge's ends
   bool lower_on_plus = false;              // the lower end is on the sheet's normal side
+  Vec3 normal = Vec3::Zero();              // the sheet's there (unit)
   int copy_lower = -1, copy_higher = -1;   // the output vertices on each end's side
 };
 
@@ -356,6 +357,8 @@ FrontSurface::FrontSurface(std::vector<Vec3> vertices, std::vector<std::array<in
   }
   if (base_triangles_.empty()) throw std::invalid_argument("FrontSurface: the mesh has no triangle");
   index_base();
+  base_planes_.assign(base_vertices_.size(), {});
+  vertex_planes_ = base_planes_;
   vertices_ = base_vertices_;
   triangles_ = base_triangles_;
 }
@@ -394,11 +397,13 @@ void FrontSurface::end_stroke() {
   if (report.ok() && samples_.size() >= 2) {
     base_vertices_ = vertices_;
     base_triangles_ = triangles_;
+    base_planes_ = vertex_planes_;
     index_base();
   }
   stroke_.reset();
   vertices_ = base_vertices_;
   triangles_ = base_triangles_;
+  vertex_planes_ = base_planes_;
   samples_.clear();
   sample_t_.clear();
   blade_s_.clear();
@@ -407,6 +412,7 @@ void FrontSurface::end_stroke() {
 void FrontSurface::recompute(FrontCutReport& report) {
   vertices_ = base_vertices_;
   triangles_ = base_triangles_;
+  vertex_planes_ = base_planes_;
   if (samples_.size() < 2) return;
   const int point_count = static_cast<int>(samples_.front().size());
   const int sample_count = static_cast<int>(samples_.size());
@@ -456,6 +462,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
           cut.lower = a;
           cut.higher = b;
           cut.lower_on_plus = hit->p_sign < 0;
+          cut.normal = (points[id[1]] - points[id[0]]).cross(points[id[2]] - points[id[0]]).normalized();
           stroke.edge_cut[static_cast<size_t>(e)] = static_cast<int>(stroke.cuts.size());
           stroke.cuts.push_back(cut);
           stroke.cut_edges.push_back(e);
@@ -892,17 +899,20 @@ void FrontSurface::recompute(FrontCutReport& report) {
     const Vec3& p10 = samples_[static_cast<size_t>(j)][static_cast<size_t>(i + 1)];
     const Vec3& p01 = samples_[static_cast<size_t>(j + 1)][static_cast<size_t>(i)];
     const Vec3& p11 = samples_[static_cast<size_t>(j + 1)][static_cast<size_t>(i + 1)];
-    if (alpha >= beta) return Vec3(p00 + alpha * (p10 - p00) + beta * (p11 - p10));
-    return Vec3(p00 + beta * (p01 - p00) + alpha * (p11 - p01));
+    if (alpha >= beta) return std::pair<Vec3, Vec3>{p00 + alpha * (p10 - p00) + beta * (p11 - p10), (p10 - p00).cross(p11 - p00).normalized()};
+    return std::pair<Vec3, Vec3>{p00 + beta * (p01 - p00) + alpha * (p11 - p01), (p11 - p00).cross(p01 - p00).normalized()};
   };
+  std::vector<std::pair<int, ConstraintPlane>> face_planes;
   for (const auto& triangle : face)
     for (const int p : triangle)
       if (region_vertex[static_cast<size_t>(p)] < 0) {
         // Each side's face has its own inner vertices: the two separate as the cut opens.
-        const Vec3 x = sheet_point(region.points[static_cast<size_t>(p)]);
+        const auto [x, normal] = sheet_point(region.points[static_cast<size_t>(p)]);
         region_vertex[static_cast<size_t>(p)] = static_cast<int>(vertices_.size());
+        face_planes.push_back({static_cast<int>(vertices_.size()), {x, normal}});
         vertices_.push_back(x);
         region_vertex_plus[static_cast<size_t>(p)] = static_cast<int>(vertices_.size());
+        face_planes.push_back({static_cast<int>(vertices_.size()), {x, -normal}});
         vertices_.push_back(x);
         ++report.lattice_vertices;
       }
@@ -920,6 +930,19 @@ void FrontSurface::recompute(FrontCutReport& report) {
     triangles_.push_back({region_vertex_plus[static_cast<size_t>(triangle[0])], region_vertex_plus[static_cast<size_t>(triangle[2])],
                           region_vertex_plus[static_cast<size_t>(triangle[1])]});
   report.cut_face_triangles = static_cast<int>(face.size());
+
+  // Constraint planes (seed 004 §2.6, criterion 3): each end of a cut edge and its copy of the
+  // pair face across the sheet; so do the cut faces' inner vertices, each on its side.
+  vertex_planes_.resize(vertices_.size());
+  for (const EdgeCut& cut : cuts) {
+    const ConstraintPlane lower{cut.point, cut.lower_on_plus ? Vec3(-cut.normal) : cut.normal};
+    const ConstraintPlane higher{cut.point, -lower.normal};
+    vertex_planes_[static_cast<size_t>(cut.lower)].push_back(lower);
+    vertex_planes_[static_cast<size_t>(cut.higher)].push_back(higher);
+    vertex_planes_[static_cast<size_t>(cut.copy_lower)].push_back(lower);
+    vertex_planes_[static_cast<size_t>(cut.copy_higher)].push_back(higher);
+  }
+  for (const auto& [v, plane] : face_planes) vertex_planes_[static_cast<size_t>(v)].push_back(plane);
 }
 
 }  // namespace incise::physics

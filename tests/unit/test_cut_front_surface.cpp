@@ -173,6 +173,44 @@ TEST(FrontSurface, AStraightBladeThroughASphereLeavesTwoClosedCapsAfterEverySamp
   EXPECT_NEAR(parts[0][0] + parts[1][0], whole, 1e-9 * whole);
 }
 
+// Every constraint plane faces away from its vertex's side: once the flat cut is through, the
+// vertex's neighbours on the surface (its side, by construction of the pairs) lie below it.
+// (Near a crack tip they need not: a plane is infinite, the cut is not.)
+TEST(FrontSurface, ConstraintPlanesFaceAwayFromTheirVertexsSide) {
+  const Mesh mesh = icosphere(3, 1.0);
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.08);
+  for (int k = 0; k <= 30; ++k) {
+    const double z = 1.3 - 2.6 * k / 30;
+    ASSERT_TRUE(surface.advance(std::vector<Vec3>{{0.27, -1.4, z}, {0.33, 1.4, z}}).ok());
+  }
+  const auto& planes = surface.vertex_planes();
+  ASSERT_EQ(planes.size(), surface.vertices().size());
+  std::vector<std::set<int>> ring(surface.vertices().size());
+  for (const auto& t : surface.triangles())
+    for (int k = 0; k < 3; ++k) ring[static_cast<size_t>(t[static_cast<size_t>(k)])].insert(t[static_cast<size_t>((k + 1) % 3)]);
+  int with_planes = 0, base_with_planes = 0, checked = 0;
+  for (size_t v = 0; v < planes.size(); ++v) {
+    if (planes[v].empty()) continue;
+    ++with_planes;
+    base_with_planes += static_cast<int>(v) < surface.base_vertex_count();
+    for (const ConstraintPlane& plane : planes[v]) {
+      EXPECT_NEAR(plane.normal.norm(), 1.0, 1e-12);
+      for (const int n : ring[v]) {
+        EXPECT_LE((surface.vertices()[static_cast<size_t>(n)] - plane.point).dot(plane.normal), 1e-12) << "vertex " << v << " neighbour " << n;
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(base_with_planes, 20);
+  EXPECT_GT(with_planes, 200);
+  EXPECT_GT(checked, 1000);
+  // The base vertices keep theirs into the next stroke.
+  surface.end_stroke();
+  int kept = 0;
+  for (size_t v = 0; v < static_cast<size_t>(mesh.vertices.size()); ++v) kept += !surface.vertex_planes()[v].empty();
+  EXPECT_EQ(kept, base_with_planes);
+}
+
 TEST(FrontSurface, ABladeShorterThanTheBodyLeavesAPocketClosedAlongItsEnds) {
   const Mesh mesh = icosphere(3, 1.0);
   const double whole = volume(mesh.vertices, mesh.triangles);
