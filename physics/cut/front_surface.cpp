@@ -388,6 +388,14 @@ FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
   sample_t_.push_back(sample_t_.back() + moved);
   samples_.emplace_back(blade.begin(), blade.end());
   recompute(report);
+  if (report.ok() && report.crossings == 0 && report.tips == 0) {
+    // Nothing touched: the stroke starts again from this sample.
+    samples_.erase(samples_.begin(), samples_.end() - 1);
+    sample_t_.assign(1, 0.0);
+    blade_s_.assign(1, 0.0);
+    for (size_t i = 1; i < blade.size(); ++i) blade_s_.push_back(blade_s_.back() + (blade[i] - blade[i - 1]).norm());
+    stroke_.reset();
+  }
   return report;
 }
 
@@ -534,6 +542,17 @@ void FrontSurface::recompute(FrontCutReport& report) {
                       hit.entering});
   }
   report.tips = static_cast<int>(tips.size());
+  {
+    // The outline starts outside (else the stroke began inside, reported below): a point of it
+    // is inside after an odd number of tips. The front is [front_first, front_last).
+    const double front_first = segments + intervals, front_last = front_first + segments;
+    int before = 0;
+    for (const Tip& tip : tips) {
+      if (tip.position >= front_first && tip.position < front_last) report.front_in_body = true;
+      before += tip.position < front_first;
+    }
+    if (before % 2 == 1) report.front_in_body = true;
+  }
   for (size_t k = 0; k < tips.size(); ++k)
     if (tips[k].entering == tips[(k + 1) % tips.size()].entering) {
       problem("the sheet's outline goes " + std::string(tips[k].entering ? "into" : "out of") +

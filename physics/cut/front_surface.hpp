@@ -68,6 +68,7 @@ struct FrontCutReport {
   int cut_face_triangles = 0;  // per side
   int front_vertices = 0;      // transient vertices on the front and the other inside boundary
   int lattice_vertices = 0;    // fixed vertices inside the cut face
+  bool front_in_body = false;  // part of the last sample (the front) is inside the body
   // What the cut could not handle (each an explanation naming the triangle or edge). When
   // not empty the surface returned is the base mesh, uncut.
   std::vector<std::string> problems;
@@ -87,7 +88,9 @@ class FrontSurface {
   FrontSurface& operator=(FrontSurface&&) noexcept;
 
   // Appends a blade sample to the stroke (the polyline at rest, at least two points, as many
-  // as the stroke's first sample) and recomputes the stroke's cut. Throws
+  // as the stroke's first sample) and recomputes the stroke's cut. While the stroke's sheet
+  // touches nothing, it starts again from the latest sample, so that a stroke begins at the
+  // last sample before the blade meets the body. Throws
   // std::invalid_argument naming the point when a coordinate is not finite or the count
   // differs, before anything changes.
   FrontCutReport advance(std::span<const Vec3> blade);

@@ -317,6 +317,32 @@ TEST(FrontSurface, ASecondStrokeCutsBesideTheFirst) {
   }
 }
 
+TEST(FrontSurface, AStrokeBeginsAtTheLastSampleBeforeTheBladeMeetsTheBody) {
+  const Mesh mesh = icosphere(3, 1.0);
+  const double whole = volume(mesh.vertices, mesh.triangles);
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.08);
+  const auto blade_at = [](double z) { return std::vector<Vec3>{{0.1, -1.4, z}, {0.12, 1.4, z}}; };
+  for (int k = 0; k < 10; ++k) {
+    const FrontCutReport report = surface.advance(blade_at(3.0 - 0.15 * k));  // down to z = 1.65, outside
+    EXPECT_FALSE(report.front_in_body);
+    EXPECT_EQ(surface.stroke_samples(), 1);
+  }
+  bool was_in = false;
+  for (int k = 0; k < 40; ++k) {
+    const FrontCutReport report = surface.advance(blade_at(1.5 - 0.08 * k));  // through, out at z = -1.6
+    ASSERT_TRUE(report.ok()) << report.problems.front();
+    expect_closed_with_volume(surface, whole, "sample " + std::to_string(k));
+    const double z = 1.5 - 0.08 * k;
+    // In the body while the blade's line crosses the sphere (the polyhedron is inside it).
+    if (std::abs(z) < 0.9) EXPECT_TRUE(report.front_in_body) << z;
+    if (std::abs(z) > 1.0) EXPECT_FALSE(report.front_in_body) << z;
+    was_in = was_in || report.front_in_body;
+  }
+  EXPECT_TRUE(was_in);
+  EXPECT_EQ(pieces(surface.vertices(), surface.triangles()).size(), 2u);
+  EXPECT_LT(surface.stroke_samples(), 40);  // it began near the body, not at z = 3
+}
+
 TEST(FrontSurface, ReportsWhatItCannotCutInsteadOfOpeningTheSurface) {
   const Mesh mesh = icosphere(3, 1.0);
   const double whole = volume(mesh.vertices, mesh.triangles);
