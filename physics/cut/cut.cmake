@@ -10,6 +10,7 @@ add_library(incise_cut STATIC
   ${CMAKE_CURRENT_LIST_DIR}/volume_cut.cpp
   ${CMAKE_CURRENT_LIST_DIR}/cut_surface.cpp
   ${CMAKE_CURRENT_LIST_DIR}/front_surface.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/front_mapping.cpp
   ${CMAKE_CURRENT_LIST_DIR}/triangulate_2d.cpp
 )
 target_link_libraries(incise_cut PUBLIC incise_physics)

@@ -1,0 +1,407 @@
+#include "physics/cut/front_mapping.hpp"
+
+#include "physics/efg/mls.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace incise::physics {
+namespace {
+
+[[noreturn]] void fail(const std::string& message) { throw std::invalid_argument("map_front_surface: " + message); }
+
+// Per vertex, the area-weighted normal: the sum of its triangles' cross products (each twice
+// the triangle's area along its unit normal), not normalised.
+std::vector<Vec3> area_weighted_normals(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles) {
+  std::vector<Vec3> normals(vertices.size(), Vec3::Zero());
+  for (const auto& t : triangles) {
+    const Vec3& a = vertices[static_cast<size_t>(t[0])];
+    const Vec3 n = (vertices[static_cast<size_t>(t[1])] - a).cross(vertices[static_cast<size_t>(t[2])] - a);
+    for (const int v : t) normals[static_cast<size_t>(v)] += n;
+  }
+  return normals;
+}
+
+// Per vertex, the angle-weighted normal (each triangle's unit normal times its angle at the
+// vertex, not normalised): the pseudo-normal that points into the body at a rim, whatever the
+// size of the triangles on either side.
+std::vector<Vec3> angle_weighted_normals(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles) {
+  std::vector<Vec3> normals(vertices.size(), Vec3::Zero());
+  for (const auto& t : triangles) {
+    const Vec3 n = (vertices[static_cast<size_t>(t[1])] - vertices[static_cast<size_t>(t[0])])
+                       .cross(vertices[static_cast<size_t>(t[2])] - vertices[static_cast<size_t>(t[0])]);
+    const double length = n.norm();
+    if (!(length > 0)) continue;
+    for (int i = 0; i < 3; ++i) {
+      const Vec3& x = vertices[static_cast<size_t>(t[i])];
+      const Vec3 u = vertices[static_cast<size_t>(t[(i + 1) % 3])] - x, w = vertices[static_cast<size_t>(t[(i + 2) % 3])] - x;
+      normals[static_cast<size_t>(t[i])] += std::atan2(u.cross(w).norm(), u.dot(w)) / length * n;
+    }
+  }
+  return normals;
+}
+
+// One-ring neighbours of every vertex (the vertices it shares a triangle with), compressed rows.
+struct OneRing {
+  std::vector<int> start;  // vertex -> first entry; start[n] = end
+  std::vector<int> neighbours;
+
+  OneRing(int vertex_count, const std::vector<std::array<int, 3>>& triangles) {
+    std::vector<std::pair<int, int>> pairs;
+    pairs.reserve(triangles.size() * 6);
+    for (const auto& t : triangles)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          if (i != j && t[i] != t[j]) pairs.emplace_back(t[i], t[j]);
+    std::sort(pairs.begin(), pairs.end());
+    pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+    start.assign(static_cast<size_t>(vertex_count) + 1, 0);
+    for (const auto& [v, u] : pairs) ++start[static_cast<size_t>(v) + 1];
+    for (int v = 0; v < vertex_count; ++v) start[static_cast<size_t>(v) + 1] += start[static_cast<size_t>(v)];
+    neighbours.resize(pairs.size());
+    for (size_t k = 0; k < pairs.size(); ++k) neighbours[k] = pairs[k].second;  // sorted by v, so in place
+  }
+  std::span<const int> of(int v) const {
+    return {neighbours.data() + start[static_cast<size_t>(v)], neighbours.data() + start[static_cast<size_t>(v) + 1]};
+  }
+};
+
+// The active elements binned by their integration cube (each rest integration point lies in
+// its cube, so a point in the cube r rings from the vertex's is at least (r - 1) a away).
+struct ElementBins {
+  std::array<long long, 3> counts{0, 0, 0};
+  std::vector<int> element_of_cube;  // -1: no active element
+
+  explicit ElementBins(const CorotationalEfg& model) {
+    const auto& cubes = model.element_grid_coordinates();
+    for (const auto& c : cubes)
+      for (int axis = 0; axis < 3; ++axis) counts[axis] = std::max<long long>(counts[axis], c[axis] + 1);
+    element_of_cube.assign(static_cast<size_t>(counts[0] * counts[1] * counts[2]), -1);
+    for (int e = 0; e < model.element_count(); ++e) {
+      if (!model.element_active(e)) continue;
+      const auto& c = cubes[static_cast<size_t>(e)];
+      element_of_cube[static_cast<size_t>(c[0] + counts[0] * (c[1] + counts[1] * c[2]))] = e;
+    }
+  }
+  int at(long long i, long long j, long long k) const {
+    if (i < 0 || j < 0 || k < 0 || i >= counts[0] || j >= counts[1] || k >= counts[2]) return -1;
+    return element_of_cube[static_cast<size_t>(i + counts[0] * (j + counts[1] * k))];
+  }
+};
+
+std::array<long long, 3> cube_of(const CorotationalEfg& model, const Vec3& point) {
+  std::array<long long, 3> cube{};
+  for (int axis = 0; axis < 3; ++axis) {
+    const double coordinate = (point[axis] - model.grid_origin()[axis]) / model.spacing();
+    cube[axis] = static_cast<long long>(std::floor(std::clamp(coordinate, -1e9, 1e9)));
+  }
+  return cube;
+}
+
+bool share_a_particle(const CorotationalEfg& model, int e, int f) {
+  const int stride = model.row_stride();
+  const int* a = model.neighbours().data() + static_cast<size_t>(e) * stride;
+  const int* b = model.neighbours().data() + static_cast<size_t>(f) * stride;
+  const int la = model.row_lengths()[static_cast<size_t>(e)], lb = model.row_lengths()[static_cast<size_t>(f)];
+  for (int i = 0; i < la; ++i)
+    for (int j = 0; j < lb; ++j)
+      if (a[i] == b[j]) return true;
+  return false;
+}
+
+class Mapper {
+ public:
+  Mapper(const CorotationalEfg& model, const std::vector<Vec3>& vertices, const std::vector<Vec3>& normals,
+         const std::vector<std::vector<ConstraintPlane>>& planes)
+      : model_(model), vertices_(vertices), normals_(normals), planes_(planes), bins_(model) {}
+
+  // The element for vertex v, given the elements its one-ring neighbours are mapped to (for
+  // criterion 1). Sets `relaxed` if no candidate met all three criteria.
+  int choose(int v, std::span<const int> neighbour_elements, bool& relaxed) {
+    const Vec3& vertex = vertices_[static_cast<size_t>(v)];
+    const auto cube = cube_of(model_, vertex);
+    const double a = model_.spacing();
+    candidates_.clear();
+    size_t checked = 0;
+    relaxed = false;
+    // Ring by ring, nearest first: after ring r the candidates nearer than r a are final (a
+    // farther ring holds none nearer), so they are checked in order as soon as they are.
+    for (long long r = 0; r <= front_mapping_reach_rings; ++r) {
+      for (long long dz = -r; dz <= r; ++dz)
+        for (long long dy = -r; dy <= r; ++dy) {
+          const bool on_shell = std::abs(dz) == r || std::abs(dy) == r;
+          for (long long dx = -r; dx <= r; dx += on_shell ? 1 : std::max<long long>(2 * r, 1)) {
+            const int e = bins_.at(cube[0] + dx, cube[1] + dy, cube[2] + dz);
+            if (e >= 0) candidates_.emplace_back((model_.element_centres()[static_cast<size_t>(e)] - vertex).squaredNorm(), e);
+          }
+        }
+      std::sort(candidates_.begin() + static_cast<std::ptrdiff_t>(checked), candidates_.end());
+      const double bound = static_cast<double>(r) * a;
+      for (; checked < candidates_.size(); ++checked) {
+        const auto [distance, e] = candidates_[checked];
+        if (r < front_mapping_reach_rings && !(distance < bound * bound)) break;
+        if (below_planes(v, e) && below_tangent(v, e) && shares_with_neighbours(e, neighbour_elements)) return e;
+      }
+    }
+    // Relaxed (§7.1.2), in the documented order, over every candidate within reach.
+    relaxed = true;
+    for (const auto& [distance, e] : candidates_)
+      if (below_planes(v, e) && below_tangent(v, e)) return e;
+    for (const auto& [distance, e] : candidates_)
+      if (below_planes(v, e)) return e;
+    if (!candidates_.empty()) return candidates_.front().second;
+    int best = -1;
+    double best_distance = 0;
+    for (int e = 0; e < model_.element_count(); ++e) {
+      if (!model_.element_active(e)) continue;
+      const double d = (model_.element_centres()[static_cast<size_t>(e)] - vertex).squaredNorm();
+      if (best < 0 || d < best_distance) best = e, best_distance = d;
+    }
+    if (best < 0) throw std::runtime_error("map_front_surface: the model has no active element for vertex " + std::to_string(v));
+    return best;
+  }
+
+  // Writes v's row: the MLS weights of e's neighbourhood at the vertex.
+  void write_row(int v, int e, SurfaceEmbedding& embedding) {
+    const Vec3& vertex = vertices_[static_cast<size_t>(v)];
+    const size_t base = static_cast<size_t>(e) * model_.row_stride();
+    const int length = model_.row_lengths()[static_cast<size_t>(e)];
+    positions_.clear();
+    double farthest = 0;
+    for (int k = 0; k < length; ++k) {
+      positions_.push_back(model_.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(model_.neighbours()[base + k])));
+      farthest = std::max(farthest, (positions_.back() - vertex).norm());
+    }
+    const double support = std::max(model_.element_supports()[static_cast<size_t>(e)], model_.settings().support_factor * farthest);
+    const size_t row = static_cast<size_t>(v) * embedding.stride;
+    if (!mls_shape_functions(vertex, positions_, support, model_.spacing(), std::span<double>(&embedding.weights[row], length), {})) {
+      throw std::runtime_error("map_front_surface: no MLS weights for vertex " + std::to_string(v) + " on element " +
+                               std::to_string(e));
+    }
+    std::fill(embedding.weights.begin() + static_cast<std::ptrdiff_t>(row + length),
+              embedding.weights.begin() + static_cast<std::ptrdiff_t>(row + embedding.stride), 0.0);
+    std::fill(embedding.particles.begin() + static_cast<std::ptrdiff_t>(row),
+              embedding.particles.begin() + static_cast<std::ptrdiff_t>(row + embedding.stride), 0);
+    std::copy_n(model_.neighbours().begin() + static_cast<std::ptrdiff_t>(base), length,
+                embedding.particles.begin() + static_cast<std::ptrdiff_t>(row));
+    embedding.elements[static_cast<size_t>(v)] = e;
+    embedding.row_lengths[static_cast<size_t>(v)] = length;
+  }
+
+ private:
+  bool below_tangent(int v, int e) const {
+    const Vec3& n = normals_[static_cast<size_t>(v)];
+    return (model_.element_centres()[static_cast<size_t>(e)] - vertices_[static_cast<size_t>(v)]).dot(n) <= 0;
+  }
+  bool below_planes(int v, int e) const {
+    if (static_cast<size_t>(v) >= planes_.size()) return true;
+    const Vec3& x = model_.element_centres()[static_cast<size_t>(e)];
+    for (const ConstraintPlane& plane : planes_[static_cast<size_t>(v)])
+      if ((x - plane.point).dot(plane.normal) > 0) return false;
+    return true;
+  }
+  bool shares_with_neighbours(int e, std::span<const int> neighbour_elements) const {
+    for (const int f : neighbour_elements)
+      if (!share_a_particle(model_, e, f)) return false;
+    return true;
+  }
+
+  const CorotationalEfg& model_;
+  const std::vector<Vec3>& vertices_;
+  const std::vector<Vec3>& normals_;
+  const std::vector<std::vector<ConstraintPlane>>& planes_;
+  ElementBins bins_;
+  std::vector<std::pair<double, int>> candidates_;
+  std::vector<Vec3> positions_;
+};
+
+void check_surface(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                   const std::string& caller) {
+  const auto fail = [&](const std::string& message) { throw std::invalid_argument(caller + ": " + message); };
+  const int n = static_cast<int>(vertices.size());
+  for (int v = 0; v < n; ++v)
+    if (!vertices[static_cast<size_t>(v)].allFinite()) fail("vertex " + std::to_string(v) + " is not finite");
+  for (size_t t = 0; t < triangles.size(); ++t)
+    for (const int v : triangles[t])
+      if (v < 0 || v >= n) fail("triangle " + std::to_string(t) + " has vertex " + std::to_string(v) + ", out of range [0, " + std::to_string(n) + ")");
+}
+
+// Rows sized for `vertices` at `stride`, the existing ones kept (moved if the stride grew).
+void fit_rows(SurfaceEmbedding& embedding, int vertices, int stride) {
+  if (embedding.stride != stride && !embedding.elements.empty()) {
+    std::vector<int> particles(embedding.elements.size() * static_cast<size_t>(stride), 0);
+    std::vector<double> weights(particles.size(), 0.0);
+    for (size_t v = 0; v < embedding.elements.size(); ++v) {
+      const auto from = static_cast<std::ptrdiff_t>(v * static_cast<size_t>(embedding.stride));
+      const auto to = static_cast<std::ptrdiff_t>(v * static_cast<size_t>(stride));
+      std::copy_n(embedding.particles.begin() + from, embedding.row_lengths[v], particles.begin() + to);
+      std::copy_n(embedding.weights.begin() + from, embedding.row_lengths[v], weights.begin() + to);
+    }
+    embedding.particles.swap(particles);
+    embedding.weights.swap(weights);
+  }
+  embedding.stride = stride;
+  embedding.elements.resize(static_cast<size_t>(vertices), 0);
+  embedding.row_lengths.resize(static_cast<size_t>(vertices), 0);
+  embedding.particles.resize(static_cast<size_t>(vertices) * stride, 0);
+  embedding.weights.resize(static_cast<size_t>(vertices) * stride, 0.0);
+}
+
+bool segment_crosses_triangle(const Vec3& p, const Vec3& q, const std::array<Vec3, 3>& t) {
+  const Vec3 m = (t[1] - t[0]).cross(t[2] - t[0]);
+  const double sp = (p - t[0]).dot(m), sq = (q - t[0]).dot(m);
+  if (!((sp < 0 && sq > 0) || (sp > 0 && sq < 0))) return false;
+  const Vec3 x = p + (sp / (sp - sq)) * (q - p);
+  for (int i = 0; i < 3; ++i) {
+    const Vec3& a = t[static_cast<size_t>(i)];
+    const Vec3& b = t[static_cast<size_t>((i + 1) % 3)];
+    if ((b - a).cross(x - a).dot(m) < 0) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
+                       const std::vector<std::array<int, 3>>& triangles,
+                       const std::vector<std::vector<ConstraintPlane>>& planes, std::span<const int> remap,
+                       SurfaceEmbedding& embedding, FrontMappingReport& report) {
+  const int n = static_cast<int>(vertices.size());
+  const int rows = embedding.vertex_count();
+  check_surface(vertices, triangles, "map_front_surface");
+  if (rows > n) fail("the embedding has " + std::to_string(rows) + " rows for " + std::to_string(n) + " vertices");
+  for (size_t k = 0; k < remap.size(); ++k) {
+    const int v = remap[k];
+    if (v < 0 || v >= n) fail("remap entry " + std::to_string(k) + ": vertex " + std::to_string(v) + " out of range [0, " + std::to_string(n) + ")");
+    if (k > 0 && v <= remap[k - 1]) fail("remap entry " + std::to_string(k) + ": vertex " + std::to_string(v) + " does not follow vertex " + std::to_string(remap[k - 1]) + " (the list must increase)");
+  }
+  // Increasing, so the indices at or above the row count are a suffix; all must be there.
+  const auto first_new = std::lower_bound(remap.begin(), remap.end(), rows);
+  if (static_cast<int>(remap.end() - first_new) != n - rows) {
+    int missing = rows;
+    for (auto it = first_new; it != remap.end() && *it == missing; ++it) ++missing;
+    fail("vertex " + std::to_string(missing) + " has no row and is not in the remap list");
+  }
+  for (size_t v = 0; v < planes.size() && v < vertices.size(); ++v)
+    for (const ConstraintPlane& plane : planes[v])
+      if (!plane.point.allFinite() || !plane.normal.allFinite()) fail("a constraint plane of vertex " + std::to_string(v) + " is not finite");
+  for (int v = 0; v < rows; ++v) {
+    const int e = embedding.elements[static_cast<size_t>(v)];
+    if (e < 0 || e >= model.element_count()) fail("vertex " + std::to_string(v) + " is mapped to element " + std::to_string(e) + ", out of range");
+  }
+
+  fit_rows(embedding, n, std::max(embedding.stride, model.row_stride()));
+  const std::vector<Vec3> normals = area_weighted_normals(vertices, triangles);
+  const OneRing ring(n, triangles);
+  Mapper mapper(model, vertices, normals, planes);
+
+  // listed[v]: -1 if v is not remapped, else (after the first pass) its first-pass element.
+  std::vector<int> listed(static_cast<size_t>(n), -1);
+  for (const int v : remap) listed[static_cast<size_t>(v)] = std::numeric_limits<int>::max();
+  std::vector<int> first(remap.size());
+  std::vector<int> neighbour_elements;
+  const auto gather = [&](int v, bool second_pass) {
+    neighbour_elements.clear();
+    for (const int u : ring.of(v)) {
+      const int mark = listed[static_cast<size_t>(u)];
+      if (mark < 0) {
+        neighbour_elements.push_back(embedding.elements[static_cast<size_t>(u)]);
+      } else if (second_pass) {
+        neighbour_elements.push_back(mark);
+      }
+    }
+    std::sort(neighbour_elements.begin(), neighbour_elements.end());
+    neighbour_elements.erase(std::unique(neighbour_elements.begin(), neighbour_elements.end()), neighbour_elements.end());
+  };
+  bool relaxed = false;
+  // First pass: only the neighbours not being remapped, whose rows are as given.
+  for (size_t k = 0; k < remap.size(); ++k) {
+    gather(remap[k], false);
+    first[k] = mapper.choose(remap[k], neighbour_elements, relaxed);
+  }
+  for (size_t k = 0; k < remap.size(); ++k) listed[static_cast<size_t>(remap[k])] = first[k];
+  // Second pass: every neighbour, the remapped ones at their first-pass element (a snapshot:
+  // nothing this pass writes is read by it).
+  for (size_t k = 0; k < remap.size(); ++k) {
+    gather(remap[k], true);
+    const int e = mapper.choose(remap[k], neighbour_elements, relaxed);
+    if (relaxed) ++report.relaxed_fallbacks;
+    mapper.write_row(remap[k], e, embedding);
+    ++report.mapped;
+  }
+}
+
+int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
+                     const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
+                     const std::vector<std::array<Vec3, 3>>& cut_triangles, double inset) {
+  check_surface(vertices, triangles, "count_wrong_side");
+  for (int v = 0; v < std::min(embedding.vertex_count(), static_cast<int>(vertices.size())); ++v) {
+    const int e = embedding.elements[static_cast<size_t>(v)];
+    if (e < 0 || e >= model.element_count())
+      throw std::invalid_argument("count_wrong_side: vertex " + std::to_string(v) + " is mapped to element " + std::to_string(e) + ", out of range");
+  }
+  const int rows = std::min(embedding.vertex_count(), static_cast<int>(vertices.size()));
+  const std::vector<Vec3> normals = angle_weighted_normals(vertices, triangles);
+  // The cut triangles binned on the integration grid (cell a), each in the cells its box
+  // covers; very large ones (more than `large_cells`) are tested against every segment.
+  const double a = model.spacing();
+  const Vec3 origin = model.grid_origin();
+  constexpr long long large_cells = 4096;
+  const auto cell = [&](const Vec3& p) {
+    std::array<long long, 3> c{};
+    for (int axis = 0; axis < 3; ++axis)
+      c[axis] = static_cast<long long>(std::floor(std::clamp((p[axis] - origin[axis]) / a, -1e6, 1e6)));
+    return c;
+  };
+  const auto key = [](long long i, long long j, long long k) {
+    const auto part = [](long long x) { return static_cast<std::uint64_t>(x + (1 << 20)) & 0x1fffff; };
+    return (part(i) << 42) | (part(j) << 21) | part(k);
+  };
+  std::vector<std::pair<std::uint64_t, int>> binned;
+  std::vector<int> large;
+  for (size_t t = 0; t < cut_triangles.size(); ++t) {
+    const auto& tri = cut_triangles[t];
+    const Vec3 lo = tri[0].cwiseMin(tri[1]).cwiseMin(tri[2]), hi = tri[0].cwiseMax(tri[1]).cwiseMax(tri[2]);
+    const auto l = cell(lo), h = cell(hi);
+    if ((h[0] - l[0] + 1) * (h[1] - l[1] + 1) * (h[2] - l[2] + 1) > large_cells) {
+      large.push_back(static_cast<int>(t));
+      continue;
+    }
+    for (long long k = l[2]; k <= h[2]; ++k)
+      for (long long j = l[1]; j <= h[1]; ++j)
+        for (long long i = l[0]; i <= h[0]; ++i) binned.emplace_back(key(i, j, k), static_cast<int>(t));
+  }
+  std::sort(binned.begin(), binned.end());
+  int wrong = 0;
+  std::vector<int> seen;
+  for (int v = 0; v < rows; ++v) {
+    const Vec3& n = normals[static_cast<size_t>(v)];
+    const double length = n.norm();
+    const Vec3 p = vertices[static_cast<size_t>(v)] - (length > 0 ? inset / length : 0.0) * n;
+    const Vec3& q = model.element_centres()[static_cast<size_t>(embedding.elements[static_cast<size_t>(v)])];
+    bool crosses = false;
+    for (const int t : large) crosses = crosses || segment_crosses_triangle(p, q, cut_triangles[static_cast<size_t>(t)]);
+    const auto l = cell(p.cwiseMin(q)), h = cell(p.cwiseMax(q));
+    seen.clear();
+    for (long long k = l[2]; k <= h[2] && !crosses; ++k)
+      for (long long j = l[1]; j <= h[1] && !crosses; ++j)
+        for (long long i = l[0]; i <= h[0] && !crosses; ++i) {
+          const std::uint64_t c = key(i, j, k);
+          auto it = std::lower_bound(binned.begin(), binned.end(), std::pair<std::uint64_t, int>(c, -1));
+          for (; it != binned.end() && it->first == c && !crosses; ++it) {
+            if (std::find(seen.begin(), seen.end(), it->second) != seen.end()) continue;
+            seen.push_back(it->second);
+            crosses = segment_crosses_triangle(p, q, cut_triangles[static_cast<size_t>(it->second)]);
+          }
+        }
+    wrong += crosses ? 1 : 0;
+  }
+  return wrong;
+}
+
+}  // namespace incise::physics

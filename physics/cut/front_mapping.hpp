@@ -1,0 +1,77 @@
+// Mapping a FrontSurface's vertices onto the EFG model's integration points by the thesis's
+// three eligibility criteria (seed 004 §2.6, Magnoux 2020 §5.2.2-5.2.3, fallback §7.1.2).
+// The caller decides what to remap (the triggers of §2.6: vertices a cut created or
+// touched, vertices mapped to an element whose neighbourhood a volume cut changed, vertices
+// whose link to their point the blade crossed); this file only says where each one goes.
+// Free functions over plain arrays (STYLE.md, libigl): the surface is its rest vertices and
+// triangles, the constraint planes come from FrontSurface::vertex_planes() or the caller.
+#pragma once
+
+#include "physics/cut/front_surface.hpp"
+#include "physics/efg/corotational_efg.hpp"
+
+#include <array>
+#include <span>
+#include <vector>
+
+namespace incise::physics {
+
+struct FrontMappingReport {
+  int mapped = 0;             // vertices whose row was computed in this call
+  int relaxed_fallbacks = 0;  // vertices for which no candidate met all three criteria (counted, never silent)
+};
+
+// (Re)maps the vertices listed in `remap` (strictly increasing; indices at or above the
+// embedding's row count are appended, and every one of them must be listed) onto one active
+// integration point each. The candidates are the elements whose rest integration point lies
+// in the integration cubes within front_mapping_reach_rings rings of the vertex's cube,
+// nearest first (rest configuration); the first valid one is taken:
+//  1. its neighbourhood shares at least one particle with the neighbourhood of the element
+//     each one-ring neighbour of the vertex is mapped to (neighbours not mapped are skipped);
+//  2. it lies below the tangent plane at the vertex, (X_e - X_v) . n_v <= 0, n_v the
+//     area-weighted normal of the vertex's triangles (a vertex with no triangle, or whose
+//     normal vanishes, has no tangent plane and this criterion holds for every candidate);
+//  3. it lies below each plane of `planes[v]` (missing entries have none).
+// Criterion 1 and the order of the list: the neighbours' mappings are read from snapshots,
+// never from rows written earlier in the same pass, so the result depends on the set of
+// listed vertices, the embedding's other rows and the inputs, not on the order in which the
+// vertices are visited. Two passes: the first checks criterion 1 against the neighbours that
+// are not listed (their rows as given); the second against every neighbour, listed ones at
+// their first-pass element. The second pass is the result (and alone counts fallbacks).
+// When no candidate within reach is valid, the criteria are relaxed in this order, and the
+// vertex counted in relaxed_fallbacks: drop 1 (keep 2 and 3), then drop 2 (keep 3: the cut
+// planes are what keeps a vertex off the other side of a cut), then the nearest candidate
+// within reach, then the nearest active element of all.
+// The row is the MLS weights at the vertex of the chosen element's neighbourhood, with the
+// element's support widened as embed_surface does (support_factor x the farthest neighbour
+// from the vertex) so that every neighbour weighs. The embedding takes the model's row
+// stride if it is larger (existing rows are moved).
+// Throws std::invalid_argument naming the vertex or triangle, before anything changes: an
+// index out of range, a non-finite position, the remap list not increasing or missing an
+// index at or above the row count, more rows than vertices. Throws std::runtime_error naming
+// the vertex if no MLS weights exist for it (a degenerate neighbourhood).
+void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
+                       const std::vector<std::array<int, 3>>& triangles,
+                       const std::vector<std::vector<ConstraintPlane>>& planes, std::span<const int> remap,
+                       SurfaceEmbedding& embedding, FrontMappingReport& report);
+
+// How far the candidate search reaches: integration cubes up to this Chebyshev distance from
+// the vertex's cube (a candidate in ring r is at least (r - 1) a away).
+inline constexpr int front_mapping_reach_rings = 3;
+
+// The vertices whose integration point lies across a cut from them: the segment from the
+// vertex, moved inward by `inset` along -n_v, to its element's rest integration point
+// crosses one of `cut_triangles`
+// (rest positions; e.g. the cut faces of the FrontSurface): its ends strictly on both sides
+// of the triangle's plane, the crossing inside the triangle or on its rim. n_v here is the
+// unit angle-weighted normal (a vertex without one is not moved), not the area-weighted one
+// of criterion 2: at the rim of a cut a vertex pair's copy has tiny cut-face triangles next
+// to large ones of the original surface, and the area-weighted normal, leaning outward from
+// the original surface, moves the start point across the cut (8 of 1756 correctly mapped
+// vertices counted in the cut-ball test); the angle-weighted one stays in the wedge. The issue's
+// metric mapping.wrong_side. Vertices without a row (index >= row count) are not counted.
+int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
+                     const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
+                     const std::vector<std::array<Vec3, 3>>& cut_triangles, double inset);
+
+}  // namespace incise::physics
