@@ -1,0 +1,414 @@
+// Mapping a FrontSurface onto the EFG model's integration points (physics/cut/front_mapping,
+// seed 004 §2.6): every row reproduces its vertex's rest position (linear MLS reproduces
+// affine fields, an independent check of the weights); the chosen point is the nearest that
+// meets the criteria, checked here against a scan of every element; after a straight cut
+// through a ball no vertex is mapped across the cut, where the nearest-point mapping maps
+// some; criterion 1 moves a vertex to a farther point; fallbacks are counted.
+#include "physics/cut/front_mapping.hpp"
+#include "physics/cut/volume_cut.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <limits>
+#include <map>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+using namespace incise::physics;
+
+namespace {
+
+struct Mesh {
+  std::vector<Vec3> vertices;
+  std::vector<std::array<int, 3>> triangles;
+};
+
+// An icosahedron subdivided `levels` times onto the sphere of radius `radius` about the
+// origin, turned so that no vertex lies on a grid plane or on the blade's plane.
+Mesh ball_surface(int levels, double radius) {
+  const double g = (1 + std::sqrt(5.0)) / 2;
+  Mesh mesh;
+  mesh.vertices = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
+                   {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
+  mesh.triangles = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                    {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
+                    {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+  for (Vec3& v : mesh.vertices) v.normalize();
+  for (int level = 0; level < levels; ++level) {
+    std::map<std::pair<int, int>, int> halves;
+    const auto half = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      const auto [it, added] = halves.try_emplace(key, static_cast<int>(mesh.vertices.size()));
+      if (added) mesh.vertices.push_back((mesh.vertices[static_cast<size_t>(a)] + mesh.vertices[static_cast<size_t>(b)]).normalized());
+      return it->second;
+    };
+    std::vector<std::array<int, 3>> finer;
+    finer.reserve(4 * mesh.triangles.size());
+    for (const auto& t : mesh.triangles) {
+      const int ab = half(t[0], t[1]), bc = half(t[1], t[2]), ca = half(t[2], t[0]);
+      finer.push_back({t[0], ab, ca});
+      finer.push_back({t[1], bc, ab});
+      finer.push_back({t[2], ca, bc});
+      finer.push_back({ab, bc, ca});
+    }
+    mesh.triangles.swap(finer);
+  }
+  const Eigen::Matrix3d turn =
+      (Eigen::AngleAxisd(0.7, Vec3::UnitZ()) * Eigen::AngleAxisd(0.4, Vec3::UnitY())).toRotationMatrix();
+  for (Vec3& v : mesh.vertices) v = radius * (turn * v);
+  return mesh;
+}
+
+EfgSettings settings_with(double spacing) {
+  EfgSettings settings;
+  settings.spacing = spacing;
+  settings.threads = 1;
+  return settings;
+}
+
+CorotationalEfg ball_model(double radius, double spacing) {
+  return CorotationalEfg([radius](const Vec3& x) { return x.norm() < radius; }, Vec3::Constant(-radius),
+                         Vec3::Constant(radius), Material{1e5, 0.3, 1000}, settings_with(spacing));
+}
+
+std::vector<int> all_of(int n) {
+  std::vector<int> list(static_cast<size_t>(n));
+  for (int v = 0; v < n; ++v) list[static_cast<size_t>(v)] = v;
+  return list;
+}
+
+// The test's own area-weighted normals.
+std::vector<Vec3> normals_of(const Mesh& mesh) {
+  std::vector<Vec3> normals(mesh.vertices.size(), Vec3::Zero());
+  for (const auto& t : mesh.triangles) {
+    const Vec3 a = mesh.vertices[static_cast<size_t>(t[0])], b = mesh.vertices[static_cast<size_t>(t[1])],
+               c = mesh.vertices[static_cast<size_t>(t[2])];
+    for (const int v : t) normals[static_cast<size_t>(v)] += (b - a).cross(c - a);
+  }
+  return normals;
+}
+
+// sum_k w_k X_k for vertex v's row.
+Vec3 reproduced(const CorotationalEfg& model, const SurfaceEmbedding& embedding, int v) {
+  Vec3 x = Vec3::Zero();
+  const size_t row = static_cast<size_t>(v) * embedding.stride;
+  for (int k = 0; k < embedding.row_lengths[static_cast<size_t>(v)]; ++k) {
+    const double w = embedding.weights[row + k];
+    EXPECT_TRUE(std::isfinite(w)) << "vertex " << v;
+    x += w * model.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(embedding.particles[row + k]));
+  }
+  return x;
+}
+
+bool share_a_particle(const CorotationalEfg& model, int e, int f) {
+  const size_t s = static_cast<size_t>(model.row_stride());
+  for (int i = 0; i < model.row_lengths()[static_cast<size_t>(e)]; ++i)
+    for (int j = 0; j < model.row_lengths()[static_cast<size_t>(f)]; ++j)
+      if (model.neighbours()[static_cast<size_t>(e) * s + i] == model.neighbours()[static_cast<size_t>(f) * s + j]) return true;
+  return false;
+}
+
+bool below(const std::vector<ConstraintPlane>& planes, const Vec3& x) {
+  return std::all_of(planes.begin(), planes.end(), [&](const ConstraintPlane& p) { return (x - p.point).dot(p.normal) <= 0; });
+}
+
+int element_at(const CorotationalEfg& model, const Vec3& centre) {
+  for (int e = 0; e < model.element_count(); ++e)
+    if ((model.element_centres()[static_cast<size_t>(e)] - centre).norm() < 1e-9) return e;
+  return -1;
+}
+
+std::string message_of(const std::function<void()>& call) {
+  try {
+    call();
+  } catch (const std::invalid_argument& error) {
+    return error.what();
+  }
+  return "(no std::invalid_argument)";
+}
+
+// The straight blade of the cut test, at height z: it sweeps the plane through p0 with
+// normal blade_normal().
+std::vector<Vec3> blade_at(double z) { return {{0.31 + 0.05 * z, -1.4, z + 0.02}, {0.31 + 0.05 * z, 1.4, z - 0.02}}; }
+Vec3 blade_normal() { return (blade_at(0)[1] - blade_at(0)[0]).cross(blade_at(1)[0] - blade_at(0)[0]).normalized(); }
+Vec3 blade_point() { return blade_at(0)[0]; }
+
+}  // namespace
+
+TEST(FrontMapping, MapsEveryVertexOfAnUncutBallToTheNearestPointBelowItsPlanes) {
+  const Mesh mesh = ball_surface(3, 1.0);
+  const CorotationalEfg model = ball_model(1.0, 0.2);
+  const int n = static_cast<int>(mesh.vertices.size());
+  // The vertices beyond x = 0.3 get a plane through them across the surface (as a cut at the
+  // vertex would give), which takes away half of their candidates.
+  std::vector<std::vector<ConstraintPlane>> planes(static_cast<size_t>(n));
+  int with_planes = 0;
+  for (int v = 0; v < n; ++v) {
+    const Vec3& x = mesh.vertices[static_cast<size_t>(v)];
+    if (x.x() > 0.3) {
+      planes[static_cast<size_t>(v)].push_back({x, x.cross(Vec3::UnitZ()).normalized()});
+      ++with_planes;
+    }
+  }
+  ASSERT_GT(with_planes, 20);
+  SurfaceEmbedding embedding;
+  FrontMappingReport report;
+  map_front_surface(model, mesh.vertices, mesh.triangles, planes, all_of(n), embedding, report);
+  EXPECT_EQ(report.mapped, n);
+  EXPECT_EQ(report.relaxed_fallbacks, 0);
+  ASSERT_EQ(embedding.vertex_count(), n);
+
+  const std::vector<Vec3> normals = normals_of(mesh);
+  std::vector<std::set<int>> ring(static_cast<size_t>(n));
+  for (const auto& t : mesh.triangles)
+    for (const int v : t)
+      for (const int u : t)
+        if (u != v) ring[static_cast<size_t>(v)].insert(u);
+  int plane_moved = 0;  // vertices whose plane excludes the nearest point below the tangent plane
+  for (int v = 0; v < n; ++v) {
+    const Vec3& x = mesh.vertices[static_cast<size_t>(v)];
+    EXPECT_LT((reproduced(model, embedding, v) - x).norm(), 1e-9) << "vertex " << v;
+    const int chosen = embedding.elements[static_cast<size_t>(v)];
+    const Vec3& point = model.element_centres()[static_cast<size_t>(chosen)];
+    EXPECT_LE((point - x).dot(normals[static_cast<size_t>(v)]), 0) << "vertex " << v;
+    EXPECT_TRUE(below(planes[static_cast<size_t>(v)], point)) << "vertex " << v;
+    for (const int u : ring[static_cast<size_t>(v)])
+      EXPECT_TRUE(share_a_particle(model, chosen, embedding.elements[static_cast<size_t>(u)])) << "vertices " << v << ", " << u;
+    // Brute force: the nearest of all elements below the tangent plane and the planes.
+    double best = std::numeric_limits<double>::infinity(), best_tangent_only = best;
+    for (int e = 0; e < model.element_count(); ++e) {
+      const Vec3& c = model.element_centres()[static_cast<size_t>(e)];
+      if ((c - x).dot(normals[static_cast<size_t>(v)]) > 0) continue;
+      best_tangent_only = std::min(best_tangent_only, (c - x).norm());
+      if (below(planes[static_cast<size_t>(v)], c)) best = std::min(best, (c - x).norm());
+    }
+    EXPECT_EQ((point - x).norm(), best) << "vertex " << v;
+    plane_moved += best > best_tangent_only ? 1 : 0;
+  }
+  EXPECT_GT(plane_moved, 0);  // the planes mattered somewhere
+  std::printf("uncut ball: %d vertices, %d elements, %d vertices moved by their plane\n", n, model.element_count(), plane_moved);
+}
+
+TEST(FrontMapping, MapsNoVertexAcrossAStraightCutThroughABallWhereTheNearestPointMappingDoes) {
+  const Mesh mesh = ball_surface(3, 1.0);
+  CorotationalEfg model = ball_model(1.0, 0.2);
+  const double a = model.spacing();
+  const int base_count = static_cast<int>(mesh.vertices.size());
+  SurfaceEmbedding embedding;
+  FrontMappingReport initial;
+  map_front_surface(model, mesh.vertices, mesh.triangles, {}, all_of(base_count), embedding, initial);
+  ASSERT_EQ(initial.relaxed_fallbacks, 0);
+
+  // The same straight blade, top to bottom, through the volume (one step at rest) and the surface.
+  VolumeCutter cutter(model, 1e-6, 0.05);
+  const Vector rest = model.rest_positions();
+  const VolumeCutReport volume = cutter.cut(blade_at(1.3), blade_at(-1.3), rest, rest);
+  ASSERT_GT(volume.element_links_severed, 0);
+  std::vector<int> piece;
+  ASSERT_EQ(cutter.pieces(piece), 2);
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.08);
+  for (int k = 0; k < 40; ++k) {
+    const FrontCutReport cut = surface.advance(blade_at(1.3 - 2.6 * k / 39));
+    ASSERT_TRUE(cut.ok()) << cut.problems.front();
+  }
+  surface.end_stroke();
+  const std::vector<Vec3>& vertices = surface.vertices();
+  const auto& triangles = surface.triangles();
+  const int n = static_cast<int>(vertices.size());
+  ASSERT_GT(n, base_count);
+
+  // The remap triggers of §2.6: vertices the cut created or touched (in a triangle the cut
+  // made), vertices mapped to an element whose neighbourhood changed, and vertices whose
+  // link to their point the blade crossed.
+  std::set<std::array<int, 3>> old_triangles(mesh.triangles.begin(), mesh.triangles.end());
+  std::set<int> remap;
+  for (int v = base_count; v < n; ++v) remap.insert(v);
+  for (const auto& t : triangles)
+    if (!old_triangles.contains(t))
+      for (const int v : t) remap.insert(v);
+  const std::set<int> changed(volume.changed_elements.begin(), volume.changed_elements.end());
+  const Vec3 normal = blade_normal(), p0 = blade_point();
+  for (int v = 0; v < base_count; ++v) {
+    const double side = (vertices[static_cast<size_t>(v)] - p0).dot(normal);
+    const double point_side = (model.element_centres()[static_cast<size_t>(embedding.elements[static_cast<size_t>(v)])] - p0).dot(normal);
+    if (changed.contains(embedding.elements[static_cast<size_t>(v)]) || side * point_side < 0) remap.insert(v);
+  }
+  // Each remapped vertex near the cut gets the cut's plane, facing away from its side (a
+  // vertex on the sheet is on the side its cut face's normal points away from), merged with
+  // the planes the FrontSurface gives.
+  // (the normal of the vertex's cut-face triangles, those on the sheet: a vertex pair's two
+  // copies each belong to their own side's face only).
+  const auto on_sheet = [&](int v) { return std::abs((vertices[static_cast<size_t>(v)] - p0).dot(normal)) < 1e-9; };
+  std::vector<Vec3> face_normals(static_cast<size_t>(n), Vec3::Zero());
+  for (const auto& t : triangles)
+    if (on_sheet(t[0]) && on_sheet(t[1]) && on_sheet(t[2]))
+      for (const int v : t)
+        face_normals[static_cast<size_t>(v)] += (vertices[static_cast<size_t>(t[1])] - vertices[static_cast<size_t>(t[0])])
+                                                     .cross(vertices[static_cast<size_t>(t[2])] - vertices[static_cast<size_t>(t[0])]);
+  std::vector<std::vector<ConstraintPlane>> planes(static_cast<size_t>(n));
+  for (const int v : remap) {
+    const double d = (vertices[static_cast<size_t>(v)] - p0).dot(normal);
+    if (std::abs(d) > 2 * a) continue;
+    const double across = face_normals[static_cast<size_t>(v)].dot(normal);
+    if (on_sheet(v)) ASSERT_NE(across, 0) << "vertex " << v << " on the sheet in no cut face";
+    const double side = !on_sheet(v) ? (d > 0 ? 1.0 : -1.0) : (across > 0 ? -1.0 : 1.0);
+    planes[static_cast<size_t>(v)].push_back({p0, -side * normal});
+  }
+  const std::vector<Vec3> normals = normals_of(Mesh{vertices, triangles});
+  const auto& given = surface.vertex_planes();
+  for (size_t v = 0; v < given.size() && v < planes.size(); ++v) planes[v].insert(planes[v].end(), given[v].begin(), given[v].end());
+
+  const std::vector<int> list(remap.begin(), remap.end());
+  FrontMappingReport report;
+  map_front_surface(model, vertices, triangles, planes, list, embedding, report);
+  EXPECT_EQ(report.mapped, static_cast<int>(list.size()));
+  EXPECT_EQ(report.relaxed_fallbacks, 0);
+  ASSERT_EQ(embedding.vertex_count(), n);
+  for (int v = 0; v < n; ++v) {
+    EXPECT_LT((reproduced(model, embedding, v) - vertices[static_cast<size_t>(v)]).norm(), 1e-9) << "vertex " << v;
+    EXPECT_TRUE(model.element_active(embedding.elements[static_cast<size_t>(v)])) << "vertex " << v;
+  }
+
+  // The cut faces: the surface's triangles lying on the sheet.
+  std::vector<std::array<Vec3, 3>> cut_faces;
+  for (const auto& t : triangles) {
+    const std::array<Vec3, 3> corners{vertices[static_cast<size_t>(t[0])], vertices[static_cast<size_t>(t[1])], vertices[static_cast<size_t>(t[2])]};
+    if (std::all_of(corners.begin(), corners.end(), [&](const Vec3& x) { return std::abs((x - p0).dot(normal)) < 1e-9; }))
+      cut_faces.push_back(corners);
+  }
+  ASSERT_GT(cut_faces.size(), 100u);
+  const int wrong = count_wrong_side(model, vertices, triangles, embedding, cut_faces, 0.01 * a);
+  Vector flat(3 * static_cast<Eigen::Index>(n));
+  for (int v = 0; v < n; ++v) flat.segment<3>(3 * v) = vertices[static_cast<size_t>(v)];
+  const int naive = count_wrong_side(model, vertices, triangles, model.embed_surface(flat), cut_faces, 0.01 * a);
+  EXPECT_EQ(wrong, 0);
+  EXPECT_GT(naive, 0);
+  std::printf("cut ball: %d vertices (%d remapped), %zu cut-face triangles, mapping.wrong_side %d (nearest point: %d), %d fallbacks\n",
+              n, static_cast<int>(list.size()), cut_faces.size(), wrong, naive, report.relaxed_fallbacks);
+}
+
+TEST(FrontMapping, TakesAFartherPointWhenTheNearestSharesNoParticleWithANeighboursPoint) {
+  // A box, particles 0.2 apart from -0.4 to 0.4 (one on each face), integration cubes 0.1.
+  const CorotationalEfg model(Vec3::Constant(-0.4), Vec3::Constant(0.4), Material{1e5, 0.3, 1000}, settings_with(0.1));
+  // A patch of the top face: vertex 0 and its two neighbours, outward normal +z.
+  const std::vector<Vec3> vertices{{0.05, 0.05, 0.4}, {0.15, 0.05, 0.4}, {0.05, 0.15, 0.4}};
+  const std::vector<std::array<int, 3>> triangles{{0, 1, 2}};
+  SurfaceEmbedding embedding;
+  FrontMappingReport report;
+  map_front_surface(model, vertices, triangles, {}, all_of(3), embedding, report);
+  const int nearest = element_at(model, Vec3(0.05, 0.05, 0.35));
+  ASSERT_GE(nearest, 0);
+  EXPECT_EQ(embedding.elements[0], nearest);
+  // The neighbours mapped (as by an earlier cut) to a point two particle cells away, whose
+  // neighbourhood shares no particle with the nearest point's.
+  const int far = element_at(model, Vec3(-0.25, 0.05, 0.35));
+  ASSERT_GE(far, 0);
+  ASSERT_FALSE(share_a_particle(model, nearest, far));
+  embedding.elements[1] = embedding.elements[2] = far;
+  const int remap[] = {0};
+  report = {};
+  map_front_surface(model, vertices, triangles, {}, remap, embedding, report);
+  EXPECT_EQ(report.relaxed_fallbacks, 0);
+  const int chosen = embedding.elements[0];
+  EXPECT_NE(chosen, nearest);
+  EXPECT_TRUE(share_a_particle(model, chosen, far));
+  EXPECT_EQ(chosen, element_at(model, Vec3(-0.05, 0.05, 0.35)));
+  // The nearest point passed criteria 2 and 3 (no planes); the chosen one is the nearest
+  // below the tangent plane that shares a particle with the neighbours' point.
+  const Vec3& x = vertices[0];
+  EXPECT_LE(model.element_centres()[static_cast<size_t>(nearest)].z(), x.z());
+  double best = std::numeric_limits<double>::infinity();
+  for (int e = 0; e < model.element_count(); ++e)
+    if (model.element_centres()[static_cast<size_t>(e)].z() <= x.z() && share_a_particle(model, e, far))
+      best = std::min(best, (model.element_centres()[static_cast<size_t>(e)] - x).norm());
+  EXPECT_EQ((model.element_centres()[static_cast<size_t>(chosen)] - x).norm(), best);
+  EXPECT_LT((reproduced(model, embedding, 0) - x).norm(), 1e-12);
+}
+
+TEST(FrontMapping, CountsAFallbackWhenThePlanesExcludeEveryPointAndStillGivesAValidRow) {
+  const Mesh mesh = ball_surface(2, 1.0);
+  const CorotationalEfg model = ball_model(1.0, 0.2);
+  const int n = static_cast<int>(mesh.vertices.size());
+  // Every point would have to lie at z >= 10; only the vertices below z = 0 get the plane.
+  std::vector<std::vector<ConstraintPlane>> planes(static_cast<size_t>(n));
+  int excluded = 0;
+  for (int v = 0; v < n; ++v)
+    if (mesh.vertices[static_cast<size_t>(v)].z() < 0) {
+      planes[static_cast<size_t>(v)].push_back({Vec3(0, 0, 10), Vec3(0, 0, -1)});
+      ++excluded;
+    }
+  SurfaceEmbedding embedding;
+  FrontMappingReport report;
+  map_front_surface(model, mesh.vertices, mesh.triangles, planes, all_of(n), embedding, report);
+  EXPECT_EQ(report.mapped, n);
+  EXPECT_EQ(report.relaxed_fallbacks, excluded);
+  const std::vector<Vec3> normals = normals_of(mesh);
+  for (int v = 0; v < n; ++v) {
+    const Vec3& x = mesh.vertices[static_cast<size_t>(v)];
+    EXPECT_LT((reproduced(model, embedding, v) - x).norm(), 1e-9) << "vertex " << v;
+    // Relaxed, criterion 2 is the last kept: still below the tangent plane.
+    EXPECT_LE((model.element_centres()[static_cast<size_t>(embedding.elements[static_cast<size_t>(v)])] - x).dot(normals[static_cast<size_t>(v)]), 0)
+        << "vertex " << v;
+  }
+}
+
+TEST(FrontMapping, RejectsBadInputNamingTheVertexOrTriangle) {
+  const CorotationalEfg model(Vec3::Constant(-0.4), Vec3::Constant(0.4), Material{1e5, 0.3, 1000}, settings_with(0.1));
+  const std::vector<Vec3> vertices{{0.05, 0.05, 0.4}, {0.15, 0.05, 0.4}, {0.05, 0.15, 0.4}};
+  const std::vector<std::array<int, 3>> triangles{{0, 1, 2}};
+  const auto map = [&](const std::vector<Vec3>& v, const std::vector<std::array<int, 3>>& t, std::vector<int> remap) {
+    return message_of([&] {
+      SurfaceEmbedding embedding;
+      FrontMappingReport report;
+      map_front_surface(model, v, t, {}, remap, embedding, report);
+    });
+  };
+  EXPECT_NE(map(vertices, {{0, 1, 2}, {0, 3, 1}}, {0, 1, 2}).find("triangle 1 has vertex 3"), std::string::npos);
+  EXPECT_NE(map(vertices, {{0, -1, 2}}, {0, 1, 2}).find("triangle 0 has vertex -1"), std::string::npos);
+  std::vector<Vec3> bad = vertices;
+  bad[2].y() = std::nan("");
+  EXPECT_NE(map(bad, triangles, {0, 1, 2}).find("vertex 2 is not finite"), std::string::npos);
+  EXPECT_NE(map(vertices, triangles, {0, 2, 1}).find("vertex 1 does not follow vertex 2"), std::string::npos);
+  EXPECT_NE(map(vertices, triangles, {0, 1, 1, 2}).find("vertex 1 does not follow vertex 1"), std::string::npos);
+  EXPECT_NE(map(vertices, triangles, {0, 1, 2, 3}).find("vertex 3 out of range"), std::string::npos);
+  EXPECT_NE(map(vertices, triangles, {-1, 0, 1, 2}).find("vertex -1 out of range"), std::string::npos);
+  EXPECT_NE(map(vertices, triangles, {0, 2}).find("vertex 1 has no row"), std::string::npos);
+  // A bad input changes nothing.
+  SurfaceEmbedding embedding;
+  FrontMappingReport report;
+  map_front_surface(model, vertices, triangles, {}, all_of(3), embedding, report);
+  const SurfaceEmbedding before = embedding;
+  const std::vector<int> wrong_order{2, 1};
+  EXPECT_THROW(map_front_surface(model, vertices, triangles, {}, wrong_order, embedding, report), std::invalid_argument);
+  EXPECT_EQ(embedding.elements, before.elements);
+  EXPECT_EQ(embedding.weights, before.weights);
+  EXPECT_EQ(report.mapped, 3);
+  EXPECT_NE(message_of([&] { count_wrong_side(model, bad, triangles, embedding, {}, 0.0); }).find("count_wrong_side: vertex 2 is not finite"),
+            std::string::npos);
+}
+
+TEST(FrontMapping, MapsAHundredThousandVertexSurfaceInBinsNotAScan) {
+  const Mesh mesh = ball_surface(7, 1.0);
+  const CorotationalEfg model = ball_model(1.0, 0.1);
+  const int n = static_cast<int>(mesh.vertices.size());
+  ASSERT_GT(n, 100000);
+  SurfaceEmbedding embedding;
+  FrontMappingReport report;
+  const auto start = std::chrono::steady_clock::now();
+  map_front_surface(model, mesh.vertices, mesh.triangles, {}, all_of(n), embedding, report);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(report.mapped, n);
+  EXPECT_EQ(report.relaxed_fallbacks, 0);
+  for (int v = 0; v < n; v += 997)
+    EXPECT_LT((reproduced(model, embedding, v) - mesh.vertices[static_cast<size_t>(v)]).norm(), 1e-9) << "vertex " << v;
+  std::printf("mapped %d vertices onto %d elements in %.3f s\n", n, model.element_count(), seconds);
+}
