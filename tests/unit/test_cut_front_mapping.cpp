@@ -268,6 +268,7 @@ TEST(FrontMapping, MapsNoVertexAcrossAStraightCutThroughABallWhereTheNearestPoin
   for (size_t v = 0; v < given.size() && v < planes.size(); ++v) planes[v].insert(planes[v].end(), given[v].begin(), given[v].end());
 
   const std::vector<int> list(remap.begin(), remap.end());
+  const SurfaceEmbedding before = embedding;
   FrontMappingReport report;
   map_front_surface(model, vertices, triangles, planes, list, embedding, report);
   EXPECT_EQ(report.mapped, static_cast<int>(list.size()));
@@ -292,6 +293,30 @@ TEST(FrontMapping, MapsNoVertexAcrossAStraightCutThroughABallWhereTheNearestPoin
   const int naive = count_wrong_side(model, vertices, triangles, model.embed_surface(flat), cut_faces, 0.01 * a);
   EXPECT_EQ(wrong, 0);
   EXPECT_GT(naive, 0);
+  // Criterion 2 alone (no planes at all): a vertex inside a cut face (all its triangles on
+  // the sheet) has the face's normal, so its tangent plane is the cut and keeps its point on
+  // its side, where the nearest point is often across.
+  SurfaceEmbedding tangent_only = before;
+  FrontMappingReport without_planes;
+  map_front_surface(model, vertices, triangles, {}, list, tangent_only, without_planes);
+  std::vector<int> incident(static_cast<size_t>(n), 0), incident_on_sheet(static_cast<size_t>(n), 0);
+  for (const auto& t : triangles)
+    for (const int v : t) {
+      ++incident[static_cast<size_t>(v)];
+      incident_on_sheet[static_cast<size_t>(v)] += on_sheet(t[0]) && on_sheet(t[1]) && on_sheet(t[2]) ? 1 : 0;
+    }
+  int inside_face = 0, across_tangent_only = 0;
+  for (const int v : list) {
+    if (incident[static_cast<size_t>(v)] == 0 || incident_on_sheet[static_cast<size_t>(v)] != incident[static_cast<size_t>(v)]) continue;
+    ++inside_face;
+    const double side = face_normals[static_cast<size_t>(v)].dot(normal) > 0 ? -1.0 : 1.0;
+    const Vec3& point = model.element_centres()[static_cast<size_t>(tangent_only.elements[static_cast<size_t>(v)])];
+    across_tangent_only += side * (point - p0).dot(normal) < 0 ? 1 : 0;
+  }
+  EXPECT_GT(inside_face, 100);
+  EXPECT_EQ(across_tangent_only, 0);
+  std::printf("cut ball without planes: %d cut-face vertices, %d mapped across; mapping.wrong_side %d\n", inside_face,
+              across_tangent_only, count_wrong_side(model, vertices, triangles, tangent_only, cut_faces, 0.01 * a));
   std::printf("cut ball: %d vertices (%d remapped), %zu cut-face triangles, mapping.wrong_side %d (nearest point: %d), %d fallbacks\n",
               n, static_cast<int>(list.size()), cut_faces.size(), wrong, naive, report.relaxed_fallbacks);
 }
@@ -332,6 +357,32 @@ TEST(FrontMapping, TakesAFartherPointWhenTheNearestSharesNoParticleWithANeighbou
       best = std::min(best, (model.element_centres()[static_cast<size_t>(e)] - x).norm());
   EXPECT_EQ((model.element_centres()[static_cast<size_t>(chosen)] - x).norm(), best);
   EXPECT_LT((reproduced(model, embedding, 0) - x).norm(), 1e-12);
+}
+
+TEST(FrontMapping, ChecksCriterionOneAgainstNeighboursRemappedInTheSameCall) {
+  const CorotationalEfg model(Vec3::Constant(-0.4), Vec3::Constant(0.4), Material{1e5, 0.3, 1000}, settings_with(0.1));
+  // Three new vertices of the top face, all remapped together. Vertex 1 has a plane keeping
+  // its point at x <= -0.2, two particle cells from vertex 0's nearest point.
+  const std::vector<Vec3> vertices{{0.05, 0.05, 0.4}, {-0.1, 0.05, 0.4}, {0.05, -0.05, 0.4}};
+  const std::vector<std::array<int, 3>> triangles{{0, 1, 2}};
+  std::vector<std::vector<ConstraintPlane>> planes(2);
+  planes[1].push_back({Vec3(-0.2, 0, 0), Vec3(1, 0, 0)});
+  SurfaceEmbedding embedding;
+  FrontMappingReport report;
+  map_front_surface(model, vertices, triangles, planes, all_of(3), embedding, report);
+  const int nearest = element_at(model, Vec3(0.05, 0.05, 0.35));
+  const int of_1 = embedding.elements[1];
+  EXPECT_LE(model.element_centres()[static_cast<size_t>(of_1)].x(), -0.2);
+  ASSERT_FALSE(share_a_particle(model, nearest, of_1));
+  // Vertex 0 gives up its nearest point for one that shares a particle with vertex 1's.
+  EXPECT_EQ(embedding.elements[0], element_at(model, Vec3(-0.05, 0.05, 0.35)));
+  for (int v = 0; v < 3; ++v)
+    for (int u = 0; u < 3; ++u)
+      EXPECT_TRUE(share_a_particle(model, embedding.elements[static_cast<size_t>(v)], embedding.elements[static_cast<size_t>(u)]))
+          << "vertices " << v << ", " << u;
+  // Vertex 1's plane and vertex 0's first-pass point (its nearest) exclude each other: the
+  // second pass checks against first-pass points, so vertex 1 is relaxed, and counted.
+  EXPECT_EQ(report.relaxed_fallbacks, 1);
 }
 
 TEST(FrontMapping, CountsAFallbackWhenThePlanesExcludeEveryPointAndStillGivesAValidRow) {
