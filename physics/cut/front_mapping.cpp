@@ -52,19 +52,29 @@ struct OneRing {
   std::vector<int> neighbours;
 
   OneRing(int vertex_count, const std::vector<std::array<int, 3>>& triangles) {
-    std::vector<std::pair<int, int>> pairs;
-    pairs.reserve(triangles.size() * 6);
-    for (const auto& t : triangles)
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-          if (i != j && t[i] != t[j]) pairs.emplace_back(t[i], t[j]);
-    std::sort(pairs.begin(), pairs.end());
-    pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
     start.assign(static_cast<size_t>(vertex_count) + 1, 0);
-    for (const auto& [v, u] : pairs) ++start[static_cast<size_t>(v) + 1];
+    for (const auto& t : triangles)
+      for (const int v : t) start[static_cast<size_t>(v) + 1] += 2;
     for (int v = 0; v < vertex_count; ++v) start[static_cast<size_t>(v) + 1] += start[static_cast<size_t>(v)];
-    neighbours.resize(pairs.size());
-    for (size_t k = 0; k < pairs.size(); ++k) neighbours[k] = pairs[k].second;  // sorted by v, so in place
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    std::vector<int> all(static_cast<size_t>(start.back()));
+    for (const auto& t : triangles)
+      for (int i = 0; i < 3; ++i) {
+        all[static_cast<size_t>(fill[static_cast<size_t>(t[i])]++)] = t[(i + 1) % 3];
+        all[static_cast<size_t>(fill[static_cast<size_t>(t[i])]++)] = t[(i + 2) % 3];
+      }
+    // Each vertex's list sorted, without repeats or itself, compacted in place.
+    size_t out = 0;
+    for (int v = 0; v < vertex_count; ++v) {
+      const auto first = all.begin() + start[static_cast<size_t>(v)], last = all.begin() + start[static_cast<size_t>(v) + 1];
+      std::sort(first, last);
+      start[static_cast<size_t>(v)] = static_cast<int>(out);
+      for (auto it = first; it != last; ++it)
+        if (*it != v && (it == first || *it != *(it - 1))) all[out++] = *it;
+    }
+    start[static_cast<size_t>(vertex_count)] = static_cast<int>(out);
+    all.resize(out);
+    neighbours.swap(all);
   }
   std::span<const int> of(int v) const {
     return {neighbours.data() + start[static_cast<size_t>(v)], neighbours.data() + start[static_cast<size_t>(v) + 1]};
@@ -129,8 +139,17 @@ class Mapper {
     candidates_.clear();
     size_t checked = 0;
     relaxed = false;
-    // Ring by ring, nearest first: after ring r the candidates nearer than r a are final (a
-    // farther ring holds none nearer), so they are checked in order as soon as they are.
+    // Ring by ring, nearest first: after ring r the candidates nearer than the bound below
+    // are final (a farther ring holds none nearer), so they are checked in order as soon as
+    // they are.
+    // Every point outside the block of cubes within r rings is at least r a + slack away,
+    // slack the vertex's distance to the nearest face of its own cube.
+    double slack = a;
+    for (int axis = 0; axis < 3; ++axis) {
+      const double offset = vertex[axis] - (model_.grid_origin()[axis] + static_cast<double>(cube[axis]) * a);
+      slack = std::min({slack, offset, a - offset});
+    }
+    slack = std::max(slack, 0.0);
     for (long long r = 0; r <= front_mapping_reach_rings; ++r) {
       for (long long dz = -r; dz <= r; ++dz)
         for (long long dy = -r; dy <= r; ++dy) {
@@ -141,7 +160,7 @@ class Mapper {
           }
         }
       std::sort(candidates_.begin() + static_cast<std::ptrdiff_t>(checked), candidates_.end());
-      const double bound = static_cast<double>(r) * a;
+      const double bound = static_cast<double>(r) * a + slack;
       for (; checked < candidates_.size(); ++checked) {
         const auto [distance, e] = candidates_[checked];
         if (r < front_mapping_reach_rings && !(distance < bound * bound)) break;
@@ -320,17 +339,26 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
   };
   bool relaxed = false;
   // First pass: only the neighbours not being remapped, whose rows are as given.
+  std::vector<std::uint8_t> first_relaxed(remap.size(), 0);
   for (size_t k = 0; k < remap.size(); ++k) {
     gather(remap[k], false);
     first[k] = mapper.choose(remap[k], neighbour_elements, relaxed);
+    first_relaxed[k] = relaxed ? 1 : 0;
   }
   for (size_t k = 0; k < remap.size(); ++k) listed[static_cast<size_t>(remap[k])] = first[k];
   // Second pass: every neighbour, the remapped ones at their first-pass element (a snapshot:
   // nothing this pass writes is read by it).
+  // The second pass only adds constraints (criterion 1 against more neighbours), so a
+  // first-pass point that met all three criteria and meets the new ones is still the first
+  // valid candidate in the same order: it is kept without a new search.
   for (size_t k = 0; k < remap.size(); ++k) {
     gather(remap[k], true);
-    const int e = mapper.choose(remap[k], neighbour_elements, relaxed);
-    if (relaxed) ++report.relaxed_fallbacks;
+    int e = first[k];
+    if (first_relaxed[k] || !std::all_of(neighbour_elements.begin(), neighbour_elements.end(),
+                                         [&](int f) { return share_a_particle(model, e, f); })) {
+      e = mapper.choose(remap[k], neighbour_elements, relaxed);
+      if (relaxed) ++report.relaxed_fallbacks;
+    }
     mapper.write_row(remap[k], e, embedding);
     ++report.mapped;
   }
