@@ -2,8 +2,8 @@
 // seed 004 §2.6): every row reproduces its vertex's rest position (linear MLS reproduces
 // affine fields, an independent check of the weights); the chosen point is the nearest that
 // meets the criteria, checked here against a scan of every element; after a straight cut
-// through a ball no vertex is mapped across the cut, where the nearest-point mapping maps
-// some; criterion 1 moves a vertex to a farther point; fallbacks are counted.
+// through a ball no vertex is mapped across the cut (with the test's planes, and with the
+// FrontSurface's own), where the nearest-point mapping maps some; criterion 1 moves a vertex to a farther point; fallbacks are counted.
 #include "physics/cut/front_mapping.hpp"
 #include "physics/cut/volume_cut.hpp"
 
@@ -315,6 +315,15 @@ TEST(FrontMapping, MapsNoVertexAcrossAStraightCutThroughABallWhereTheNearestPoin
   }
   EXPECT_GT(inside_face, 100);
   EXPECT_EQ(across_tangent_only, 0);
+  // With the FrontSurface's planes alone (none of the test's).
+  SurfaceEmbedding surface_planes = before;
+  FrontMappingReport with_surface_planes;
+  map_front_surface(model, vertices, triangles, surface.vertex_planes(), list, surface_planes, with_surface_planes);
+  const int wrong_surface_planes = count_wrong_side(model, vertices, triangles, surface_planes, cut_faces, 0.01 * a);
+  EXPECT_EQ(wrong_surface_planes, 0);
+  EXPECT_EQ(with_surface_planes.relaxed_fallbacks, 0);
+  std::printf("cut ball with FrontSurface::vertex_planes only (%zu entries): mapping.wrong_side %d, %d fallbacks\n",
+              surface.vertex_planes().size(), wrong_surface_planes, with_surface_planes.relaxed_fallbacks);
   std::printf("cut ball without planes: %d cut-face vertices, %d mapped across; mapping.wrong_side %d\n", inside_face,
               across_tangent_only, count_wrong_side(model, vertices, triangles, tangent_only, cut_faces, 0.01 * a));
   std::printf("cut ball: %d vertices (%d remapped), %zu cut-face triangles, mapping.wrong_side %d (nearest point: %d), %d fallbacks\n",
