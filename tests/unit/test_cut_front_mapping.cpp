@@ -293,6 +293,35 @@ TEST(FrontMapping, MapsNoVertexAcrossAStraightCutThroughABallWhereTheNearestPoin
   const int naive = count_wrong_side(model, vertices, triangles, model.embed_surface(flat), cut_faces, 0.01 * a);
   EXPECT_EQ(wrong, 0);
   EXPECT_GT(naive, 0);
+  // The metric against a scan of every cut face, with the test's own angle-weighted normals and
+  // segment test (a 3x3 solve for the crossing's parameters).
+  {
+    const SurfaceEmbedding nearest = model.embed_surface(flat);
+    std::vector<Vec3> pseudo(static_cast<size_t>(n), Vec3::Zero());
+    for (const auto& t : triangles) {
+      const Vec3 unit = (vertices[static_cast<size_t>(t[1])] - vertices[static_cast<size_t>(t[0])])
+                            .cross(vertices[static_cast<size_t>(t[2])] - vertices[static_cast<size_t>(t[0])]).normalized();
+      for (int i = 0; i < 3; ++i) {
+        const Vec3 u = vertices[static_cast<size_t>(t[(i + 1) % 3])] - vertices[static_cast<size_t>(t[i])];
+        const Vec3 w = vertices[static_cast<size_t>(t[(i + 2) % 3])] - vertices[static_cast<size_t>(t[i])];
+        pseudo[static_cast<size_t>(t[i])] += std::acos(std::clamp(u.normalized().dot(w.normalized()), -1.0, 1.0)) * unit;
+      }
+    }
+    int scanned = 0;
+    for (int v = 0; v < n; ++v) {
+      const Vec3 from = vertices[static_cast<size_t>(v)] - 0.01 * a * pseudo[static_cast<size_t>(v)].normalized();
+      const Vec3 to = model.element_centres()[static_cast<size_t>(nearest.elements[static_cast<size_t>(v)])];
+      bool crosses = false;
+      for (const auto& f : cut_faces) {
+        Eigen::Matrix3d system;
+        system << to - from, f[0] - f[1], f[0] - f[2];
+        const Vec3 tuw = system.fullPivLu().solve(f[0] - from);
+        crosses = crosses || (tuw[0] > 0 && tuw[0] < 1 && tuw[1] >= 0 && tuw[2] >= 0 && tuw[1] + tuw[2] <= 1);
+      }
+      scanned += crosses ? 1 : 0;
+    }
+    EXPECT_EQ(naive, scanned);
+  }
   // Criterion 2 alone (no planes at all): a vertex inside a cut face (all its triangles on
   // the sheet) has the face's normal, so its tangent plane is the cut and keeps its point on
   // its side, where the nearest point is often across.
