@@ -38,6 +38,11 @@ struct FrontMappingReport {
 // vertices are visited. Two passes: the first checks criterion 1 against the neighbours that
 // are not listed (their rows as given); the second against every neighbour, listed ones at
 // their first-pass element. The second pass is the result (and alone counts fallbacks).
+// What this costs: a listed neighbour's final point may differ from its first-pass one, so
+// criterion 1 between two listed vertices holds against first-pass points, not always the
+// final ones; and a vertex whose planes exclude every point sharing a particle with a listed
+// neighbour's first-pass point (found without that vertex's constraint) is relaxed, and
+// counted (test_cut_front_mapping.cpp, ChecksCriterionOneAgainstNeighboursRemappedInTheSameCall).
 // When no candidate within reach is valid, the criteria are relaxed in this order, and the
 // vertex counted in relaxed_fallbacks: drop 1 (keep 2 and 3), then drop 2 (keep 3: the cut
 // planes are what keeps a vertex off the other side of a cut), then the nearest candidate
