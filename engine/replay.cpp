@@ -483,7 +483,9 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
                           {"worst_boundary_edges", totals.worst_boundary_edges},
                           {"worst_nonmanifold_edges", totals.worst_nonmanifold_edges},
                           {"watertight_after_every_event", totals.worst_boundary_edges == 0 && totals.worst_nonmanifold_edges == 0},
-                          {"pinches_closed", totals.pinches_closed}};
+                          {"pinches_closed", totals.pinches_closed},
+                          {"front_problems", totals.front_problems},
+                          {"first_front_problem", totals.first_front_problem}};
     metrics["mapping"] = {{"vertices_remapped", totals.vertices_remapped},
                           {"relaxed_fallbacks", totals.relaxed_fallbacks},
                           {"wrong_side", totals.wrong_side}};

@@ -58,6 +58,9 @@ struct EfgSpec {
   bool estimate_volumes = true;  // false: every touched cube counts a full a^3
   int threads = 2;               // element loop threads (results do not depend on it)
   std::optional<double> surface_resolution;  // render surface cell size (generated bodies), m
+  // Cuttable bodies: "voxel" (physics/cut/cut_surface.hpp, the default) or "front", the
+  // thesis's explicit surface cut (physics/cut/front_surface.hpp, cpu backend only).
+  std::string cut_surface = "voxel";
 };
 
 struct BodySpec {

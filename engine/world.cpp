@@ -7,6 +7,7 @@
 #include "physics/fem/static_solve.hpp"
 #include "physics/fem/surface_snap.hpp"
 #include "physics/fem/tet_mesh.hpp"
+#include "physics/cut/front_mapping.hpp"
 #include "physics/gpu/efg_step.hpp"
 
 #include <algorithm>
@@ -294,7 +295,32 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
   physics::Vector rest_vertices;
   try {
     model = std::make_unique<physics::CorotationalEfg>(shape.inside, shape.lo, shape.hi, material, settings);
-    if (spec.cuttable) {
+    if (spec.cuttable && spec.efg.cut_surface == "front") {
+      // The thesis's explicit surface cut, starting from the same voxel boundary (snapped
+      // onto the shape), its front's width w 1.5 cells (seed 004 §2.5: about the surface's
+      // triangle size).
+      const double resolution = spec.efg.surface_resolution.value_or(0.5 * spec.resolution);
+      const physics::CutSurface initial(shape.inside, shape.lo, shape.hi, resolution);
+      std::vector<physics::Vec3> vertices(static_cast<std::size_t>(initial.rest_vertices().size() / 3));
+      for (std::size_t v = 0; v < vertices.size(); ++v) vertices[v] = initial.rest_vertices().segment<3>(3 * static_cast<Eigen::Index>(v));
+      body.front_surface = std::make_unique<physics::FrontSurface>(std::move(vertices), initial.triangles(), 1.5 * resolution);
+      body.front_rest_cut = std::make_unique<physics::RestCut>(2 * resolution);
+      body.cutter = std::make_unique<physics::VolumeCutter>(*model, 1e-6, 0.5 * spec.resolution);
+      body.embedding.emplace();
+      std::vector<int> all(body.front_surface->vertices().size());
+      for (std::size_t v = 0; v < all.size(); ++v) all[v] = static_cast<int>(v);
+      physics::FrontMappingReport mapping;
+      physics::map_front_surface(*model, body.front_surface->vertices(), body.front_surface->triangles(),
+                                 body.front_surface->vertex_planes(), all, *body.embedding, mapping);
+      body.front_plane_counts.assign(all.size(), 0);
+      body.front_mapped_base = body.front_surface->base_vertex_count();
+      physics::update_elements_linked_across(*model, *body.front_rest_cut, body.linked_across, shape.lo, shape.hi,
+                                             nullptr, &body.link_boxes, &body.linked_seen);
+      body.surface = body.front_surface->triangles();
+      body.render_triangles.clear();
+      for (const auto& t : body.surface)
+        for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
+    } else if (spec.cuttable) {
       // The cut surface is a voxel boundary of its own (mesh bodies too: the imported mesh
       // only gives the shape), separated along the cut as the blade passes.
       const double resolution = spec.efg.surface_resolution.value_or(0.5 * spec.resolution);
@@ -333,7 +359,7 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
     throw std::runtime_error(where + ": " + e.what());
   }
   body.elements = static_cast<std::size_t>(model->element_count());
-  if (!body.cut_surface) body.embedding = model->embed_surface(rest_vertices);
+  if (!body.embedding) body.embedding = model->embed_surface(rest_vertices);
   body.efg = model.get();
   body.surface_min = shape.lo;
   body.surface_max = shape.hi;
@@ -608,6 +634,73 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
   stats.ms_checks += ms_since(start);
 }
 
+void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
+                                  const std::vector<std::uint8_t>& changed, bool fixed_changed,
+                                  const std::vector<physics::RestTriangle>& step_triangles, StepStats& stats) {
+  (void)fixed_changed;  // every vertex's flag is taken again below
+  auto start = Clock::now();
+  const physics::FrontSurface& front = *body.front_surface;
+  const auto& vertices = front.vertices();
+  const auto& planes = front.vertex_planes();
+  physics::SurfaceEmbedding& embedding = *body.embedding;
+  const auto& centres = body.efg->element_centres();
+  // The base's vertices keep their index and their row unless a trigger of seed 004 §2.6
+  // names them; the stroke's vertices are numbered anew at each sample: all redone (also
+  // those a stroke ended since the last mapping turned into base vertices).
+  const int kept = std::min({front.base_vertex_count(), body.front_mapped_base, embedding.vertex_count()});
+  std::vector<int> remap;
+  for (int v = 0; v < kept; ++v) {
+    const auto index = static_cast<std::size_t>(v);
+    const int element = embedding.elements[index];
+    bool redo = planes[index].size() != (index < body.front_plane_counts.size() ? body.front_plane_counts[index] : 0) ||
+                changed[static_cast<std::size_t>(element)] != 0;
+    if (!redo && (vertices[index].array() >= dirty_lo.array()).all() && (vertices[index].array() <= dirty_hi.array()).all())
+      for (const auto& t : step_triangles)
+        if (physics::segment_crosses_triangle(vertices[index], centres[static_cast<std::size_t>(element)], t)) {
+          redo = true;
+          break;
+        }
+    if (redo) remap.push_back(v);
+  }
+  for (int v = kept; v < static_cast<int>(vertices.size()); ++v) remap.push_back(v);
+  const auto stride = static_cast<std::size_t>(embedding.stride);
+  embedding.elements.resize(static_cast<std::size_t>(kept));
+  embedding.row_lengths.resize(static_cast<std::size_t>(kept));
+  embedding.particles.resize(static_cast<std::size_t>(kept) * stride);
+  embedding.weights.resize(static_cast<std::size_t>(kept) * stride);
+  physics::FrontMappingReport mapping;
+  physics::map_front_surface(*body.efg, vertices, front.triangles(), planes, remap, embedding, mapping);
+  body.front_mapped_base = front.base_vertex_count();
+  body.front_plane_counts.resize(planes.size());
+  for (std::size_t v = 0; v < planes.size(); ++v) body.front_plane_counts[v] = planes[v].size();
+  body.surface = front.triangles();
+  body.render_triangles.resize(3 * body.surface.size());
+  for (std::size_t t = 0; t < body.surface.size(); ++t)
+    for (int c = 0; c < 3; ++c) body.render_triangles[3 * t + static_cast<std::size_t>(c)] = static_cast<std::uint32_t>(body.surface[t][static_cast<std::size_t>(c)]);
+  set_fixed_vertices(body);
+  physics::CorotationalEfg::surface_positions(embedding, body.state.positions, body.surface_positions);
+  stats.ms_mapping += ms_since(start);
+  start = Clock::now();
+  const physics::SurfaceTopology topology = physics::surface_topology(body.surface);
+  cut_totals_.worst_boundary_edges = std::max(cut_totals_.worst_boundary_edges, topology.boundary_edges);
+  cut_totals_.worst_nonmanifold_edges = std::max(cut_totals_.worst_nonmanifold_edges, topology.nonmanifold_edges);
+  cut_totals_.vertices_remapped += mapping.mapped;
+  cut_totals_.relaxed_fallbacks += mapping.relaxed_fallbacks;
+  // Against the whole sweep at rest: a vertex pulled a tenth of a cell inside, joined to its
+  // integration point, must cross none of it.
+  std::vector<std::array<physics::Vec3, 3>> sweep;
+  sweep.reserve(static_cast<std::size_t>(body.front_rest_cut->size()));
+  for (const auto& t : body.front_rest_cut->triangles()) sweep.push_back({t.a, t.b, t.c});
+  // The crack front's vertices, where the two sides meet, belong to neither: not counted.
+  std::vector<int> across;
+  physics::count_wrong_side(*body.efg, vertices, body.surface, embedding, sweep, 0.1 * front.front_width() / 1.5, &across);
+  const long wrong = std::count_if(across.begin(), across.end(), [&](int v) { return front.crack_front()[static_cast<std::size_t>(v)] == 0; });
+  cut_totals_.wrong_side = std::max(cut_totals_.wrong_side, wrong);
+  cut_totals_.elements_linked_across = physics::update_elements_linked_across(
+      *body.efg, *body.front_rest_cut, body.linked_across, dirty_lo, dirty_hi, &changed, &body.link_boxes, &body.linked_seen);
+  stats.ms_checks += ms_since(start);
+}
+
 void World::cut_body(Body& body, StepStats& stats) {
   if (!body.cutter || !blade()) return;
   const auto& active = tool_.blade_active;
@@ -634,6 +727,9 @@ void World::cut_body(Body& body, StepStats& stats) {
   // triangles each.
   const double a = body.efg->spacing();
   std::vector<physics::RestTriangle> triangles;
+  // Front surface: the blade at rest at each mapped moment, and whether it starts a run of
+  // engaged samples (a new stroke).
+  std::vector<std::pair<std::vector<physics::Vec3>, bool>> moments;
   {
     const auto& edge0 = tool_.blade_poses.front();
     std::vector<int> pieces;
@@ -680,6 +776,7 @@ void World::cut_body(Body& body, StepStats& stats) {
       if (!open) {
         map_at(j, f0, rest_a, far_a);
         open = true;
+        if (body.front_surface) moments.emplace_back(rest_a, j > 0 || !body.front_engaged);
       }
       const double relative = moved(j) + body_motion * (f1 - f0);
       const int pieces_in_time = std::max(1, static_cast<int>(std::ceil(relative / (0.5 * a))));
@@ -692,6 +789,7 @@ void World::cut_body(Body& body, StepStats& stats) {
       }
       for (int piece = 1; piece <= pieces_in_time; ++piece) {
         map_at(j, f0 + (f1 - f0) * piece / pieces_in_time, rest_b, far_b);
+        if (body.front_surface) moments.emplace_back(rest_b, false);
         for (std::size_t i = 0; i + 1 < rest_a.size(); ++i) {
           // Outside the body (every corner beyond 2a of the integration points) the mapping
           // only extrapolates: such quads are left out.
@@ -704,13 +802,46 @@ void World::cut_body(Body& body, StepStats& stats) {
       }
     }
   }
-  const int faces = body.cut_surface->cut(triangles);
+  int faces = 0;
+  if (body.cut_surface) {
+    faces = body.cut_surface->cut(triangles);
+  } else {
+    // The thesis's surface cut: each moment is a blade sample of the stroke; a stroke ends
+    // when the blade disengages or its front has left the body after cutting.
+    for (const auto& t : triangles) body.front_rest_cut->add(t);
+    physics::FrontSurface& front = *body.front_surface;
+    for (const auto& [blade_at_rest, starts_run] : moments) {
+      if (starts_run && front.stroke_samples() > 1) {
+        front.end_stroke();
+        ++faces;
+      }
+      physics::FrontCutReport cut;
+      try {
+        cut = front.advance(blade_at_rest);
+      } catch (const std::invalid_argument& error) {
+        // A sample the stroke cannot take (its point count changed, a point not finite): the
+        // stroke ends where it was, and this sample starts the next one.
+        cut.problems.push_back(error.what());
+        front.end_stroke();
+        if (std::all_of(blade_at_rest.begin(), blade_at_rest.end(), [](const physics::Vec3& p) { return p.allFinite(); }))
+          front.advance(blade_at_rest);
+      }
+      if (!cut.ok()) {
+        cut_totals_.front_problems++;
+        if (cut_totals_.first_front_problem.empty())
+          cut_totals_.first_front_problem = "step " + std::to_string(steps_ + 1) + ": " + cut.problems.front();
+      }
+      if (cut.crossings + cut.tips > 0) ++faces;
+      if (cut.ok() && cut.crossings > 0 && !cut.front_in_body) front.end_stroke();
+    }
+    body.front_engaged = active.back() != 0;
+  }
   const double ms_rest = ms_since(topology_start);
   stats.ms_rest_cut += ms_rest;
   // The volume: CCD of the sweep against the links, re-selection kept consistent with the
   // rest cut around this sweep.
   physics::VolumeCutter::RestVisibility visibility;
-  const physics::RestCut& rest_cut = body.cut_surface->rest_cut();
+  const physics::RestCut& rest_cut = body.cut_surface ? body.cut_surface->rest_cut() : *body.front_rest_cut;
   visibility.blocked = [&rest_cut](const physics::Vec3& a, const physics::Vec3& b) { return rest_cut.crosses(a, b); };
   visibility.lo = physics::Vec3::Constant(1e300);
   visibility.hi = physics::Vec3::Constant(-1e300);
@@ -746,7 +877,10 @@ void World::cut_body(Body& body, StepStats& stats) {
     // those with a link reaching into the box of this step's triangles (grown by 2 a).
     std::vector<std::uint8_t> element_changed(static_cast<std::size_t>(body.efg->element_count()), 0);
     for (int e : report.changed_elements) element_changed[e] = 1;
-    rebuild_cut_surface(body, visibility.lo, visibility.hi, element_changed, faces > 0, pinned, stats);
+    if (body.cut_surface)
+      rebuild_cut_surface(body, visibility.lo, visibility.hi, element_changed, faces > 0, pinned, stats);
+    else
+      rebuild_front_surface(body, visibility.lo, visibility.hi, element_changed, pinned, triangles, stats);
   }
   stats.ms_topology += ms_rest + report.ms_topology + ms_since(topology_start);
   stats.links_severed += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;
@@ -774,6 +908,9 @@ void World::make_gpu_backend(Body& body, std::size_t index) const {
   if (!body.efg)
     throw std::runtime_error(where + "bodies[" + std::to_string(index) + "] ('" + body.name + "') has model '" +
                              body.model_name + "'; the GPU backend runs efg bodies only");
+  if (body.front_surface)
+    throw std::runtime_error(where + "bodies[" + std::to_string(index) + "] ('" + body.name +
+                             "') has efg.cut_surface 'front', which runs on the cpu backend only for now");
   physics::gpu::GpuSettings settings;
   settings.precision = scene_.solver.precision == "double" ? physics::gpu::Precision::double_precision
                                                            : physics::gpu::Precision::single;
@@ -945,7 +1082,8 @@ void World::fill_frame(render::Frame& frame, int width, int height) const {
     }
     mesh.normals.clear();
     // A cut surface changes its triangles, not always their count.
-    if (body.cut_surface || mesh.triangles.size() != body.render_triangles.size()) mesh.triangles = body.render_triangles;
+    if (body.cut_surface || body.front_surface || mesh.triangles.size() != body.render_triangles.size())
+      mesh.triangles = body.render_triangles;
   }
   frame.tools.clear();
   if (blade()) {

@@ -12,6 +12,7 @@
 #include "physics/core/model.hpp"
 #include "physics/core/implicit_euler.hpp"
 #include "physics/cut/cut_surface.hpp"
+#include "physics/cut/front_surface.hpp"
 #include "physics/cut/volume_cut.hpp"
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/fem/surface_snap.hpp"
@@ -63,6 +64,14 @@ struct Body {
   physics::CorotationalEfg* efg = nullptr;         // the model, when it is an EFG one
   std::unique_ptr<physics::VolumeCutter> cutter;
   std::unique_ptr<physics::CutSurface> cut_surface;
+  // efg.cut_surface "front": the thesis's explicit surface cut instead (physics/cut/
+  // front_surface.hpp), with the sweep at rest kept apart for the volume's agreement pass and
+  // the count of each vertex's constraint planes at its last mapping.
+  std::unique_ptr<physics::FrontSurface> front_surface;
+  std::unique_ptr<physics::RestCut> front_rest_cut;
+  std::vector<std::size_t> front_plane_counts;
+  bool front_engaged = false;  // the blade was engaged at the end of the last step tested
+  int front_mapped_base = 0;   // the surface's base vertex count at the last mapping
   physics::Vector previous_positions;
   std::size_t orphans_pinned = 0;       // of efg->orphaned_particles()
   // The cut surface's vertex keys, rest positions and anchors and the rest cut's size at the
@@ -147,6 +156,10 @@ struct CutTotals {
   int worst_boundary_edges = 0;   // over every cut event
   int worst_nonmanifold_edges = 0;
   long pinches_closed = 0;
+  // efg.cut_surface "front": the stroke samples its stage could not cut (the surface then
+  // stays as it was before the stroke, closed), and the first such problem in words.
+  long front_problems = 0;
+  std::string first_front_problem;
 };
 
 struct ToolState {
@@ -213,6 +226,12 @@ class World {
   // changed: per element, re-selected;
   // surface_changed: cube faces were cut (else only the mapping is redone); fixed_changed:
   // particles were pinned this step (every vertex's fixed flag is taken again).
+  // The same for a front surface: its rows are redone where the stroke renumbers vertices,
+  // where a vertex gained a constraint plane, sits on a changed element, or had the segment
+  // to its integration point crossed by this step's sweep (`step_triangles`, seed 004 §2.6).
+  void rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
+                             const std::vector<std::uint8_t>& changed, bool fixed_changed,
+                             const std::vector<physics::RestTriangle>& step_triangles, StepStats& stats);
   void rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
                            const std::vector<std::uint8_t>& changed, bool surface_changed, bool fixed_changed,
                            StepStats& stats);

@@ -366,7 +366,7 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
 
 int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                      const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
-                     const std::vector<std::array<Vec3, 3>>& cut_triangles, double inset) {
+                     const std::vector<std::array<Vec3, 3>>& cut_triangles, double inset, std::vector<int>* which) {
   check_surface(vertices, triangles, "count_wrong_side");
   for (int v = 0; v < std::min(embedding.vertex_count(), static_cast<int>(vertices.size())); ++v) {
     const int e = embedding.elements[static_cast<size_t>(v)];
@@ -428,6 +428,7 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
           }
         }
     wrong += crosses ? 1 : 0;
+    if (crosses && which) which->push_back(v);
   }
   return wrong;
 }

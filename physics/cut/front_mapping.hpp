@@ -77,6 +77,7 @@ inline constexpr int front_mapping_reach_rings = 3;
 // metric mapping.wrong_side. Vertices without a row (index >= row count) are not counted.
 int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                      const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
-                     const std::vector<std::array<Vec3, 3>>& cut_triangles, double inset);
+                     const std::vector<std::array<Vec3, 3>>& cut_triangles, double inset,
+                     std::vector<int>* which = nullptr);  // the vertices, when given
 
 }  // namespace incise::physics

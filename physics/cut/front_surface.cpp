@@ -361,6 +361,7 @@ FrontSurface::FrontSurface(std::vector<Vec3> vertices, std::vector<std::array<in
   vertex_planes_ = base_planes_;
   vertices_ = base_vertices_;
   triangles_ = base_triangles_;
+  crack_front_.assign(vertices_.size(), 0);
 }
 
 FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
@@ -376,18 +377,31 @@ FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
     for (size_t i = 1; i < blade.size(); ++i) blade_s_.push_back(blade_s_.back() + (blade[i] - blade[i - 1]).norm());
     sample_t_.assign(1, 0.0);
     samples_.emplace_back(blade.begin(), blade.end());
+    last_report_ = report;
     return report;  // a sheet needs two samples
   }
   double moved = 0;
   for (size_t i = 0; i < blade.size(); ++i) moved += (blade[i] - samples_.back()[i]).norm();
   moved /= static_cast<double>(blade.size());
-  if (!(moved > 1e-9 * std::max(blade_s_.back(), front_width_))) {
-    recompute(report);  // no motion: the same cut
-    return report;
+  if (!(moved > 1e-9 * std::max(blade_s_.back(), front_width_))) return last_report_;  // no motion: the same cut
+  if (samples_.size() >= 2) {
+    // Back over what the stroke has cut (at rest the blade retreats when the body moves
+    // onto it and back, or the hand does): nothing new to cut, and the sheet would fold
+    // onto itself. The sample is left out; the front waits where it is.
+    const auto& last = samples_.back();
+    const auto& before = samples_[samples_.size() - 2];
+    double forward = 0;
+    for (size_t i = 0; i < blade.size(); ++i) forward += (blade[i] - last[i]).dot(last[i] - before[i]);
+    if (forward < 0) {
+      FrontCutReport held = last_report_;
+      held.samples_held = 1;
+      return held;
+    }
   }
   sample_t_.push_back(sample_t_.back() + moved);
   samples_.emplace_back(blade.begin(), blade.end());
   recompute(report);
+  last_report_ = report;
   if (report.ok() && report.crossings == 0 && report.tips == 0) {
     // Nothing touched: the stroke starts again from this sample.
     samples_.erase(samples_.begin(), samples_.end() - 1);
@@ -409,9 +423,11 @@ void FrontSurface::end_stroke() {
     index_base();
   }
   stroke_.reset();
+  last_report_ = FrontCutReport();
   vertices_ = base_vertices_;
   triangles_ = base_triangles_;
   vertex_planes_ = base_planes_;
+  crack_front_.assign(vertices_.size(), 0);
   samples_.clear();
   sample_t_.clear();
   blade_s_.clear();
@@ -421,6 +437,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
   vertices_ = base_vertices_;
   triangles_ = base_triangles_;
   vertex_planes_ = base_planes_;
+  crack_front_.assign(vertices_.size(), 0);
   if (samples_.size() < 2) return;
   const int point_count = static_cast<int>(samples_.front().size());
   const int sample_count = static_cast<int>(samples_.size());
@@ -589,6 +606,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
   }
 
   // The output's vertices: base, then a pair per crossing, then a vertex per tip.
+  std::vector<int> front_vertices;  // where the two sides meet
   for (EdgeCut& cut : cuts) {
     cut.copy_lower = static_cast<int>(vertices_.size());
     vertices_.push_back(cut.point);
@@ -597,6 +615,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
   }
   for (Tip& tip : tips) {
     tip.vertex = static_cast<int>(vertices_.size());
+    front_vertices.push_back(tip.vertex);
     vertices_.push_back(tip.point);
   }
 
@@ -781,6 +800,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
           const double f = static_cast<double>(m) / pieces;
           const Vec3 x = x0 + f * (x1 - x0);
           next = add_point(st0 + f * (st1 - st0), static_cast<int>(vertices_.size()), static_cast<int>(vertices_.size()));
+          front_vertices.push_back(static_cast<int>(vertices_.size()));
           vertices_.push_back(x);
           ++report.front_vertices;
         }
@@ -953,6 +973,8 @@ void FrontSurface::recompute(FrontCutReport& report) {
   // Constraint planes (seed 004 §2.6, criterion 3): each end of a cut edge and its copy of the
   // pair face across the sheet; so do the cut faces' inner vertices, each on its side.
   vertex_planes_.resize(vertices_.size());
+  crack_front_.assign(vertices_.size(), 0);
+  for (const int v : front_vertices) crack_front_[static_cast<size_t>(v)] = 1;
   for (const EdgeCut& cut : cuts) {
     const ConstraintPlane lower{cut.point, cut.lower_on_plus ? Vec3(-cut.normal) : cut.normal};
     const ConstraintPlane higher{cut.point, -lower.normal};

@@ -46,6 +46,7 @@
 #include "physics/core/model.hpp"
 
 #include <array>
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
@@ -69,6 +70,7 @@ struct FrontCutReport {
   int front_vertices = 0;      // transient vertices on the front and the other inside boundary
   int lattice_vertices = 0;    // fixed vertices inside the cut face
   bool front_in_body = false;  // part of the last sample (the front) is inside the body
+  int samples_held = 0;        // 1: this sample went back over the cut and was left out
   // What the cut could not handle (each an explanation naming the triangle or edge). When
   // not empty the surface returned is the base mesh, uncut.
   std::vector<std::string> problems;
@@ -90,7 +92,9 @@ class FrontSurface {
   // Appends a blade sample to the stroke (the polyline at rest, at least two points, as many
   // as the stroke's first sample) and recomputes the stroke's cut. While the stroke's sheet
   // touches nothing, it starts again from the latest sample, so that a stroke begins at the
-  // last sample before the blade meets the body. Throws
+  // last sample before the blade meets the body. A sample that moves back over the
+  // stroke's cut (against the last sample's motion) is left out: the front waits for the
+  // blade to come forward again (FrontCutReport::samples_held). Throws
   // std::invalid_argument naming the point when a coordinate is not finite or the count
   // differs, before anything changes.
   FrontCutReport advance(std::span<const Vec3> blade);
@@ -107,6 +111,10 @@ class FrontSurface {
   // keeps it across strokes; each vertex of a pair, and each inner vertex of a cut face,
   // gets the plane of the sheet on its side; the shared vertices along the front get none.
   const std::vector<std::vector<ConstraintPlane>>& vertex_planes() const { return vertex_planes_; }
+  // Per vertex: 1 where the two sides of the stroke's cut meet (its tips, and the vertices
+  // along the front and the other parts of the sheet's outline inside the body), which
+  // belong to neither side.
+  const std::vector<std::uint8_t>& crack_front() const { return crack_front_; }
   // Base vertices keep their index; the stroke's vertices come after them.
   int base_vertex_count() const { return static_cast<int>(base_vertices_.size()); }
   double front_width() const { return front_width_; }
@@ -129,6 +137,8 @@ class FrontSurface {
   std::vector<Vec3> vertices_;
   std::vector<std::array<int, 3>> triangles_;
   std::vector<std::vector<ConstraintPlane>> vertex_planes_;
+  std::vector<std::uint8_t> crack_front_;
+  FrontCutReport last_report_;  // of the last sample taken
 };
 
 }  // namespace incise::physics

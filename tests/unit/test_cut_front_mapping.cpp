@@ -259,7 +259,9 @@ TEST(FrontMapping, MapsNoVertexAcrossAStraightCutThroughABallWhereTheNearestPoin
     const double d = (vertices[static_cast<size_t>(v)] - p0).dot(normal);
     if (std::abs(d) > 2 * a) continue;
     const double across = face_normals[static_cast<size_t>(v)].dot(normal);
-    if (on_sheet(v)) ASSERT_NE(across, 0) << "vertex " << v << " on the sheet in no cut face";
+    if (on_sheet(v)) {
+      ASSERT_NE(across, 0) << "vertex " << v << " on the sheet in no cut face";
+    }
     const double side = !on_sheet(v) ? (d > 0 ? 1.0 : -1.0) : (across > 0 ? -1.0 : 1.0);
     planes[static_cast<size_t>(v)].push_back({p0, -side * normal});
   }

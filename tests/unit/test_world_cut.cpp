@@ -75,6 +75,37 @@ int rows_unlike_a_fresh_mapping(const Body& body) {
   return differ;
 }
 
+// The free piece of the beam (particles right of the cut at x = 0.0512): how far its centre of
+// mass falls over 40 more steps, and what free fall from its state now gives. Implicit Euler
+// falls g dt^2 k (k + 1) / 2 over k steps, i.e. g t^2 / 2 within 1 / k.
+struct Fall {
+  double fallen, expected, seconds;
+};
+Fall free_piece_fall(World& world, const Body& body, const std::vector<int>& piece, double dt) {
+  const auto& masses = body.model->lumped_masses();
+  std::vector<std::uint8_t> free_particle(static_cast<std::size_t>(body.model->node_count()), 0);
+  int tip = 0;  // the element farthest along the beam is on the free piece
+  for (int e = 0; e < body.efg->element_count(); ++e)
+    if (body.efg->element_centres()[e].x() > body.efg->element_centres()[tip].x()) tip = e;
+  for (int e = 0; e < body.efg->element_count(); ++e) {
+    if (piece[e] != piece[tip]) continue;
+    EXPECT_GT(body.efg->element_centres()[e].x(), 0.0512) << "element " << e << " on the wrong piece";
+    const std::size_t base = static_cast<std::size_t>(e) * body.efg->row_stride();
+    for (int k = 0; k < body.efg->row_lengths()[e]; ++k) free_particle[body.efg->neighbours()[base + k]] = 1;
+  }
+  const auto centre = [&](const physics::Vector& v) {
+    double weighted = 0, total = 0;
+    for (int i = 0; i < body.model->node_count(); ++i)
+      if (free_particle[i]) weighted += masses[i] * v[3 * i + 2], total += masses[i];
+    return weighted / total;
+  };
+  const double z0 = centre(body.state.positions), v0 = centre(body.state.velocities);
+  const int fall_steps = 40;
+  for (int k = 0; k < fall_steps; ++k) world.step();
+  const double t = fall_steps * dt;
+  return {z0 - centre(body.state.positions), -v0 * t + 0.5 * 9.81 * t * t, t};
+}
+
 }  // namespace
 
 TEST(WorldCut, ABladeThroughTheBeamCutsItInTwoClosedPiecesAndTheFreeOneFalls) {
@@ -111,36 +142,63 @@ TEST(WorldCut, ABladeThroughTheBeamCutsItInTwoClosedPiecesAndTheFreeOneFalls) {
   EXPECT_EQ(world.cut_totals().elements_linked_across, 0);
   EXPECT_EQ(world.cut_totals().isolated_elements, 0);
 
-  // The free piece (particles right of the cut): its centre of mass falls by exactly
-  // g dt^2 k (k + 1) / 2 over k steps of implicit Euler from the velocity it has now, i.e.
-  // g t^2 / 2 within 1 / k; compared here with the free-fall law from its state now.
-  const auto& masses = body.model->lumped_masses();
-  std::vector<std::uint8_t> free_particle(static_cast<std::size_t>(body.model->node_count()), 0);
-  int tip = 0;  // the element farthest along the beam is on the free piece
-  for (int e = 0; e < body.efg->element_count(); ++e)
-    if (body.efg->element_centres()[e].x() > body.efg->element_centres()[tip].x()) tip = e;
-  for (int e = 0; e < body.efg->element_count(); ++e) {
-    if (piece[e] != piece[tip]) continue;
-    EXPECT_GT(body.efg->element_centres()[e].x(), 0.0512) << "element " << e << " on the wrong piece";
-    const std::size_t base = static_cast<std::size_t>(e) * body.efg->row_stride();
-    for (int k = 0; k < body.efg->row_lengths()[e]; ++k) free_particle[body.efg->neighbours()[base + k]] = 1;
-  }
-  const auto centre = [&](const physics::Vector& v) {
-    double weighted = 0, total = 0;
-    for (int i = 0; i < body.model->node_count(); ++i)
-      if (free_particle[i]) weighted += masses[i] * v[3 * i + 2], total += masses[i];
-    return weighted / total;
-  };
-  const double z0 = centre(body.state.positions), v0 = centre(body.state.velocities);
-  const int fall_steps = 40;
-  for (int k = 0; k < fall_steps; ++k) world.step();
-  const double t = fall_steps * scene.solver.dt;
-  const double fallen = z0 - centre(body.state.positions);
-  const double expected = -v0 * t + 0.5 * 9.81 * t * t;
+  const auto [fallen, expected, t] = free_piece_fall(world, body, piece, scene.solver.dt);
   std::printf("engine cut: %d events, %zu -> %zu triangles; free piece fell %.5f m in %.2f s, law %.5f m\n", events,
               triangles_before, body.surface.size(), fallen, t, expected);
   EXPECT_NEAR(fallen, expected, 0.03 * expected);  // 1 / k = 2.5 % for k = 40, from implicit Euler
   // The surface still closed, and its vertices on the free piece fell with it.
+  EXPECT_TRUE(physics::surface_topology(body.surface).watertight());
+}
+
+// The same cut with the thesis's explicit surface (efg.cut_surface "front"): closed after
+// every event, two closed surfaces at the end, every vertex on its own side, and the surface
+// of the free piece falling with it.
+TEST(WorldCut, TheFrontSurfaceCutsTheBeamInTwoClosedPiecesThatFollowTheirOwnSide) {
+  TempDir dir("incise_world_cut_front");
+  Scene scene = beam_cut_scene(dir, 0.02);
+  scene.bodies[0].efg.cut_surface = "front";
+  World world(scene, read_trajectory(dir.path / "cut.traj"));
+  const Body& body = world.bodies()[0];
+  ASSERT_TRUE(body.front_surface);
+  const int dofs = 3 * body.model->node_count();
+  const std::size_t triangles_before = body.surface.size();
+  int events = 0;
+  for (int step = 0; step < 12; ++step) {
+    if (!world.step().cut_event) continue;
+    ++events;
+    const physics::SurfaceTopology now = physics::surface_topology(body.surface);
+    EXPECT_TRUE(now.watertight()) << "step " << step << ": " << now.boundary_edges << " boundary, "
+                                  << now.nonmanifold_edges << " non-manifold edges";
+    EXPECT_EQ(3 * body.model->node_count(), dofs);
+    ASSERT_EQ(body.embedding->vertex_count(), static_cast<int>(body.front_surface->vertices().size())) << "step " << step;
+    ASSERT_TRUE(body.surface_positions.allFinite()) << "step " << step;
+  }
+  EXPECT_GT(events, 0);
+  EXPECT_EQ(world.cut_totals().front_problems, 0) << world.cut_totals().first_front_problem;
+  std::vector<int> piece;
+  ASSERT_EQ(body.cutter->pieces(piece), 2);
+  EXPECT_GT(body.surface.size(), triangles_before);
+  EXPECT_EQ(world.cut_totals().wrong_side, 0);  // the worst over the events
+  EXPECT_EQ(world.cut_totals().elements_linked_across, 0);
+  // The surface's vertices beyond the cut (at rest) fall with the free piece; those before it
+  // stay with the clamped one.
+  const auto& rest = body.front_surface->vertices();
+  const physics::Vector before = body.surface_positions;
+  const auto [fallen, expected, t] = free_piece_fall(world, body, piece, scene.solver.dt);
+  EXPECT_NEAR(fallen, expected, 0.03 * expected);
+  double free_drop = 0, clamped_drop = 0;
+  int free_count = 0, clamped_count = 0;
+  for (std::size_t v = 0; v < rest.size(); ++v) {
+    const double drop = before[3 * static_cast<Eigen::Index>(v) + 2] - body.surface_positions[3 * static_cast<Eigen::Index>(v) + 2];
+    if (rest[v].x() > 0.06) free_drop += drop, ++free_count;
+    if (rest[v].x() < 0.04) clamped_drop += drop, ++clamped_count;
+  }
+  free_drop /= free_count;
+  clamped_drop /= clamped_count;
+  std::printf("engine front cut: %d events, %zu -> %zu triangles; free surface fell %.5f m (piece %.5f), clamped one %.5f m\n",
+              events, triangles_before, body.surface.size(), free_drop, fallen, clamped_drop);
+  EXPECT_NEAR(free_drop, fallen, 0.1 * fallen);
+  EXPECT_LT(std::abs(clamped_drop), 0.1 * fallen);
   EXPECT_TRUE(physics::surface_topology(body.surface).watertight());
 }
 
