@@ -14,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <set>
 #include <cstdlib>
 #include <cstring>
 #include <functional>
@@ -635,15 +636,13 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
 }
 
 void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
-                                  const std::vector<std::uint8_t>& changed, bool fixed_changed,
-                                  const std::vector<physics::RestTriangle>& step_triangles, StepStats& stats) {
+                                  const std::vector<std::uint8_t>& changed, bool fixed_changed, StepStats& stats) {
   (void)fixed_changed;  // every vertex's flag is taken again below
   auto start = Clock::now();
   const physics::FrontSurface& front = *body.front_surface;
   const auto& vertices = front.vertices();
   const auto& planes = front.vertex_planes();
   physics::SurfaceEmbedding& embedding = *body.embedding;
-  const auto& centres = body.efg->element_centres();
   // The base's vertices keep their index and their row unless a trigger of seed 004 §2.6
   // names them; the stroke's vertices are numbered anew at each sample: all redone (also
   // those a stroke ended since the last mapping turned into base vertices).
@@ -652,22 +651,43 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   for (int v = 0; v < kept; ++v) {
     const auto index = static_cast<std::size_t>(v);
     const int element = embedding.elements[index];
-    bool redo = planes[index].size() != (index < body.front_plane_counts.size() ? body.front_plane_counts[index] : 0) ||
-                changed[static_cast<std::size_t>(element)] != 0;
-    if (!redo && (vertices[index].array() >= dirty_lo.array()).all() && (vertices[index].array() <= dirty_hi.array()).all())
-      for (const auto& t : step_triangles)
-        if (physics::segment_crosses_triangle(vertices[index], centres[static_cast<std::size_t>(element)], t)) {
-          redo = true;
-          break;
-        }
-    if (redo) remap.push_back(v);
+    if (planes[index].size() != (index < body.front_plane_counts.size() ? body.front_plane_counts[index] : 0) ||
+        changed[static_cast<std::size_t>(element)] != 0)
+      remap.push_back(v);
   }
-  for (int v = kept; v < static_cast<int>(vertices.size()); ++v) remap.push_back(v);
   const auto stride = static_cast<std::size_t>(embedding.stride);
   embedding.elements.resize(static_cast<std::size_t>(kept));
   embedding.row_lengths.resize(static_cast<std::size_t>(kept));
   embedding.particles.resize(static_cast<std::size_t>(kept) * stride);
   embedding.weights.resize(static_cast<std::size_t>(kept) * stride);
+  // The cut faces, each once (both sides' copies lie on it, with the same corners).
+  std::vector<std::array<physics::Vec3, 3>> faces;
+  {
+    std::set<std::array<double, 9>> seen;
+    for (std::size_t t = 0; t < front.triangles().size(); ++t) {
+      if (!front.on_cut_face()[t]) continue;
+      const auto& tri = front.triangles()[t];
+      std::array<physics::Vec3, 3> corners{vertices[static_cast<std::size_t>(tri[0])], vertices[static_cast<std::size_t>(tri[1])],
+                                           vertices[static_cast<std::size_t>(tri[2])]};
+      std::sort(corners.begin(), corners.end(), [](const physics::Vec3& l, const physics::Vec3& r) {
+        return std::lexicographical_compare(l.data(), l.data() + 3, r.data(), r.data() + 3);
+      });
+      std::array<double, 9> key{};
+      for (int c = 0; c < 3; ++c)
+        for (int d = 0; d < 3; ++d) key[static_cast<std::size_t>(3 * c + d)] = corners[static_cast<std::size_t>(c)][d];
+      if (seen.insert(key).second) faces.push_back(corners);
+    }
+  }
+  // The kept rows whose segment the cut crosses now (the second trigger, taken on the cut as
+  // the surface shows it rather than on this step's sweep, which the stroke may have left out
+  // in part: samples held, the front's transient part).
+  const double inset = 0.1 * front.front_width() / 1.5;  // a tenth of a surface cell
+  std::vector<int> crossed;
+  physics::count_wrong_side(*body.efg, vertices, front.triangles(), embedding, faces, inset, &crossed);
+  std::vector<int> merged;
+  std::set_union(remap.begin(), remap.end(), crossed.begin(), crossed.end(), std::back_inserter(merged));
+  remap.swap(merged);
+  for (int v = kept; v < static_cast<int>(vertices.size()); ++v) remap.push_back(v);
   physics::FrontMappingReport mapping;
   physics::map_front_surface(*body.efg, vertices, front.triangles(), planes, remap, embedding, mapping);
   body.front_mapped_base = front.base_vertex_count();
@@ -686,14 +706,11 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   cut_totals_.worst_nonmanifold_edges = std::max(cut_totals_.worst_nonmanifold_edges, topology.nonmanifold_edges);
   cut_totals_.vertices_remapped += mapping.mapped;
   cut_totals_.relaxed_fallbacks += mapping.relaxed_fallbacks;
-  // Against the whole sweep at rest: a vertex pulled a tenth of a cell inside, joined to its
-  // integration point, must cross none of it.
-  std::vector<std::array<physics::Vec3, 3>> sweep;
-  sweep.reserve(static_cast<std::size_t>(body.front_rest_cut->size()));
-  for (const auto& t : body.front_rest_cut->triangles()) sweep.push_back({t.a, t.b, t.c});
+  // Against the cut faces the surface shows: a vertex pulled a tenth of a cell inside, joined
+  // to its integration point, must cross them an even number of times.
   // The crack front's vertices, where the two sides meet, belong to neither: not counted.
   std::vector<int> across;
-  physics::count_wrong_side(*body.efg, vertices, body.surface, embedding, sweep, 0.1 * front.front_width() / 1.5, &across);
+  physics::count_wrong_side(*body.efg, vertices, body.surface, embedding, faces, inset, &across);
   const long wrong = std::count_if(across.begin(), across.end(), [&](int v) { return front.crack_front()[static_cast<std::size_t>(v)] == 0; });
   cut_totals_.wrong_side = std::max(cut_totals_.wrong_side, wrong);
   cut_totals_.elements_linked_across = physics::update_elements_linked_across(
@@ -735,6 +752,12 @@ void World::cut_body(Body& body, StepStats& stats) {
     std::vector<int> pieces;
     for (std::size_t i = 0; i + 1 < edge0.size(); ++i)
       pieces.push_back(std::max(1, static_cast<int>(std::ceil((edge0[i + 1] - edge0[i]).norm() / (0.5 * a)))));
+    // A front surface's strokes need the same points at every sample: the resampling is
+    // fixed the first time (the count could flip where a segment is a multiple of a / 2).
+    if (body.front_surface) {
+      if (body.front_blade_pieces.size() != pieces.size()) body.front_blade_pieces = pieces;
+      pieces = body.front_blade_pieces;
+    }
     const auto resample = [&](const std::vector<physics::Vec3>& edge) {
       std::vector<physics::Vec3> points;
       for (std::size_t i = 0; i + 1 < edge.size(); ++i)
@@ -880,7 +903,7 @@ void World::cut_body(Body& body, StepStats& stats) {
     if (body.cut_surface)
       rebuild_cut_surface(body, visibility.lo, visibility.hi, element_changed, faces > 0, pinned, stats);
     else
-      rebuild_front_surface(body, visibility.lo, visibility.hi, element_changed, pinned, triangles, stats);
+      rebuild_front_surface(body, visibility.lo, visibility.hi, element_changed, pinned, stats);
   }
   stats.ms_topology += ms_rest + report.ms_topology + ms_since(topology_start);
   stats.links_severed += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;

@@ -72,6 +72,7 @@ struct Body {
   std::vector<std::size_t> front_plane_counts;
   bool front_engaged = false;  // the blade was engaged at the end of the last step tested
   int front_mapped_base = 0;   // the surface's base vertex count at the last mapping
+  std::vector<int> front_blade_pieces;  // the blade's resampling, per segment, kept for the strokes
   physics::Vector previous_positions;
   std::size_t orphans_pinned = 0;       // of efg->orphaned_particles()
   // The cut surface's vertex keys, rest positions and anchors and the rest cut's size at the
@@ -227,11 +228,10 @@ class World {
   // surface_changed: cube faces were cut (else only the mapping is redone); fixed_changed:
   // particles were pinned this step (every vertex's fixed flag is taken again).
   // The same for a front surface: its rows are redone where the stroke renumbers vertices,
-  // where a vertex gained a constraint plane, sits on a changed element, or had the segment
-  // to its integration point crossed by this step's sweep (`step_triangles`, seed 004 §2.6).
+  // where a vertex gained a constraint plane, sits on a changed element, or has the segment
+  // to its integration point crossed by the cut faces (seed 004 §2.6's triggers).
   void rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
-                             const std::vector<std::uint8_t>& changed, bool fixed_changed,
-                             const std::vector<physics::RestTriangle>& step_triangles, StepStats& stats);
+                             const std::vector<std::uint8_t>& changed, bool fixed_changed, StepStats& stats);
   void rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
                            const std::vector<std::uint8_t>& changed, bool surface_changed, bool fixed_changed,
                            StepStats& stats);

@@ -412,21 +412,25 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
     const double length = n.norm();
     const Vec3 p = vertices[static_cast<size_t>(v)] - (length > 0 ? inset / length : 0.0) * n;
     const Vec3& q = model.element_centres()[static_cast<size_t>(embedding.elements[static_cast<size_t>(v)])];
-    bool crosses = false;
-    for (const int t : large) crosses = crosses || segment_crosses_triangle(p, q, cut_triangles[static_cast<size_t>(t)]);
+    // Across means an odd number of crossings: a wavy cut face (the blade mapped to rest
+    // moment by moment) can be crossed and crossed back on the way to a point on the same
+    // side. `cut_triangles` must hold each face once (not both sides' coincident copies).
+    int crossings = 0;
+    for (const int t : large) crossings += segment_crosses_triangle(p, q, cut_triangles[static_cast<size_t>(t)]) ? 1 : 0;
     const auto l = cell(p.cwiseMin(q)), h = cell(p.cwiseMax(q));
     seen.clear();
-    for (long long k = l[2]; k <= h[2] && !crosses; ++k)
-      for (long long j = l[1]; j <= h[1] && !crosses; ++j)
-        for (long long i = l[0]; i <= h[0] && !crosses; ++i) {
+    for (long long k = l[2]; k <= h[2]; ++k)
+      for (long long j = l[1]; j <= h[1]; ++j)
+        for (long long i = l[0]; i <= h[0]; ++i) {
           const std::uint64_t c = key(i, j, k);
           auto it = std::lower_bound(binned.begin(), binned.end(), std::pair<std::uint64_t, int>(c, -1));
-          for (; it != binned.end() && it->first == c && !crosses; ++it) {
+          for (; it != binned.end() && it->first == c; ++it) {
             if (std::find(seen.begin(), seen.end(), it->second) != seen.end()) continue;
             seen.push_back(it->second);
-            crosses = segment_crosses_triangle(p, q, cut_triangles[static_cast<size_t>(it->second)]);
+            crossings += segment_crosses_triangle(p, q, cut_triangles[static_cast<size_t>(it->second)]) ? 1 : 0;
           }
         }
+    const bool crosses = crossings % 2 == 1;
     wrong += crosses ? 1 : 0;
     if (crosses && which) which->push_back(v);
   }

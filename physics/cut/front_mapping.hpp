@@ -66,9 +66,10 @@ inline constexpr int front_mapping_reach_rings = 3;
 
 // The vertices whose integration point lies across a cut from them: the segment from the
 // vertex, moved inward by `inset` along -n_v, to its element's rest integration point
-// crosses one of `cut_triangles`
-// (rest positions; e.g. the cut faces of the FrontSurface): its ends strictly on both sides
-// of the triangle's plane, the crossing inside the triangle or on its rim. n_v here is the
+// crosses `cut_triangles` an odd number of times (rest positions, each face once, e.g. one
+// side's cut faces of the FrontSurface; a wavy face crossed and crossed back is the same
+// side): its ends strictly on both sides of a triangle's plane, the crossing inside the
+// triangle or on its rim. n_v here is the
 // unit angle-weighted normal (a vertex without one is not moved), not the area-weighted one
 // of criterion 2: at the rim of a cut a vertex pair's copy has tiny cut-face triangles next
 // to large ones of the original surface, and the area-weighted normal, leaning outward from

@@ -358,10 +358,17 @@ FrontSurface::FrontSurface(std::vector<Vec3> vertices, std::vector<std::array<in
   if (base_triangles_.empty()) throw std::invalid_argument("FrontSurface: the mesh has no triangle");
   index_base();
   base_planes_.assign(base_vertices_.size(), {});
-  vertex_planes_ = base_planes_;
+  base_cut_face_.assign(base_triangles_.size(), 0);
+  show_base();
+}
+
+void FrontSurface::show_base() {
   vertices_ = base_vertices_;
   triangles_ = base_triangles_;
+  vertex_planes_ = base_planes_;
   crack_front_.assign(vertices_.size(), 0);
+  cut_face_ = base_cut_face_;
+  cut_face_.resize(triangles_.size(), 0);
 }
 
 FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
@@ -420,24 +427,19 @@ void FrontSurface::end_stroke() {
     base_vertices_ = vertices_;
     base_triangles_ = triangles_;
     base_planes_ = vertex_planes_;
+    base_cut_face_ = cut_face_;
     index_base();
   }
   stroke_.reset();
   last_report_ = FrontCutReport();
-  vertices_ = base_vertices_;
-  triangles_ = base_triangles_;
-  vertex_planes_ = base_planes_;
-  crack_front_.assign(vertices_.size(), 0);
+  show_base();
   samples_.clear();
   sample_t_.clear();
   blade_s_.clear();
 }
 
 void FrontSurface::recompute(FrontCutReport& report) {
-  vertices_ = base_vertices_;
-  triangles_ = base_triangles_;
-  vertex_planes_ = base_planes_;
-  crack_front_.assign(vertices_.size(), 0);
+  show_base();
   if (samples_.size() < 2) return;
   const int point_count = static_cast<int>(samples_.front().size());
   const int sample_count = static_cast<int>(samples_.size());
@@ -600,8 +602,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
   };
   if (first_sample_inside()) problem("the stroke began with the blade inside the body");
   if (!report.ok()) {
-    vertices_ = base_vertices_;
-    triangles_ = base_triangles_;
+    show_base();
     return;
   }
 
@@ -666,7 +667,12 @@ void FrontSurface::recompute(FrontCutReport& report) {
   };
   std::vector<std::array<int, 3>> split;  // the base triangles' replacements
   std::vector<std::uint8_t> replaced(base_triangles_.size(), 0);
-  const auto emit = [&](int a, int b, int c) { split.push_back({a, b, c}); };
+  std::vector<std::uint8_t> split_on_face;  // per replacement: its base triangle was a cut face
+  std::uint8_t splitting_face = 0;
+  const auto emit = [&](int a, int b, int c) {
+    split.push_back({a, b, c});
+    split_on_face.push_back(splitting_face);
+  };
   for (const auto& [t, ends] : ends_of) {
     if (ends.size() != 2) {
       problem("base triangle " + std::to_string(t) + " has " + std::to_string(ends.size()) +
@@ -674,6 +680,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
       continue;
     }
     replaced[static_cast<size_t>(t)] = 1;
+    splitting_face = base_cut_face_[static_cast<size_t>(t)];
     ++report.split_triangles;
     const auto& tri = base_triangles_[static_cast<size_t>(t)];
     const int crossings = (ends[0] >= 0) + (ends[1] >= 0);
@@ -756,6 +763,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
       std::vector<int> lip_v0{v0, t1.vertex, middle_a, t2.vertex};
       ear_clip(lip_v0, n, vertices_, split);
       ear_clip({t2.vertex, v1, v2, t1.vertex, middle_b}, n, vertices_, split);
+      split_on_face.resize(split.size(), splitting_face);
       // The face on the sheet's minus side runs leave -> middle -> enter, so the lip of the
       // minus side runs enter -> middle -> leave (ear_clip orients the polygon about n).
       const bool a_is_minus = oriented_about(lip_v0, n, vertices_) ? false : true;
@@ -767,8 +775,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
     }
   }
   if (!report.ok()) {
-    vertices_ = base_vertices_;
-    triangles_ = base_triangles_;
+    show_base();
     return;
   }
 
@@ -825,8 +832,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
   if (tips.empty() && outline_inside) problem("the blade is inside the body for the whole stroke");
   if (!report.ok() || region.boundary.empty()) {
     if (!report.ok()) {
-      vertices_ = base_vertices_;
-      triangles_ = base_triangles_;
+      show_base();
     }
     return;
   }
@@ -878,8 +884,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
     face = triangulate_region(region);
   } catch (const std::invalid_argument& error) {
     problem(std::string("the cut face could not be triangulated: ") + error.what());
-    vertices_ = base_vertices_;
-    triangles_ = base_triangles_;
+    show_base();
     return;
   }
   // Where the blade still is, both sides' faces share the vertices (the crack closes there).
@@ -938,28 +943,50 @@ void FrontSurface::recompute(FrontCutReport& report) {
     const Vec3& p10 = samples_[static_cast<size_t>(j)][static_cast<size_t>(i + 1)];
     const Vec3& p01 = samples_[static_cast<size_t>(j + 1)][static_cast<size_t>(i)];
     const Vec3& p11 = samples_[static_cast<size_t>(j + 1)][static_cast<size_t>(i + 1)];
-    if (alpha >= beta) return std::pair<Vec3, Vec3>{p00 + alpha * (p10 - p00) + beta * (p11 - p10), (p10 - p00).cross(p11 - p00).normalized()};
-    return std::pair<Vec3, Vec3>{p00 + beta * (p01 - p00) + alpha * (p11 - p01), (p11 - p00).cross(p01 - p00).normalized()};
+    if (alpha >= beta) return Vec3(p00 + alpha * (p10 - p00) + beta * (p11 - p10));
+    return Vec3(p00 + beta * (p01 - p00) + alpha * (p11 - p01));
   };
-  std::vector<std::pair<int, ConstraintPlane>> face_planes;
+  std::vector<int> inner_points;
   for (const auto& triangle : face)
     for (const int p : triangle)
       if (region_vertex[static_cast<size_t>(p)] < 0) {
         // Each side's face has its own inner vertices: the two separate as the cut opens.
-        const auto [x, normal] = sheet_point(region.points[static_cast<size_t>(p)]);
+        const Vec3 x = sheet_point(region.points[static_cast<size_t>(p)]);
         region_vertex[static_cast<size_t>(p)] = static_cast<int>(vertices_.size());
-        face_planes.push_back({static_cast<int>(vertices_.size()), {x, normal}});
         vertices_.push_back(x);
         region_vertex_plus[static_cast<size_t>(p)] = static_cast<int>(vertices_.size());
-        face_planes.push_back({static_cast<int>(vertices_.size()), {x, -normal}});
         vertices_.push_back(x);
+        inner_points.push_back(p);
         ++report.lattice_vertices;
       }
+  // Their planes: the face's own normal there (the lifted triangles' around the point, as the
+  // minus side's face is oriented), so that criterion 3 and the surface agree even where the
+  // sheet at rest folds a little between two samples.
+  std::vector<Vec3> face_normal(region.points.size(), Vec3::Zero());
+  for (const auto& triangle : face) {
+    const Vec3& a = vertices_[static_cast<size_t>(region_vertex[static_cast<size_t>(triangle[0])])];
+    const Vec3& b = vertices_[static_cast<size_t>(region_vertex[static_cast<size_t>(triangle[1])])];
+    const Vec3& c = vertices_[static_cast<size_t>(region_vertex[static_cast<size_t>(triangle[2])])];
+    const Vec3 n = (b - a).cross(c - a);
+    for (const int p : triangle) face_normal[static_cast<size_t>(p)] += n;
+  }
+  std::vector<std::pair<int, ConstraintPlane>> face_planes;
+  for (const int p : inner_points) {
+    const Vec3& x = vertices_[static_cast<size_t>(region_vertex[static_cast<size_t>(p)])];
+    const Vec3 normal = face_normal[static_cast<size_t>(p)].normalized();
+    face_planes.push_back({region_vertex[static_cast<size_t>(p)], {x, normal}});
+    face_planes.push_back({region_vertex_plus[static_cast<size_t>(p)], {x, -normal}});
+  }
 
   triangles_.clear();
+  cut_face_.clear();
   for (size_t t = 0; t < base_triangles_.size(); ++t)
-    if (!replaced[t]) triangles_.push_back(base_triangles_[t]);
+    if (!replaced[t]) {
+      triangles_.push_back(base_triangles_[t]);
+      cut_face_.push_back(base_cut_face_[t]);
+    }
   triangles_.insert(triangles_.end(), split.begin(), split.end());
+  cut_face_.insert(cut_face_.end(), split_on_face.begin(), split_on_face.end());
   // The body on the sheet's minus side sees the face with the sheet's normal; the plus side
   // the other way round.
   for (const auto& triangle : face)
@@ -969,6 +996,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
     triangles_.push_back({region_vertex_plus[static_cast<size_t>(triangle[0])], region_vertex_plus[static_cast<size_t>(triangle[2])],
                           region_vertex_plus[static_cast<size_t>(triangle[1])]});
   report.cut_face_triangles = static_cast<int>(face.size());
+  cut_face_.resize(triangles_.size(), 1);
 
   // Constraint planes (seed 004 §2.6, criterion 3): each end of a cut edge and its copy of the
   // pair face across the sheet; so do the cut faces' inner vertices, each on its side.

@@ -115,6 +115,8 @@ class FrontSurface {
   // along the front and the other parts of the sheet's outline inside the body), which
   // belong to neither side.
   const std::vector<std::uint8_t>& crack_front() const { return crack_front_; }
+  // Per triangle of triangles(): 1 on a cut face (this stroke's or an earlier one's).
+  const std::vector<std::uint8_t>& on_cut_face() const { return cut_face_; }
   // Base vertices keep their index; the stroke's vertices come after them.
   int base_vertex_count() const { return static_cast<int>(base_vertices_.size()); }
   double front_width() const { return front_width_; }
@@ -123,6 +125,7 @@ class FrontSurface {
   struct Base;    // the base mesh's edges, and its edges and triangles binned
   struct Stroke;  // what the stroke's fixed part crossed, kept between calls
   void index_base();
+  void show_base();  // the surface is the base's (before a stroke, or when it cannot be cut)
   void recompute(FrontCutReport& report);
 
   double front_width_;
@@ -138,6 +141,7 @@ class FrontSurface {
   std::vector<std::array<int, 3>> triangles_;
   std::vector<std::vector<ConstraintPlane>> vertex_planes_;
   std::vector<std::uint8_t> crack_front_;
+  std::vector<std::uint8_t> base_cut_face_, cut_face_;
   FrontCutReport last_report_;  // of the last sample taken
 };
 

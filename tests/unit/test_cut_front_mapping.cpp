@@ -281,12 +281,20 @@ TEST(FrontMapping, MapsNoVertexAcrossAStraightCutThroughABallWhereTheNearestPoin
     EXPECT_TRUE(model.element_active(embedding.elements[static_cast<size_t>(v)])) << "vertex " << v;
   }
 
-  // The cut faces: the surface's triangles lying on the sheet.
+  // The cut faces: the surface's triangles lying on the sheet, each once (both sides' copies
+  // have the same corners; count_wrong_side counts crossings, odd meaning across).
   std::vector<std::array<Vec3, 3>> cut_faces;
+  std::set<std::array<double, 9>> faces_seen;
   for (const auto& t : triangles) {
-    const std::array<Vec3, 3> corners{vertices[static_cast<size_t>(t[0])], vertices[static_cast<size_t>(t[1])], vertices[static_cast<size_t>(t[2])]};
-    if (std::all_of(corners.begin(), corners.end(), [&](const Vec3& x) { return std::abs((x - p0).dot(normal)) < 1e-9; }))
-      cut_faces.push_back(corners);
+    std::array<Vec3, 3> corners{vertices[static_cast<size_t>(t[0])], vertices[static_cast<size_t>(t[1])], vertices[static_cast<size_t>(t[2])]};
+    if (!std::all_of(corners.begin(), corners.end(), [&](const Vec3& x) { return std::abs((x - p0).dot(normal)) < 1e-9; })) continue;
+    std::sort(corners.begin(), corners.end(), [](const Vec3& l, const Vec3& r) {
+      return std::lexicographical_compare(l.data(), l.data() + 3, r.data(), r.data() + 3);
+    });
+    std::array<double, 9> key{};
+    for (int c = 0; c < 3; ++c)
+      for (int d = 0; d < 3; ++d) key[static_cast<size_t>(3 * c + d)] = corners[static_cast<size_t>(c)][d];
+    if (faces_seen.insert(key).second) cut_faces.push_back(corners);
   }
   ASSERT_GT(cut_faces.size(), 100u);
   const int wrong = count_wrong_side(model, vertices, triangles, embedding, cut_faces, 0.01 * a);
@@ -313,14 +321,14 @@ TEST(FrontMapping, MapsNoVertexAcrossAStraightCutThroughABallWhereTheNearestPoin
     for (int v = 0; v < n; ++v) {
       const Vec3 from = vertices[static_cast<size_t>(v)] - 0.01 * a * pseudo[static_cast<size_t>(v)].normalized();
       const Vec3 to = model.element_centres()[static_cast<size_t>(nearest.elements[static_cast<size_t>(v)])];
-      bool crosses = false;
+      int crossings = 0;
       for (const auto& f : cut_faces) {
         Eigen::Matrix3d system;
         system << to - from, f[0] - f[1], f[0] - f[2];
         const Vec3 tuw = system.fullPivLu().solve(f[0] - from);
-        crosses = crosses || (tuw[0] > 0 && tuw[0] < 1 && tuw[1] >= 0 && tuw[2] >= 0 && tuw[1] + tuw[2] <= 1);
+        crossings += (tuw[0] > 0 && tuw[0] < 1 && tuw[1] >= 0 && tuw[2] >= 0 && tuw[1] + tuw[2] <= 1) ? 1 : 0;
       }
-      scanned += crosses ? 1 : 0;
+      scanned += crossings % 2;
     }
     EXPECT_EQ(naive, scanned);
   }

@@ -171,6 +171,22 @@ TEST(FrontSurface, AStraightBladeThroughASphereLeavesTwoClosedCapsAfterEverySamp
   const double discretisation = 1 - whole / (4 * std::numbers::pi / 3);  // the polyhedron's missing volume
   EXPECT_NEAR(parts[0][0] / cap_volume(1.0, d), 1.0, 2 * discretisation + 0.01);
   EXPECT_NEAR(parts[0][0] + parts[1][0], whole, 1e-9 * whole);
+  // The cut faces: flagged, on the blade's plane, together twice the section's area.
+  ASSERT_EQ(surface.on_cut_face().size(), surface.triangles().size());
+  double face_area = 0;
+  for (size_t t = 0; t < surface.triangles().size(); ++t) {
+    if (!surface.on_cut_face()[t]) continue;
+    const auto& tri = surface.triangles()[t];
+    for (const int v : tri) {
+      const Vec3& x = surface.vertices()[static_cast<size_t>(v)];
+      // The blade translates, rolled: its sheet is the plane x = 0.31 + 0.05 (z + y / 70).
+      EXPECT_NEAR(x.x() - 0.05 * (x.z() + x.y() / 70), 0.31, 1e-9) << "cut-face vertex " << v << " off the blade's plane";
+    }
+    face_area += 0.5 * (surface.vertices()[static_cast<size_t>(tri[1])] - surface.vertices()[static_cast<size_t>(tri[0])])
+                           .cross(surface.vertices()[static_cast<size_t>(tri[2])] - surface.vertices()[static_cast<size_t>(tri[0])])
+                           .norm();
+  }
+  EXPECT_NEAR(face_area / (2 * std::numbers::pi * (1 - d * d)), 1.0, 2 * discretisation + 0.01);
 }
 
 // Every constraint plane faces away from its vertex's side: once the flat cut is through, the
@@ -201,6 +217,26 @@ TEST(FrontSurface, ConstraintPlanesFaceAwayFromTheirVertexsSide) {
       }
     }
   }
+  // A vertex inside a cut face (every triangle of it on the face) has the face's outward
+  // normal, which is its plane's: the side it must stay on is behind both.
+  std::vector<Vec3> normal_sum(surface.vertices().size(), Vec3::Zero());
+  std::vector<int> off_face(surface.vertices().size(), 0);
+  for (size_t t = 0; t < surface.triangles().size(); ++t) {
+    const auto& tri = surface.triangles()[t];
+    const Vec3 n = (surface.vertices()[static_cast<size_t>(tri[1])] - surface.vertices()[static_cast<size_t>(tri[0])])
+                       .cross(surface.vertices()[static_cast<size_t>(tri[2])] - surface.vertices()[static_cast<size_t>(tri[0])]);
+    for (const int v : tri) {
+      normal_sum[static_cast<size_t>(v)] += n;
+      off_face[static_cast<size_t>(v)] += surface.on_cut_face()[t] ? 0 : 1;
+    }
+  }
+  int inner = 0;
+  for (size_t v = 0; v < planes.size(); ++v) {
+    if (planes[v].size() != 1 || off_face[v] > 0) continue;
+    ++inner;
+    EXPECT_GT(normal_sum[v].normalized().dot(planes[v][0].normal), 0.99) << "vertex " << v;
+  }
+  EXPECT_GT(inner, 50);
   EXPECT_GT(base_with_planes, 20);
   EXPECT_GT(with_planes, 200);
   EXPECT_GT(checked, 1000);
