@@ -5,7 +5,8 @@
 // a moving "cutting front". The thesis reports where that breaks: slivers, bad normals and
 // the mapping failures they cause (§4.3.3, §7.1.2), with no guarantee of triangle quality.
 // This file takes another route to the same outcome, a closed 2-manifold surface that opens
-// exactly where the blade passed and stays attached to the right side:
+// exactly where the blade passed and stays attached to the right side (front_surface.hpp is
+// the thesis's route, chosen per body by the scene's efg.cut_surface):
 //
 // - The surface is the boundary of a voxel fill of the body (cubes of side `cell`, finer than
 //   the integration grid as §5.3 requires), its outer nodes snapped onto the true surface.

@@ -405,9 +405,33 @@ FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
       return held;
     }
   }
+  // What the last good sample gave, kept until this one is known to cut.
+  const bool keep = samples_.size() >= 2 && last_report_.ok();
+  std::optional<Stroke> stroke_before;
+  if (keep && stroke_) stroke_before = *stroke_;
+  std::vector<Vec3> vertices_before = std::move(vertices_);
+  std::vector<std::array<int, 3>> triangles_before = std::move(triangles_);
+  std::vector<std::vector<ConstraintPlane>> planes_before = std::move(vertex_planes_);
+  std::vector<std::uint8_t> crack_before = std::move(crack_front_), face_before = std::move(cut_face_);
   sample_t_.push_back(sample_t_.back() + moved);
   samples_.emplace_back(blade.begin(), blade.end());
   recompute(report);
+  if (!report.ok() && keep) {
+    // This sample cannot be cut (the problems say why): it is left out, and the surface
+    // stays as the last good sample left it rather than going back to the stroke's base.
+    samples_.pop_back();
+    sample_t_.pop_back();
+    if (stroke_before) *stroke_ = std::move(*stroke_before);
+    vertices_ = std::move(vertices_before);
+    triangles_ = std::move(triangles_before);
+    vertex_planes_ = std::move(planes_before);
+    crack_front_ = std::move(crack_before);
+    cut_face_ = std::move(face_before);
+    FrontCutReport held = last_report_;
+    held.problems = report.problems;
+    held.samples_held = 1;
+    return held;
+  }
   last_report_ = report;
   if (report.ok() && report.crossings == 0 && report.tips == 0) {
     // Nothing touched: the stroke starts again from this sample.

@@ -1,9 +1,10 @@
 // The thesis's explicit surface cut (seed 004 §2.5, Fig. 4.3-4.4): a closed triangle mesh in
 // the rest configuration, split where the blade's sweep crosses it, its exposed cut face
 // meshed behind a moving front. This is the design issue 4 asks for; CutSurface
-// (cut_surface.hpp) is the voxel design the world uses today. This file is the first stage:
-// one stroke at a time, tested on its own (tests/unit/test_cut_front_surface.cpp), not yet
-// wired into the world or mapped onto the volume (see docs/status.md, "Cutting").
+// (cut_surface.hpp) is the voxel design, the scenes' default. A body takes this one with
+// efg.cut_surface "front": the world feeds it the blade mapped to rest at each moment of the
+// sweep, ends a stroke when the blade disengages or the front has left the body, and maps its
+// vertices by front_mapping.hpp (what is left to do: docs/status.md, "Cutting").
 //
 // A stroke is a sequence of blade samples (polylines at rest, same point count). Between two
 // samples each blade segment sweeps a quad, split into two triangles; together they form the
@@ -37,10 +38,13 @@
 // shares four points sees the same sign and the ends of every triangle pair up: the
 // crossings and tips are consistent by construction, whatever the rounding.
 //
-// What this stage does not do, and reports (FrontCutReport::problems, never silent): a base
-// triangle with more than two cut ends in one stroke (the sweep turning within one triangle,
-// or crossing its own earlier part), a base edge crossed twice in one stroke, a stroke
-// starting with the blade inside the body, chords that cross in the (s, t) plane.
+// What it does not do yet, and reports (FrontCutReport::problems, never silent; the surface
+// then stays as it was before the stroke, closed): a base triangle with more than two cut
+// ends in one stroke (the sweep turning within one triangle, or crossing its own earlier
+// part), a base edge crossed twice in one stroke, a stroke starting with the blade inside the
+// body (a cut continued from an earlier stroke's front), chords that cross in the (s, t)
+// plane. Each call triangulates the whole cut face of the stroke again (what is behind the
+// front comes out the same, but the cost grows with the face: docs/status.md has figures).
 #pragma once
 
 #include "physics/core/model.hpp"
@@ -70,9 +74,10 @@ struct FrontCutReport {
   int front_vertices = 0;      // transient vertices on the front and the other inside boundary
   int lattice_vertices = 0;    // fixed vertices inside the cut face
   bool front_in_body = false;  // part of the last sample (the front) is inside the body
-  int samples_held = 0;        // 1: this sample went back over the cut and was left out
+  int samples_held = 0;        // 1: this sample was left out (back over the cut, or a problem)
   // What the cut could not handle (each an explanation naming the triangle or edge). When
-  // not empty the surface returned is the base mesh, uncut.
+  // not empty the sample was left out (samples_held): the surface stays as the stroke's last
+  // good sample left it, or the base mesh when there is none.
   std::vector<std::string> problems;
   bool ok() const { return problems.empty(); }
 };

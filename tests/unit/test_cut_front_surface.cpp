@@ -404,6 +404,31 @@ TEST(FrontSurface, ABladeThatGoesBackOverItsCutLeavesTheSurfaceAsIfItHadNot) {
   EXPECT_GT(held, 10);
 }
 
+TEST(FrontSurface, ASampleItCannotCutIsLeftOutAndTheCutSoFarStays) {
+  const Mesh mesh = icosphere(3, 1.0);
+  const double whole = volume(mesh.vertices, mesh.triangles);
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.08);
+  const auto blade_at = [](double z, double turn) {
+    const Eigen::AngleAxisd r(turn, Vec3::UnitZ());
+    return std::vector<Vec3>{r * Vec3(0.1, -1.4, z), r * Vec3(0.12, 1.4, z)};
+  };
+  for (int k = 0; k < 14; ++k) ASSERT_TRUE(surface.advance(blade_at(1.3 - 0.1 * k, 0)).ok());
+  const auto triangles = surface.triangles();
+  const auto vertices = surface.vertices();
+  // Turned a quarter round: the new strip crosses the stroke's own sheet.
+  const FrontCutReport report = surface.advance(blade_at(1.3 - 0.1 * 14, 1.5));
+  ASSERT_FALSE(report.ok());
+  EXPECT_EQ(report.samples_held, 1);
+  EXPECT_EQ(surface.triangles(), triangles);
+  EXPECT_EQ(surface.vertices(), vertices);
+  expect_closed_with_volume(surface, whole, "after the sample left out");
+  // The blade comes back in line and goes on: the stroke carries on from its last good sample.
+  const FrontCutReport on = surface.advance(blade_at(1.3 - 0.1 * 14, 0));
+  ASSERT_TRUE(on.ok()) << on.problems.front();
+  EXPECT_GT(surface.triangles().size(), triangles.size());
+  expect_closed_with_volume(surface, whole, "going on");
+}
+
 TEST(FrontSurface, ReportsWhatItCannotCutInsteadOfOpeningTheSurface) {
   const Mesh mesh = icosphere(3, 1.0);
   const double whole = volume(mesh.vertices, mesh.triangles);
