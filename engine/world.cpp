@@ -655,11 +655,7 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
         changed[static_cast<std::size_t>(element)] != 0)
       remap.push_back(v);
   }
-  const auto stride = static_cast<std::size_t>(embedding.stride);
-  embedding.elements.resize(static_cast<std::size_t>(kept));
-  embedding.row_lengths.resize(static_cast<std::size_t>(kept));
-  embedding.particles.resize(static_cast<std::size_t>(kept) * stride);
-  embedding.weights.resize(static_cast<std::size_t>(kept) * stride);
+  physics::fit_rows(embedding, kept, embedding.stride);
   // The cut faces, each once (both sides' copies lie on it, with the same corners).
   std::vector<std::array<physics::Vec3, 3>> faces;
   {

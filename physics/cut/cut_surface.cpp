@@ -1053,8 +1053,9 @@ class VertexMapper {
   std::vector<Vec3> positions_;
 };
 
-// Rows sized for `vertices` at the model's stride; existing rows are kept (moved to the new
-// stride if it changed).
+
+}  // namespace
+
 void fit_rows(SurfaceEmbedding& embedding, int vertices, int stride) {
   if (embedding.stride != stride && !embedding.elements.empty()) {
     std::vector<int> particles(embedding.elements.size() * static_cast<size_t>(stride), 0);
@@ -1075,8 +1076,6 @@ void fit_rows(SurfaceEmbedding& embedding, int vertices, int stride) {
   embedding.particles.resize(static_cast<size_t>(vertices) * stride, 0);
   embedding.weights.resize(static_cast<size_t>(vertices) * stride, 0.0);
 }
-
-}  // namespace
 
 SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& surface, SurfaceMappingReport& report) {
   SurfaceEmbedding embedding;

@@ -248,6 +248,9 @@ struct SurfaceMappingReport {
   int wrong_side = 0;         // chosen point across the cut from the vertex's anchor
 };
 SurfaceEmbedding map_surface(const CorotationalEfg& model, const CutSurface& surface, SurfaceMappingReport& report);
+// Rows sized for `vertices` at `stride`: the existing ones kept (moved to the new stride if
+// it changed), those beyond `vertices` dropped, new ones zero.
+void fit_rows(SurfaceEmbedding& embedding, int vertices, int stride);
 // Keeping a mapping up to date across cuts, in place. Vertex indices are stable (file
 // comment), so a row is reused by index: a used index keeps its row when its key, rest
 // position and anchor are those of the last mapping, its integration point's neighbourhood

@@ -1,5 +1,7 @@
 #include "physics/cut/front_mapping.hpp"
 
+#include "physics/cut/cut_surface.hpp"
+
 #include "physics/efg/mls.hpp"
 
 #include <algorithm>
@@ -250,26 +252,6 @@ void check_surface(const std::vector<Vec3>& vertices, const std::vector<std::arr
       if (v < 0 || v >= n) fail("triangle " + std::to_string(t) + " has vertex " + std::to_string(v) + ", out of range [0, " + std::to_string(n) + ")");
 }
 
-// Rows sized for `vertices` at `stride`, the existing ones kept (moved if the stride grew).
-void fit_rows(SurfaceEmbedding& embedding, int vertices, int stride) {
-  if (embedding.stride != stride && !embedding.elements.empty()) {
-    std::vector<int> particles(embedding.elements.size() * static_cast<size_t>(stride), 0);
-    std::vector<double> weights(particles.size(), 0.0);
-    for (size_t v = 0; v < embedding.elements.size(); ++v) {
-      const auto from = static_cast<std::ptrdiff_t>(v * static_cast<size_t>(embedding.stride));
-      const auto to = static_cast<std::ptrdiff_t>(v * static_cast<size_t>(stride));
-      std::copy_n(embedding.particles.begin() + from, embedding.row_lengths[v], particles.begin() + to);
-      std::copy_n(embedding.weights.begin() + from, embedding.row_lengths[v], weights.begin() + to);
-    }
-    embedding.particles.swap(particles);
-    embedding.weights.swap(weights);
-  }
-  embedding.stride = stride;
-  embedding.elements.resize(static_cast<size_t>(vertices), 0);
-  embedding.row_lengths.resize(static_cast<size_t>(vertices), 0);
-  embedding.particles.resize(static_cast<size_t>(vertices) * stride, 0);
-  embedding.weights.resize(static_cast<size_t>(vertices) * stride, 0.0);
-}
 
 bool segment_crosses_triangle(const Vec3& p, const Vec3& q, const std::array<Vec3, 3>& t) {
   const Vec3 m = (t[1] - t[0]).cross(t[2] - t[0]);

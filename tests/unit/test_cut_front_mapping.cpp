@@ -7,6 +7,8 @@
 #include "physics/cut/front_mapping.hpp"
 #include "physics/cut/volume_cut.hpp"
 
+#include "tests/unit/icosphere.hpp"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -27,45 +29,12 @@ using namespace incise::physics;
 
 namespace {
 
-struct Mesh {
-  std::vector<Vec3> vertices;
-  std::vector<std::array<int, 3>> triangles;
-};
+using Mesh = incise::testing::SphereMesh;
 
 // An icosahedron subdivided `levels` times onto the sphere of radius `radius` about the
 // origin, turned so that no vertex lies on a grid plane or on the blade's plane.
 Mesh ball_surface(int levels, double radius) {
-  const double g = (1 + std::sqrt(5.0)) / 2;
-  Mesh mesh;
-  mesh.vertices = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
-                   {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
-  mesh.triangles = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-                    {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
-                    {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
-  for (Vec3& v : mesh.vertices) v.normalize();
-  for (int level = 0; level < levels; ++level) {
-    std::map<std::pair<int, int>, int> halves;
-    const auto half = [&](int a, int b) {
-      const auto key = std::minmax(a, b);
-      const auto [it, added] = halves.try_emplace(key, static_cast<int>(mesh.vertices.size()));
-      if (added) mesh.vertices.push_back((mesh.vertices[static_cast<size_t>(a)] + mesh.vertices[static_cast<size_t>(b)]).normalized());
-      return it->second;
-    };
-    std::vector<std::array<int, 3>> finer;
-    finer.reserve(4 * mesh.triangles.size());
-    for (const auto& t : mesh.triangles) {
-      const int ab = half(t[0], t[1]), bc = half(t[1], t[2]), ca = half(t[2], t[0]);
-      finer.push_back({t[0], ab, ca});
-      finer.push_back({t[1], bc, ab});
-      finer.push_back({t[2], ca, bc});
-      finer.push_back({ab, bc, ca});
-    }
-    mesh.triangles.swap(finer);
-  }
-  const Eigen::Matrix3d turn =
-      (Eigen::AngleAxisd(0.7, Vec3::UnitZ()) * Eigen::AngleAxisd(0.4, Vec3::UnitY())).toRotationMatrix();
-  for (Vec3& v : mesh.vertices) v = radius * (turn * v);
-  return mesh;
+  return incise::testing::icosphere(levels, radius, (Eigen::AngleAxisd(0.7, Vec3::UnitZ()) * Eigen::AngleAxisd(0.4, Vec3::UnitY())).toRotationMatrix());
 }
 
 EfgSettings settings_with(double spacing) {

@@ -6,6 +6,8 @@
 // behind the front stays put.
 #include "physics/cut/front_surface.hpp"
 
+#include "tests/unit/icosphere.hpp"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -23,45 +25,13 @@ using namespace incise::physics;
 
 namespace {
 
-struct Mesh {
-  std::vector<Vec3> vertices;
-  std::vector<std::array<int, 3>> triangles;
-};
+using Mesh = incise::testing::SphereMesh;
 
 // A unit icosphere (subdivided icosahedron, `levels` times), turned by a fixed rotation so
 // that no vertex lies on the blade's planes below, then scaled by `radius`.
 Mesh icosphere(int levels, double radius) {
-  const double g = (1 + std::sqrt(5.0)) / 2;
-  Mesh mesh;
-  mesh.vertices = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
-                   {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
-  mesh.triangles = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-                    {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
-                    {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
-  for (Vec3& v : mesh.vertices) v.normalize();
-  for (int level = 0; level < levels; ++level) {
-    std::map<std::pair<int, int>, int> middle;
-    const auto mid = [&](int a, int b) {
-      const std::pair key{std::min(a, b), std::max(a, b)};
-      if (auto it = middle.find(key); it != middle.end()) return it->second;
-      mesh.vertices.push_back((mesh.vertices[static_cast<size_t>(a)] + mesh.vertices[static_cast<size_t>(b)]).normalized());
-      return middle[key] = static_cast<int>(mesh.vertices.size()) - 1;
-    };
-    std::vector<std::array<int, 3>> finer;
-    for (const auto& t : mesh.triangles) {
-      const int ab = mid(t[0], t[1]), bc = mid(t[1], t[2]), ca = mid(t[2], t[0]);
-      finer.push_back({t[0], ab, ca});
-      finer.push_back({t[1], bc, ab});
-      finer.push_back({t[2], ca, bc});
-      finer.push_back({ab, bc, ca});
-    }
-    mesh.triangles = finer;
-  }
-  const Eigen::Matrix3d turn =
-      (Eigen::AngleAxisd(0.3, Vec3::UnitX()) * Eigen::AngleAxisd(0.2, Vec3::UnitY()) * Eigen::AngleAxisd(0.1, Vec3::UnitZ()))
-          .toRotationMatrix();
-  for (Vec3& v : mesh.vertices) v = radius * (turn * v);
-  return mesh;
+  return incise::testing::icosphere(levels, radius, (Eigen::AngleAxisd(0.3, Vec3::UnitX()) * Eigen::AngleAxisd(0.2, Vec3::UnitY()) * Eigen::AngleAxisd(0.1, Vec3::UnitZ()))
+          .toRotationMatrix());
 }
 
 double volume(const std::vector<Vec3>& v, const std::vector<std::array<int, 3>>& triangles) {
