@@ -242,6 +242,21 @@ class Triangulator {
   void legalize(int p);
   void recover_constraint(int index);
   bool find_edge(int a, int b, int& t, int& i) const;
+  // Visits the triangles around vertex a in turn, each with a's corner k in it, until
+  // `visit(triangle, k)` returns true (then true) or the fan closes or ends (false).
+  template <typename Visit>
+  bool around(int a, const Visit& visit) const {
+    const int first = vertex_triangle_[a];
+    int current = first;
+    do {
+      const Triangle& tri = triangles_[current];
+      int k = 0;
+      while (tri.vertex[k] != a) ++k;
+      if (visit(current, k)) return true;
+      current = tri.neighbour[next(k)];
+    } while (current >= 0 && current != first);
+    return false;
+  }
   void mark_constraint(int t, int i, int index);
   void classify();
   void restore_delaunay();
@@ -533,20 +548,12 @@ void Triangulator::throw_point_on_edge(int point, int index) const {
 }
 
 bool Triangulator::find_edge(int a, int b, int& t, int& i) const {
-  const int first = vertex_triangle_[a];
-  int current = first;
-  do {
-    const Triangle& tri = triangles_[current];
-    int k = 0;
-    while (tri.vertex[k] != a) ++k;
-    if (tri.vertex[next(k)] == b) {
-      t = current;
-      i = prev(k);
-      return true;
-    }
-    current = tri.neighbour[next(k)];
-  } while (current >= 0 && current != first);
-  return false;
+  return around(a, [&](int current, int k) {
+    if (triangles_[current].vertex[next(k)] != b) return false;
+    t = current;
+    i = prev(k);
+    return true;
+  });
 }
 
 void Triangulator::mark_constraint(int t, int i, int index) {
@@ -564,31 +571,28 @@ void Triangulator::recover_constraint(int index) {
   int e = -1;
   int left = -1;
   int right = -1;
-  {
-    const int first = vertex_triangle_[a];
-    int current = first;
-    do {
-      const Triangle& tri = triangles_[current];
-      int k = 0;
-      while (tri.vertex[k] != a) ++k;
-      const int x = tri.vertex[next(k)];
-      const int y = tri.vertex[prev(k)];
-      if (x == b) {
-        mark_constraint(current, prev(k), index);
-        return;
-      }
-      const double side_x = orient(a, b, x);
-      if (side_x == 0.0 && beyond_along(a, b, x)) throw_point_on_edge(x, index);
-      if (side_x < 0.0 && orient(a, b, y) > 0.0) {
-        t = current;
-        e = k;
-        right = x;
-        left = y;
-        break;
-      }
-      current = tri.neighbour[next(k)];
-    } while (current != first);
-  }
+  bool joined = false;
+  around(a, [&](int current, int k) {
+    const Triangle& tri = triangles_[current];
+    const int x = tri.vertex[next(k)];
+    const int y = tri.vertex[prev(k)];
+    if (x == b) {
+      mark_constraint(current, prev(k), index);
+      joined = true;
+      return true;
+    }
+    const double side_x = orient(a, b, x);
+    if (side_x == 0.0 && beyond_along(a, b, x)) throw_point_on_edge(x, index);
+    if (side_x < 0.0 && orient(a, b, y) > 0.0) {
+      t = current;
+      e = k;
+      right = x;
+      left = y;
+      return true;
+    }
+    return false;
+  });
+  if (joined) return;
   if (t < 0) throw std::logic_error("triangulate_region: no triangle at the start of " + edge_name(index, region_.boundary[index]));
 
   // Walk to b, collecting the crossed edges; a boundary edge crossed or a point met is an error.
