@@ -485,7 +485,8 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
                           {"watertight_after_every_event", totals.worst_boundary_edges == 0 && totals.worst_nonmanifold_edges == 0},
                           {"pinches_closed", totals.pinches_closed},
                           {"front_problems", totals.front_problems},
-                          {"first_front_problem", totals.first_front_problem}};
+                          {"first_front_problem", totals.first_front_problem},
+                          {"front_folded_edges", totals.front_folded_edges}};
     metrics["mapping"] = {{"vertices_remapped", totals.vertices_remapped},
                           {"relaxed_fallbacks", totals.relaxed_fallbacks},
                           {"wrong_side", totals.wrong_side}};

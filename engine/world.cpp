@@ -795,7 +795,10 @@ void World::cut_body(Body& body, StepStats& stats) {
       if (!open) {
         map_at(j, f0, rest_a, far_a);
         open = true;
-        if (body.front_surface) moments.emplace_back(rest_a, j > 0 || !body.front_engaged);
+        // A stroke going on from the last step: this pose is its last sample already (the
+        // same blade in the same body, only mapped to rest again after the step's topology
+        // change, which moves it a little and would make the sheet waver); not sampled again.
+        if (body.front_surface && (j > 0 || !body.front_engaged)) moments.emplace_back(rest_a, true);
       }
       const double relative = moved(j) + body_motion * (f1 - f0);
       const int pieces_in_time = std::max(1, static_cast<int>(std::ceil(relative / (0.5 * a))));
@@ -832,6 +835,7 @@ void World::cut_body(Body& body, StepStats& stats) {
     for (const auto& [blade_at_rest, starts_run] : moments) {
       if (starts_run && front.stroke_samples() > 1) {
         front.end_stroke();
+        body.front_stroke_folds = 0;
         ++faces;
       }
       physics::FrontCutReport cut;
@@ -842,16 +846,22 @@ void World::cut_body(Body& body, StepStats& stats) {
         // stroke ends where it was, and this sample starts the next one.
         cut.problems.push_back(error.what());
         front.end_stroke();
+        body.front_stroke_folds = 0;
         if (std::all_of(blade_at_rest.begin(), blade_at_rest.end(), [](const physics::Vec3& p) { return p.allFinite(); }))
           front.advance(blade_at_rest);
       }
+      cut_totals_.front_folded_edges += std::max(0, cut.folded_edges - body.front_stroke_folds);
+      body.front_stroke_folds = cut.folded_edges;
       if (!cut.ok()) {
         cut_totals_.front_problems++;
         if (cut_totals_.first_front_problem.empty())
           cut_totals_.first_front_problem = "step " + std::to_string(steps_ + 1) + ": " + cut.problems.front();
       }
       if (cut.crossings + cut.tips > 0) ++faces;
-      if (cut.ok() && cut.crossings > 0 && !cut.front_in_body) front.end_stroke();
+      if (cut.ok() && cut.crossings > 0 && !cut.front_in_body) {
+        front.end_stroke();
+        body.front_stroke_folds = 0;
+      }
     }
     body.front_engaged = active.back() != 0;
   }

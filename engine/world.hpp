@@ -70,6 +70,7 @@ struct Body {
   std::unique_ptr<physics::FrontSurface> front_surface;
   std::unique_ptr<physics::RestCut> front_rest_cut;
   std::vector<std::size_t> front_plane_counts;
+  int front_stroke_folds = 0;  // folded_edges of the stroke's last report
   bool front_engaged = false;  // the blade was engaged at the end of the last step tested
   int front_mapped_base = 0;   // the surface's base vertex count at the last mapping
   std::vector<int> front_blade_pieces;  // the blade's resampling, per segment, kept for the strokes
@@ -157,10 +158,12 @@ struct CutTotals {
   int worst_boundary_edges = 0;   // over every cut event
   int worst_nonmanifold_edges = 0;
   long pinches_closed = 0;
-  // efg.cut_surface "front": the stroke samples its stage could not cut (the surface then
-  // stays as it was before the stroke, closed), and the first such problem in words.
+  // efg.cut_surface "front": the stroke samples its stage could not cut (left out: the
+  // surface stays as the stroke's last good sample left it, closed), and the first such
+  // problem in words.
   long front_problems = 0;
   std::string first_front_problem;
+  long front_folded_edges = 0;  // edges a stroke's sheet crossed twice, left uncut (front_surface.hpp)
 };
 
 struct ToolState {

@@ -303,6 +303,7 @@ struct FrontSurface::Stroke {
   std::vector<EdgeCut> cuts;
   std::vector<int> cut_edges;  // the base edge of each cut
   std::vector<std::string> problems;  // found in the fixed part, kept for the stroke
+  int folded_edges = 0;               // crossings cancelled by a second one (see recompute)
   // Hits of the outline's fixed segments: the first sample's, and each interval's segment of
   // the far end's path (first to last) and the near end's (last to first).
   std::vector<std::vector<OutlineHit>> first_sample, far_end, near_end;
@@ -503,8 +504,27 @@ void FrontSurface::recompute(FrontCutReport& report) {
           const int a = base_->edges.ends[static_cast<size_t>(e)][0], b = base_->edges.ends[static_cast<size_t>(e)][1];
           const auto hit = segment_crosses(points, a, b, id[0], id[1], id[2]);
           if (!hit) return;
-          if (stroke.edge_cut[static_cast<size_t>(e)] >= 0) {
-            stroke.problems.push_back("base edge (" + std::to_string(a) + ", " + std::to_string(b) + ") is crossed twice by one stroke");
+          if (const int earlier = stroke.edge_cut[static_cast<size_t>(e)]; earlier >= 0) {
+            const EdgeCut& first = stroke.cuts[static_cast<size_t>(earlier)];
+            const Vec2 st = hit->weights[0] * st_of_id(id[0]) + hit->weights[1] * st_of_id(id[1]) + hit->weights[2] * st_of_id(id[2]);
+            const Vec3 point = points[a] + hit->along * (points[b] - points[a]);
+            if (first.lower_on_plus == (hit->p_sign < 0) || (st - first.st).norm() > front_width_ + 2 * (point - first.point).norm()) {
+              // Crossed again the same way, or by a part of the sheet far from the first
+              // crossing's (farther on the sheet than in space: the sweep turning back across
+              // its own cut), which this stage does not cut.
+              stroke.problems.push_back("base edge (" + std::to_string(a) + ", " + std::to_string(b) + ") is crossed twice by one stroke");
+              return;
+            }
+            // Crossed again the other way, by a nearby part of the sheet: the sheet at rest
+            // folds back over the edge (where the blade's mapping to rest wavers). Both ends are on one side again and the edge is not cut; what the two
+            // crossings cut out of the sheet between them is a sliver as wide as the fold, and
+            // the triangles around it keep an even count of cut ends.
+            stroke.cuts.erase(stroke.cuts.begin() + earlier);
+            stroke.cut_edges.erase(stroke.cut_edges.begin() + earlier);
+            stroke.edge_cut[static_cast<size_t>(e)] = -1;
+            for (size_t c = static_cast<size_t>(earlier); c < stroke.cut_edges.size(); ++c)
+              stroke.edge_cut[static_cast<size_t>(stroke.cut_edges[c])] = static_cast<int>(c);
+            ++stroke.folded_edges;
             return;
           }
           EdgeCut cut;
@@ -522,6 +542,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
     }
   stroke.intervals_searched = intervals;
   report.problems = stroke.problems;
+  report.folded_edges = stroke.folded_edges;
   std::vector<EdgeCut> cuts = stroke.cuts;  // this call's copy: its output vertices
   const std::vector<int>& edge_cut = stroke.edge_cut;
   const EdgeTable& edges = base_->edges;

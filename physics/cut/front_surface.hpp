@@ -18,8 +18,10 @@
 // base): what is behind the front does not depend on the front, so it comes out the same at
 // every call, and only the front's part moves (the thesis's transient vertices):
 // - Crossings: a base edge crossed by the sheet gets a pair of coincident vertices, one for
-//   each side (Fig. 4.3); a base triangle crossed by the sheet's boundary holds a tip, one
-//   vertex where the two sides meet.
+//   each side (Fig. 4.3); an edge crossed again the other way by a nearby part of the sheet
+//   (within w plus twice the two crossings' distance in space, in (s, t): the sheet at rest
+//   folds back over it, where the blade's mapping to rest wavers) is left uncut, a third crossing cuts it again (FrontCutReport::folded_edges); a base triangle crossed by the sheet's boundary holds a
+//   tip, one vertex where the two sides meet.
 // - Chords: the sheet crosses a base triangle along the straight segment between its two cut
 //   ends. Two crossings: the triangle is split three ways; a crossing and a tip: four ways
 //   around the tip, which moves with the blade until it crosses the next edge; two tips (a
@@ -38,12 +40,12 @@
 // shares four points sees the same sign and the ends of every triangle pair up: the
 // crossings and tips are consistent by construction, whatever the rounding.
 //
-// What it does not do yet, and reports (FrontCutReport::problems, never silent; the surface
-// then stays as it was before the stroke, closed): a base triangle with more than two cut
-// ends in one stroke (the sweep turning within one triangle, or crossing its own earlier
-// part), a base edge crossed twice in one stroke, a stroke starting with the blade inside the
-// body (a cut continued from an earlier stroke's front), chords that cross in the (s, t)
-// plane. Each call triangulates the whole cut face of the stroke again (what is behind the
+// What it does not do yet, and reports (FrontCutReport::problems, never silent; the sample
+// is left out and the surface stays as the last good sample left it, closed): a base
+// triangle with more than two cut ends in one stroke (the sweep turning within one triangle,
+// or crossing its own earlier part), a base edge crossed twice otherwise (the sweep
+// passing over it again), a stroke starting with the blade inside the body (a cut
+// continued from an earlier stroke's front), chords that cross in the (s, t) plane. Each call triangulates the whole cut face of the stroke again (what is behind the
 // front comes out the same, but the cost grows with the face: docs/status.md has figures).
 #pragma once
 
@@ -75,6 +77,9 @@ struct FrontCutReport {
   int lattice_vertices = 0;    // fixed vertices inside the cut face
   bool front_in_body = false;  // part of the last sample (the front) is inside the body
   int samples_held = 0;        // 1: this sample was left out (back over the cut, or a problem)
+  // Base edges the stroke's sheet crossed twice (it folds back over them at rest): left uncut,
+  // their two crossings cancelling (an odd count would cut them once).
+  int folded_edges = 0;
   // What the cut could not handle (each an explanation naming the triangle or edge). When
   // not empty the sample was left out (samples_held): the surface stays as the stroke's last
   // good sample left it, or the base mesh when there is none.
