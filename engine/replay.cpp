@@ -486,7 +486,8 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
                           {"pinches_closed", totals.pinches_closed},
                           {"front_problems", totals.front_problems},
                           {"first_front_problem", totals.first_front_problem},
-                          {"front_folded_edges", totals.front_folded_edges}};
+                          {"front_folded_edges", totals.front_folded_edges},
+                          {"front_strokes_carried_through", totals.front_strokes_carried_through}};
     metrics["mapping"] = {{"vertices_remapped", totals.vertices_remapped},
                           {"relaxed_fallbacks", totals.relaxed_fallbacks},
                           {"wrong_side", totals.wrong_side}};

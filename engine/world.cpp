@@ -714,10 +714,35 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   stats.ms_checks += ms_since(start);
 }
 
+void World::end_front_stroke(Body& body, StepStats& stats) {
+  // The blade disengaged or left the body's box: the stroke ends now rather than when the
+  // next one begins, its front carried through if it only stopped short at rest
+  // (FrontSurface::end_stroke).
+  body.front_engaged = false;
+  physics::FrontSurface& front = *body.front_surface;
+  if (front.stroke_samples() == 0) return;
+  const auto start = Clock::now();
+  const bool carried = front.end_stroke(front.front_width());
+  body.front_stroke_folds = 0;
+  if (!carried) return;  // the surface is the one shown (its stroke's vertices became base ones)
+  cut_totals_.front_strokes_carried_through++;
+  const std::vector<std::uint8_t> unchanged(static_cast<std::size_t>(body.efg->element_count()), 0);
+  const auto& rest = body.efg->rest_positions();
+  physics::Vec3 lo = physics::Vec3::Constant(1e300), hi = physics::Vec3::Constant(-1e300);
+  for (Eigen::Index p = 0; p < rest.size() / 3; ++p) lo = lo.cwiseMin(rest.segment<3>(3 * p)), hi = hi.cwiseMax(rest.segment<3>(3 * p));
+  rebuild_front_surface(body, lo, hi, unchanged, false, stats);
+  stats.ms_topology += ms_since(start);
+  stats.cut_event = true;
+  cut_totals_.events++;
+}
+
 void World::cut_body(Body& body, StepStats& stats) {
   if (!body.cutter || !blade()) return;
   const auto& active = tool_.blade_active;
-  if (std::find(active.begin(), active.end(), 1) == active.end()) return;
+  if (std::find(active.begin(), active.end(), 1) == active.end()) {
+    if (body.front_surface) end_front_stroke(body, stats);
+    return;
+  }
   // Nothing to test when the sweep's box misses the body's (with a particle spacing's margin).
   physics::Vec3 lo = physics::Vec3::Constant(1e300), hi = physics::Vec3::Constant(-1e300);
   for (const auto& pose : tool_.blade_poses)
@@ -729,7 +754,10 @@ void World::cut_body(Body& body, StepStats& stats) {
   }
   const double margin = 2 * body.efg->spacing();
   for (int axis = 0; axis < 3; ++axis)
-    if (lo[axis] > body_hi[axis] + margin || hi[axis] < body_lo[axis] - margin) return;
+    if (lo[axis] > body_hi[axis] + margin || hi[axis] < body_lo[axis] - margin) {
+      if (body.front_surface) end_front_stroke(body, stats);
+      return;
+    }
 
   stats.cut_tested = true;
   auto topology_start = Clock::now();
@@ -834,7 +862,7 @@ void World::cut_body(Body& body, StepStats& stats) {
     physics::FrontSurface& front = *body.front_surface;
     for (const auto& [blade_at_rest, starts_run] : moments) {
       if (starts_run && front.stroke_samples() > 1) {
-        front.end_stroke();
+        if (front.end_stroke(front.front_width())) cut_totals_.front_strokes_carried_through++;
         body.front_stroke_folds = 0;
         ++faces;
       }

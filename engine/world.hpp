@@ -164,6 +164,7 @@ struct CutTotals {
   long front_problems = 0;
   std::string first_front_problem;
   long front_folded_edges = 0;  // edges a stroke's sheet crossed twice, left uncut (front_surface.hpp)
+  long front_strokes_carried_through = 0;  // strokes whose front was carried out of the body at their end
 };
 
 struct ToolState {
@@ -226,6 +227,7 @@ class World {
   // detect_cuts -> apply_topology for one body (seed 004 §2.7): CCD of the step's blade
   // sweep against its links, re-selection, the cut surface and its mapping.
   void cut_body(Body& body, StepStats& stats);
+  void end_front_stroke(Body& body, StepStats& stats);
   // dirty_lo/hi: rest box around what the cut changed (for the linked-across check);
   // changed: per element, re-selected;
   // surface_changed: cube faces were cut (else only the mapping is redone); fixed_changed:

@@ -445,7 +445,33 @@ FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
   return report;
 }
 
-void FrontSurface::end_stroke() {
+bool FrontSurface::end_stroke(double reach) {
+  if (!(reach >= 0) || !std::isfinite(reach))
+    throw std::invalid_argument("FrontSurface::end_stroke: reach must be finite and not negative, got " + std::to_string(reach));
+  bool carried = false;
+  if (reach > 0 && samples_.size() >= 2 && last_report_.ok() && last_report_.front_in_body) {
+    const std::vector<Vec3> last = samples_.back(), before = samples_[samples_.size() - 2];
+    double mean = 0;
+    for (size_t i = 0; i < last.size(); ++i) mean += (last[i] - before[i]).norm();
+    mean /= static_cast<double>(last.size());
+    if (mean > 0) {
+      std::vector<Vec3> on(last.size());
+      for (size_t i = 0; i < last.size(); ++i) on[i] = last[i] + (reach / mean) * (last[i] - before[i]);
+      const FrontCutReport through = advance(on);
+      if (through.samples_held == 0 && through.ok() && !through.front_in_body && samples_.size() >= 2) {
+        carried = true;
+      } else if (through.samples_held == 0 && samples_.size() >= 2 && samples_.back() == on) {
+        // Taken, but the front is still in the body: back to the last sample, cut again from
+        // the stroke's base.
+        samples_.pop_back();
+        sample_t_.pop_back();
+        stroke_.reset();
+        FrontCutReport again;
+        recompute(again);
+        last_report_ = again;
+      }
+    }
+  }
   FrontCutReport report;
   if (samples_.size() >= 2) recompute(report);
   if (report.ok() && samples_.size() >= 2) {
@@ -461,6 +487,7 @@ void FrontSurface::end_stroke() {
   samples_.clear();
   sample_t_.clear();
   blade_s_.clear();
+  return carried;
 }
 
 void FrontSurface::recompute(FrontCutReport& report) {

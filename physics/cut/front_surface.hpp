@@ -109,8 +109,14 @@ class FrontSurface {
   // differs, before anything changes.
   FrontCutReport advance(std::span<const Vec3> blade);
   // Ends the stroke: the surface as cut becomes the base of the next one (its front stays
-  // where it is, a crack that closes inside the body).
-  void end_stroke();
+  // where it is, a crack that closes inside the body). With `reach` > 0 and the front still
+  // in the body, the front is first carried on along the stroke's last motion, each blade
+  // point by `reach` on average: kept if that takes the whole front out of the body (the
+  // cut goes through), else the stroke ends where it was. This is for a blade that left the
+  // body while its image at rest, which extrapolates outside the body, stops short of the
+  // far side (the world passes w: docs/status.md, cut_torus). Returns whether it was carried
+  // through.
+  bool end_stroke(double reach = 0);
   int stroke_samples() const { return static_cast<int>(samples_.size()); }
 
   // The current surface: the base split by the stroke, with its two cut faces.

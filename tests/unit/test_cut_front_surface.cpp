@@ -188,6 +188,28 @@ TEST(FrontSurface, ASheetThatFoldsBackOverAnEdgeLeavesItUncutAndGoesOn) {
   EXPECT_NEAR(parts[0][0] / cap_volume(1.0, 0.31), 1.0, 2 * discretisation + 0.01);
 }
 
+// A stroke that ends with its front just short of the far side (the blade's image at rest
+// extrapolates outside the body) is carried through when it ends with a reach; one that
+// ends deep in the body is not.
+TEST(FrontSurface, AStrokeEndingJustShortOfTheFarSideIsCarriedThroughOneEndingDeepIsNot) {
+  const Mesh mesh = icosphere(3, 1.0);
+  const double whole = volume(mesh.vertices, mesh.triangles);
+  // The sphere's polyhedron reaches z = -0.95 or a little less on the plane x = 0.31.
+  for (const double stop : {-0.93, -0.5}) {
+    FrontSurface surface(mesh.vertices, mesh.triangles, 0.08);
+    FrontCutReport last;
+    for (double z = 1.3; z >= stop - 1e-12; z -= 0.05) last = surface.advance(std::vector<Vec3>{{0.31, -1.4, z}, {0.31, 1.4, z}});
+    ASSERT_TRUE(last.ok()) << last.problems.front();
+    ASSERT_TRUE(last.front_in_body) << "stop " << stop;
+    const bool carried = surface.end_stroke(0.08);
+    EXPECT_EQ(carried, stop < -0.9) << "stop " << stop;
+    expect_closed_with_volume(surface, whole, "stop " + std::to_string(stop));
+    EXPECT_EQ(pieces(surface.vertices(), surface.triangles()).size(), stop < -0.9 ? 2u : 1u) << "stop " << stop;
+    // The surface is the next stroke's base: its crack front is gone, cut through or not.
+    EXPECT_EQ(std::count(surface.crack_front().begin(), surface.crack_front().end(), 1), 0);
+  }
+}
+
 TEST(FrontSurface, ConstraintPlanesFaceAwayFromTheirVertexsSide) {
   const Mesh mesh = icosphere(3, 1.0);
   FrontSurface surface(mesh.vertices, mesh.triangles, 0.08);
