@@ -685,7 +685,11 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   remap.swap(merged);
   for (int v = kept; v < static_cast<int>(vertices.size()); ++v) remap.push_back(v);
   physics::FrontMappingReport mapping;
-  physics::map_front_surface(*body.efg, vertices, front.triangles(), planes, remap, embedding, mapping);
+  // Each vertex sees its point through no cut face (what wrong_side below measures), the
+  // crack front's vertices excepted.
+  const physics::CutFaceIndex face_index(*body.efg, faces);
+  physics::FrontVisibility visibility{&face_index, inset, front.crack_front()};
+  physics::map_front_surface(*body.efg, vertices, front.triangles(), planes, remap, embedding, mapping, &visibility);
   body.front_mapped_base = front.base_vertex_count();
   body.front_plane_counts.resize(planes.size());
   for (std::size_t v = 0; v < planes.size(); ++v) body.front_plane_counts[v] = planes[v].size();

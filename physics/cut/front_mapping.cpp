@@ -126,11 +126,31 @@ bool share_a_particle(const CorotationalEfg& model, int e, int f) {
   return false;
 }
 
+bool segment_crosses_triangle(const Vec3& p, const Vec3& q, const std::array<Vec3, 3>& t) {
+  const Vec3 m = (t[1] - t[0]).cross(t[2] - t[0]);
+  const double sp = (p - t[0]).dot(m), sq = (q - t[0]).dot(m);
+  if (!((sp < 0 && sq > 0) || (sp > 0 && sq < 0))) return false;
+  const Vec3 x = p + (sp / (sp - sq)) * (q - p);
+  for (int i = 0; i < 3; ++i) {
+    const Vec3& a = t[static_cast<size_t>(i)];
+    const Vec3& b = t[static_cast<size_t>((i + 1) % 3)];
+    if ((b - a).cross(x - a).dot(m) < 0) return false;
+  }
+  return true;
+}
+
+// The vertex moved inward by `inset` along its angle-weighted normal (not moved without one).
+Vec3 inset_point(const Vec3& vertex, const Vec3& normal, double inset) {
+  const double length = normal.norm();
+  return vertex - (length > 0 ? inset / length : 0.0) * normal;
+}
+
 class Mapper {
  public:
   Mapper(const CorotationalEfg& model, const std::vector<Vec3>& vertices, const std::vector<Vec3>& normals,
-         const std::vector<std::vector<ConstraintPlane>>& planes)
-      : model_(model), vertices_(vertices), normals_(normals), planes_(planes), bins_(model) {}
+         const std::vector<std::vector<ConstraintPlane>>& planes, const FrontVisibility* visibility,
+         const std::vector<Vec3>* inward)
+      : model_(model), vertices_(vertices), normals_(normals), planes_(planes), visibility_(visibility), inward_(inward), bins_(model) {}
 
   // The element for vertex v, given the elements its one-ring neighbours are mapped to (for
   // criterion 1). Sets `relaxed` if no candidate met all three criteria.
@@ -166,15 +186,21 @@ class Mapper {
       for (; checked < candidates_.size(); ++checked) {
         const auto [distance, e] = candidates_[checked];
         if (r < front_mapping_reach_rings && !(distance < bound * bound)) break;
-        if (below_planes(v, e) && below_tangent(v, e) && shares_with_neighbours(e, neighbour_elements)) return e;
+        if (below_planes(v, e) && below_tangent(v, e) && shares_with_neighbours(e, neighbour_elements) && visible(v, e)) return e;
       }
     }
     // Relaxed (§7.1.2), in the documented order, over every candidate within reach.
     relaxed = true;
     for (const auto& [distance, e] : candidates_)
-      if (below_planes(v, e) && below_tangent(v, e)) return e;
+      if (below_planes(v, e) && below_tangent(v, e) && visible(v, e)) return e;
     for (const auto& [distance, e] : candidates_)
-      if (below_planes(v, e)) return e;
+      if (below_planes(v, e) && visible(v, e)) return e;
+    if (visibility_ != nullptr) {
+      for (const auto& [distance, e] : candidates_)
+        if (visible(v, e)) return e;
+      for (const auto& [distance, e] : candidates_)
+        if (below_planes(v, e)) return e;
+    }
     if (!candidates_.empty()) return candidates_.front().second;
     int best = -1;
     double best_distance = 0;
@@ -226,6 +252,11 @@ class Mapper {
       if ((x - plane.point).dot(plane.normal) > 0) return false;
     return true;
   }
+  bool visible(int v, int e) const {
+    if (visibility_ == nullptr) return true;
+    if (static_cast<size_t>(v) < visibility_->exempt.size() && visibility_->exempt[static_cast<size_t>(v)] != 0) return true;
+    return visibility_->faces->crossings((*inward_)[static_cast<size_t>(v)], model_.element_centres()[static_cast<size_t>(e)]) % 2 == 0;
+  }
   bool shares_with_neighbours(int e, std::span<const int> neighbour_elements) const {
     for (const int f : neighbour_elements)
       if (!share_a_particle(model_, e, f)) return false;
@@ -236,6 +267,8 @@ class Mapper {
   const std::vector<Vec3>& vertices_;
   const std::vector<Vec3>& normals_;
   const std::vector<std::vector<ConstraintPlane>>& planes_;
+  const FrontVisibility* visibility_;
+  const std::vector<Vec3>* inward_;  // per vertex, its start point for visibility
   ElementBins bins_;
   std::vector<std::pair<double, int>> candidates_;
   std::vector<Vec3> positions_;
@@ -253,26 +286,16 @@ void check_surface(const std::vector<Vec3>& vertices, const std::vector<std::arr
 }
 
 
-bool segment_crosses_triangle(const Vec3& p, const Vec3& q, const std::array<Vec3, 3>& t) {
-  const Vec3 m = (t[1] - t[0]).cross(t[2] - t[0]);
-  const double sp = (p - t[0]).dot(m), sq = (q - t[0]).dot(m);
-  if (!((sp < 0 && sq > 0) || (sp > 0 && sq < 0))) return false;
-  const Vec3 x = p + (sp / (sp - sq)) * (q - p);
-  for (int i = 0; i < 3; ++i) {
-    const Vec3& a = t[static_cast<size_t>(i)];
-    const Vec3& b = t[static_cast<size_t>((i + 1) % 3)];
-    if ((b - a).cross(x - a).dot(m) < 0) return false;
-  }
-  return true;
-}
-
 }  // namespace
 
 void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                        const std::vector<std::array<int, 3>>& triangles,
                        const std::vector<std::vector<ConstraintPlane>>& planes, std::span<const int> remap,
-                       SurfaceEmbedding& embedding, FrontMappingReport& report) {
+                       SurfaceEmbedding& embedding, FrontMappingReport& report, const FrontVisibility* visibility) {
   const int n = static_cast<int>(vertices.size());
+  if (visibility != nullptr && visibility->faces == nullptr) fail("the visibility criterion has no cut faces");
+  if (visibility != nullptr && !(visibility->inset >= 0 && std::isfinite(visibility->inset)))
+    fail("the visibility criterion's inset must be finite and not negative");
   const int rows = embedding.vertex_count();
   check_surface(vertices, triangles, "map_front_surface");
   if (rows > n) fail("the embedding has " + std::to_string(rows) + " rows for " + std::to_string(n) + " vertices");
@@ -299,7 +322,13 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
   fit_rows(embedding, n, std::max(embedding.stride, model.row_stride()));
   const std::vector<Vec3> normals = area_weighted_normals(vertices, triangles);
   const OneRing ring(n, triangles);
-  Mapper mapper(model, vertices, normals, planes);
+  std::vector<Vec3> inward;
+  if (visibility != nullptr) {
+    const std::vector<Vec3> pseudo = angle_weighted_normals(vertices, triangles);
+    inward.resize(vertices.size());
+    for (size_t v = 0; v < vertices.size(); ++v) inward[v] = inset_point(vertices[v], pseudo[v], visibility->inset);
+  }
+  Mapper mapper(model, vertices, normals, planes, visibility, &inward);
 
   // listed[v]: -1 if v is not remapped, else (after the first pass) its first-pass element.
   std::vector<int> listed(static_cast<size_t>(n), -1);
@@ -309,6 +338,8 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
   const auto gather = [&](int v, bool second_pass) {
     neighbour_elements.clear();
     for (const int u : ring.of(v)) {
+      // The crack front's vertices belong to neither side: criterion 1 does not follow them.
+      if (visibility != nullptr && static_cast<size_t>(u) < visibility->exempt.size() && visibility->exempt[static_cast<size_t>(u)] != 0) continue;
       const int mark = listed[static_cast<size_t>(u)];
       if (mark < 0) {
         neighbour_elements.push_back(embedding.elements[static_cast<size_t>(u)]);
@@ -346,6 +377,54 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
   }
 }
 
+CutFaceIndex::CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<Vec3, 3>> faces)
+    : faces_(std::move(faces)), a_(model.spacing()), origin_(model.grid_origin()) {
+  for (size_t t = 0; t < faces_.size(); ++t) {
+    const auto& tri = faces_[t];
+    const Vec3 lo = tri[0].cwiseMin(tri[1]).cwiseMin(tri[2]), hi = tri[0].cwiseMax(tri[1]).cwiseMax(tri[2]);
+    const auto l = cell(lo), h = cell(hi);
+    if ((h[0] - l[0] + 1) * (h[1] - l[1] + 1) * (h[2] - l[2] + 1) > large_cells) {
+      large_.push_back(static_cast<int>(t));
+      continue;
+    }
+    for (long long k = l[2]; k <= h[2]; ++k)
+      for (long long j = l[1]; j <= h[1]; ++j)
+        for (long long i = l[0]; i <= h[0]; ++i) binned_.emplace_back(key(i, j, k), static_cast<int>(t));
+  }
+  std::sort(binned_.begin(), binned_.end());
+}
+
+std::array<long long, 3> CutFaceIndex::cell(const Vec3& p) const {
+  std::array<long long, 3> c{};
+  for (int axis = 0; axis < 3; ++axis)
+    c[static_cast<size_t>(axis)] = static_cast<long long>(std::floor(std::clamp((p[axis] - origin_[axis]) / a_, -1e6, 1e6)));
+  return c;
+}
+
+std::uint64_t CutFaceIndex::key(long long i, long long j, long long k) {
+  const auto part = [](long long x) { return static_cast<std::uint64_t>(x + (1 << 20)) & 0x1fffff; };
+  return (part(i) << 42) | (part(j) << 21) | part(k);
+}
+
+int CutFaceIndex::crossings(const Vec3& p, const Vec3& q) const {
+  int count = 0;
+  for (const int t : large_) count += segment_crosses_triangle(p, q, faces_[static_cast<size_t>(t)]) ? 1 : 0;
+  const auto l = cell(p.cwiseMin(q)), h = cell(p.cwiseMax(q));
+  seen_.clear();
+  for (long long k = l[2]; k <= h[2]; ++k)
+    for (long long j = l[1]; j <= h[1]; ++j)
+      for (long long i = l[0]; i <= h[0]; ++i) {
+        const std::uint64_t c = key(i, j, k);
+        auto it = std::lower_bound(binned_.begin(), binned_.end(), std::pair<std::uint64_t, int>(c, -1));
+        for (; it != binned_.end() && it->first == c; ++it) {
+          if (std::find(seen_.begin(), seen_.end(), it->second) != seen_.end()) continue;
+          seen_.push_back(it->second);
+          count += segment_crosses_triangle(p, q, faces_[static_cast<size_t>(it->second)]) ? 1 : 0;
+        }
+      }
+  return count;
+}
+
 int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                      const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
                      const std::vector<std::array<Vec3, 3>>& cut_triangles, double inset, std::vector<int>* which) {
@@ -357,62 +436,15 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
   }
   const int rows = std::min(embedding.vertex_count(), static_cast<int>(vertices.size()));
   const std::vector<Vec3> normals = angle_weighted_normals(vertices, triangles);
-  // The cut triangles binned on the integration grid (cell a), each in the cells its box
-  // covers; very large ones (more than `large_cells`) are tested against every segment.
-  const double a = model.spacing();
-  const Vec3 origin = model.grid_origin();
-  constexpr long long large_cells = 4096;
-  const auto cell = [&](const Vec3& p) {
-    std::array<long long, 3> c{};
-    for (int axis = 0; axis < 3; ++axis)
-      c[axis] = static_cast<long long>(std::floor(std::clamp((p[axis] - origin[axis]) / a, -1e6, 1e6)));
-    return c;
-  };
-  const auto key = [](long long i, long long j, long long k) {
-    const auto part = [](long long x) { return static_cast<std::uint64_t>(x + (1 << 20)) & 0x1fffff; };
-    return (part(i) << 42) | (part(j) << 21) | part(k);
-  };
-  std::vector<std::pair<std::uint64_t, int>> binned;
-  std::vector<int> large;
-  for (size_t t = 0; t < cut_triangles.size(); ++t) {
-    const auto& tri = cut_triangles[t];
-    const Vec3 lo = tri[0].cwiseMin(tri[1]).cwiseMin(tri[2]), hi = tri[0].cwiseMax(tri[1]).cwiseMax(tri[2]);
-    const auto l = cell(lo), h = cell(hi);
-    if ((h[0] - l[0] + 1) * (h[1] - l[1] + 1) * (h[2] - l[2] + 1) > large_cells) {
-      large.push_back(static_cast<int>(t));
-      continue;
-    }
-    for (long long k = l[2]; k <= h[2]; ++k)
-      for (long long j = l[1]; j <= h[1]; ++j)
-        for (long long i = l[0]; i <= h[0]; ++i) binned.emplace_back(key(i, j, k), static_cast<int>(t));
-  }
-  std::sort(binned.begin(), binned.end());
+  const CutFaceIndex faces(model, cut_triangles);
   int wrong = 0;
-  std::vector<int> seen;
   for (int v = 0; v < rows; ++v) {
-    const Vec3& n = normals[static_cast<size_t>(v)];
-    const double length = n.norm();
-    const Vec3 p = vertices[static_cast<size_t>(v)] - (length > 0 ? inset / length : 0.0) * n;
+    const Vec3 p = inset_point(vertices[static_cast<size_t>(v)], normals[static_cast<size_t>(v)], inset);
     const Vec3& q = model.element_centres()[static_cast<size_t>(embedding.elements[static_cast<size_t>(v)])];
     // Across means an odd number of crossings: a wavy cut face (the blade mapped to rest
     // moment by moment) can be crossed and crossed back on the way to a point on the same
     // side. `cut_triangles` must hold each face once (not both sides' coincident copies).
-    int crossings = 0;
-    for (const int t : large) crossings += segment_crosses_triangle(p, q, cut_triangles[static_cast<size_t>(t)]) ? 1 : 0;
-    const auto l = cell(p.cwiseMin(q)), h = cell(p.cwiseMax(q));
-    seen.clear();
-    for (long long k = l[2]; k <= h[2]; ++k)
-      for (long long j = l[1]; j <= h[1]; ++j)
-        for (long long i = l[0]; i <= h[0]; ++i) {
-          const std::uint64_t c = key(i, j, k);
-          auto it = std::lower_bound(binned.begin(), binned.end(), std::pair<std::uint64_t, int>(c, -1));
-          for (; it != binned.end() && it->first == c; ++it) {
-            if (std::find(seen.begin(), seen.end(), it->second) != seen.end()) continue;
-            seen.push_back(it->second);
-            crossings += segment_crosses_triangle(p, q, cut_triangles[static_cast<size_t>(it->second)]) ? 1 : 0;
-          }
-        }
-    const bool crosses = crossings % 2 == 1;
+    const bool crosses = faces.crossings(p, q) % 2 == 1;
     wrong += crosses ? 1 : 0;
     if (crosses && which) which->push_back(v);
   }

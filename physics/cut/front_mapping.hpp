@@ -11,6 +11,7 @@
 #include "physics/efg/corotational_efg.hpp"
 
 #include <array>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -46,7 +47,9 @@ struct FrontMappingReport {
 // When no candidate within reach is valid, the criteria are relaxed in this order, and the
 // vertex counted in relaxed_fallbacks: drop 1 (keep 2 and 3), then drop 2 (keep 3: the cut
 // planes are what keeps a vertex off the other side of a cut), then the nearest candidate
-// within reach, then the nearest active element of all.
+// within reach, then the nearest active element of all. With `visibility` (FrontVisibility
+// below) it is a fourth criterion, kept with 3: drop 1, drop 2, drop 3 (keep it alone), then
+// 3 alone, then the nearest.
 // The row is the MLS weights at the vertex of the chosen element's neighbourhood, with the
 // element's support widened as embed_surface does (support_factor x the farthest neighbour
 // from the vertex) so that every neighbour weighs. The embedding takes the model's row
@@ -55,10 +58,44 @@ struct FrontMappingReport {
 // index out of range, a non-finite position, the remap list not increasing or missing an
 // index at or above the row count, more rows than vertices. Throws std::runtime_error naming
 // the vertex if no MLS weights exist for it (a degenerate neighbourhood).
+struct FrontVisibility;
 void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                        const std::vector<std::array<int, 3>>& triangles,
                        const std::vector<std::vector<ConstraintPlane>>& planes, std::span<const int> remap,
-                       SurfaceEmbedding& embedding, FrontMappingReport& report);
+                       SurfaceEmbedding& embedding, FrontMappingReport& report,
+                       const FrontVisibility* visibility = nullptr);
+
+// Cut faces (rest positions, each face once) binned on the model's integration grid, for
+// counting the faces a segment crosses: its ends strictly on both sides of a face's plane,
+// the crossing inside the face or on its rim.
+class CutFaceIndex {
+ public:
+  CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<Vec3, 3>> faces);
+  int crossings(const Vec3& p, const Vec3& q) const;
+
+ private:
+  static constexpr long long large_cells = 4096;  // faces over more cells are tested against every segment
+  std::array<long long, 3> cell(const Vec3& p) const;
+  static std::uint64_t key(long long i, long long j, long long k);
+  std::vector<std::array<Vec3, 3>> faces_;
+  double a_;
+  Vec3 origin_;
+  std::vector<std::pair<std::uint64_t, int>> binned_;
+  std::vector<int> large_;
+  mutable std::vector<int> seen_;
+};
+
+// A fourth criterion for map_front_surface, the one wrong_side measures: the segment from the
+// vertex, moved inward by `inset` along its angle-weighted normal (as count_wrong_side does),
+// to the candidate's rest integration point crosses `faces` an even number of times. Vertices
+// flagged in `exempt` (the crack front's, where both sides meet) are not held to it. It is
+// kept wherever criterion 3 is when relaxing (see map_front_surface), then dropped before the
+// nearest candidate is taken.
+struct FrontVisibility {
+  const CutFaceIndex* faces = nullptr;
+  double inset = 0;
+  std::span<const std::uint8_t> exempt;
+};
 
 // How far the candidate search reaches: integration cubes up to this Chebyshev distance from
 // the vertex's cube (a candidate in ring r is at least (r - 1) a away).

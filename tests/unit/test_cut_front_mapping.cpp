@@ -330,6 +330,35 @@ TEST(FrontMapping, MapsNoVertexAcrossAStraightCutThroughABallWhereTheNearestPoin
   const int wrong_surface_planes = count_wrong_side(model, vertices, triangles, surface_planes, cut_faces, 0.01 * a);
   EXPECT_EQ(wrong_surface_planes, 0);
   EXPECT_EQ(with_surface_planes.relaxed_fallbacks, 0);
+  // No planes, the visibility criterion instead: what wrong_side measures holds by
+  // construction (76 across with criterion 2 alone).
+  SurfaceEmbedding visible_only = before;
+  FrontMappingReport with_visibility;
+  const CutFaceIndex face_index(model, cut_faces);
+  const FrontVisibility visibility{&face_index, 0.01 * a, surface.crack_front()};
+  map_front_surface(model, vertices, triangles, {}, list, visible_only, with_visibility, &visibility);
+  const int wrong_visible = count_wrong_side(model, vertices, triangles, visible_only, cut_faces, 0.01 * a);
+  EXPECT_EQ(wrong_visible, 0);
+  EXPECT_GT(count_wrong_side(model, vertices, triangles, tangent_only, cut_faces, 0.01 * a), 10);
+  // The index counts what a scan of every face counts (from the vertices off the sheet).
+  int compared = 0;
+  for (int v = 0; v < n; v += 3) {
+    const Vec3& x = vertices[static_cast<size_t>(v)];
+    if (std::abs((x - p0).dot(normal)) < 1e-6) continue;
+    ++compared;
+    const Vec3& q = model.element_centres()[static_cast<size_t>(tangent_only.elements[static_cast<size_t>(v)])];
+    int crossings = 0;
+    for (const auto& f : cut_faces) {
+      Eigen::Matrix3d system;
+      system << q - x, f[0] - f[1], f[0] - f[2];
+      const Vec3 tuw = system.fullPivLu().solve(f[0] - x);
+      crossings += (tuw[0] > 1e-12 && tuw[0] < 1 - 1e-12 && tuw[1] >= 0 && tuw[2] >= 0 && tuw[1] + tuw[2] <= 1) ? 1 : 0;
+    }
+    EXPECT_EQ(face_index.crossings(x, q), crossings) << "vertex " << v;
+  }
+  EXPECT_GT(compared, 100);
+  std::printf("cut ball with the visibility criterion and no planes: mapping.wrong_side %d, %d fallbacks\n", wrong_visible,
+              with_visibility.relaxed_fallbacks);
   std::printf("cut ball with FrontSurface::vertex_planes only (%zu entries): mapping.wrong_side %d, %d fallbacks\n",
               surface.vertex_planes().size(), wrong_surface_planes, with_surface_planes.relaxed_fallbacks);
   std::printf("cut ball without planes: %d cut-face vertices, %d mapped across; mapping.wrong_side %d\n", inside_face,
