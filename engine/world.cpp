@@ -676,10 +676,21 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   }
   // The kept rows whose segment the cut crosses now (the second trigger, taken on the cut as
   // the surface shows it rather than on this step's sweep, which the stroke may have left out
-  // in part: samples held, the front's transient part).
+  // in part: samples held, the front's transient part). Only a segment reaching into the box
+  // of what the stroke made since the last mapping can have changed side: the other faces
+  // were there when it was last tested.
   const double inset = 0.1 * front.front_width() / 1.5;  // a tenth of a surface cell
+  const physics::CutFaceIndex face_index(*body.efg, faces);
+  const std::array<physics::Vec3, 2> changed_box = body.front_surface->take_changed_box();
+  std::vector<int> near;
+  for (int v = 0; v < kept; ++v) {
+    const physics::Vec3& x = vertices[static_cast<std::size_t>(v)];
+    const physics::Vec3& q = body.efg->element_centres()[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(v)])];
+    const physics::Vec3 lo = x.cwiseMin(q).array() - inset, hi = x.cwiseMax(q).array() + inset;
+    if ((lo.array() <= changed_box[1].array()).all() && (hi.array() >= changed_box[0].array()).all()) near.push_back(v);
+  }
   std::vector<int> crossed;
-  physics::count_wrong_side(*body.efg, vertices, front.triangles(), embedding, faces, inset, &crossed);
+  physics::count_wrong_side(*body.efg, vertices, front.triangles(), embedding, face_index, inset, near, &crossed);
   std::vector<int> merged;
   std::set_union(remap.begin(), remap.end(), crossed.begin(), crossed.end(), std::back_inserter(merged));
   remap.swap(merged);
@@ -687,7 +698,6 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   physics::FrontMappingReport mapping;
   // Each vertex sees its point through no cut face (what wrong_side below measures), the
   // crack front's vertices excepted.
-  const physics::CutFaceIndex face_index(*body.efg, faces);
   physics::FrontVisibility visibility{&face_index, inset, front.crack_front()};
   physics::map_front_surface(*body.efg, vertices, front.triangles(), planes, remap, embedding, mapping, &visibility);
   body.front_mapped_base = front.base_vertex_count();
@@ -709,9 +719,17 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // Against the cut faces the surface shows: a vertex pulled a tenth of a cell inside, joined
   // to its integration point, must cross them an even number of times.
   // The crack front's vertices, where the two sides meet, belong to neither: not counted.
+  // Kept per vertex and taken again where it can have changed: the remapped vertices and
+  // those near what the stroke made.
+  body.front_wrong_side.resize(vertices.size(), 0);
+  std::vector<int> tested;
+  std::set_union(remap.begin(), remap.end(), near.begin(), near.end(), std::back_inserter(tested));
+  for (const int v : tested) body.front_wrong_side[static_cast<std::size_t>(v)] = 0;
   std::vector<int> across;
-  physics::count_wrong_side(*body.efg, vertices, body.surface, embedding, faces, inset, &across);
-  const long wrong = std::count_if(across.begin(), across.end(), [&](int v) { return front.crack_front()[static_cast<std::size_t>(v)] == 0; });
+  physics::count_wrong_side(*body.efg, vertices, body.surface, embedding, face_index, inset, tested, &across);
+  for (const int v : across) body.front_wrong_side[static_cast<std::size_t>(v)] = 1;
+  long wrong = 0;
+  for (std::size_t v = 0; v < vertices.size(); ++v) wrong += body.front_wrong_side[v] != 0 && front.crack_front()[v] == 0 ? 1 : 0;
   cut_totals_.wrong_side = std::max(cut_totals_.wrong_side, wrong);
   cut_totals_.elements_linked_across = physics::update_elements_linked_across(
       *body.efg, *body.front_rest_cut, body.linked_across, dirty_lo, dirty_hi, &changed, &body.link_boxes, &body.linked_seen);

@@ -71,6 +71,7 @@ struct Body {
   std::unique_ptr<physics::RestCut> front_rest_cut;
   std::vector<std::size_t> front_plane_counts;
   int front_stroke_folds = 0;  // folded_edges of the stroke's last report
+  std::vector<std::uint8_t> front_wrong_side;  // per surface vertex: its point across a cut face when last tested
   bool front_engaged = false;  // the blade was engaged at the end of the last step tested
   int front_mapped_base = 0;   // the surface's base vertex count at the last mapping
   std::vector<int> front_blade_pieces;  // the blade's resampling, per segment, kept for the strokes

@@ -32,14 +32,19 @@ std::vector<Vec3> area_weighted_normals(const std::vector<Vec3>& vertices, const
 // Per vertex, the angle-weighted normal (each triangle's unit normal times its angle at the
 // vertex, not normalised): the pseudo-normal that points into the body at a rim, whatever the
 // size of the triangles on either side.
-std::vector<Vec3> angle_weighted_normals(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles) {
+// With `only` (per vertex, 1 where wanted), only those vertices' are formed (the others stay
+// zero): the angles' atan2 is most of the cost.
+std::vector<Vec3> angle_weighted_normals(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                                         const std::vector<std::uint8_t>* only = nullptr) {
   std::vector<Vec3> normals(vertices.size(), Vec3::Zero());
   for (const auto& t : triangles) {
+    if (only && !(*only)[static_cast<size_t>(t[0])] && !(*only)[static_cast<size_t>(t[1])] && !(*only)[static_cast<size_t>(t[2])]) continue;
     const Vec3 n = (vertices[static_cast<size_t>(t[1])] - vertices[static_cast<size_t>(t[0])])
                        .cross(vertices[static_cast<size_t>(t[2])] - vertices[static_cast<size_t>(t[0])]);
     const double length = n.norm();
     if (!(length > 0)) continue;
     for (int i = 0; i < 3; ++i) {
+      if (only && !(*only)[static_cast<size_t>(t[i])]) continue;
       const Vec3& x = vertices[static_cast<size_t>(t[i])];
       const Vec3 u = vertices[static_cast<size_t>(t[(i + 1) % 3])] - x, w = vertices[static_cast<size_t>(t[(i + 2) % 3])] - x;
       normals[static_cast<size_t>(t[i])] += std::atan2(u.cross(w).norm(), u.dot(w)) / length * n;
@@ -324,9 +329,12 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
   const OneRing ring(n, triangles);
   std::vector<Vec3> inward;
   if (visibility != nullptr) {
-    const std::vector<Vec3> pseudo = angle_weighted_normals(vertices, triangles);
+    // Only the listed vertices are held to it.
+    std::vector<std::uint8_t> wanted(vertices.size(), 0);
+    for (const int v : remap) wanted[static_cast<size_t>(v)] = 1;
+    const std::vector<Vec3> pseudo = angle_weighted_normals(vertices, triangles, &wanted);
     inward.resize(vertices.size());
-    for (size_t v = 0; v < vertices.size(); ++v) inward[v] = inset_point(vertices[v], pseudo[v], visibility->inset);
+    for (const int v : remap) inward[static_cast<size_t>(v)] = inset_point(vertices[static_cast<size_t>(v)], pseudo[static_cast<size_t>(v)], visibility->inset);
   }
   Mapper mapper(model, vertices, normals, planes, visibility, &inward);
 
@@ -428,22 +436,41 @@ int CutFaceIndex::crossings(const Vec3& p, const Vec3& q) const {
 int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                      const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
                      const std::vector<std::array<Vec3, 3>>& cut_triangles, double inset, std::vector<int>* which) {
+  return count_wrong_side(model, vertices, triangles, embedding, CutFaceIndex(model, cut_triangles), inset, {}, which);
+}
+
+int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
+                     const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
+                     const CutFaceIndex& faces, double inset, std::span<const int> subset, std::vector<int>* which) {
   check_surface(vertices, triangles, "count_wrong_side");
-  for (int v = 0; v < std::min(embedding.vertex_count(), static_cast<int>(vertices.size())); ++v) {
+  const int rows = std::min(embedding.vertex_count(), static_cast<int>(vertices.size()));
+  std::vector<int> all;
+  if (subset.empty()) {
+    all.resize(static_cast<size_t>(rows));
+    for (int v = 0; v < rows; ++v) all[static_cast<size_t>(v)] = v;
+    subset = all;
+  }
+  std::vector<std::uint8_t> wanted(vertices.size(), 0);
+  for (size_t k = 0; k < subset.size(); ++k) {
+    const int v = subset[k];
+    if (v < 0 || v >= static_cast<int>(vertices.size()) || (k > 0 && v <= subset[k - 1]))
+      throw std::invalid_argument("count_wrong_side: subset entry " + std::to_string(k) + " (vertex " + std::to_string(v) +
+                                  ") is out of range or out of order");
+    if (v >= rows) continue;
     const int e = embedding.elements[static_cast<size_t>(v)];
     if (e < 0 || e >= model.element_count())
       throw std::invalid_argument("count_wrong_side: vertex " + std::to_string(v) + " is mapped to element " + std::to_string(e) + ", out of range");
+    wanted[static_cast<size_t>(v)] = 1;
   }
-  const int rows = std::min(embedding.vertex_count(), static_cast<int>(vertices.size()));
-  const std::vector<Vec3> normals = angle_weighted_normals(vertices, triangles);
-  const CutFaceIndex faces(model, cut_triangles);
+  const std::vector<Vec3> normals = angle_weighted_normals(vertices, triangles, &wanted);
   int wrong = 0;
-  for (int v = 0; v < rows; ++v) {
+  for (const int v : subset) {
+    if (v >= rows) continue;
     const Vec3 p = inset_point(vertices[static_cast<size_t>(v)], normals[static_cast<size_t>(v)], inset);
     const Vec3& q = model.element_centres()[static_cast<size_t>(embedding.elements[static_cast<size_t>(v)])];
     // Across means an odd number of crossings: a wavy cut face (the blade mapped to rest
     // moment by moment) can be crossed and crossed back on the way to a point on the same
-    // side. `cut_triangles` must hold each face once (not both sides' coincident copies).
+    // side. The faces must be each face once (not both sides' coincident copies).
     const bool crosses = faces.crossings(p, q) % 2 == 1;
     wrong += crosses ? 1 : 0;
     if (crosses && which) which->push_back(v);

@@ -117,5 +117,12 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
                      const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
                      const std::vector<std::array<Vec3, 3>>& cut_triangles, double inset,
                      std::vector<int>* which = nullptr);  // the vertices, when given
+class CutFaceIndex;
+// The same against faces already indexed, over the vertices of `subset` only (increasing;
+// empty: every vertex with a row), which are the ones counted and listed.
+int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
+                     const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
+                     const CutFaceIndex& faces, double inset, std::span<const int> subset,
+                     std::vector<int>* which = nullptr);
 
 }  // namespace incise::physics
