@@ -360,6 +360,7 @@ FrontSurface::FrontSurface(std::vector<Vec3> vertices, std::vector<std::array<in
   index_base();
   base_planes_.assign(base_vertices_.size(), {});
   base_cut_face_.assign(base_triangles_.size(), 0);
+  base_crack_front_.assign(base_vertices_.size(), 0);
   show_base();
 }
 
@@ -367,7 +368,8 @@ void FrontSurface::show_base() {
   vertices_ = base_vertices_;
   triangles_ = base_triangles_;
   vertex_planes_ = base_planes_;
-  crack_front_.assign(vertices_.size(), 0);
+  crack_front_ = base_crack_front_;
+  crack_front_.resize(vertices_.size(), 0);
   cut_face_ = base_cut_face_;
   cut_face_.resize(triangles_.size(), 0);
 }
@@ -479,6 +481,7 @@ bool FrontSurface::end_stroke(double reach) {
     base_triangles_ = triangles_;
     base_planes_ = vertex_planes_;
     base_cut_face_ = cut_face_;
+    base_crack_front_ = crack_front_;
     index_base();
   }
   stroke_.reset();
@@ -737,6 +740,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
     const EdgeCut& cut = cuts[static_cast<size_t>(cut_index)];
     return base_vertex == cut.lower ? cut.copy_lower : cut.copy_higher;
   };
+  std::vector<int> slit_points;  // region points of the slits' middle pairs
   std::vector<std::array<int, 3>> split;  // the base triangles' replacements
   std::vector<std::uint8_t> replaced(base_triangles_.size(), 0);
   std::vector<std::uint8_t> split_on_face;  // per replacement: its base triangle was a cut face
@@ -842,6 +846,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
       const int middle_minus = a_is_minus ? middle_a : middle_b, middle_plus = a_is_minus ? middle_b : middle_a;
       (void)first;
       const int middle_point = add_point(0.5 * (t1.st + t2.st), middle_minus, middle_plus);
+      slit_points.push_back(middle_point);
       region.boundary.push_back({point_of_end(-1 - leave), middle_point});
       region.boundary.push_back({middle_point, point_of_end(-1 - enter)});
     }
@@ -1043,6 +1048,8 @@ void FrontSurface::recompute(FrontCutReport& report) {
     for (const int p : triangle) face_normal[static_cast<size_t>(p)] += n;
   }
   std::vector<std::pair<int, ConstraintPlane>> face_planes;
+  // The slits' middle pairs too: on the face's rim, each on one side (not the crack front).
+  inner_points.insert(inner_points.end(), slit_points.begin(), slit_points.end());
   for (const int p : inner_points) {
     const Vec3& x = vertices_[static_cast<size_t>(region_vertex[static_cast<size_t>(p)])];
     const Vec3 normal = face_normal[static_cast<size_t>(p)].normalized();
@@ -1074,7 +1081,8 @@ void FrontSurface::recompute(FrontCutReport& report) {
   // Constraint planes (seed 004 §2.6, criterion 3): each end of a cut edge and its copy of the
   // pair face across the sheet; so do the cut faces' inner vertices, each on its side.
   vertex_planes_.resize(vertices_.size());
-  crack_front_.assign(vertices_.size(), 0);
+  crack_front_ = base_crack_front_;
+  crack_front_.resize(vertices_.size(), 0);
   for (const int v : front_vertices) crack_front_[static_cast<size_t>(v)] = 1;
   for (const EdgeCut& cut : cuts) {
     const ConstraintPlane lower{cut.point, cut.lower_on_plus ? Vec3(-cut.normal) : cut.normal};

@@ -124,12 +124,13 @@ class FrontSurface {
   const std::vector<std::array<int, 3>>& triangles() const { return triangles_; }
   // Per vertex of vertices(): the constraint planes of the cuts next to it. A base vertex
   // at the end of a cut edge gets the sheet's plane there (facing away from its side) and
-  // keeps it across strokes; each vertex of a pair, and each inner vertex of a cut face,
-  // gets the plane of the sheet on its side; the shared vertices along the front get none.
+  // keeps it across strokes; each vertex of a pair, of a slit's middle pair, and each inner
+  // vertex of a cut face, gets the plane of the sheet on its side; the shared vertices along
+  // the front get none.
   const std::vector<std::vector<ConstraintPlane>>& vertex_planes() const { return vertex_planes_; }
-  // Per vertex: 1 where the two sides of the stroke's cut meet (its tips, and the vertices
-  // along the front and the other parts of the sheet's outline inside the body), which
-  // belong to neither side.
+  // Per vertex: 1 where the two sides of a cut meet (the stroke's tips, and the vertices
+  // along the front and the other parts of the sheet's outline inside the body; and those
+  // of the cracks earlier strokes left inside the body), which belong to neither side.
   const std::vector<std::uint8_t>& crack_front() const { return crack_front_; }
   // Per triangle of triangles(): 1 on a cut face (this stroke's or an earlier one's).
   const std::vector<std::uint8_t>& on_cut_face() const { return cut_face_; }
@@ -159,7 +160,7 @@ class FrontSurface {
   std::vector<Vec3> vertices_;
   std::vector<std::array<int, 3>> triangles_;
   std::vector<std::vector<ConstraintPlane>> vertex_planes_;
-  std::vector<std::uint8_t> crack_front_;
+  std::vector<std::uint8_t> crack_front_, base_crack_front_;
   std::vector<std::uint8_t> base_cut_face_, cut_face_;
   FrontCutReport last_report_;  // of the last sample taken
   Vec3 changed_lo_ = Vec3::Constant(1e300), changed_hi_ = Vec3::Constant(-1e300);
