@@ -18,13 +18,17 @@ namespace {
 [[noreturn]] void fail(const std::string& message) { throw std::invalid_argument("map_front_surface: " + message); }
 
 // Per vertex, the area-weighted normal: the sum of its triangles' cross products (each twice
-// the triangle's area along its unit normal), not normalised.
-std::vector<Vec3> area_weighted_normals(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles) {
+// the triangle's area along its unit normal), not normalised; only the vertices flagged in
+// `only` (the others stay zero).
+std::vector<Vec3> area_weighted_normals(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                                        const std::vector<std::uint8_t>& only) {
   std::vector<Vec3> normals(vertices.size(), Vec3::Zero());
   for (const auto& t : triangles) {
+    if (!only[static_cast<size_t>(t[0])] && !only[static_cast<size_t>(t[1])] && !only[static_cast<size_t>(t[2])]) continue;
     const Vec3& a = vertices[static_cast<size_t>(t[0])];
     const Vec3 n = (vertices[static_cast<size_t>(t[1])] - a).cross(vertices[static_cast<size_t>(t[2])] - a);
-    for (const int v : t) normals[static_cast<size_t>(v)] += n;
+    for (const int v : t)
+      if (only[static_cast<size_t>(v)]) normals[static_cast<size_t>(v)] += n;
   }
   return normals;
 }
@@ -53,20 +57,23 @@ std::vector<Vec3> angle_weighted_normals(const std::vector<Vec3>& vertices, cons
   return normals;
 }
 
-// One-ring neighbours of every vertex (the vertices it shares a triangle with), compressed rows.
+// One-ring neighbours of the vertices flagged in `only` (the vertices each shares a triangle
+// with; the others have none), compressed rows.
 struct OneRing {
   std::vector<int> start;  // vertex -> first entry; start[n] = end
   std::vector<int> neighbours;
 
-  OneRing(int vertex_count, const std::vector<std::array<int, 3>>& triangles) {
+  OneRing(int vertex_count, const std::vector<std::array<int, 3>>& triangles, const std::vector<std::uint8_t>& only) {
     start.assign(static_cast<size_t>(vertex_count) + 1, 0);
     for (const auto& t : triangles)
-      for (const int v : t) start[static_cast<size_t>(v) + 1] += 2;
+      for (const int v : t)
+        if (only[static_cast<size_t>(v)]) start[static_cast<size_t>(v) + 1] += 2;
     for (int v = 0; v < vertex_count; ++v) start[static_cast<size_t>(v) + 1] += start[static_cast<size_t>(v)];
     std::vector<int> fill(start.begin(), start.end() - 1);
     std::vector<int> all(static_cast<size_t>(start.back()));
     for (const auto& t : triangles)
       for (int i = 0; i < 3; ++i) {
+        if (!only[static_cast<size_t>(t[i])]) continue;
         all[static_cast<size_t>(fill[static_cast<size_t>(t[i])]++)] = t[(i + 1) % 3];
         all[static_cast<size_t>(fill[static_cast<size_t>(t[i])]++)] = t[(i + 2) % 3];
       }
@@ -325,13 +332,13 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
   }
 
   fit_rows(embedding, n, std::max(embedding.stride, model.row_stride()));
-  const std::vector<Vec3> normals = area_weighted_normals(vertices, triangles);
-  const OneRing ring(n, triangles);
+  // Only the listed vertices' normals and one-rings are used.
+  std::vector<std::uint8_t> wanted(vertices.size(), 0);
+  for (const int v : remap) wanted[static_cast<size_t>(v)] = 1;
+  const std::vector<Vec3> normals = area_weighted_normals(vertices, triangles, wanted);
+  const OneRing ring(n, triangles, wanted);
   std::vector<Vec3> inward;
   if (visibility != nullptr) {
-    // Only the listed vertices are held to it.
-    std::vector<std::uint8_t> wanted(vertices.size(), 0);
-    for (const int v : remap) wanted[static_cast<size_t>(v)] = 1;
     const std::vector<Vec3> pseudo = angle_weighted_normals(vertices, triangles, &wanted);
     inward.resize(vertices.size());
     for (const int v : remap) inward[static_cast<size_t>(v)] = inset_point(vertices[static_cast<size_t>(v)], pseudo[static_cast<size_t>(v)], visibility->inset);
