@@ -111,6 +111,11 @@ int main(int argc, char** argv) {
   performance_cmd->add_option("--backend", performance_backend, "gpu: also run every size on the GPU backend")
       ->check(CLI::IsMember({"cpu", "gpu"}))
       ->capture_default_str();
+  std::string performance_surface = "voxel";
+  performance_cmd->add_option("--surface", performance_surface,
+                              "The lobe's efg.cut_surface: voxel (the scene's), front, or both (each size with each)")
+      ->check(CLI::IsMember({"voxel", "front", "both"}))
+      ->capture_default_str();
 
   incise::bench::HapticsBenchOptions haptics_bench;
   std::string haptics_scene;
@@ -141,7 +146,7 @@ int main(int argc, char** argv) {
     if (*synth_cmd) return incise::app::trajectory_synth(synth);
     if (*accuracy_cmd) return incise::bench::run_accuracy_bench(accuracy_quick, accuracy_out, std::cerr);
     if (*stability_cmd) return incise::bench::run_stability_bench(stability_quick, stability_out, std::cerr, stability_resume);
-    if (*performance_cmd) return incise::bench::run_performance_bench(performance_quick, performance_out, std::cerr, performance_backend);
+    if (*performance_cmd) return incise::bench::run_performance_bench(performance_quick, performance_out, std::cerr, performance_backend, performance_surface);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "incise: %s\n", e.what());
     return 1;
