@@ -690,7 +690,12 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
     if ((lo.array() <= changed_box[1].array()).all() && (hi.array() >= changed_box[0].array()).all()) near.push_back(v);
   }
   std::vector<int> crossed;
-  physics::count_wrong_side(*body.efg, vertices, front.triangles(), embedding, face_index, inset, near, &crossed);
+  // Per vertex: on a cut face (see physics::FrontVisibility).
+  std::vector<std::uint8_t> on_face(vertices.size(), 0);
+  for (std::size_t t = 0; t < front.triangles().size(); ++t)
+    if (front.on_cut_face()[t])
+      for (const int v : front.triangles()[t]) on_face[static_cast<std::size_t>(v)] = 1;
+  physics::count_wrong_side(*body.efg, vertices, front.triangles(), embedding, face_index, inset, near, &crossed, on_face);
   std::vector<int> merged;
   std::set_union(remap.begin(), remap.end(), crossed.begin(), crossed.end(), std::back_inserter(merged));
   remap.swap(merged);
@@ -698,7 +703,7 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   physics::FrontMappingReport mapping;
   // Each vertex sees its point through no cut face (what wrong_side below measures), the
   // crack front's vertices excepted.
-  physics::FrontVisibility visibility{&face_index, inset, front.crack_front()};
+  physics::FrontVisibility visibility{&face_index, inset, front.crack_front(), on_face};
   physics::map_front_surface(*body.efg, vertices, front.triangles(), planes, remap, embedding, mapping, &visibility);
   body.front_mapped_base = front.base_vertex_count();
   body.front_plane_counts.resize(planes.size());
@@ -726,7 +731,7 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   std::set_union(remap.begin(), remap.end(), near.begin(), near.end(), std::back_inserter(tested));
   for (const int v : tested) body.front_wrong_side[static_cast<std::size_t>(v)] = 0;
   std::vector<int> across;
-  physics::count_wrong_side(*body.efg, vertices, body.surface, embedding, face_index, inset, tested, &across);
+  physics::count_wrong_side(*body.efg, vertices, body.surface, embedding, face_index, inset, tested, &across, on_face);
   for (const int v : across) body.front_wrong_side[static_cast<std::size_t>(v)] = 1;
   long wrong = 0;
   for (std::size_t v = 0; v < vertices.size(); ++v) wrong += body.front_wrong_side[v] != 0 && front.crack_front()[v] == 0 ? 1 : 0;

@@ -138,10 +138,15 @@ bool share_a_particle(const CorotationalEfg& model, int e, int f) {
   return false;
 }
 
-bool segment_crosses_triangle(const Vec3& p, const Vec3& q, const std::array<Vec3, 3>& t) {
+bool flagged(std::span<const std::uint8_t> flags, int v) { return static_cast<size_t>(v) < flags.size() && flags[static_cast<size_t>(v)] != 0; }
+
+// `skip_near_p`: a triangle whose plane passes within that distance of p is not crossed (p
+// lies on it, up to rounding).
+bool segment_crosses_triangle(const Vec3& p, const Vec3& q, const std::array<Vec3, 3>& t, double skip_near_p = 0) {
   const Vec3 m = (t[1] - t[0]).cross(t[2] - t[0]);
   const double sp = (p - t[0]).dot(m), sq = (q - t[0]).dot(m);
   if (!((sp < 0 && sq > 0) || (sp > 0 && sq < 0))) return false;
+  if (skip_near_p > 0 && std::abs(sp) <= skip_near_p * m.norm()) return false;
   const Vec3 x = p + (sp / (sp - sq)) * (q - p);
   for (int i = 0; i < 3; ++i) {
     const Vec3& a = t[static_cast<size_t>(i)];
@@ -151,10 +156,22 @@ bool segment_crosses_triangle(const Vec3& p, const Vec3& q, const std::array<Vec
   return true;
 }
 
-// The vertex moved inward by `inset` along its angle-weighted normal (not moved without one).
-Vec3 inset_point(const Vec3& vertex, const Vec3& normal, double inset) {
+// The vertex moved inward by `inset` along its angle-weighted normal (not moved without one),
+// by less where that would cross a cut face (a cut passing nearer the vertex than the inset:
+// from across it every point on the vertex's side would look hidden): halved until it does
+// not, down to the vertex itself.
+// A vertex on a cut face (`on_face`) is always pulled in by the full inset: its own face's
+// neighbours at rest are wavy by more than any tolerance would allow for.
+Vec3 inset_point(const Vec3& vertex, const Vec3& normal, double inset, const CutFaceIndex& faces, bool on_face) {
   const double length = normal.norm();
-  return vertex - (length > 0 ? inset / length : 0.0) * normal;
+  if (!(length > 0)) return vertex;
+  if (on_face) return vertex - (inset / length) * normal;
+  for (int k = 0; k < 16; ++k, inset *= 0.5) {
+    const Vec3 p = vertex - (inset / length) * normal;
+    // The faces through the vertex itself (its own, on a cut face) are not in the way.
+    if (faces.crossings(vertex, p, 1e-6 * inset) == 0) return p;
+  }
+  return vertex;
 }
 
 class Mapper {
@@ -341,7 +358,8 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
   if (visibility != nullptr) {
     const std::vector<Vec3> pseudo = angle_weighted_normals(vertices, triangles, &wanted);
     inward.resize(vertices.size());
-    for (const int v : remap) inward[static_cast<size_t>(v)] = inset_point(vertices[static_cast<size_t>(v)], pseudo[static_cast<size_t>(v)], visibility->inset);
+    for (const int v : remap) inward[static_cast<size_t>(v)] = inset_point(vertices[static_cast<size_t>(v)], pseudo[static_cast<size_t>(v)], visibility->inset, *visibility->faces,
+                                                             flagged(visibility->on_face, v));
   }
   Mapper mapper(model, vertices, normals, planes, visibility, &inward);
 
@@ -421,9 +439,9 @@ std::uint64_t CutFaceIndex::key(long long i, long long j, long long k) {
   return (part(i) << 42) | (part(j) << 21) | part(k);
 }
 
-int CutFaceIndex::crossings(const Vec3& p, const Vec3& q) const {
+int CutFaceIndex::crossings(const Vec3& p, const Vec3& q, double skip_near_p) const {
   int count = 0;
-  for (const int t : large_) count += segment_crosses_triangle(p, q, faces_[static_cast<size_t>(t)]) ? 1 : 0;
+  for (const int t : large_) count += segment_crosses_triangle(p, q, faces_[static_cast<size_t>(t)], skip_near_p) ? 1 : 0;
   const auto l = cell(p.cwiseMin(q)), h = cell(p.cwiseMax(q));
   seen_.clear();
   for (long long k = l[2]; k <= h[2]; ++k)
@@ -434,7 +452,7 @@ int CutFaceIndex::crossings(const Vec3& p, const Vec3& q) const {
         for (; it != binned_.end() && it->first == c; ++it) {
           if (std::find(seen_.begin(), seen_.end(), it->second) != seen_.end()) continue;
           seen_.push_back(it->second);
-          count += segment_crosses_triangle(p, q, faces_[static_cast<size_t>(it->second)]) ? 1 : 0;
+          count += segment_crosses_triangle(p, q, faces_[static_cast<size_t>(it->second)], skip_near_p) ? 1 : 0;
         }
       }
   return count;
@@ -448,7 +466,8 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
 
 int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                      const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
-                     const CutFaceIndex& faces, double inset, std::span<const int> subset, std::vector<int>* which) {
+                     const CutFaceIndex& faces, double inset, std::span<const int> subset, std::vector<int>* which,
+                     std::span<const std::uint8_t> on_face) {
   check_surface(vertices, triangles, "count_wrong_side");
   const int rows = std::min(embedding.vertex_count(), static_cast<int>(vertices.size()));
   std::vector<int> all;
@@ -473,7 +492,7 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
   int wrong = 0;
   for (const int v : subset) {
     if (v >= rows) continue;
-    const Vec3 p = inset_point(vertices[static_cast<size_t>(v)], normals[static_cast<size_t>(v)], inset);
+    const Vec3 p = inset_point(vertices[static_cast<size_t>(v)], normals[static_cast<size_t>(v)], inset, faces, flagged(on_face, v));
     const Vec3& q = model.element_centres()[static_cast<size_t>(embedding.elements[static_cast<size_t>(v)])];
     // Across means an odd number of crossings: a wavy cut face (the blade mapped to rest
     // moment by moment) can be crossed and crossed back on the way to a point on the same

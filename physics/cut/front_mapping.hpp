@@ -71,7 +71,8 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
 class CutFaceIndex {
  public:
   CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<Vec3, 3>> faces);
-  int crossings(const Vec3& p, const Vec3& q) const;
+  // `skip_near_p` > 0: faces whose plane passes within that distance of p are not counted.
+  int crossings(const Vec3& p, const Vec3& q, double skip_near_p = 0) const;
 
  private:
   static constexpr long long large_cells = 4096;  // faces over more cells are tested against every segment
@@ -86,7 +87,8 @@ class CutFaceIndex {
 };
 
 // A fourth criterion for map_front_surface, the one wrong_side measures: the segment from the
-// vertex, moved inward by `inset` along its angle-weighted normal (as count_wrong_side does),
+// vertex, moved inward by `inset` along its angle-weighted normal (as count_wrong_side does;
+// by less, halved until it crosses none, where a cut face passes nearer than that),
 // to the candidate's rest integration point crosses `faces` an even number of times. Vertices
 // flagged in `exempt` (the crack front's, where both sides meet) are not held to it. It is
 // kept wherever criterion 3 is when relaxing (see map_front_surface), then dropped before the
@@ -95,6 +97,9 @@ struct FrontVisibility {
   const CutFaceIndex* faces = nullptr;
   double inset = 0;
   std::span<const std::uint8_t> exempt;
+  // Per vertex, 1 on a cut face: pulled in by the full inset (the shortening is for vertices
+  // off the faces that a cut passes near; a face's own wavy neighbours would shorten it).
+  std::span<const std::uint8_t> on_face;
 };
 
 // How far the candidate search reaches: integration cubes up to this Chebyshev distance from
@@ -102,8 +107,8 @@ struct FrontVisibility {
 inline constexpr int front_mapping_reach_rings = 3;
 
 // The vertices whose integration point lies across a cut from them: the segment from the
-// vertex, moved inward by `inset` along -n_v, to its element's rest integration point
-// crosses `cut_triangles` an odd number of times (rest positions, each face once, e.g. one
+// vertex, moved inward by `inset` along -n_v (by less where that would cross a cut face), to
+// its element's rest integration point crosses `cut_triangles` an odd number of times (rest positions, each face once, e.g. one
 // side's cut faces of the FrontSurface; a wavy face crossed and crossed back is the same
 // side): its ends strictly on both sides of a triangle's plane, the crossing inside the
 // triangle or on its rim. n_v here is the
@@ -119,10 +124,11 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
                      std::vector<int>* which = nullptr);  // the vertices, when given
 class CutFaceIndex;
 // The same against faces already indexed, over the vertices of `subset` only (increasing;
-// empty: every vertex with a row), which are the ones counted and listed.
+// empty: every vertex with a row), which are the ones counted and listed; `on_face` as in
+// FrontVisibility.
 int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                      const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
                      const CutFaceIndex& faces, double inset, std::span<const int> subset,
-                     std::vector<int>* which = nullptr);
+                     std::vector<int>* which = nullptr, std::span<const std::uint8_t> on_face = {});
 
 }  // namespace incise::physics

@@ -405,6 +405,29 @@ TEST(FrontMapping, TakesAFartherPointWhenTheNearestSharesNoParticleWithANeighbou
   EXPECT_LT((reproduced(model, embedding, 0) - x).norm(), 1e-12);
 }
 
+// A cut passing nearer a vertex than the inset: pulled in by the full inset the vertex would
+// start across the cut, where every point on its own side looks hidden and those across look
+// visible. The start is pulled in by less, so it is judged from its own side.
+TEST(FrontMapping, JudgesAVertexACutPassesNearerThanTheInsetFromItsOwnSide) {
+  const CorotationalEfg model(Vec3::Constant(-0.4), Vec3::Constant(0.4), Material{1e5, 0.3, 1000}, settings_with(0.1));
+  const std::vector<Vec3> vertices{{0.05, 0.05, 0.4}, {-0.1, 0.05, 0.4}, {0.05, -0.05, 0.4}};
+  const std::vector<std::array<int, 3>> triangles{{0, 1, 2}};
+  SurfaceEmbedding embedding;
+  FrontMappingReport report;
+  map_front_surface(model, vertices, triangles, {}, all_of(3), embedding, report);
+  // A wide cut face 2 mm under the top face: every integration point is below it, across.
+  const std::vector<std::array<Vec3, 3>> faces{{Vec3(-1, -1, 0.398), Vec3(1, -1, 0.398), Vec3(0, 1, 0.398)}};
+  EXPECT_EQ(count_wrong_side(model, vertices, triangles, embedding, faces, 0.01), 3);
+  EXPECT_EQ(count_wrong_side(model, vertices, triangles, embedding, faces, 0.001), 3);
+  // Mapped with the visibility criterion: no point is visible, so each vertex is relaxed and
+  // counted (before, the full inset made the nearest points look visible: no fallback).
+  const CutFaceIndex index(model, faces);
+  const FrontVisibility visibility{&index, 0.01, {}};
+  FrontMappingReport relaxed;
+  map_front_surface(model, vertices, triangles, {}, all_of(3), embedding, relaxed, &visibility);
+  EXPECT_EQ(relaxed.relaxed_fallbacks, 3);
+}
+
 TEST(FrontMapping, ChecksCriterionOneAgainstNeighboursRemappedInTheSameCall) {
   const CorotationalEfg model(Vec3::Constant(-0.4), Vec3::Constant(0.4), Material{1e5, 0.3, 1000}, settings_with(0.1));
   // Three new vertices of the top face, all remapped together. Vertex 1 has a plane keeping
