@@ -656,13 +656,16 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
       remap.push_back(v);
   }
   physics::fit_rows(embedding, kept, embedding.stride);
-  // The cut faces, each once (both sides' copies lie on it, with the same corners).
+  // The cut faces, each once (both sides' copies lie on it, with the same corners), and per
+  // vertex whether it is on one (see physics::FrontVisibility).
   std::vector<std::array<physics::Vec3, 3>> faces;
+  std::vector<std::uint8_t> on_face(vertices.size(), 0);
   {
     std::set<std::array<double, 9>> seen;
     for (std::size_t t = 0; t < front.triangles().size(); ++t) {
       if (!front.on_cut_face()[t]) continue;
       const auto& tri = front.triangles()[t];
+      for (const int v : tri) on_face[static_cast<std::size_t>(v)] = 1;
       std::array<physics::Vec3, 3> corners{vertices[static_cast<std::size_t>(tri[0])], vertices[static_cast<std::size_t>(tri[1])],
                                            vertices[static_cast<std::size_t>(tri[2])]};
       std::sort(corners.begin(), corners.end(), [](const physics::Vec3& l, const physics::Vec3& r) {
@@ -690,11 +693,6 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
     if ((lo.array() <= changed_box[1].array()).all() && (hi.array() >= changed_box[0].array()).all()) near.push_back(v);
   }
   std::vector<int> crossed;
-  // Per vertex: on a cut face (see physics::FrontVisibility).
-  std::vector<std::uint8_t> on_face(vertices.size(), 0);
-  for (std::size_t t = 0; t < front.triangles().size(); ++t)
-    if (front.on_cut_face()[t])
-      for (const int v : front.triangles()[t]) on_face[static_cast<std::size_t>(v)] = 1;
   physics::count_wrong_side(*body.efg, vertices, front.triangles(), embedding, face_index, inset, near, &crossed, on_face);
   std::vector<int> merged;
   std::set_union(remap.begin(), remap.end(), crossed.begin(), crossed.end(), std::back_inserter(merged));
@@ -741,6 +739,13 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   stats.ms_checks += ms_since(start);
 }
 
+bool World::close_front_stroke(Body& body, double reach) {
+  const bool carried = body.front_surface->end_stroke(reach);
+  body.front_stroke_folds = 0;
+  if (carried) cut_totals_.front_strokes_carried_through++;
+  return carried;
+}
+
 void World::end_front_stroke(Body& body, StepStats& stats) {
   // The blade disengaged or left the body's box: the stroke ends now rather than when the
   // next one begins, its front carried through if it only stopped short at rest
@@ -749,15 +754,10 @@ void World::end_front_stroke(Body& body, StepStats& stats) {
   physics::FrontSurface& front = *body.front_surface;
   if (front.stroke_samples() == 0) return;
   const auto start = Clock::now();
-  const bool carried = front.end_stroke(front.front_width());
-  body.front_stroke_folds = 0;
-  if (!carried) return;  // the surface is the one shown (its stroke's vertices became base ones)
-  cut_totals_.front_strokes_carried_through++;
+  // Not carried: the surface is the one shown (its stroke's vertices became base ones).
+  if (!close_front_stroke(body, front.front_width())) return;
   const std::vector<std::uint8_t> unchanged(static_cast<std::size_t>(body.efg->element_count()), 0);
-  const auto& rest = body.efg->rest_positions();
-  physics::Vec3 lo = physics::Vec3::Constant(1e300), hi = physics::Vec3::Constant(-1e300);
-  for (Eigen::Index p = 0; p < rest.size() / 3; ++p) lo = lo.cwiseMin(rest.segment<3>(3 * p)), hi = hi.cwiseMax(rest.segment<3>(3 * p));
-  rebuild_front_surface(body, lo, hi, unchanged, false, stats);
+  rebuild_front_surface(body, body.surface_min, body.surface_max, unchanged, false, stats);
   stats.ms_topology += ms_since(start);
   stats.cut_event = true;
   cut_totals_.events++;
@@ -889,8 +889,7 @@ void World::cut_body(Body& body, StepStats& stats) {
     physics::FrontSurface& front = *body.front_surface;
     for (const auto& [blade_at_rest, starts_run] : moments) {
       if (starts_run && front.stroke_samples() > 1) {
-        if (front.end_stroke(front.front_width())) cut_totals_.front_strokes_carried_through++;
-        body.front_stroke_folds = 0;
+        close_front_stroke(body, front.front_width());
         ++faces;
       }
       physics::FrontCutReport cut;
@@ -900,8 +899,7 @@ void World::cut_body(Body& body, StepStats& stats) {
         // A sample the stroke cannot take (its point count changed, a point not finite): the
         // stroke ends where it was, and this sample starts the next one.
         cut.problems.push_back(error.what());
-        front.end_stroke();
-        body.front_stroke_folds = 0;
+        close_front_stroke(body, 0);
         if (std::all_of(blade_at_rest.begin(), blade_at_rest.end(), [](const physics::Vec3& p) { return p.allFinite(); }))
           front.advance(blade_at_rest);
       }
@@ -913,10 +911,7 @@ void World::cut_body(Body& body, StepStats& stats) {
           cut_totals_.first_front_problem = "step " + std::to_string(steps_ + 1) + ": " + cut.problems.front();
       }
       if (cut.crossings + cut.tips > 0) ++faces;
-      if (cut.ok() && cut.crossings > 0 && !cut.front_in_body) {
-        front.end_stroke();
-        body.front_stroke_folds = 0;
-      }
+      if (cut.ok() && cut.crossings > 0 && !cut.front_in_body) close_front_stroke(body, 0);
     }
     body.front_engaged = active.back() != 0;
   }

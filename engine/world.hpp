@@ -229,6 +229,9 @@ class World {
   // sweep against its links, re-selection, the cut surface and its mapping.
   void cut_body(Body& body, StepStats& stats);
   void end_front_stroke(Body& body, StepStats& stats);
+  // Ends the body's front stroke (FrontSurface::end_stroke with `reach`), counting a front
+  // carried through; returns whether it was.
+  bool close_front_stroke(Body& body, double reach);
   // dirty_lo/hi: rest box around what the cut changed (for the linked-across check);
   // changed: per element, re-selected;
   // surface_changed: cube faces were cut (else only the mapping is redone); fixed_changed:

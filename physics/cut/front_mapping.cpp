@@ -283,7 +283,7 @@ class Mapper {
   }
   bool visible(int v, int e) const {
     if (visibility_ == nullptr) return true;
-    if (static_cast<size_t>(v) < visibility_->exempt.size() && visibility_->exempt[static_cast<size_t>(v)] != 0) return true;
+    if (flagged(visibility_->exempt, v)) return true;
     return visibility_->faces->crossings((*inward_)[static_cast<size_t>(v)], model_.element_centres()[static_cast<size_t>(e)]) % 2 == 0;
   }
   bool shares_with_neighbours(int e, std::span<const int> neighbour_elements) const {
@@ -372,7 +372,7 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
     neighbour_elements.clear();
     for (const int u : ring.of(v)) {
       // The crack front's vertices belong to neither side: criterion 1 does not follow them.
-      if (visibility != nullptr && static_cast<size_t>(u) < visibility->exempt.size() && visibility->exempt[static_cast<size_t>(u)] != 0) continue;
+      if (visibility != nullptr && flagged(visibility->exempt, u)) continue;
       const int mark = listed[static_cast<size_t>(u)];
       if (mark < 0) {
         neighbour_elements.push_back(embedding.elements[static_cast<size_t>(u)]);
