@@ -315,6 +315,8 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
                                  body.front_surface->vertex_planes(), all, *body.embedding, mapping);
       body.front_plane_counts.assign(all.size(), 0);
       body.front_mapped_base = body.front_surface->base_vertex_count();
+      body.front_identity.first = body.front_mapped_base;
+      body.front_topology = physics::surface_topology(body.front_surface->triangles());
       physics::update_elements_linked_across(*model, *body.front_rest_cut, body.linked_across, shape.lo, shape.hi,
                                              nullptr, &body.link_boxes, &body.linked_seen);
       body.surface = body.front_surface->triangles();
@@ -647,6 +649,67 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // names them; the stroke's vertices are numbered anew at each sample: all redone (also
   // those a stroke ended since the last mapping turned into base vertices).
   const int kept = std::min({front.base_vertex_count(), body.front_mapped_base, embedding.vertex_count()});
+  // The stroke's vertices are numbered anew at each sample, but those behind the front come
+  // out the same: matched to the last mapping's (physics::front_vertex_identity), they keep
+  // their row and flag, and only the new ones (and those the triggers below name) are mapped.
+  physics::FrontVertexIdentity identity =
+      physics::front_vertex_identity(vertices, front.triangles(), planes, front.crack_front(), std::min(kept, body.front_identity.first));
+  const std::vector<int> same = physics::match_front_vertices(body.front_identity, identity);
+  const auto old_position = [&](int u) -> const physics::Vec3& {
+    return u < body.front_identity.first ? vertices[static_cast<std::size_t>(u)]
+                                         : body.front_stroke_rest[static_cast<std::size_t>(u - body.front_identity.first)];
+  };
+  // Where the surface changed: the triangles with a vertex that is new (or whose triangles
+  // changed), now and at the last mapping (for those gone). Only a segment reaching into
+  // this box can have changed side (the second trigger, below).
+  // The same triangles' corners are where the edges' use can have changed: a triangle made
+  // or gone changes the triangles of each of its corners, so each is a new (unmatched) vertex
+  // or a base one. The surface's edge counts are kept by recounting the edges between two of
+  // them, before and after (physics::surface_topology).
+  physics::Vec3 changed_lo = physics::Vec3::Constant(1e300), changed_hi = physics::Vec3::Constant(-1e300);
+  std::vector<std::uint8_t> touched_now(vertices.size(), 0), touched_before(static_cast<std::size_t>(embedding.vertex_count()), 0);
+  {
+    const auto grow = [&](const physics::Vec3& x) {
+      changed_lo = changed_lo.cwiseMin(x);
+      changed_hi = changed_hi.cwiseMax(x);
+    };
+    const auto is_new = [&](int v) { return v >= kept && same[static_cast<std::size_t>(v)] < 0; };
+    for (const auto& tri : front.triangles())
+      if (is_new(tri[0]) || is_new(tri[1]) || is_new(tri[2]))
+        for (const int v : tri) {
+          grow(vertices[static_cast<std::size_t>(v)]);
+          touched_now[static_cast<std::size_t>(v)] = 1;
+        }
+    std::vector<std::uint8_t> still(static_cast<std::size_t>(embedding.vertex_count()), 0);
+    for (int v = kept; v < static_cast<int>(vertices.size()); ++v)
+      if (const int u = same[static_cast<std::size_t>(v)]; u >= 0 && u < embedding.vertex_count()) still[static_cast<std::size_t>(u)] = 1;
+    const auto is_gone = [&](int u) { return u >= kept && still[static_cast<std::size_t>(u)] == 0; };
+    for (const auto& tri : body.surface)
+      if (is_gone(tri[0]) || is_gone(tri[1]) || is_gone(tri[2]))
+        for (const int u : tri) {
+          grow(old_position(u));
+          touched_before[static_cast<std::size_t>(u)] = 1;
+        }
+    // A base vertex is the same in both.
+    for (int v = 0; v < kept; ++v) {
+      const auto index = static_cast<std::size_t>(v);
+      touched_now[index] = touched_before[index] = touched_now[index] | touched_before[index];
+    }
+  }
+  const physics::SurfaceTopology touched_edges_before = physics::surface_topology(body.surface, touched_before);
+  // The base's triangles with a corner not touched are the same before and after; if their
+  // count differs (a triangle lost or made away from the cut, which the stroke never does),
+  // the surface is counted whole.
+  const auto untouched_base = [&](const std::vector<std::array<int, 3>>& triangles, const std::vector<std::uint8_t>& touched) {
+    long count = 0;
+    for (const auto& tri : triangles)
+      if (tri[0] < kept && tri[1] < kept && tri[2] < kept &&
+          !(touched[static_cast<std::size_t>(tri[0])] && touched[static_cast<std::size_t>(tri[1])] && touched[static_cast<std::size_t>(tri[2])]))
+        ++count;
+    return count;
+  };
+  const bool recount = untouched_base(body.surface, touched_before) != untouched_base(front.triangles(), touched_now);
+  // The kept base rows whose planes or element changed (the first and third triggers).
   std::vector<int> remap;
   for (int v = 0; v < kept; ++v) {
     const auto index = static_cast<std::size_t>(v);
@@ -655,7 +718,47 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
         changed[static_cast<std::size_t>(element)] != 0)
       remap.push_back(v);
   }
-  physics::fit_rows(embedding, kept, embedding.stride);
+  // The matched stroke vertices take their rows along (from a copy: the numbers overlap).
+  std::vector<int> moved_from, moved_elements, moved_lengths, moved_particles;
+  std::vector<double> moved_weights;
+  std::vector<std::uint8_t> moved_wrong;
+  const int stride = embedding.stride;
+  for (int v = kept; v < static_cast<int>(vertices.size()); ++v) {
+    const int u = same[static_cast<std::size_t>(v)];
+    if (u < 0 || u >= embedding.vertex_count() || changed[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(u)])] != 0) continue;
+    moved_from.push_back(v);
+    moved_elements.push_back(embedding.elements[static_cast<std::size_t>(u)]);
+    moved_lengths.push_back(embedding.row_lengths[static_cast<std::size_t>(u)]);
+    const auto row = static_cast<std::ptrdiff_t>(u) * stride;
+    moved_particles.insert(moved_particles.end(), embedding.particles.begin() + row, embedding.particles.begin() + row + stride);
+    moved_weights.insert(moved_weights.end(), embedding.weights.begin() + row, embedding.weights.begin() + row + stride);
+    moved_wrong.push_back(static_cast<std::size_t>(u) < body.front_wrong_side.size() ? body.front_wrong_side[static_cast<std::size_t>(u)] : 0);
+  }
+  physics::fit_rows(embedding, static_cast<int>(vertices.size()), stride);
+  body.front_wrong_side.resize(vertices.size(), 0);
+  std::fill(body.front_wrong_side.begin() + kept, body.front_wrong_side.end(), 0);
+  std::vector<std::uint8_t> has_row(vertices.size(), 0);
+  std::fill(has_row.begin(), has_row.begin() + kept, 1);
+  for (std::size_t k = 0; k < moved_from.size(); ++k) {
+    const auto v = static_cast<std::size_t>(moved_from[k]);
+    embedding.elements[v] = moved_elements[k];
+    embedding.row_lengths[v] = moved_lengths[k];
+    std::copy_n(moved_particles.begin() + static_cast<std::ptrdiff_t>(k) * stride, stride, embedding.particles.begin() + static_cast<std::ptrdiff_t>(v) * stride);
+    std::copy_n(moved_weights.begin() + static_cast<std::ptrdiff_t>(k) * stride, stride, embedding.weights.begin() + static_cast<std::ptrdiff_t>(v) * stride);
+    body.front_wrong_side[v] = moved_wrong[k];
+    has_row[v] = 1;
+  }
+  // What is left of the stroke's vertices is mapped anew (after the trigger test below, which
+  // looks at the rows kept).
+  std::vector<int> fresh;
+  for (int v = kept; v < static_cast<int>(vertices.size()); ++v)
+    if (!has_row[static_cast<std::size_t>(v)]) fresh.push_back(v);
+  body.front_stroke_rest.assign(vertices.begin() + identity.first, vertices.end());
+  if (identity.first != kept) {
+    identity = physics::front_vertex_identity(vertices, front.triangles(), planes, front.crack_front(), kept);
+    body.front_stroke_rest.assign(vertices.begin() + kept, vertices.end());
+  }
+  body.front_identity = std::move(identity);
   // The cut faces, each once (both sides' copies lie on it, with the same corners), and per
   // vertex whether it is on one (see physics::FrontVisibility).
   std::vector<std::array<physics::Vec3, 3>> faces;
@@ -684,20 +787,22 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // were there when it was last tested.
   const double inset = 0.1 * front.front_width() / 1.5;  // a tenth of a surface cell
   const physics::CutFaceIndex face_index(*body.efg, faces);
-  const std::array<physics::Vec3, 2> changed_box = body.front_surface->take_changed_box();
   std::vector<int> near;
-  for (int v = 0; v < kept; ++v) {
+  for (int v = 0; v < static_cast<int>(vertices.size()); ++v) {
+    if (!has_row[static_cast<std::size_t>(v)]) continue;
     const physics::Vec3& x = vertices[static_cast<std::size_t>(v)];
     const physics::Vec3& q = body.efg->element_centres()[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(v)])];
     const physics::Vec3 lo = x.cwiseMin(q).array() - inset, hi = x.cwiseMax(q).array() + inset;
-    if ((lo.array() <= changed_box[1].array()).all() && (hi.array() >= changed_box[0].array()).all()) near.push_back(v);
+    if ((lo.array() <= changed_hi.array()).all() && (hi.array() >= changed_lo.array()).all()) near.push_back(v);
   }
   std::vector<int> crossed;
   physics::count_wrong_side(*body.efg, vertices, front.triangles(), embedding, face_index, inset, near, &crossed, on_face);
   std::vector<int> merged;
   std::set_union(remap.begin(), remap.end(), crossed.begin(), crossed.end(), std::back_inserter(merged));
   remap.swap(merged);
-  for (int v = kept; v < static_cast<int>(vertices.size()); ++v) remap.push_back(v);
+  merged.clear();
+  std::set_union(remap.begin(), remap.end(), fresh.begin(), fresh.end(), std::back_inserter(merged));
+  remap.swap(merged);
   physics::FrontMappingReport mapping;
   // Each vertex sees its point through no cut face (what wrong_side below measures), the
   // crack front's vertices excepted.
@@ -714,7 +819,14 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   physics::CorotationalEfg::surface_positions(embedding, body.state.positions, body.surface_positions);
   stats.ms_mapping += ms_since(start);
   start = Clock::now();
-  const physics::SurfaceTopology topology = physics::surface_topology(body.surface);
+  if (recount) {
+    body.front_topology = physics::surface_topology(body.surface);
+  } else {
+    const physics::SurfaceTopology touched_edges_now = physics::surface_topology(body.surface, touched_now);
+    body.front_topology.boundary_edges += touched_edges_now.boundary_edges - touched_edges_before.boundary_edges;
+    body.front_topology.nonmanifold_edges += touched_edges_now.nonmanifold_edges - touched_edges_before.nonmanifold_edges;
+  }
+  const physics::SurfaceTopology topology = body.front_topology;
   cut_totals_.worst_boundary_edges = std::max(cut_totals_.worst_boundary_edges, topology.boundary_edges);
   cut_totals_.worst_nonmanifold_edges = std::max(cut_totals_.worst_nonmanifold_edges, topology.nonmanifold_edges);
   cut_totals_.vertices_remapped += mapping.mapped;
@@ -724,7 +836,6 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // The crack front's vertices, where the two sides meet, belong to neither: not counted.
   // Kept per vertex and taken again where it can have changed: the remapped vertices and
   // those near what the stroke made.
-  body.front_wrong_side.resize(vertices.size(), 0);
   std::vector<int> tested;
   std::set_union(remap.begin(), remap.end(), near.begin(), near.end(), std::back_inserter(tested));
   for (const int v : tested) body.front_wrong_side[static_cast<std::size_t>(v)] = 0;

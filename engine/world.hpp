@@ -13,6 +13,7 @@
 #include "physics/core/implicit_euler.hpp"
 #include "physics/cut/cut_surface.hpp"
 #include "physics/cut/front_surface.hpp"
+#include "physics/cut/front_mapping.hpp"
 #include "physics/cut/volume_cut.hpp"
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/fem/surface_snap.hpp"
@@ -74,6 +75,11 @@ struct Body {
   std::vector<std::uint8_t> front_wrong_side;  // per surface vertex: its point across a cut face when last tested
   bool front_engaged = false;  // the blade was engaged at the end of the last step tested
   int front_mapped_base = 0;   // the surface's base vertex count at the last mapping
+  physics::FrontVertexIdentity front_identity;  // the stroke's vertices at the last mapping
+  std::vector<physics::Vec3> front_stroke_rest;  // their rest positions (from front_identity.first on)
+  // The surface's boundary and non-manifold edges, kept up to date where it changes (a full
+  // count when the body is built).
+  physics::SurfaceTopology front_topology;
   std::vector<int> front_blade_pieces;  // the blade's resampling, per segment, kept for the strokes
   physics::Vector previous_positions;
   std::size_t orphans_pinned = 0;       // of efg->orphaned_particles()

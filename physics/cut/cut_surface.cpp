@@ -234,6 +234,26 @@ SurfaceTopology surface_topology(const std::vector<std::array<int, 3>>& triangle
   return topology;
 }
 
+SurfaceTopology surface_topology(const std::vector<std::array<int, 3>>& triangles, std::span<const std::uint8_t> among) {
+  const auto in = [&](int v) { return v >= 0 && static_cast<size_t>(v) < among.size() && among[static_cast<size_t>(v)] != 0; };
+  std::vector<std::pair<int, int>> edges;
+  for (const auto& t : triangles)
+    for (int e = 0; e < 3; ++e) {
+      const int a = t[static_cast<size_t>(e)], b = t[static_cast<size_t>((e + 1) % 3)];
+      if (in(a) && in(b)) edges.emplace_back(std::min(a, b), std::max(a, b));
+    }
+  std::sort(edges.begin(), edges.end());
+  SurfaceTopology topology;
+  for (size_t k = 0; k < edges.size();) {
+    size_t next = k;
+    while (next < edges.size() && edges[next] == edges[k]) ++next;
+    topology.boundary_edges += next - k == 1 ? 1 : 0;
+    topology.nonmanifold_edges += next - k > 2 ? 1 : 0;
+    k = next;
+  }
+  return topology;
+}
+
 CutSurface::CutSurface(const std::function<bool(const Vec3&)>& inside, Vec3 lo, Vec3 hi, double cell)
     : cell_(cell), rest_cut_(2 * cell) {
   if (!(cell > 0) || !std::isfinite(cell)) {

@@ -112,6 +112,10 @@ struct SurfaceTopology {
   bool watertight() const { return boundary_edges == 0 && nonmanifold_edges == 0; }
 };
 SurfaceTopology surface_topology(const std::vector<std::array<int, 3>>& triangles);
+// The same over the edges whose two ends are flagged in `among` (a vertex past its end is
+// not): where a surface changed, so that the whole count can be kept up to date by taking
+// these edges' count off before the change and adding it after (engine/world.cpp, front mode).
+SurfaceTopology surface_topology(const std::vector<std::array<int, 3>>& triangles, std::span<const std::uint8_t> among);
 
 class CutSurface {
  public:

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -502,6 +503,83 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
     if (crosses && which) which->push_back(v);
   }
   return wrong;
+}
+
+namespace {
+
+std::uint64_t mix(std::uint64_t x) {  // splitmix64's finaliser
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+
+std::uint64_t bits(double x) {
+  std::uint64_t b = 0;
+  std::memcpy(&b, &x, sizeof b);
+  return b;
+}
+
+}  // namespace
+
+FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                                          const std::vector<std::vector<ConstraintPlane>>& planes,
+                                          std::span<const std::uint8_t> crack_front, int first) {
+  const int n = static_cast<int>(vertices.size());
+  if (first < 0 || first > n)
+    throw std::invalid_argument("front_vertex_identity: first " + std::to_string(first) + " is out of range [0, " + std::to_string(n) + "]");
+  check_surface(vertices, triangles, "front_vertex_identity");
+  FrontVertexIdentity identity;
+  identity.first = first;
+  identity.key.resize(static_cast<size_t>(n - first));
+  identity.ring.assign(static_cast<size_t>(n - first), 0);
+  for (int v = first; v < n; ++v) {
+    std::uint64_t h = mix(flagged(crack_front, v) ? 1 : 2);
+    for (int d = 0; d < 3; ++d) h = mix(h ^ bits(vertices[static_cast<size_t>(v)][d]));
+    if (static_cast<size_t>(v) < planes.size())
+      for (const ConstraintPlane& plane : planes[static_cast<size_t>(v)])
+        for (int d = 0; d < 3; ++d) h = mix(mix(h ^ bits(plane.point[d])) ^ bits(plane.normal[d]));
+    identity.key[static_cast<size_t>(v - first)] = h;
+  }
+  // A base vertex is its index (salted apart from the content keys).
+  const auto key_of = [&](int v) { return v < first ? mix(0x5eedULL + static_cast<std::uint64_t>(v)) : identity.key[static_cast<size_t>(v - first)]; };
+  for (const auto& tri : triangles) {
+    if (tri[0] < first && tri[1] < first && tri[2] < first) continue;
+    for (int k = 0; k < 3; ++k) {
+      const int v = tri[static_cast<size_t>(k)];
+      if (v < first) continue;
+      // The two other corners in order (the triangle's orientation counts); summed over the
+      // triangles, so their order does not.
+      identity.ring[static_cast<size_t>(v - first)] +=
+          mix(mix(key_of(tri[static_cast<size_t>((k + 1) % 3)])) ^ key_of(tri[static_cast<size_t>((k + 2) % 3)]));
+    }
+  }
+  return identity;
+}
+
+std::vector<int> match_front_vertices(const FrontVertexIdentity& before, const FrontVertexIdentity& now) {
+  std::vector<int> match(static_cast<size_t>(now.first) + now.key.size(), -1);
+  if (before.first != now.first) return match;
+  // Sorted (key, index) of each side; a key found twice on a side matches nothing.
+  const auto sorted = [](const FrontVertexIdentity& side) {
+    std::vector<std::pair<std::uint64_t, int>> keys(side.key.size());
+    for (size_t k = 0; k < side.key.size(); ++k) keys[k] = {side.key[k], side.first + static_cast<int>(k)};
+    std::sort(keys.begin(), keys.end());
+    return keys;
+  };
+  const auto old_keys = sorted(before), new_keys = sorted(now);
+  const auto unique_at = [](const std::vector<std::pair<std::uint64_t, int>>& keys, size_t k) {
+    return (k == 0 || keys[k - 1].first != keys[k].first) && (k + 1 == keys.size() || keys[k + 1].first != keys[k].first);
+  };
+  size_t o = 0;
+  for (size_t k = 0; k < new_keys.size(); ++k) {
+    if (!unique_at(new_keys, k)) continue;
+    while (o < old_keys.size() && old_keys[o].first < new_keys[k].first) ++o;
+    if (o == old_keys.size() || old_keys[o].first != new_keys[k].first || !unique_at(old_keys, o)) continue;
+    const int u = old_keys[o].second, v = new_keys[k].second;
+    if (before.ring[static_cast<size_t>(u - before.first)] == now.ring[static_cast<size_t>(v - now.first)]) match[static_cast<size_t>(v)] = u;
+  }
+  return match;
 }
 
 }  // namespace incise::physics

@@ -131,4 +131,25 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
                      const CutFaceIndex& faces, double inset, std::span<const int> subset,
                      std::vector<int>* which = nullptr, std::span<const std::uint8_t> on_face = {});
 
+// Which vertices of a FrontSurface are the same as at the last mapping. The stroke's vertices
+// are numbered anew at every sample, but what lies behind the front comes out the same
+// (front_surface.hpp): a vertex with the same rest position, constraint planes and
+// crack-front flag, whose triangles join it to the same vertices, is the same vertex and
+// keeps its row (its mapping inputs are those of the last time: position, normal, planes).
+// Vertices below `first` are the base's, the same index in both; the others are told apart by
+// content hashes (64-bit; two vertices of one surface with the same key match nothing).
+struct FrontVertexIdentity {
+  int first = 0;
+  std::vector<std::uint64_t> key;   // per vertex at or above first: position, planes, flag
+  std::vector<std::uint64_t> ring;  // per vertex at or above first: its triangles' other corners
+};
+FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                                          const std::vector<std::vector<ConstraintPlane>>& planes,
+                                          std::span<const std::uint8_t> crack_front, int first);
+// Per vertex of `now` (indices from now.first on; the vector has now.first + now.key.size()
+// entries, -1 below now.first): the index in `before` of the same vertex, -1 when it is new,
+// its triangles changed or its key is not unique. Nothing matches when the two `first`
+// differ.
+std::vector<int> match_front_vertices(const FrontVertexIdentity& before, const FrontVertexIdentity& now);
+
 }  // namespace incise::physics

@@ -1064,7 +1064,6 @@ void FrontSurface::recompute(FrontCutReport& report) {
       triangles_.push_back(base_triangles_[t]);
       cut_face_.push_back(base_cut_face_[t]);
     }
-  const size_t kept_base = triangles_.size();
   triangles_.insert(triangles_.end(), split.begin(), split.end());
   cut_face_.insert(cut_face_.end(), split_on_face.begin(), split_on_face.end());
   // The body on the sheet's minus side sees the face with the sheet's normal; the plus side
@@ -1093,18 +1092,6 @@ void FrontSurface::recompute(FrontCutReport& report) {
     vertex_planes_[static_cast<size_t>(cut.copy_higher)].push_back(higher);
   }
   for (const auto& [v, plane] : face_planes) vertex_planes_[static_cast<size_t>(v)].push_back(plane);
-  for (size_t t = kept_base; t < triangles_.size(); ++t)
-    for (const int v : triangles_[t]) {
-      changed_lo_ = changed_lo_.cwiseMin(vertices_[static_cast<size_t>(v)]);
-      changed_hi_ = changed_hi_.cwiseMax(vertices_[static_cast<size_t>(v)]);
-    }
-}
-
-std::array<Vec3, 2> FrontSurface::take_changed_box() {
-  const std::array<Vec3, 2> box{changed_lo_, changed_hi_};
-  changed_lo_ = Vec3::Constant(1e300);
-  changed_hi_ = Vec3::Constant(-1e300);
-  return box;
 }
 
 }  // namespace incise::physics

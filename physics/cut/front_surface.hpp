@@ -134,9 +134,6 @@ class FrontSurface {
   const std::vector<std::uint8_t>& crack_front() const { return crack_front_; }
   // Per triangle of triangles(): 1 on a cut face (this stroke's or an earlier one's).
   const std::vector<std::uint8_t>& on_cut_face() const { return cut_face_; }
-  // The box of every triangle the stroke made (splits and cut faces) since the last call,
-  // which resets it: where the surface can have changed. Empty (lo > hi) when nothing did.
-  std::array<Vec3, 2> take_changed_box();
   // Base vertices keep their index; the stroke's vertices come after them.
   int base_vertex_count() const { return static_cast<int>(base_vertices_.size()); }
   double front_width() const { return front_width_; }
@@ -163,7 +160,6 @@ class FrontSurface {
   std::vector<std::uint8_t> crack_front_, base_crack_front_;
   std::vector<std::uint8_t> base_cut_face_, cut_face_;
   FrontCutReport last_report_;  // of the last sample taken
-  Vec3 changed_lo_ = Vec3::Constant(1e300), changed_hi_ = Vec3::Constant(-1e300);
 };
 
 }  // namespace incise::physics

@@ -335,7 +335,7 @@ TEST(FrontMapping, MapsNoVertexAcrossAStraightCutThroughABallWhereTheNearestPoin
   SurfaceEmbedding visible_only = before;
   FrontMappingReport with_visibility;
   const CutFaceIndex face_index(model, cut_faces);
-  const FrontVisibility visibility{&face_index, 0.01 * a, surface.crack_front()};
+  const FrontVisibility visibility{&face_index, 0.01 * a, surface.crack_front(), {}};
   map_front_surface(model, vertices, triangles, {}, list, visible_only, with_visibility, &visibility);
   const int wrong_visible = count_wrong_side(model, vertices, triangles, visible_only, cut_faces, 0.01 * a);
   EXPECT_EQ(wrong_visible, 0);
@@ -422,7 +422,7 @@ TEST(FrontMapping, JudgesAVertexACutPassesNearerThanTheInsetFromItsOwnSide) {
   // Mapped with the visibility criterion: no point is visible, so each vertex is relaxed and
   // counted (before, the full inset made the nearest points look visible: no fallback).
   const CutFaceIndex index(model, faces);
-  const FrontVisibility visibility{&index, 0.01, {}};
+  const FrontVisibility visibility{&index, 0.01, {}, {}};
   FrontMappingReport relaxed;
   map_front_surface(model, vertices, triangles, {}, all_of(3), embedding, relaxed, &visibility);
   EXPECT_EQ(relaxed.relaxed_fallbacks, 3);
@@ -531,4 +531,81 @@ TEST(FrontMapping, MapsAHundredThousandVertexSurfaceInBinsNotAScan) {
   for (int v = 0; v < n; v += 997)
     EXPECT_LT((reproduced(model, embedding, v) - mesh.vertices[static_cast<size_t>(v)]).norm(), 1e-9) << "vertex " << v;
   std::printf("mapped %d vertices onto %d elements in %.3f s\n", n, model.element_count(), seconds);
+}
+
+// The stroke's vertices are numbered anew at every sample (front_surface.hpp); those behind
+// the front come out the same and are told apart from what the front made anew, so that the
+// world keeps their rows.
+TEST(FrontMapping, TellsTheStrokesVerticesBehindTheFrontFromThoseItMadeAnew) {
+  const Mesh mesh = ball_surface(3, 1.0);
+  const int base_count = static_cast<int>(mesh.vertices.size());
+  const double w = 0.08;
+  FrontSurface surface(mesh.vertices, mesh.triangles, w);
+  const auto height = [](int k) { return 1.3 - 2.6 * k / 39; };
+  for (int k = 0; k < 20; ++k) ASSERT_TRUE(surface.advance(blade_at(height(k))).ok());
+  const std::vector<Vec3> vertices_before = surface.vertices();
+  const auto planes_before = surface.vertex_planes();
+  const auto crack_before = surface.crack_front();
+  const FrontVertexIdentity before =
+      front_vertex_identity(surface.vertices(), surface.triangles(), surface.vertex_planes(), surface.crack_front(), base_count);
+  ASSERT_TRUE(surface.advance(blade_at(height(20))).ok());
+  const std::vector<Vec3>& vertices = surface.vertices();
+  const int n = static_cast<int>(vertices.size());
+  const FrontVertexIdentity now = front_vertex_identity(vertices, surface.triangles(), surface.vertex_planes(), surface.crack_front(), base_count);
+  const std::vector<int> same = match_front_vertices(before, now);
+  ASSERT_EQ(static_cast<int>(same.size()), n);
+
+  // A match is the same vertex; each old vertex is matched once at most.
+  std::set<int> taken;
+  int matched = 0, behind = 0, behind_matched = 0, fresh = 0;
+  const double front = height(20) + 0.02;  // the blade's highest point at the last sample
+  for (int v = base_count; v < n; ++v) {
+    const int u = same[static_cast<size_t>(v)];
+    const bool far_behind = vertices[static_cast<size_t>(v)].z() > front + 4 * w;
+    behind += far_behind;
+    if (u < 0) {
+      ++fresh;
+      continue;
+    }
+    ++matched;
+    behind_matched += far_behind;
+    ASSERT_GE(u, base_count);
+    ASSERT_LT(u, static_cast<int>(vertices_before.size()));
+    EXPECT_TRUE(taken.insert(u).second) << "old vertex " << u << " matched twice";
+    EXPECT_EQ(vertices[static_cast<size_t>(v)], vertices_before[static_cast<size_t>(u)]) << "vertex " << v;
+    ASSERT_EQ(surface.vertex_planes()[static_cast<size_t>(v)].size(), planes_before[static_cast<size_t>(u)].size()) << "vertex " << v;
+    for (size_t p = 0; p < planes_before[static_cast<size_t>(u)].size(); ++p)
+      EXPECT_EQ(surface.vertex_planes()[static_cast<size_t>(v)][p].normal, planes_before[static_cast<size_t>(u)][p].normal);
+    EXPECT_EQ(surface.crack_front()[static_cast<size_t>(v)], crack_before[static_cast<size_t>(u)]);
+  }
+  for (int v = 0; v < base_count; ++v) EXPECT_EQ(same[static_cast<size_t>(v)], -1);
+  std::printf("front identity: %d stroke vertices, %d kept (%d of the %d more than 4 w behind the front), %d new\n", n - base_count,
+              matched, behind_matched, behind, fresh);
+  // Behind the front the cut is what it was: every vertex there is kept; along the front
+  // the vertices move with the blade and are new.
+  ASSERT_GT(behind, 50);
+  EXPECT_EQ(behind_matched, behind);
+  EXPECT_GT(fresh, 0);
+
+  // A vertex whose triangles changed is not the same: one triangle turned over changes its
+  // three corners.
+  std::vector<std::array<int, 3>> turned = surface.triangles();
+  size_t t = 0;
+  while (t < turned.size() && !(turned[t][0] >= base_count && turned[t][1] >= base_count && turned[t][2] >= base_count &&
+                                same[static_cast<size_t>(turned[t][0])] >= 0 && same[static_cast<size_t>(turned[t][1])] >= 0 &&
+                                same[static_cast<size_t>(turned[t][2])] >= 0))
+    ++t;
+  ASSERT_LT(t, turned.size());
+  std::swap(turned[t][1], turned[t][2]);
+  const std::vector<int> after_turn =
+      match_front_vertices(before, front_vertex_identity(vertices, turned, surface.vertex_planes(), surface.crack_front(), base_count));
+  for (const int v : turned[t]) EXPECT_EQ(after_turn[static_cast<size_t>(v)], -1) << "corner " << v;
+  int still = 0;
+  for (int v = base_count; v < n; ++v) still += after_turn[static_cast<size_t>(v)] >= 0;
+  EXPECT_EQ(still, matched - 3);
+  // Against a different first base vertex nothing is matched.
+  const std::vector<int> other =
+      match_front_vertices(before, front_vertex_identity(vertices, surface.triangles(), surface.vertex_planes(), surface.crack_front(), base_count - 1));
+  EXPECT_TRUE(std::all_of(other.begin(), other.end(), [](int u) { return u < 0; }));
+  EXPECT_THROW(front_vertex_identity(vertices, surface.triangles(), surface.vertex_planes(), surface.crack_front(), n + 1), std::invalid_argument);
 }

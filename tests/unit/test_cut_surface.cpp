@@ -9,10 +9,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <functional>
 #include <map>
 #include <set>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -74,6 +76,34 @@ TEST(CutSurface, TheUncutSurfaceIsClosedAndEnclosesTheBody) {
   // 40 x 8 x 8 cubes: 2 (40 x 8 + 40 x 8 + 8 x 8) faces, 2 triangles each.
   EXPECT_EQ(surface.triangles().size(), 2u * 2u * (320u + 320u + 64u));
   EXPECT_NEAR(enclosed_volume(surface.rest_vertices(), surface.triangles()), 0.1 * 0.02 * 0.02, 1e-9);
+}
+
+// The count over the edges between flagged vertices: every use of such an edge is counted
+// (the triangles around it may have unflagged corners), edges with an unflagged end are not.
+TEST(CutSurface, TheTopologyAmongFlaggedVerticesCountsTheirEdgesOnly) {
+  CutSurface surface(in_box, Vec3(0, -0.01, -0.01), Vec3(0.1, 0.01, 0.01), 0.0025);
+  std::vector<std::array<int, 3>> triangles = surface.triangles();
+  const int vertices = static_cast<int>(surface.rest_vertices().size() / 3);
+  const std::array<int, 3> hole = triangles[17];
+  triangles.erase(triangles.begin() + 17);
+  ASSERT_EQ(surface_topology(triangles).boundary_edges, 3);
+  std::vector<std::uint8_t> among(static_cast<size_t>(vertices), 1);
+  EXPECT_EQ(surface_topology(triangles, among).boundary_edges, 3);
+  among.assign(static_cast<size_t>(vertices), 0);
+  EXPECT_EQ(surface_topology(triangles, among).boundary_edges, 0);
+  among[static_cast<size_t>(hole[0])] = among[static_cast<size_t>(hole[1])] = 1;
+  EXPECT_EQ(surface_topology(triangles, among).boundary_edges, 1);  // the hole's edge (hole[0], hole[1])
+  among[static_cast<size_t>(hole[2])] = 1;
+  EXPECT_EQ(surface_topology(triangles, among).boundary_edges, 3);
+  // The triangle put back twice: its three edges used three times.
+  triangles.push_back(hole);
+  triangles.push_back(hole);
+  const SurfaceTopology doubled = surface_topology(triangles, among);
+  EXPECT_EQ(doubled.boundary_edges, 0);
+  EXPECT_EQ(doubled.nonmanifold_edges, 3);
+  EXPECT_EQ(surface_topology(triangles).nonmanifold_edges, 3);
+  // A short flag vector: the vertices past its end are not flagged.
+  EXPECT_EQ(surface_topology(triangles, std::span<const std::uint8_t>(among.data(), 0)).nonmanifold_edges, 0);
 }
 
 TEST(CutSurface, AFullCutMakesTwoClosedPiecesMeetingOnTheCutPlane) {

@@ -5,14 +5,19 @@
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
+#include "physics/cut/front_mapping.hpp"
 #include "tests/unit/temp_dir.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <set>
 #include <string>
 
 
@@ -171,6 +176,37 @@ TEST(WorldCut, TheFrontSurfaceCutsTheBeamInTwoClosedPiecesThatFollowTheirOwnSide
                                   << now.nonmanifold_edges << " non-manifold edges";
     EXPECT_EQ(3 * body.model->node_count(), dofs);
     ASSERT_EQ(body.embedding->vertex_count(), static_cast<int>(body.front_surface->vertices().size())) << "step " << step;
+    // The counts the world keeps where the surface changed are the whole surface's.
+    EXPECT_EQ(body.front_topology.boundary_edges, now.boundary_edges) << "step " << step;
+    EXPECT_EQ(body.front_topology.nonmanifold_edges, now.nonmanifold_edges) << "step " << step;
+    // No vertex across a cut from its point, counted over the whole surface (the world keeps
+    // the rows of the stroke's vertices behind the front and tests only where it changed).
+    {
+      const physics::FrontSurface& front = *body.front_surface;
+      std::set<std::array<double, 9>> seen;
+      std::vector<std::array<physics::Vec3, 3>> faces;
+      for (std::size_t t = 0; t < body.surface.size(); ++t) {
+        if (!front.on_cut_face()[t]) continue;
+        std::array<physics::Vec3, 3> corners;
+        for (int c = 0; c < 3; ++c) corners[static_cast<std::size_t>(c)] = front.vertices()[static_cast<std::size_t>(body.surface[t][static_cast<std::size_t>(c)])];
+        std::sort(corners.begin(), corners.end(), [](const physics::Vec3& l, const physics::Vec3& r) {
+          return std::lexicographical_compare(l.data(), l.data() + 3, r.data(), r.data() + 3);
+        });
+        std::array<double, 9> key{};
+        for (int c = 0; c < 9; ++c) key[static_cast<std::size_t>(c)] = corners[static_cast<std::size_t>(c / 3)][c % 3];
+        if (seen.insert(key).second) faces.push_back(corners);
+      }
+      std::vector<std::uint8_t> on_face(front.vertices().size(), 0);
+      for (std::size_t t = 0; t < body.surface.size(); ++t)
+        if (front.on_cut_face()[t])
+          for (const int v : body.surface[t]) on_face[static_cast<std::size_t>(v)] = 1;
+      std::vector<int> across;
+      const physics::CutFaceIndex index(*body.efg, faces);
+      physics::count_wrong_side(*body.efg, front.vertices(), body.surface, *body.embedding, index, 0.1 * front.front_width() / 1.5, {}, &across,
+                                on_face);
+      const long wrong = std::count_if(across.begin(), across.end(), [&](int v) { return front.crack_front()[static_cast<std::size_t>(v)] == 0; });
+      EXPECT_EQ(wrong, 0) << "step " << step;
+    }
     ASSERT_TRUE(body.surface_positions.allFinite()) << "step " << step;
   }
   EXPECT_GT(events, 0);
