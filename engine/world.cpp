@@ -269,13 +269,18 @@ void make_render_surface(Body& body, const BodySpec& spec, const BodyShape& shap
 }
 
 // A vertex moved only by fixed particles is fixed: the tool cannot push it.
+// Whether vertex v's row uses only fixed particles.
+std::uint8_t fixed_vertex(const Body& body, int v) {
+  const auto& embedding = *body.embedding;
+  for (int k = 0; k < embedding.row_lengths[static_cast<std::size_t>(v)]; ++k)
+    if (!body.fixed[embedding.particles[static_cast<std::size_t>(v) * embedding.stride + k]]) return 0;
+  return 1;
+}
+
 void set_fixed_vertices(Body& body) {
   const auto& embedding = *body.embedding;
-  body.fixed_vertices.assign(static_cast<std::size_t>(embedding.vertex_count()), 1);
-  for (int v = 0; v < embedding.vertex_count(); ++v)
-    for (int k = 0; k < embedding.row_lengths[v]; ++k)
-      if (!body.fixed[embedding.particles[static_cast<std::size_t>(v) * embedding.stride + k]])
-        body.fixed_vertices[v] = 0;
+  body.fixed_vertices.resize(static_cast<std::size_t>(embedding.vertex_count()));
+  for (int v = 0; v < embedding.vertex_count(); ++v) body.fixed_vertices[static_cast<std::size_t>(v)] = fixed_vertex(body, v);
 }
 
 Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodyShape& shape) {
@@ -599,11 +604,7 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
   } else {
     const auto& embedding = *body.embedding;
     body.fixed_vertices.resize(static_cast<std::size_t>(embedding.vertex_count()), 1);
-    for (int v : reuse.remapped) {
-      body.fixed_vertices[v] = 1;
-      for (int k = 0; k < embedding.row_lengths[v]; ++k)
-        if (!body.fixed[embedding.particles[static_cast<std::size_t>(v) * embedding.stride + k]]) body.fixed_vertices[v] = 0;
-    }
+    for (int v : reuse.remapped) body.fixed_vertices[static_cast<std::size_t>(v)] = fixed_vertex(body, v);
   }
   if (body.gpu) {
     physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
@@ -639,7 +640,6 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
 
 void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
                                   const std::vector<std::uint8_t>& changed, bool fixed_changed, StepStats& stats) {
-  (void)fixed_changed;  // every vertex's flag is taken again below
   auto start = Clock::now();
   const physics::FrontSurface& front = *body.front_surface;
   const auto& vertices = front.vertices();
@@ -721,7 +721,7 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // The matched stroke vertices take their rows along (from a copy: the numbers overlap).
   std::vector<int> moved_from, moved_elements, moved_lengths, moved_particles;
   std::vector<double> moved_weights;
-  std::vector<std::uint8_t> moved_wrong;
+  std::vector<std::uint8_t> moved_wrong, moved_fixed;
   const int stride = embedding.stride;
   for (int v = kept; v < static_cast<int>(vertices.size()); ++v) {
     const int u = same[static_cast<std::size_t>(v)];
@@ -733,12 +733,14 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
     moved_particles.insert(moved_particles.end(), embedding.particles.begin() + row, embedding.particles.begin() + row + stride);
     moved_weights.insert(moved_weights.end(), embedding.weights.begin() + row, embedding.weights.begin() + row + stride);
     moved_wrong.push_back(static_cast<std::size_t>(u) < body.front_wrong_side.size() ? body.front_wrong_side[static_cast<std::size_t>(u)] : 0);
+    moved_fixed.push_back(static_cast<std::size_t>(u) < body.fixed_vertices.size() ? body.fixed_vertices[static_cast<std::size_t>(u)] : 0);
   }
   physics::fit_rows(embedding, static_cast<int>(vertices.size()), stride);
   body.front_wrong_side.resize(vertices.size(), 0);
   std::fill(body.front_wrong_side.begin() + kept, body.front_wrong_side.end(), 0);
   std::vector<std::uint8_t> has_row(vertices.size(), 0);
   std::fill(has_row.begin(), has_row.begin() + kept, 1);
+  std::vector<std::pair<std::size_t, std::uint8_t>> moved_fixed_at;  // set once the rows are all mapped
   for (std::size_t k = 0; k < moved_from.size(); ++k) {
     const auto v = static_cast<std::size_t>(moved_from[k]);
     embedding.elements[v] = moved_elements[k];
@@ -746,6 +748,7 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
     std::copy_n(moved_particles.begin() + static_cast<std::ptrdiff_t>(k) * stride, stride, embedding.particles.begin() + static_cast<std::ptrdiff_t>(v) * stride);
     std::copy_n(moved_weights.begin() + static_cast<std::ptrdiff_t>(k) * stride, stride, embedding.weights.begin() + static_cast<std::ptrdiff_t>(v) * stride);
     body.front_wrong_side[v] = moved_wrong[k];
+    moved_fixed_at.emplace_back(v, moved_fixed[k]);
     has_row[v] = 1;
   }
   // What is left of the stroke's vertices is mapped anew (after the trigger test below, which
@@ -796,7 +799,8 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
     if ((lo.array() <= changed_hi.array()).all() && (hi.array() >= changed_lo.array()).all()) near.push_back(v);
   }
   std::vector<int> crossed;
-  physics::count_wrong_side(*body.efg, vertices, front.triangles(), embedding, face_index, inset, near, &crossed, on_face);
+  // (An empty subset would count every vertex.)
+  if (!near.empty()) physics::count_wrong_side(*body.efg, vertices, front.triangles(), embedding, face_index, inset, near, &crossed, on_face);
   std::vector<int> merged;
   std::set_union(remap.begin(), remap.end(), crossed.begin(), crossed.end(), std::back_inserter(merged));
   remap.swap(merged);
@@ -815,7 +819,15 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   body.render_triangles.resize(3 * body.surface.size());
   for (std::size_t t = 0; t < body.surface.size(); ++t)
     for (int c = 0; c < 3; ++c) body.render_triangles[3 * t + static_cast<std::size_t>(c)] = static_cast<std::uint32_t>(body.surface[t][static_cast<std::size_t>(c)]);
-  set_fixed_vertices(body);
+  // Which vertices only fixed particles carry: taken again for every row when the fixed
+  // particles changed (orphans pinned), else for the rows mapped now, the others moved along.
+  if (fixed_changed) {
+    set_fixed_vertices(body);
+  } else {
+    body.fixed_vertices.resize(vertices.size(), 0);
+    for (const auto& [v, flag] : moved_fixed_at) body.fixed_vertices[v] = flag;
+    for (const int v : remap) body.fixed_vertices[static_cast<std::size_t>(v)] = fixed_vertex(body, v);
+  }
   physics::CorotationalEfg::surface_positions(embedding, body.state.positions, body.surface_positions);
   stats.ms_mapping += ms_since(start);
   start = Clock::now();
@@ -840,7 +852,7 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   std::set_union(remap.begin(), remap.end(), near.begin(), near.end(), std::back_inserter(tested));
   for (const int v : tested) body.front_wrong_side[static_cast<std::size_t>(v)] = 0;
   std::vector<int> across;
-  physics::count_wrong_side(*body.efg, vertices, body.surface, embedding, face_index, inset, tested, &across, on_face);
+  if (!tested.empty()) physics::count_wrong_side(*body.efg, vertices, body.surface, embedding, face_index, inset, tested, &across, on_face);
   for (const int v : across) body.front_wrong_side[static_cast<std::size_t>(v)] = 1;
   long wrong = 0;
   for (std::size_t v = 0; v < vertices.size(); ++v) wrong += body.front_wrong_side[v] != 0 && front.crack_front()[v] == 0 ? 1 : 0;
@@ -1098,9 +1110,6 @@ void World::make_gpu_backend(Body& body, std::size_t index) const {
   if (!body.efg)
     throw std::runtime_error(where + "bodies[" + std::to_string(index) + "] ('" + body.name + "') has model '" +
                              body.model_name + "'; the GPU backend runs efg bodies only");
-  if (body.front_surface)
-    throw std::runtime_error(where + "bodies[" + std::to_string(index) + "] ('" + body.name +
-                             "') has efg.cut_surface 'front', which runs on the cpu backend only for now");
   physics::gpu::GpuSettings settings;
   settings.precision = scene_.solver.precision == "double" ? physics::gpu::Precision::double_precision
                                                            : physics::gpu::Precision::single;

@@ -308,11 +308,20 @@ void check_surface(const std::vector<Vec3>& vertices, const std::vector<std::arr
                    const std::string& caller) {
   const auto fail = [&](const std::string& message) { throw std::invalid_argument(caller + ": " + message); };
   const int n = static_cast<int>(vertices.size());
-  for (int v = 0; v < n; ++v)
-    if (!vertices[static_cast<size_t>(v)].allFinite()) fail("vertex " + std::to_string(v) + " is not finite");
-  for (size_t t = 0; t < triangles.size(); ++t)
-    for (const int v : triangles[t])
-      if (v < 0 || v >= n) fail("triangle " + std::to_string(t) + " has vertex " + std::to_string(v) + ", out of range [0, " + std::to_string(n) + ")");
+  // One pass each without branches (this runs on every cut event), then the culprit looked
+  // for only when there is one: x - x is 0 for a finite x and NaN otherwise.
+  double sum = 0;
+  for (const Vec3& x : vertices) sum += (x - x).sum();
+  if (sum != 0)
+    for (int v = 0; v < n; ++v)
+      if (!vertices[static_cast<size_t>(v)].allFinite()) fail("vertex " + std::to_string(v) + " is not finite");
+  unsigned outside = 0;
+  for (const auto& t : triangles)
+    for (const int v : t) outside |= static_cast<unsigned>(v < 0) | static_cast<unsigned>(v >= n);
+  if (outside != 0)
+    for (size_t t = 0; t < triangles.size(); ++t)
+      for (const int v : triangles[t])
+        if (v < 0 || v >= n) fail("triangle " + std::to_string(t) + " has vertex " + std::to_string(v) + ", out of range [0, " + std::to_string(n) + ")");
 }
 
 

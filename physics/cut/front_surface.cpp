@@ -393,7 +393,11 @@ FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
   double moved = 0;
   for (size_t i = 0; i < blade.size(); ++i) moved += (blade[i] - samples_.back()[i]).norm();
   moved /= static_cast<double>(blade.size());
-  if (!(moved > 1e-9 * std::max(blade_s_.back(), front_width_))) return last_report_;  // no motion: the same cut
+  // Less than a hundredth of w from the last sample: the same cut (the motion adds up until
+  // it is more). A blade that pauses in the body still moves at rest by what the solver's
+  // roundoff moves the body (0.1-1 um per step in single precision on the GPU); such a sample
+  // would set the direction the next ones must follow, at random (see below).
+  if (!(moved > minimum_motion * front_width_)) return last_report_;
   if (samples_.size() >= 2) {
     // Back over what the stroke has cut (at rest the blade retreats when the body moves
     // onto it and back, or the hand does): nothing new to cut, and the sheet would fold

@@ -99,6 +99,9 @@ class FrontSurface {
   FrontSurface(FrontSurface&&) noexcept;
   FrontSurface& operator=(FrontSurface&&) noexcept;
 
+  // A sample whose points moved less than this times w on average since the stroke's last
+  // sample is not taken (the cut stays as it is).
+  static constexpr double minimum_motion = 0.01;
   // Appends a blade sample to the stroke (the polyline at rest, at least two points, as many
   // as the stroke's first sample) and recomputes the stroke's cut. While the stroke's sheet
   // touches nothing, it starts again from the latest sample, so that a stroke begins at the

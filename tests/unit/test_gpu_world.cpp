@@ -194,3 +194,40 @@ TEST(GpuWorld, AFemBodyOnTheGpuIsRefusedNamingTheBody) {
     EXPECT_NE(message.find("efg bodies only"), std::string::npos) << message;
   }
 }
+
+// The thesis's explicit surface (efg.cut_surface "front") on the GPU backend: the surface and
+// its mapping are the CPU's (the rows go up like any other), so in double precision the cut
+// is the CPU's, closed after every event, every vertex on its own side.
+TEST(GpuWorld, TheFrontSurfaceCutsTheBeamOnTheGpuAsOnTheCpu) {
+  TempDir dir("incise_gpu_world_front");
+  Json cpu_json = beam_cut_json(dir, "cpu", "double", 1e-10), gpu_json = beam_cut_json(dir, "gpu", "double", 1e-10);
+  cpu_json["bodies"][0]["efg"]["cut_surface"] = "front";
+  gpu_json["bodies"][0]["efg"]["cut_surface"] = "front";
+  World cpu(parse(cpu_json, dir), read_trajectory(dir.path / "cut.traj"));
+  World gpu(parse(gpu_json, dir), read_trajectory(dir.path / "cut.traj"));
+  const Body& body = gpu.bodies()[0];
+  ASSERT_TRUE(body.gpu);
+  ASSERT_TRUE(body.front_surface);
+  int events = 0;
+  for (int step = 0; step < 12; ++step) {
+    const StepStats a = cpu.step();
+    const StepStats b = gpu.step();
+    EXPECT_EQ(a.cut_event, b.cut_event) << "step " << step;
+    EXPECT_EQ(a.links_severed, b.links_severed) << "step " << step;
+    if (!b.cut_event) continue;
+    ++events;
+    EXPECT_TRUE(physics::surface_topology(body.surface).watertight()) << "step " << step;
+    EXPECT_EQ(cpu.bodies()[0].surface, body.surface) << "step " << step;
+  }
+  ASSERT_GT(events, 0);
+  EXPECT_EQ(gpu.cut_totals().front_problems, 0) << gpu.cut_totals().first_front_problem;
+  EXPECT_EQ(gpu.cut_totals().wrong_side, 0);
+  EXPECT_EQ(cpu.cut_totals().vertices_remapped, gpu.cut_totals().vertices_remapped);
+  double difference = 0;
+  for (Eigen::Index i = 0; i < body.surface_positions.size(); ++i)
+    difference = std::max(difference, std::abs(body.surface_positions[i] - cpu.bodies()[0].surface_positions[i]));
+  const double mc = mean_displacement(cpu.bodies()[0]);
+  std::printf("[gpu double] front cut beam: %d cut events, %zu triangles, surface vertices differ by %.3e m (mean displacement %.3e m)\n",
+              events, body.surface.size(), difference, mc);
+  EXPECT_LT(difference, 1e-8 * std::max(mc, 1e-6) + 1e-12);
+}
