@@ -2,7 +2,7 @@
 # A cut scene end to end (issue 4): replays it headless without frames and checks its expect
 # block (--check), then, from metrics.json, that the cut never changed the DOF count
 # (dofs.initial == dofs.final: expect cannot compare two metrics) and that the surface was
-# closed after every cut event.
+# closed after every cut event, and that metrics.json's `expect` holds the same verdicts.
 #   replay_cut_scene.sh INCISE SCENE WORKDIR            the full replay
 #   replay_cut_scene.sh INCISE SCENE WORKDIR --smoke N  N steps only, no --check (the scene's
 #                                                       bounds are for the whole replay), DOFs only
@@ -40,6 +40,12 @@ if [ -z "$smoke_steps" ]; then
   if ! grep -q '"watertight_after_every_event": true' "$metrics"; then
     echo "FAIL: surface.watertight_after_every_event is not true:"
     grep -E '"(worst_boundary_edges|worst_nonmanifold_edges|watertight_after_every_event)"' "$metrics" || true
+    exit 1
+  fi
+  # metrics.json records the same verdicts as --check printed (each with its value).
+  if grep -q '"passed": false' "$metrics"; then
+    echo "FAIL: metrics.json records a failed expectation though --check passed:"
+    grep -B2 -A2 '"passed": false' "$metrics" || true
     exit 1
   fi
   events=$(grep -o '"events": [0-9][0-9]*' "$metrics" | head -1)
