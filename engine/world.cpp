@@ -646,8 +646,8 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   const auto& planes = front.vertex_planes();
   physics::SurfaceEmbedding& embedding = *body.embedding;
   // The base's vertices keep their index and their row unless a trigger of seed 004 §2.6
-  // names them; the stroke's vertices are numbered anew at each sample: all redone (also
-  // those a stroke ended since the last mapping turned into base vertices).
+  // names them (the base as the last mapping saw it: a stroke ended since then turned its
+  // vertices into base ones, which are matched below like the stroke's).
   const int kept = std::min({front.base_vertex_count(), body.front_mapped_base, embedding.vertex_count()});
   // The stroke's vertices are numbered anew at each sample, but those behind the front come
   // out the same: matched to the last mapping's (physics::front_vertex_identity), they keep
