@@ -268,8 +268,8 @@ void make_render_surface(Body& body, const BodySpec& spec, const BodyShape& shap
     for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
 }
 
-// A vertex moved only by fixed particles is fixed: the tool cannot push it.
-// Whether vertex v's row uses only fixed particles.
+// A vertex moved only by fixed particles is fixed: the tool cannot push it. 1 when every
+// particle of vertex v's row is fixed.
 std::uint8_t fixed_vertex(const Body& body, int v) {
   const auto& embedding = *body.embedding;
   for (int k = 0; k < embedding.row_lengths[static_cast<std::size_t>(v)]; ++k)
