@@ -242,6 +242,7 @@ BodySpec read_body(const Json& node, const std::string& path, const std::filesys
         b.fixed.push_back(read_box((*fixed)[i], r.child("fixed") + "[" + std::to_string(i) + "]", errors));
     }
   }
+  bool cut_surface_given = false;
   if (const Json* e = r.get("efg", false)) {
     if (b.model != "efg") {
       r.error(r.child("efg"), "only bodies with model 'efg' take efg settings");
@@ -257,12 +258,13 @@ BodySpec read_body(const Json& node, const std::string& path, const std::filesys
       b.efg.threads = er.integer("threads", false, 2, 1, 64);
       if (er.has("surface_resolution"))
         b.efg.surface_resolution = er.number("surface_resolution", false, 0.005, 1e-4, 10, true);
-      b.efg.cut_surface = er.text("cut_surface", false, "voxel", {"voxel", "front"});
+      cut_surface_given = er.has("cut_surface");
+      b.efg.cut_surface = er.text("cut_surface", false, "front", {"voxel", "front"});
     }
   }
   b.cuttable = r.boolean("cuttable", false);
   if (b.cuttable && b.model != "efg") r.error(r.child("cuttable"), "only 'efg' bodies can be cut");
-  if (!b.cuttable && b.efg.cut_surface != "voxel")
+  if (!b.cuttable && cut_surface_given)
     r.error(r.child("efg") + ".cut_surface", "only cuttable bodies (\"cuttable\": true) have a cut surface");
   if (const Json* d = r.get("damping", false)) {
     Reader dr(*d, r.child("damping"), errors);

@@ -44,7 +44,7 @@ Json beam_cut_json(const TempDir& dir, const std::string& backend, const std::st
       "name": "beam", "model": "efg", "cuttable": true,
       "generator": {"type": "box", "min": [0, -0.01, -0.01], "max": [0.1, 0.01, 0.01]},
       "resolution": 0.005,
-      "efg": {"surface_resolution": 0.0025, "samples_per_axis": 4},
+      "efg": {"surface_resolution": 0.0025, "samples_per_axis": 4, "cut_surface": "voxel"},
       "material": {"E": 1e5, "nu": 0.3, "rho": 1000},
       "fixed": [{"min": [-1, -1, -1], "max": [0.0001, 1, 1]}]
     }],
