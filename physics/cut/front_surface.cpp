@@ -295,6 +295,8 @@ struct OutlineHit {
 struct FrontSurface::Base {
   EdgeTable edges;
   BoxBins edge_bins, triangle_bins;
+  std::vector<int> around_start, around;  // per base vertex, its triangles (compressed rows)
+  std::vector<int> cut_face_slots;        // the base's cut-face triangles
 };
 
 struct FrontSurface::Stroke {
@@ -307,6 +309,28 @@ struct FrontSurface::Stroke {
   // Hits of the outline's fixed segments: the first sample's, and each interval's segment of
   // the far end's path (first to last) and the near end's (last to first).
   std::vector<std::vector<OutlineHit>> first_sample, far_end, near_end;
+
+  // What a sample may have to be undone to: all but edge_cut (as long as the base's edges),
+  // which follows from cut_edges.
+  Stroke snapshot() const {
+    Stroke copy;
+    copy.intervals_searched = intervals_searched;
+    copy.cuts = cuts;
+    copy.cut_edges = cut_edges;
+    copy.problems = problems;
+    copy.folded_edges = folded_edges;
+    copy.first_sample = first_sample;
+    copy.far_end = far_end;
+    copy.near_end = near_end;
+    return copy;
+  }
+  void restore(Stroke&& from) {
+    for (const int e : cut_edges) edge_cut[static_cast<size_t>(e)] = -1;
+    std::vector<int> keep = std::move(edge_cut);
+    *this = std::move(from);
+    edge_cut = std::move(keep);
+    for (size_t c = 0; c < cut_edges.size(); ++c) edge_cut[static_cast<size_t>(cut_edges[c])] = static_cast<int>(c);
+  }
 };
 
 FrontSurface::~FrontSurface() = default;
@@ -337,7 +361,29 @@ void FrontSurface::index_base() {
     boxes.push_back({lo, hi});
   }
   base_->triangle_bins.build(boxes, cell);
+  const size_t n = base_vertices_.size();
+  base_->around_start.assign(n + 1, 0);
+  for (const auto& tri : base_triangles_)
+    for (const int v : tri) ++base_->around_start[static_cast<size_t>(v) + 1];
+  for (size_t v = 0; v < n; ++v) base_->around_start[v + 1] += base_->around_start[v];
+  base_->around.assign(static_cast<size_t>(base_->around_start[n]), 0);
+  std::vector<int> fill(base_->around_start.begin(), base_->around_start.end() - 1);
+  for (size_t s = 0; s < base_triangles_.size(); ++s)
+    for (const int v : base_triangles_[s]) base_->around[static_cast<size_t>(fill[static_cast<size_t>(v)]++)] = static_cast<int>(s);
+  base_->cut_face_slots.clear();
+  for (size_t s = 0; s < base_cut_face_.size(); ++s)
+    if (base_cut_face_[s]) base_->cut_face_slots.push_back(static_cast<int>(s));
 }
+
+std::span<const int> FrontSurface::base_triangles_around(int v) const {
+  if (v < 0 || static_cast<size_t>(v) >= base_vertices_.size())
+    throw std::invalid_argument("FrontSurface::base_triangles_around: vertex " + std::to_string(v) + " is not a base vertex");
+  const auto first = static_cast<size_t>(base_->around_start[static_cast<size_t>(v)]);
+  const auto last = static_cast<size_t>(base_->around_start[static_cast<size_t>(v) + 1]);
+  return {base_->around.data() + first, last - first};
+}
+
+const std::vector<int>& FrontSurface::base_cut_face_slots() const { return base_->cut_face_slots; }
 
 FrontSurface::FrontSurface(std::vector<Vec3> vertices, std::vector<std::array<int, 3>> triangles, double front_width)
     : front_width_(front_width), base_vertices_(std::move(vertices)), base_triangles_(std::move(triangles)) {
@@ -357,10 +403,10 @@ FrontSurface::FrontSurface(std::vector<Vec3> vertices, std::vector<std::array<in
     if (!(normal.norm() > 0)) throw std::invalid_argument("FrontSurface: triangle " + std::to_string(t) + " is degenerate");
   }
   if (base_triangles_.empty()) throw std::invalid_argument("FrontSurface: the mesh has no triangle");
-  index_base();
   base_planes_.assign(base_vertices_.size(), {});
   base_cut_face_.assign(base_triangles_.size(), 0);
   base_crack_front_.assign(base_vertices_.size(), 0);
+  index_base();
   show_base();
 }
 
@@ -372,6 +418,25 @@ void FrontSurface::show_base() {
   crack_front_.resize(vertices_.size(), 0);
   cut_face_ = base_cut_face_;
   cut_face_.resize(triangles_.size(), 0);
+  replaced_slots_.clear();
+  planed_base_.clear();
+}
+
+void FrontSurface::restore_base() {
+  // The output is the base's but for the replaced slots, the planed base vertices and what
+  // follows the base's vertices and triangles (see the header).
+  for (const int s : replaced_slots_) {
+    triangles_[static_cast<size_t>(s)] = base_triangles_[static_cast<size_t>(s)];
+    cut_face_[static_cast<size_t>(s)] = base_cut_face_[static_cast<size_t>(s)];
+  }
+  for (const int v : planed_base_) vertex_planes_[static_cast<size_t>(v)] = base_planes_[static_cast<size_t>(v)];
+  replaced_slots_.clear();
+  planed_base_.clear();
+  triangles_.resize(base_triangles_.size());
+  cut_face_.resize(base_triangles_.size());
+  vertices_.resize(base_vertices_.size());
+  vertex_planes_.resize(base_vertices_.size());
+  crack_front_.resize(base_vertices_.size());
 }
 
 FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
@@ -412,14 +477,11 @@ FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
       return held;
     }
   }
-  // What the last good sample gave, kept until this one is known to cut.
+  // What the last good sample's stroke was, kept until this one is known to cut (its surface
+  // follows from it: recompute gives it again).
   const bool keep = samples_.size() >= 2 && last_report_.ok();
   std::optional<Stroke> stroke_before;
-  if (keep && stroke_) stroke_before = *stroke_;
-  std::vector<Vec3> vertices_before = std::move(vertices_);
-  std::vector<std::array<int, 3>> triangles_before = std::move(triangles_);
-  std::vector<std::vector<ConstraintPlane>> planes_before = std::move(vertex_planes_);
-  std::vector<std::uint8_t> crack_before = std::move(crack_front_), face_before = std::move(cut_face_);
+  if (keep && stroke_) stroke_before = stroke_->snapshot();
   sample_t_.push_back(sample_t_.back() + moved);
   samples_.emplace_back(blade.begin(), blade.end());
   recompute(report);
@@ -428,12 +490,12 @@ FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
     // stays as the last good sample left it rather than going back to the stroke's base.
     samples_.pop_back();
     sample_t_.pop_back();
-    if (stroke_before) *stroke_ = std::move(*stroke_before);
-    vertices_ = std::move(vertices_before);
-    triangles_ = std::move(triangles_before);
-    vertex_planes_ = std::move(planes_before);
-    crack_front_ = std::move(crack_before);
-    cut_face_ = std::move(face_before);
+    if (stroke_before)
+      stroke_->restore(std::move(*stroke_before));
+    else
+      stroke_.reset();
+    FrontCutReport again;
+    recompute(again);
     FrontCutReport held = last_report_;
     held.problems = report.problems;
     held.samples_held = 1;
@@ -498,7 +560,7 @@ bool FrontSurface::end_stroke(double reach) {
 }
 
 void FrontSurface::recompute(FrontCutReport& report) {
-  show_base();
+  restore_base();
   if (samples_.size() < 2) return;
   const int point_count = static_cast<int>(samples_.front().size());
   const int sample_count = static_cast<int>(samples_.size());
@@ -681,7 +743,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
   };
   if (first_sample_inside()) problem("the stroke began with the blade inside the body");
   if (!report.ok()) {
-    show_base();
+    restore_base();
     return;
   }
 
@@ -746,7 +808,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
   };
   std::vector<int> slit_points;  // region points of the slits' middle pairs
   std::vector<std::array<int, 3>> split;  // the base triangles' replacements
-  std::vector<std::uint8_t> replaced(base_triangles_.size(), 0);
+  std::vector<std::array<int, 3>> split_ranges;  // per replaced base triangle: {slot, first, end} in split
   std::vector<std::uint8_t> split_on_face;  // per replacement: its base triangle was a cut face
   std::uint8_t splitting_face = 0;
   const auto emit = [&](int a, int b, int c) {
@@ -759,7 +821,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
               " cut ends in one stroke (this stage handles two)");
       continue;
     }
-    replaced[static_cast<size_t>(t)] = 1;
+    const int split_first = static_cast<int>(split.size());
     splitting_face = base_cut_face_[static_cast<size_t>(t)];
     ++report.split_triangles;
     const auto& tri = base_triangles_[static_cast<size_t>(t)];
@@ -790,6 +852,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
       const bool b_plus = cuts[static_cast<size_t>(p)].lower_on_plus == (b == std::min(a, b));
       const int from = point_of_end(b_plus ? q : p), to = point_of_end(b_plus ? p : q);
       region.boundary.push_back({from, to});
+      split_ranges.push_back({t, split_first, static_cast<int>(split.size())});
     } else if (crossings == 1) {
       const int cut_index = ends[0] >= 0 ? ends[0] : ends[1];
       const int tip_end = ends[0] >= 0 ? ends[1] : ends[0];
@@ -809,6 +872,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
         region.boundary.push_back({cut_end, tip_end_point});
       else
         region.boundary.push_back({tip_end_point, cut_end});
+      split_ranges.push_back({t, split_first, static_cast<int>(split.size())});
     } else {
       // A slit between two tips, with a pair of vertices at its middle (so that its two lips
       // are different edges): seven triangles around it (see the header).
@@ -853,10 +917,11 @@ void FrontSurface::recompute(FrontCutReport& report) {
       slit_points.push_back(middle_point);
       region.boundary.push_back({point_of_end(-1 - leave), middle_point});
       region.boundary.push_back({middle_point, point_of_end(-1 - enter)});
+      split_ranges.push_back({t, split_first, static_cast<int>(split.size())});
     }
   }
   if (!report.ok()) {
-    show_base();
+    restore_base();
     return;
   }
 
@@ -913,7 +978,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
   if (tips.empty() && outline_inside) problem("the blade is inside the body for the whole stroke");
   if (!report.ok() || region.boundary.empty()) {
     if (!report.ok()) {
-      show_base();
+      restore_base();
     }
     return;
   }
@@ -965,7 +1030,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
     face = triangulate_region(region);
   } catch (const std::invalid_argument& error) {
     problem(std::string("the cut face could not be triangulated: ") + error.what());
-    show_base();
+    restore_base();
     return;
   }
   // Where the blade still is, both sides' faces share the vertices (the crack closes there).
@@ -1061,15 +1126,17 @@ void FrontSurface::recompute(FrontCutReport& report) {
     face_planes.push_back({region_vertex_plus[static_cast<size_t>(p)], {x, -normal}});
   }
 
-  triangles_.clear();
-  cut_face_.clear();
-  for (size_t t = 0; t < base_triangles_.size(); ++t)
-    if (!replaced[t]) {
-      triangles_.push_back(base_triangles_[t]);
-      cut_face_.push_back(base_cut_face_[t]);
+  // The output is the base's (restore_base); each split's first triangle takes its base
+  // triangle's slot, the others follow the base's triangles.
+  for (const auto& [slot, first, end] : split_ranges) {
+    triangles_[static_cast<size_t>(slot)] = split[static_cast<size_t>(first)];
+    cut_face_[static_cast<size_t>(slot)] = split_on_face[static_cast<size_t>(first)];
+    replaced_slots_.push_back(slot);
+    for (int k = first + 1; k < end; ++k) {
+      triangles_.push_back(split[static_cast<size_t>(k)]);
+      cut_face_.push_back(split_on_face[static_cast<size_t>(k)]);
     }
-  triangles_.insert(triangles_.end(), split.begin(), split.end());
-  cut_face_.insert(cut_face_.end(), split_on_face.begin(), split_on_face.end());
+  }
   // The body on the sheet's minus side sees the face with the sheet's normal; the plus side
   // the other way round.
   for (const auto& triangle : face)
@@ -1084,18 +1151,21 @@ void FrontSurface::recompute(FrontCutReport& report) {
   // Constraint planes (seed 004 §2.6, criterion 3): each end of a cut edge and its copy of the
   // pair face across the sheet; so do the cut faces' inner vertices, each on its side.
   vertex_planes_.resize(vertices_.size());
-  crack_front_ = base_crack_front_;
-  crack_front_.resize(vertices_.size(), 0);
+  crack_front_.resize(vertices_.size(), 0);  // the base's flags, then the stroke's vertices'
   for (const int v : front_vertices) crack_front_[static_cast<size_t>(v)] = 1;
   for (const EdgeCut& cut : cuts) {
     const ConstraintPlane lower{cut.point, cut.lower_on_plus ? Vec3(-cut.normal) : cut.normal};
     const ConstraintPlane higher{cut.point, -lower.normal};
     vertex_planes_[static_cast<size_t>(cut.lower)].push_back(lower);
     vertex_planes_[static_cast<size_t>(cut.higher)].push_back(higher);
+    planed_base_.push_back(cut.lower);
+    planed_base_.push_back(cut.higher);
     vertex_planes_[static_cast<size_t>(cut.copy_lower)].push_back(lower);
     vertex_planes_[static_cast<size_t>(cut.copy_higher)].push_back(higher);
   }
   for (const auto& [v, plane] : face_planes) vertex_planes_[static_cast<size_t>(v)].push_back(plane);
+  std::sort(planed_base_.begin(), planed_base_.end());
+  planed_base_.erase(std::unique(planed_base_.begin(), planed_base_.end()), planed_base_.end());
 }
 
 }  // namespace incise::physics

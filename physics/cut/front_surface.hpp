@@ -141,11 +141,29 @@ class FrontSurface {
   int base_vertex_count() const { return static_cast<int>(base_vertices_.size()); }
   double front_width() const { return front_width_; }
 
+  // What the stroke changed, so that a user can follow the change instead of the surface
+  // (the cost of a sample then grows with the stroke, not with the mesh). The base's
+  // triangles keep their slots: triangles()[t] for t < base_triangle_count() is the base's
+  // triangle t, but for the slots in replaced_slots() (increasing), which hold the first
+  // triangle of their split; the splits' other triangles and the cut faces follow the base's.
+  // The base's vertices keep their index and rest position, their crack flag and their planes
+  // but for those of planed_base_vertices() (the ends of the stroke's cut edges, which gain
+  // the sheet's plane).
+  int base_triangle_count() const { return static_cast<int>(base_triangles_.size()); }
+  const std::vector<int>& replaced_slots() const { return replaced_slots_; }
+  const std::vector<int>& planed_base_vertices() const { return planed_base_; }
+  // The base's triangles with vertex v (< base_vertex_count()) as a corner, increasing (slots
+  // of the base, some of which a stroke may have replaced since), and the base's cut-face
+  // triangles.
+  std::span<const int> base_triangles_around(int v) const;
+  const std::vector<int>& base_cut_face_slots() const;
+
  private:
   struct Base;    // the base mesh's edges, and its edges and triangles binned
   struct Stroke;  // what the stroke's fixed part crossed, kept between calls
   void index_base();
-  void show_base();  // the surface is the base's (before a stroke, or when it cannot be cut)
+  void show_base();     // the surface is the base's (copied whole: after a new base)
+  void restore_base();  // the same from an output of the base's (undoing only what a stroke changed)
   void recompute(FrontCutReport& report);
 
   double front_width_;
@@ -162,6 +180,7 @@ class FrontSurface {
   std::vector<std::vector<ConstraintPlane>> vertex_planes_;
   std::vector<std::uint8_t> crack_front_, base_crack_front_;
   std::vector<std::uint8_t> base_cut_face_, cut_face_;
+  std::vector<int> replaced_slots_, planed_base_;
   FrontCutReport last_report_;  // of the last sample taken
 };
 

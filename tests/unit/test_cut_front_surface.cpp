@@ -533,3 +533,70 @@ TEST(FrontSurface, RejectsBadInputNamingIt) {
             std::string::npos);
   EXPECT_EQ(surface.stroke_samples(), 1);
 }
+
+TEST(FrontSurface, WhatAStrokeLeavesAloneKeepsItsSlotAndIndexAndTheChangeIsListed) {
+  // A user follows the stroke's change instead of the whole surface (front_surface.hpp): the
+  // base's triangles keep their slots but for replaced_slots(), its vertices their index, flags
+  // and planes but for planed_base_vertices(); base_triangles_around and base_cut_face_slots
+  // are the base's. Checked after every sample of two strokes (the second's base holds the
+  // first's cut), one of whose samples is left out.
+  const Mesh mesh = icosphere(3, 1.0);
+  FrontSurface surface(mesh.vertices, mesh.triangles, 0.08);
+  const auto blade_at = [](double x, double z, double turn) {
+    const Eigen::AngleAxisd r(turn, Vec3::UnitZ());
+    return std::vector<Vec3>{r * Vec3(x, -1.4, z), r * Vec3(x + 0.02, 1.4, z)};
+  };
+  int samples = 0, replaced = 0;
+  for (const double x : {-0.3, 0.25}) {
+    const std::vector<Vec3> base_vertices = surface.vertices();
+    const std::vector<std::array<int, 3>> base_triangles = surface.triangles();
+    const std::vector<std::vector<ConstraintPlane>> base_planes = surface.vertex_planes();
+    const std::vector<std::uint8_t> base_crack = surface.crack_front(), base_face = surface.on_cut_face();
+    ASSERT_EQ(surface.base_triangle_count(), static_cast<int>(base_triangles.size()));
+    ASSERT_EQ(surface.base_vertex_count(), static_cast<int>(base_vertices.size()));
+    std::vector<std::vector<int>> around(base_vertices.size());
+    std::vector<int> faces;
+    for (size_t t = 0; t < base_triangles.size(); ++t) {
+      for (const int v : base_triangles[t]) around[static_cast<size_t>(v)].push_back(static_cast<int>(t));
+      if (base_face[t]) faces.push_back(static_cast<int>(t));
+    }
+    for (size_t v = 0; v < around.size(); ++v) {
+      const auto listed = surface.base_triangles_around(static_cast<int>(v));
+      ASSERT_EQ(std::vector<int>(listed.begin(), listed.end()), around[v]) << "vertex " << v;
+    }
+    ASSERT_EQ(surface.base_cut_face_slots(), faces);
+    if (x > 0) EXPECT_FALSE(faces.empty());  // the first stroke's faces
+    for (int k = 0; k < 24; ++k) {
+      const double z = 1.3 - 0.1 * k;
+      surface.advance(blade_at(x, z, 0));
+      if (k == 12) EXPECT_FALSE(surface.advance(blade_at(x, z - 0.1, 1.5)).ok());  // left out
+      ++samples;
+      const auto& slots = surface.replaced_slots();
+      ASSERT_TRUE(std::is_sorted(slots.begin(), slots.end()));
+      replaced += static_cast<int>(slots.size());
+      std::vector<std::uint8_t> is_replaced(base_triangles.size(), 0);
+      for (const int s : slots) is_replaced[static_cast<size_t>(s)] = 1;
+      ASSERT_GE(surface.triangles().size(), base_triangles.size());
+      for (size_t t = 0; t < base_triangles.size(); ++t) {
+        if (is_replaced[t]) continue;
+        ASSERT_EQ(surface.triangles()[t], base_triangles[t]) << "x " << x << " sample " << k << " slot " << t;
+        ASSERT_EQ(surface.on_cut_face()[t], base_face[t]) << "x " << x << " sample " << k << " slot " << t;
+      }
+      const auto& planed = surface.planed_base_vertices();
+      for (size_t v = 0; v < base_vertices.size(); ++v) {
+        ASSERT_EQ(surface.vertices()[v], base_vertices[v]);
+        ASSERT_EQ(surface.crack_front()[v], base_crack[v]);
+        if (std::binary_search(planed.begin(), planed.end(), static_cast<int>(v))) {
+          // One plane per cut edge at the vertex, at most one per edge (as many as triangles).
+          ASSERT_GT(surface.vertex_planes()[v].size(), base_planes[v].size()) << "vertex " << v;
+          ASSERT_LE(surface.vertex_planes()[v].size(), base_planes[v].size() + around[v].size())
+              << "x " << x << " sample " << k << " vertex " << v;
+          continue;
+        }
+        ASSERT_EQ(surface.vertex_planes()[v].size(), base_planes[v].size()) << "x " << x << " sample " << k << " vertex " << v;
+      }
+    }
+    surface.end_stroke();
+  }
+  EXPECT_GT(replaced, samples);  // the strokes did replace triangles
+}
