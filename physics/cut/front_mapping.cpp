@@ -18,81 +18,108 @@ namespace {
 
 [[noreturn]] void fail(const std::string& message) { throw std::invalid_argument("map_front_surface: " + message); }
 
+// The triangles to look at for the vertices flagged in `only`: `subset` when given (every
+// triangle with a flagged corner must be in it, in increasing order), else all of them.
+template <typename Visit>
+void for_each_triangle(const std::vector<std::array<int, 3>>& triangles, std::span<const int> subset, bool all, const Visit& visit) {
+  if (all) {
+    for (const auto& t : triangles) visit(t);
+  } else {
+    for (const int t : subset) visit(triangles[static_cast<size_t>(t)]);
+  }
+}
+
 // Per vertex, the area-weighted normal: the sum of its triangles' cross products (each twice
 // the triangle's area along its unit normal), not normalised; only the vertices flagged in
-// `only` (the others stay zero).
+// `only` (the others' entries are left unset), from the triangles of `subset` (see
+// for_each_triangle; `all` for every triangle).
 std::vector<Vec3> area_weighted_normals(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
-                                        const std::vector<std::uint8_t>& only) {
-  std::vector<Vec3> normals(vertices.size(), Vec3::Zero());
-  for (const auto& t : triangles) {
-    if (!only[static_cast<size_t>(t[0])] && !only[static_cast<size_t>(t[1])] && !only[static_cast<size_t>(t[2])]) continue;
+                                        const std::vector<std::uint8_t>& only, std::span<const int> listed,
+                                        std::span<const int> subset, bool all) {
+  std::vector<Vec3> normals(vertices.size());  // not filled: only the listed vertices' are read
+  for (const int v : listed) normals[static_cast<size_t>(v)].setZero();
+  for_each_triangle(triangles, subset, all, [&](const std::array<int, 3>& t) {
+    if (!only[static_cast<size_t>(t[0])] && !only[static_cast<size_t>(t[1])] && !only[static_cast<size_t>(t[2])]) return;
     const Vec3& a = vertices[static_cast<size_t>(t[0])];
     const Vec3 n = (vertices[static_cast<size_t>(t[1])] - a).cross(vertices[static_cast<size_t>(t[2])] - a);
     for (const int v : t)
       if (only[static_cast<size_t>(v)]) normals[static_cast<size_t>(v)] += n;
-  }
+  });
   return normals;
 }
 
 // Per vertex, the angle-weighted normal (each triangle's unit normal times its angle at the
 // vertex, not normalised): the pseudo-normal that points into the body at a rim, whatever the
 // size of the triangles on either side.
-// With `only` (per vertex, 1 where wanted), only those vertices' are formed (the others stay
-// zero): the angles' atan2 is most of the cost.
+// Only the vertices flagged in `only` (listed in `listed`) are formed, the others' entries are
+// left unset (the angles' atan2 is most of the cost), from the triangles of `subset` (see
+// for_each_triangle).
 std::vector<Vec3> angle_weighted_normals(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
-                                         const std::vector<std::uint8_t>* only = nullptr) {
-  std::vector<Vec3> normals(vertices.size(), Vec3::Zero());
-  for (const auto& t : triangles) {
-    if (only && !(*only)[static_cast<size_t>(t[0])] && !(*only)[static_cast<size_t>(t[1])] && !(*only)[static_cast<size_t>(t[2])]) continue;
+                                         const std::vector<std::uint8_t>& only, std::span<const int> listed,
+                                         std::span<const int> subset, bool all) {
+  std::vector<Vec3> normals(vertices.size());
+  for (const int v : listed) normals[static_cast<size_t>(v)].setZero();
+  for_each_triangle(triangles, subset, all, [&](const std::array<int, 3>& t) {
+    if (!only[static_cast<size_t>(t[0])] && !only[static_cast<size_t>(t[1])] && !only[static_cast<size_t>(t[2])]) return;
     const Vec3 n = (vertices[static_cast<size_t>(t[1])] - vertices[static_cast<size_t>(t[0])])
                        .cross(vertices[static_cast<size_t>(t[2])] - vertices[static_cast<size_t>(t[0])]);
     const double length = n.norm();
-    if (!(length > 0)) continue;
+    if (!(length > 0)) return;
     for (int i = 0; i < 3; ++i) {
-      if (only && !(*only)[static_cast<size_t>(t[i])]) continue;
+      if (!only[static_cast<size_t>(t[i])]) continue;
       const Vec3& x = vertices[static_cast<size_t>(t[i])];
       const Vec3 u = vertices[static_cast<size_t>(t[(i + 1) % 3])] - x, w = vertices[static_cast<size_t>(t[(i + 2) % 3])] - x;
       normals[static_cast<size_t>(t[i])] += std::atan2(u.cross(w).norm(), u.dot(w)) / length * n;
     }
-  }
+  });
   return normals;
 }
 
-// One-ring neighbours of the vertices flagged in `only` (the vertices each shares a triangle
-// with; the others have none), compressed rows.
+// One-ring neighbours of the listed vertices (increasing; each shares a triangle with them),
+// compressed rows in the order of the list, from the triangles of `subset` (see
+// for_each_triangle).
 struct OneRing {
-  std::vector<int> start;  // vertex -> first entry; start[n] = end
+  std::span<const int> listed;
+  std::vector<int> start;  // position in listed -> first entry; start[size] = end
   std::vector<int> neighbours;
 
-  OneRing(int vertex_count, const std::vector<std::array<int, 3>>& triangles, const std::vector<std::uint8_t>& only) {
-    start.assign(static_cast<size_t>(vertex_count) + 1, 0);
-    for (const auto& t : triangles)
+  OneRing(std::span<const int> listed_vertices, const std::vector<std::array<int, 3>>& triangles,
+          const std::vector<std::uint8_t>& only, std::span<const int> subset, bool all)
+      : listed(listed_vertices) {
+    const size_t count = listed.size();
+    const auto position = [&](int v) { return static_cast<size_t>(std::lower_bound(listed.begin(), listed.end(), v) - listed.begin()); };
+    start.assign(count + 1, 0);
+    for_each_triangle(triangles, subset, all, [&](const std::array<int, 3>& t) {
       for (const int v : t)
-        if (only[static_cast<size_t>(v)]) start[static_cast<size_t>(v) + 1] += 2;
-    for (int v = 0; v < vertex_count; ++v) start[static_cast<size_t>(v) + 1] += start[static_cast<size_t>(v)];
+        if (only[static_cast<size_t>(v)]) start[position(v) + 1] += 2;
+    });
+    for (size_t k = 0; k < count; ++k) start[k + 1] += start[k];
     std::vector<int> fill(start.begin(), start.end() - 1);
-    std::vector<int> all(static_cast<size_t>(start.back()));
-    for (const auto& t : triangles)
+    std::vector<int> all_entries(static_cast<size_t>(start.back()));
+    for_each_triangle(triangles, subset, all, [&](const std::array<int, 3>& t) {
       for (int i = 0; i < 3; ++i) {
         if (!only[static_cast<size_t>(t[i])]) continue;
-        all[static_cast<size_t>(fill[static_cast<size_t>(t[i])]++)] = t[(i + 1) % 3];
-        all[static_cast<size_t>(fill[static_cast<size_t>(t[i])]++)] = t[(i + 2) % 3];
+        const size_t k = position(t[i]);
+        all_entries[static_cast<size_t>(fill[k]++)] = t[(i + 1) % 3];
+        all_entries[static_cast<size_t>(fill[k]++)] = t[(i + 2) % 3];
       }
+    });
     // Each vertex's list sorted, without repeats or itself, compacted in place.
     size_t out = 0;
-    for (int v = 0; v < vertex_count; ++v) {
-      const auto first = all.begin() + start[static_cast<size_t>(v)], last = all.begin() + start[static_cast<size_t>(v) + 1];
+    for (size_t k = 0; k < count; ++k) {
+      const auto first = all_entries.begin() + start[k], last = all_entries.begin() + start[k + 1];
       std::sort(first, last);
-      start[static_cast<size_t>(v)] = static_cast<int>(out);
+      start[k] = static_cast<int>(out);
       for (auto it = first; it != last; ++it)
-        if (*it != v && (it == first || *it != *(it - 1))) all[out++] = *it;
+        if (*it != listed[k] && (it == first || *it != *(it - 1))) all_entries[out++] = *it;
     }
-    start[static_cast<size_t>(vertex_count)] = static_cast<int>(out);
-    all.resize(out);
-    neighbours.swap(all);
+    start[count] = static_cast<int>(out);
+    all_entries.resize(out);
+    neighbours.swap(all_entries);
   }
-  std::span<const int> of(int v) const {
-    return {neighbours.data() + start[static_cast<size_t>(v)], neighbours.data() + start[static_cast<size_t>(v) + 1]};
+  // The neighbours of the k-th listed vertex.
+  std::span<const int> of_listed(size_t k) const {
+    return {neighbours.data() + start[k], neighbours.data() + start[k + 1]};
   }
 };
 
@@ -324,19 +351,54 @@ void check_surface(const std::vector<Vec3>& vertices, const std::vector<std::arr
         if (v < 0 || v >= n) fail("triangle " + std::to_string(t) + " has vertex " + std::to_string(v) + ", out of range [0, " + std::to_string(n) + ")");
 }
 
+// The triangles of the listed vertices (increasing, each once) from `around`, checked as
+// check_surface checks the whole surface: the listed vertices and these triangles' corners
+// finite, the triangles and their corners in range. Without `around`, check_surface and an
+// empty list (every triangle is looked at).
+std::vector<int> triangles_of(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                              std::span<const int> listed, const TrianglesAround* around, const std::string& caller) {
+  std::vector<int> subset;
+  if (around == nullptr) {
+    check_surface(vertices, triangles, caller);
+    return subset;
+  }
+  const auto fail = [&](const std::string& message) { throw std::invalid_argument(caller + ": " + message); };
+  const int n = static_cast<int>(vertices.size());
+  const auto finite_vertex = [&](int v) {
+    if (v < 0 || v >= n) return false;
+    if (!vertices[static_cast<size_t>(v)].allFinite()) fail("vertex " + std::to_string(v) + " is not finite");
+    return true;
+  };
+  std::vector<int> found;
+  for (const int v : listed) {
+    if (!finite_vertex(v)) continue;  // the caller names a listed vertex out of range
+    found.clear();
+    (*around)(v, found);
+    subset.insert(subset.end(), found.begin(), found.end());
+  }
+  std::sort(subset.begin(), subset.end());
+  subset.erase(std::unique(subset.begin(), subset.end()), subset.end());
+  for (const int t : subset) {
+    if (t < 0 || static_cast<size_t>(t) >= triangles.size())
+      fail("triangle " + std::to_string(t) + " is out of range [0, " + std::to_string(triangles.size()) + ")");
+    for (const int v : triangles[static_cast<size_t>(t)])
+      if (!finite_vertex(v)) fail("triangle " + std::to_string(t) + " has vertex " + std::to_string(v) + ", out of range [0, " + std::to_string(n) + ")");
+  }
+  return subset;
+}
 
 }  // namespace
 
 void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                        const std::vector<std::array<int, 3>>& triangles,
                        const std::vector<std::vector<ConstraintPlane>>& planes, std::span<const int> remap,
-                       SurfaceEmbedding& embedding, FrontMappingReport& report, const FrontVisibility* visibility) {
+                       SurfaceEmbedding& embedding, FrontMappingReport& report, const FrontVisibility* visibility,
+                       const TrianglesAround* around) {
   const int n = static_cast<int>(vertices.size());
   if (visibility != nullptr && visibility->faces == nullptr) fail("the visibility criterion has no cut faces");
   if (visibility != nullptr && !(visibility->inset >= 0 && std::isfinite(visibility->inset)))
     fail("the visibility criterion's inset must be finite and not negative");
   const int rows = embedding.vertex_count();
-  check_surface(vertices, triangles, "map_front_surface");
   if (rows > n) fail("the embedding has " + std::to_string(rows) + " rows for " + std::to_string(n) + " vertices");
   for (size_t k = 0; k < remap.size(); ++k) {
     const int v = remap[k];
@@ -350,44 +412,48 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
     for (auto it = first_new; it != remap.end() && *it == missing; ++it) ++missing;
     fail("vertex " + std::to_string(missing) + " has no row and is not in the remap list");
   }
-  for (size_t v = 0; v < planes.size() && v < vertices.size(); ++v)
-    for (const ConstraintPlane& plane : planes[v])
-      if (!plane.point.allFinite() || !plane.normal.allFinite()) fail("a constraint plane of vertex " + std::to_string(v) + " is not finite");
-  for (int v = 0; v < rows; ++v) {
-    const int e = embedding.elements[static_cast<size_t>(v)];
-    if (e < 0 || e >= model.element_count()) fail("vertex " + std::to_string(v) + " is mapped to element " + std::to_string(e) + ", out of range");
-  }
-
-  fit_rows(embedding, n, std::max(embedding.stride, model.row_stride()));
-  // Only the listed vertices' normals and one-rings are used.
+  // Only the listed vertices' planes, triangles and one-rings are read, and their neighbours'
+  // rows (whose elements are checked where they are read).
+  for (const int v : remap)
+    if (static_cast<size_t>(v) < planes.size())
+      for (const ConstraintPlane& plane : planes[static_cast<size_t>(v)])
+        if (!plane.point.allFinite() || !plane.normal.allFinite()) fail("a constraint plane of vertex " + std::to_string(v) + " is not finite");
+  const std::vector<int> subset = triangles_of(vertices, triangles, remap, around, "map_front_surface");
+  const bool all = around == nullptr;
   std::vector<std::uint8_t> wanted(vertices.size(), 0);
   for (const int v : remap) wanted[static_cast<size_t>(v)] = 1;
-  const std::vector<Vec3> normals = area_weighted_normals(vertices, triangles, wanted);
-  const OneRing ring(n, triangles, wanted);
+  const OneRing ring(remap, triangles, wanted, subset, all);
+  for (size_t k = 0; k < remap.size(); ++k)
+    for (const int u : ring.of_listed(k)) {
+      if (u >= rows || wanted[static_cast<size_t>(u)]) continue;
+      const int e = embedding.elements[static_cast<size_t>(u)];
+      if (e < 0 || e >= model.element_count()) fail("vertex " + std::to_string(u) + " is mapped to element " + std::to_string(e) + ", out of range");
+    }
+
+  fit_rows(embedding, n, std::max(embedding.stride, model.row_stride()));
+  const std::vector<Vec3> normals = area_weighted_normals(vertices, triangles, wanted, remap, subset, all);
   std::vector<Vec3> inward;
   if (visibility != nullptr) {
-    const std::vector<Vec3> pseudo = angle_weighted_normals(vertices, triangles, &wanted);
+    const std::vector<Vec3> pseudo = angle_weighted_normals(vertices, triangles, wanted, remap, subset, all);
     inward.resize(vertices.size());
     for (const int v : remap) inward[static_cast<size_t>(v)] = inset_point(vertices[static_cast<size_t>(v)], pseudo[static_cast<size_t>(v)], visibility->inset, *visibility->faces,
                                                              flagged(visibility->on_face, v));
   }
   Mapper mapper(model, vertices, normals, planes, visibility, &inward);
 
-  // listed[v]: -1 if v is not remapped, else (after the first pass) its first-pass element.
-  std::vector<int> listed(static_cast<size_t>(n), -1);
-  for (const int v : remap) listed[static_cast<size_t>(v)] = std::numeric_limits<int>::max();
+  // A neighbour that is listed is read at its first-pass element (second pass only), the
+  // others at their row's.
   std::vector<int> first(remap.size());
   std::vector<int> neighbour_elements;
-  const auto gather = [&](int v, bool second_pass) {
+  const auto gather = [&](size_t k, bool second_pass) {
     neighbour_elements.clear();
-    for (const int u : ring.of(v)) {
+    for (const int u : ring.of_listed(k)) {
       // The crack front's vertices belong to neither side: criterion 1 does not follow them.
       if (visibility != nullptr && flagged(visibility->exempt, u)) continue;
-      const int mark = listed[static_cast<size_t>(u)];
-      if (mark < 0) {
+      if (!wanted[static_cast<size_t>(u)]) {
         neighbour_elements.push_back(embedding.elements[static_cast<size_t>(u)]);
       } else if (second_pass) {
-        neighbour_elements.push_back(mark);
+        neighbour_elements.push_back(first[static_cast<size_t>(std::lower_bound(remap.begin(), remap.end(), u) - remap.begin())]);
       }
     }
     std::sort(neighbour_elements.begin(), neighbour_elements.end());
@@ -397,18 +463,17 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
   // First pass: only the neighbours not being remapped, whose rows are as given.
   std::vector<std::uint8_t> first_relaxed(remap.size(), 0);
   for (size_t k = 0; k < remap.size(); ++k) {
-    gather(remap[k], false);
+    gather(k, false);
     first[k] = mapper.choose(remap[k], neighbour_elements, relaxed);
     first_relaxed[k] = relaxed ? 1 : 0;
   }
-  for (size_t k = 0; k < remap.size(); ++k) listed[static_cast<size_t>(remap[k])] = first[k];
   // Second pass: every neighbour, the remapped ones at their first-pass element (a snapshot:
   // nothing this pass writes is read by it).
   // The second pass only adds constraints (criterion 1 against more neighbours), so a
   // first-pass point that met all three criteria and meets the new ones is still the first
   // valid candidate in the same order: it is kept without a new search.
   for (size_t k = 0; k < remap.size(); ++k) {
-    gather(remap[k], true);
+    gather(k, true);
     int e = first[k];
     if (first_relaxed[k] || !std::all_of(neighbour_elements.begin(), neighbour_elements.end(),
                                          [&](int f) { return share_a_particle(model, e, f); })) {
@@ -477,8 +542,8 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
 int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                      const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
                      const CutFaceIndex& faces, double inset, std::span<const int> subset, std::vector<int>* which,
-                     std::span<const std::uint8_t> on_face) {
-  check_surface(vertices, triangles, "count_wrong_side");
+                     std::span<const std::uint8_t> on_face, const TrianglesAround* around) {
+  if (around != nullptr && subset.empty()) throw std::invalid_argument("count_wrong_side: the triangles around the vertices are given, but not the vertices");
   const int rows = std::min(embedding.vertex_count(), static_cast<int>(vertices.size()));
   std::vector<int> all;
   if (subset.empty()) {
@@ -498,7 +563,8 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
       throw std::invalid_argument("count_wrong_side: vertex " + std::to_string(v) + " is mapped to element " + std::to_string(e) + ", out of range");
     wanted[static_cast<size_t>(v)] = 1;
   }
-  const std::vector<Vec3> normals = angle_weighted_normals(vertices, triangles, &wanted);
+  const std::vector<int> triangle_subset = triangles_of(vertices, triangles, subset, around, "count_wrong_side");
+  const std::vector<Vec3> normals = angle_weighted_normals(vertices, triangles, wanted, subset, triangle_subset, around == nullptr);
   int wrong = 0;
   for (const int v : subset) {
     if (v >= rows) continue;
@@ -533,11 +599,25 @@ std::uint64_t bits(double x) {
 
 FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
                                           const std::vector<std::vector<ConstraintPlane>>& planes,
-                                          std::span<const std::uint8_t> crack_front, int first) {
+                                          std::span<const std::uint8_t> crack_front, int first,
+                                          std::span<const int> among) {
   const int n = static_cast<int>(vertices.size());
   if (first < 0 || first > n)
     throw std::invalid_argument("front_vertex_identity: first " + std::to_string(first) + " is out of range [0, " + std::to_string(n) + "]");
-  check_surface(vertices, triangles, "front_vertex_identity");
+  if (among.empty()) {
+    check_surface(vertices, triangles, "front_vertex_identity");
+  } else {
+    for (int v = first; v < n; ++v)
+      if (!vertices[static_cast<size_t>(v)].allFinite()) throw std::invalid_argument("front_vertex_identity: vertex " + std::to_string(v) + " is not finite");
+    for (size_t k = 0; k < among.size(); ++k) {
+      const int t = among[k];
+      if (t < 0 || static_cast<size_t>(t) >= triangles.size() || (k > 0 && t <= among[k - 1]))
+        throw std::invalid_argument("front_vertex_identity: triangle entry " + std::to_string(k) + " (" + std::to_string(t) + ") is out of range or out of order");
+      for (const int v : triangles[static_cast<size_t>(t)])
+        if (v < 0 || v >= n)
+          throw std::invalid_argument("front_vertex_identity: triangle " + std::to_string(t) + " has vertex " + std::to_string(v) + ", out of range [0, " + std::to_string(n) + ")");
+    }
+  }
   FrontVertexIdentity identity;
   identity.first = first;
   identity.key.resize(static_cast<size_t>(n - first));
@@ -552,8 +632,8 @@ FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, con
   }
   // A base vertex is its index (salted apart from the content keys).
   const auto key_of = [&](int v) { return v < first ? mix(0x5eedULL + static_cast<std::uint64_t>(v)) : identity.key[static_cast<size_t>(v - first)]; };
-  for (const auto& tri : triangles) {
-    if (tri[0] < first && tri[1] < first && tri[2] < first) continue;
+  const auto visit = [&](const std::array<int, 3>& tri) {
+    if (tri[0] < first && tri[1] < first && tri[2] < first) return;
     for (int k = 0; k < 3; ++k) {
       const int v = tri[static_cast<size_t>(k)];
       if (v < first) continue;
@@ -562,6 +642,11 @@ FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, con
       identity.ring[static_cast<size_t>(v - first)] +=
           mix(mix(key_of(tri[static_cast<size_t>((k + 1) % 3)])) ^ key_of(tri[static_cast<size_t>((k + 2) % 3)]));
     }
+  };
+  if (among.empty()) {
+    for (const auto& tri : triangles) visit(tri);
+  } else {
+    for (const int t : among) visit(triangles[static_cast<size_t>(t)]);
   }
   return identity;
 }

@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -58,12 +59,19 @@ struct FrontMappingReport {
 // index out of range, a non-finite position, the remap list not increasing or missing an
 // index at or above the row count, more rows than vertices. Throws std::runtime_error naming
 // the vertex if no MLS weights exist for it (a degenerate neighbourhood).
+// With `around` (see TrianglesAround) the listed vertices' triangles are read from it instead
+// of scanning the surface, and only they and their corners are checked.
 struct FrontVisibility;
+// Per vertex, the triangles it is a corner of (indices into the triangle list, in increasing
+// order, each once), appended to `triangles`: for a caller that keeps them, so that
+// map_front_surface and count_wrong_side read the listed vertices' triangles instead of
+// scanning the whole surface. It must give every triangle of each vertex it is asked for.
+using TrianglesAround = std::function<void(int vertex, std::vector<int>& triangles)>;
 void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                        const std::vector<std::array<int, 3>>& triangles,
                        const std::vector<std::vector<ConstraintPlane>>& planes, std::span<const int> remap,
                        SurfaceEmbedding& embedding, FrontMappingReport& report,
-                       const FrontVisibility* visibility = nullptr);
+                       const FrontVisibility* visibility = nullptr, const TrianglesAround* around = nullptr);
 
 // Cut faces (rest positions, each face once) binned on the model's integration grid, for
 // counting the faces a segment crosses: its ends strictly on both sides of a face's plane,
@@ -125,11 +133,12 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
 class CutFaceIndex;
 // The same against faces already indexed, over the vertices of `subset` only (increasing;
 // empty: every vertex with a row), which are the ones counted and listed; `on_face` as in
-// FrontVisibility.
+// FrontVisibility; `around` as for map_front_surface (with a subset only).
 int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                      const std::vector<std::array<int, 3>>& triangles, const SurfaceEmbedding& embedding,
                      const CutFaceIndex& faces, double inset, std::span<const int> subset,
-                     std::vector<int>* which = nullptr, std::span<const std::uint8_t> on_face = {});
+                     std::vector<int>* which = nullptr, std::span<const std::uint8_t> on_face = {},
+                     const TrianglesAround* around = nullptr);
 
 // Which vertices of a FrontSurface are the same as at the last mapping. The stroke's vertices
 // are numbered anew at every sample, but what lies behind the front comes out the same
@@ -138,6 +147,8 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
 // keeps its row (its mapping inputs are those of the last time: position, normal, planes).
 // Vertices below `first` are the base's, the same index in both; the others are told apart by
 // content hashes (64-bit; two vertices of one surface with the same key match nothing).
+// `among`: the triangles to look at (increasing), when the caller knows which have a corner
+// at or above `first` (it may list more); empty: all.
 struct FrontVertexIdentity {
   int first = 0;
   std::vector<std::uint64_t> key;   // per vertex at or above first: position, planes, flag
@@ -145,7 +156,8 @@ struct FrontVertexIdentity {
 };
 FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
                                           const std::vector<std::vector<ConstraintPlane>>& planes,
-                                          std::span<const std::uint8_t> crack_front, int first);
+                                          std::span<const std::uint8_t> crack_front, int first,
+                                          std::span<const int> among = {});
 // Per vertex of `now` (indices from now.first on; the vector has now.first + now.key.size()
 // entries, -1 below now.first): the index in `before` of the same vertex, -1 when it is new,
 // its triangles changed or its key is not unique. Nothing matches when the two `first`
