@@ -640,24 +640,55 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
 
 void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
                                   const std::vector<std::uint8_t>& changed, bool fixed_changed, StepStats& stats) {
+  // What this costs follows the stroke, not the surface: FrontSurface keeps the base's
+  // triangles in their slots and says which slots and base vertices the stroke changed, so
+  // the triangles that can differ from the surface as last mapped are those the stroke
+  // changed then and now (`before_slots`, `now_slots`); every other slot holds the same
+  // triangle, its corners base vertices that keep their index and row.
   auto start = Clock::now();
   const physics::FrontSurface& front = *body.front_surface;
   const auto& vertices = front.vertices();
+  const auto& triangles = front.triangles();
   const auto& planes = front.vertex_planes();
   physics::SurfaceEmbedding& embedding = *body.embedding;
+  const int n = static_cast<int>(vertices.size());
+  const int base_vertices = front.base_vertex_count();
+  const std::size_t slots_now = triangles.size(), slots_before = body.surface.size();
   // The base's vertices keep their index and their row unless a trigger of seed 004 §2.6
   // names them (the base as the last mapping saw it: a stroke ended since then turned its
   // vertices into base ones, which are matched below like the stroke's).
-  const int kept = std::min({front.base_vertex_count(), body.front_mapped_base, embedding.vertex_count()});
+  const int kept = std::min({base_vertices, body.front_mapped_base, embedding.vertex_count()});
+  const int lowest = std::min(kept, body.front_identity.first);
+  std::vector<int> now_slots = front.replaced_slots();
+  for (std::size_t s = static_cast<std::size_t>(front.base_triangle_count()); s < slots_now; ++s) now_slots.push_back(static_cast<int>(s));
+  const std::vector<int>& before_slots = body.front_changed_slots;
+  // Per slot: 1 changed now, 2 a triangle with a corner at or above `lowest` (the stroke's,
+  // and those of a stroke ended since the last mapping), 4 changed then, 8 looked at below.
+  std::vector<std::uint8_t> slot_flags(std::max(slots_now, slots_before), 0);
+  std::vector<int> stroke_slots;  // flag 2, increasing
+  for (const int s : now_slots) slot_flags[static_cast<std::size_t>(s)] |= 1 | 2;
+  for (int v = lowest; v < base_vertices; ++v)
+    for (const int s : front.base_triangles_around(v)) slot_flags[static_cast<std::size_t>(s)] |= 2;
+  for (const int s : now_slots) stroke_slots.push_back(s);
+  for (int v = lowest; v < base_vertices; ++v)
+    for (const int s : front.base_triangles_around(v))
+      if (!(slot_flags[static_cast<std::size_t>(s)] & 1)) stroke_slots.push_back(s);
+  std::sort(stroke_slots.begin(), stroke_slots.end());
+  stroke_slots.erase(std::unique(stroke_slots.begin(), stroke_slots.end()), stroke_slots.end());
+  for (const int s : before_slots) slot_flags[static_cast<std::size_t>(s)] |= 4;
+  // The slots that can differ (changed then, or with a stroke's vertex now), increasing.
+  std::vector<int> differing;
+  std::set_union(stroke_slots.begin(), stroke_slots.end(), before_slots.begin(), before_slots.end(), std::back_inserter(differing));
+
   // The stroke's vertices are numbered anew at each sample, but those behind the front come
   // out the same: matched to the last mapping's (physics::front_vertex_identity), they keep
   // their row and flag, and only the new ones (and those the triggers below name) are mapped.
   physics::FrontVertexIdentity identity =
-      physics::front_vertex_identity(vertices, front.triangles(), planes, front.crack_front(), std::min(kept, body.front_identity.first));
+      physics::front_vertex_identity(vertices, triangles, planes, front.crack_front(), lowest, stroke_slots);
   const std::vector<int> same = physics::match_front_vertices(body.front_identity, identity);
   const auto old_position = [&](int u) -> const physics::Vec3& {
-    return u < body.front_identity.first ? vertices[static_cast<std::size_t>(u)]
-                                         : body.front_stroke_rest[static_cast<std::size_t>(u - body.front_identity.first)];
+    return u < body.front_identity.first ? vertices[static_cast<size_t>(u)]
+                                         : body.front_stroke_rest[static_cast<size_t>(u - body.front_identity.first)];
   };
   // Where the surface changed: the triangles with a vertex that is new (or whose triangles
   // changed), now and at the last mapping (for those gone). Only a segment reaching into
@@ -668,78 +699,119 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // them, before and after (physics::surface_topology).
   physics::Vec3 changed_lo = physics::Vec3::Constant(1e300), changed_hi = physics::Vec3::Constant(-1e300);
   std::vector<std::uint8_t> touched_now(vertices.size(), 0), touched_before(static_cast<std::size_t>(embedding.vertex_count()), 0);
+  std::vector<int> touched_base;  // touched vertices below kept (the same in both)
   {
     const auto grow = [&](const physics::Vec3& x) {
       changed_lo = changed_lo.cwiseMin(x);
       changed_hi = changed_hi.cwiseMax(x);
     };
-    const auto is_new = [&](int v) { return v >= kept && same[static_cast<std::size_t>(v)] < 0; };
-    for (const auto& tri : front.triangles())
+    const auto is_new = [&](int v) { return v >= kept && same[static_cast<size_t>(v)] < 0; };
+    for (const int s : stroke_slots) {
+      const auto& tri = triangles[static_cast<std::size_t>(s)];
       if (is_new(tri[0]) || is_new(tri[1]) || is_new(tri[2]))
         for (const int v : tri) {
-          grow(vertices[static_cast<std::size_t>(v)]);
-          touched_now[static_cast<std::size_t>(v)] = 1;
+          grow(vertices[static_cast<size_t>(v)]);
+          touched_now[static_cast<size_t>(v)] = 1;
+          if (v < kept) touched_base.push_back(v);
         }
-    std::vector<std::uint8_t> still(static_cast<std::size_t>(embedding.vertex_count()), 0);
-    for (int v = kept; v < static_cast<int>(vertices.size()); ++v)
-      if (const int u = same[static_cast<std::size_t>(v)]; u >= 0 && u < embedding.vertex_count()) still[static_cast<std::size_t>(u)] = 1;
-    const auto is_gone = [&](int u) { return u >= kept && still[static_cast<std::size_t>(u)] == 0; };
-    for (const auto& tri : body.surface)
+    }
+    std::vector<std::uint8_t> still(static_cast<size_t>(embedding.vertex_count() - std::min(kept, embedding.vertex_count())), 0);
+    for (int v = kept; v < n; ++v)
+      if (const int u = same[static_cast<size_t>(v)]; u >= kept && u < embedding.vertex_count()) still[static_cast<size_t>(u - kept)] = 1;
+    const auto is_gone = [&](int u) { return u >= kept && still[static_cast<size_t>(u - kept)] == 0; };
+    // The last mapping's vertices at or above kept were its stroke's: their triangles were
+    // in its changed slots.
+    for (const int s : before_slots) {
+      if (static_cast<std::size_t>(s) >= slots_before) continue;
+      const auto& tri = body.surface[static_cast<std::size_t>(s)];
       if (is_gone(tri[0]) || is_gone(tri[1]) || is_gone(tri[2]))
         for (const int u : tri) {
           grow(old_position(u));
-          touched_before[static_cast<std::size_t>(u)] = 1;
+          touched_before[static_cast<size_t>(u)] = 1;
+          if (u < kept) touched_base.push_back(u);
         }
-    // A base vertex is the same in both.
-    for (int v = 0; v < kept; ++v) {
-      const auto index = static_cast<std::size_t>(v);
-      touched_now[index] = touched_before[index] = touched_now[index] | touched_before[index];
     }
+    std::sort(touched_base.begin(), touched_base.end());
+    touched_base.erase(std::unique(touched_base.begin(), touched_base.end()), touched_base.end());
+    for (const int v : touched_base) touched_now[static_cast<size_t>(v)] = touched_before[static_cast<size_t>(v)] = 1;
   }
-  const physics::SurfaceTopology touched_edges_before = physics::surface_topology(body.surface, touched_before);
-  // The base's triangles with a corner not touched are the same before and after; if their
-  // count differs (a triangle lost or made away from the cut, which the stroke never does),
-  // the surface is counted whole.
-  const auto untouched_base = [&](const std::vector<std::array<int, 3>>& triangles, const std::vector<std::uint8_t>& touched) {
+  // The edges between two touched vertices lie on the differing triangles or on the unchanged
+  // ones around a touched base vertex (the same before and after).
+  std::vector<std::array<int, 3>> edges_before, edges_now;
+  for (const int s : differing) {
+    if (static_cast<std::size_t>(s) < slots_before) edges_before.push_back(body.surface[static_cast<std::size_t>(s)]);
+    if (static_cast<std::size_t>(s) < slots_now) edges_now.push_back(triangles[static_cast<std::size_t>(s)]);
+    slot_flags[static_cast<std::size_t>(s)] |= 8;
+  }
+  // The base's triangles away from the cut (all corners below kept, not all touched): the
+  // unchanged ones are the same in both, so only the differing ones can make their counts
+  // differ; if they do (a triangle lost or made away from the cut, which the stroke never
+  // does), the surface is counted whole.
+  const auto untouched_base = [&](const std::vector<std::array<int, 3>>& list, const std::vector<std::uint8_t>& touched) {
     long count = 0;
-    for (const auto& tri : triangles)
+    for (const auto& tri : list)
       if (tri[0] < kept && tri[1] < kept && tri[2] < kept &&
-          !(touched[static_cast<std::size_t>(tri[0])] && touched[static_cast<std::size_t>(tri[1])] && touched[static_cast<std::size_t>(tri[2])]))
+          !(touched[static_cast<size_t>(tri[0])] && touched[static_cast<size_t>(tri[1])] && touched[static_cast<size_t>(tri[2])]))
         ++count;
     return count;
   };
-  const bool recount = untouched_base(body.surface, touched_before) != untouched_base(front.triangles(), touched_now);
-  // The kept base rows whose planes or element changed (the first and third triggers).
+  const bool recount = untouched_base(edges_before, touched_before) != untouched_base(edges_now, touched_now);
+  for (const int v : touched_base) {
+    if (v >= base_vertices) continue;
+    for (const int s : front.base_triangles_around(v)) {
+      if (slot_flags[static_cast<std::size_t>(s)] & 8) continue;
+      slot_flags[static_cast<std::size_t>(s)] |= 8;
+      edges_before.push_back(triangles[static_cast<std::size_t>(s)]);
+      edges_now.push_back(triangles[static_cast<std::size_t>(s)]);
+    }
+  }
+  const physics::SurfaceTopology touched_edges_before = physics::surface_topology(edges_before, touched_before);
+  // The kept base rows whose planes or element changed (the first and third triggers): the
+  // base vertices given planes by a stroke at the last mapping or since (the ends of cut
+  // edges, corners of the split triangles, which hold a stroke's vertex), and those on a
+  // re-selected element.
   std::vector<int> remap;
-  for (int v = 0; v < kept; ++v) {
-    const auto index = static_cast<std::size_t>(v);
-    const int element = embedding.elements[index];
-    if (planes[index].size() != (index < body.front_plane_counts.size() ? body.front_plane_counts[index] : 0) ||
-        changed[static_cast<std::size_t>(element)] != 0)
-      remap.push_back(v);
+  std::vector<int> planed = body.front_planed;
+  {
+    for (const int s : stroke_slots)
+      for (const int v : triangles[static_cast<std::size_t>(s)])
+        if (v < kept) planed.push_back(v);
+    std::sort(planed.begin(), planed.end());
+    planed.erase(std::unique(planed.begin(), planed.end()), planed.end());
+    for (const int v : planed) {
+      const auto index = static_cast<std::size_t>(v);
+      if (v < kept && planes[index].size() != (index < body.front_plane_counts.size() ? body.front_plane_counts[index] : 0)) remap.push_back(v);
+    }
+    if (std::find(changed.begin(), changed.end(), std::uint8_t{1}) != changed.end()) {
+      std::vector<int> on_changed;
+      for (int v = 0; v < kept; ++v)
+        if (changed[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(v)])] != 0) on_changed.push_back(v);
+      std::vector<int> merged;
+      std::set_union(remap.begin(), remap.end(), on_changed.begin(), on_changed.end(), std::back_inserter(merged));
+      remap.swap(merged);
+    }
   }
   // The matched stroke vertices take their rows along (from a copy: the numbers overlap).
   std::vector<int> moved_from, moved_elements, moved_lengths, moved_particles;
   std::vector<double> moved_weights;
   std::vector<std::uint8_t> moved_wrong, moved_fixed;
   const int stride = embedding.stride;
-  for (int v = kept; v < static_cast<int>(vertices.size()); ++v) {
+  for (int v = kept; v < n; ++v) {
     const int u = same[static_cast<std::size_t>(v)];
     if (u < 0 || u >= embedding.vertex_count() || changed[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(u)])] != 0) continue;
     moved_from.push_back(v);
-    moved_elements.push_back(embedding.elements[static_cast<std::size_t>(u)]);
-    moved_lengths.push_back(embedding.row_lengths[static_cast<std::size_t>(u)]);
+    moved_elements.push_back(embedding.elements[static_cast<size_t>(u)]);
+    moved_lengths.push_back(embedding.row_lengths[static_cast<size_t>(u)]);
     const auto row = static_cast<std::ptrdiff_t>(u) * stride;
     moved_particles.insert(moved_particles.end(), embedding.particles.begin() + row, embedding.particles.begin() + row + stride);
     moved_weights.insert(moved_weights.end(), embedding.weights.begin() + row, embedding.weights.begin() + row + stride);
-    moved_wrong.push_back(static_cast<std::size_t>(u) < body.front_wrong_side.size() ? body.front_wrong_side[static_cast<std::size_t>(u)] : 0);
-    moved_fixed.push_back(static_cast<std::size_t>(u) < body.fixed_vertices.size() ? body.fixed_vertices[static_cast<std::size_t>(u)] : 0);
+    moved_wrong.push_back(static_cast<size_t>(u) < body.front_wrong_side.size() ? body.front_wrong_side[static_cast<size_t>(u)] : 0);
+    moved_fixed.push_back(static_cast<size_t>(u) < body.fixed_vertices.size() ? body.fixed_vertices[static_cast<size_t>(u)] : 0);
   }
-  physics::fit_rows(embedding, static_cast<int>(vertices.size()), stride);
+  physics::fit_rows(embedding, n, stride);
   body.front_wrong_side.resize(vertices.size(), 0);
   std::fill(body.front_wrong_side.begin() + kept, body.front_wrong_side.end(), 0);
-  std::vector<std::uint8_t> has_row(vertices.size(), 0);
-  std::fill(has_row.begin(), has_row.begin() + kept, 1);
+  std::vector<std::uint8_t> has_row(static_cast<std::size_t>(n - kept), 0);  // per vertex from kept on
   std::vector<std::pair<std::size_t, std::uint8_t>> moved_fixed_at;  // set once the rows are all mapped
   for (std::size_t k = 0; k < moved_from.size(); ++k) {
     const auto v = static_cast<std::size_t>(moved_from[k]);
@@ -749,37 +821,59 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
     std::copy_n(moved_weights.begin() + static_cast<std::ptrdiff_t>(k) * stride, stride, embedding.weights.begin() + static_cast<std::ptrdiff_t>(v) * stride);
     body.front_wrong_side[v] = moved_wrong[k];
     moved_fixed_at.emplace_back(v, moved_fixed[k]);
-    has_row[v] = 1;
+    has_row[v - static_cast<std::size_t>(kept)] = 1;
   }
   // What is left of the stroke's vertices is mapped anew (after the trigger test below, which
   // looks at the rows kept).
   std::vector<int> fresh;
-  for (int v = kept; v < static_cast<int>(vertices.size()); ++v)
-    if (!has_row[static_cast<std::size_t>(v)]) fresh.push_back(v);
+  for (int v = kept; v < n; ++v)
+    if (!has_row[static_cast<std::size_t>(v - kept)]) fresh.push_back(v);
   body.front_stroke_rest.assign(vertices.begin() + identity.first, vertices.end());
   if (identity.first != kept) {
-    identity = physics::front_vertex_identity(vertices, front.triangles(), planes, front.crack_front(), kept);
+    identity = physics::front_vertex_identity(vertices, triangles, planes, front.crack_front(), kept, stroke_slots);
     body.front_stroke_rest.assign(vertices.begin() + kept, vertices.end());
   }
   body.front_identity = std::move(identity);
+  // The triangles around each vertex, for the mapping's normals and one-rings: a base vertex's
+  // unchanged base triangles and, for every vertex, the changed slots it is a corner of.
+  std::vector<std::pair<int, int>> changed_around;  // (vertex, slot), sorted
+  for (const int s : now_slots)
+    for (const int v : triangles[static_cast<std::size_t>(s)]) changed_around.emplace_back(v, s);
+  std::sort(changed_around.begin(), changed_around.end());
+  const physics::TrianglesAround around = [&](int v, std::vector<int>& out) {
+    const std::size_t first = out.size();
+    if (v < base_vertices)
+      for (const int s : front.base_triangles_around(v))
+        if (!(slot_flags[static_cast<std::size_t>(s)] & 1)) out.push_back(s);
+    for (auto it = std::lower_bound(changed_around.begin(), changed_around.end(), std::pair<int, int>(v, -1));
+         it != changed_around.end() && it->first == v; ++it)
+      out.push_back(it->second);
+    std::sort(out.begin() + static_cast<std::ptrdiff_t>(first), out.end());
+  };
   // The cut faces, each once (both sides' copies lie on it, with the same corners), and per
-  // vertex whether it is on one (see physics::FrontVisibility).
+  // vertex whether it is on one (see physics::FrontVisibility): the base's that the stroke
+  // left and the changed slots' (in slot order).
   std::vector<std::array<physics::Vec3, 3>> faces;
   std::vector<std::uint8_t> on_face(vertices.size(), 0);
   {
+    std::vector<int> face_slots;
+    for (const int s : front.base_cut_face_slots())
+      if (!(slot_flags[static_cast<std::size_t>(s)] & 1)) face_slots.push_back(s);
+    for (const int s : now_slots)
+      if (front.on_cut_face()[static_cast<std::size_t>(s)]) face_slots.push_back(s);
+    std::sort(face_slots.begin(), face_slots.end());
     std::set<std::array<double, 9>> seen;
-    for (std::size_t t = 0; t < front.triangles().size(); ++t) {
-      if (!front.on_cut_face()[t]) continue;
-      const auto& tri = front.triangles()[t];
-      for (const int v : tri) on_face[static_cast<std::size_t>(v)] = 1;
-      std::array<physics::Vec3, 3> corners{vertices[static_cast<std::size_t>(tri[0])], vertices[static_cast<std::size_t>(tri[1])],
-                                           vertices[static_cast<std::size_t>(tri[2])]};
+    for (const int s : face_slots) {
+      const auto& tri = triangles[static_cast<std::size_t>(s)];
+      for (const int v : tri) on_face[static_cast<size_t>(v)] = 1;
+      std::array<physics::Vec3, 3> corners{vertices[static_cast<size_t>(tri[0])], vertices[static_cast<size_t>(tri[1])],
+                                           vertices[static_cast<size_t>(tri[2])]};
       std::sort(corners.begin(), corners.end(), [](const physics::Vec3& l, const physics::Vec3& r) {
         return std::lexicographical_compare(l.data(), l.data() + 3, r.data(), r.data() + 3);
       });
       std::array<double, 9> key{};
       for (int c = 0; c < 3; ++c)
-        for (int d = 0; d < 3; ++d) key[static_cast<std::size_t>(3 * c + d)] = corners[static_cast<std::size_t>(c)][d];
+        for (int d = 0; d < 3; ++d) key[static_cast<size_t>(3 * c + d)] = corners[static_cast<size_t>(c)][d];
       if (seen.insert(key).second) faces.push_back(corners);
     }
   }
@@ -787,20 +881,36 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // the surface shows it rather than on this step's sweep, which the stroke may have left out
   // in part: samples held, the front's transient part). Only a segment reaching into the box
   // of what the stroke made since the last mapping can have changed side: the other faces
-  // were there when it was last tested.
+  // were there when it was last tested. A base vertex's segment reaches at most front_reach
+  // from it, so the base's vertices are taken from the box grown by that.
   const double inset = 0.1 * front.front_width() / 1.5;  // a tenth of a surface cell
   const physics::CutFaceIndex face_index(*body.efg, faces);
+  const auto& centres = body.efg->element_centres();
+  const auto reach_of = [&](int v) {
+    return (centres[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(v)])] - vertices[static_cast<std::size_t>(v)]).cwiseAbs().maxCoeff();
+  };
+  for (int v = body.front_reach_upto; v < kept; ++v) body.front_reach = std::max(body.front_reach, reach_of(v));
+  body.front_reach_upto = std::max(body.front_reach_upto, kept);
   std::vector<int> near;
-  for (int v = 0; v < static_cast<int>(vertices.size()); ++v) {
-    if (!has_row[static_cast<std::size_t>(v)]) continue;
-    const physics::Vec3& x = vertices[static_cast<std::size_t>(v)];
-    const physics::Vec3& q = body.efg->element_centres()[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(v)])];
+  const auto segment_near = [&](int v) {
+    const physics::Vec3& x = vertices[static_cast<size_t>(v)];
+    const physics::Vec3& q = centres[static_cast<size_t>(embedding.elements[static_cast<size_t>(v)])];
     const physics::Vec3 lo = x.cwiseMin(q).array() - inset, hi = x.cwiseMax(q).array() + inset;
-    if ((lo.array() <= changed_hi.array()).all() && (hi.array() >= changed_lo.array()).all()) near.push_back(v);
+    return (lo.array() <= changed_hi.array()).all() && (hi.array() >= changed_lo.array()).all();
+  };
+  if ((changed_lo.array() <= changed_hi.array()).all()) {
+    const physics::Vec3 grown = physics::Vec3::Constant(body.front_reach + inset);
+    std::vector<int> candidates;
+    front.base_vertices_in(changed_lo - grown, changed_hi + grown, candidates);
+    for (const int v : candidates)
+      if (v < kept && segment_near(v)) near.push_back(v);
+    for (int v = kept; v < n; ++v)
+      if (has_row[static_cast<std::size_t>(v - kept)] && segment_near(v)) near.push_back(v);
   }
   std::vector<int> crossed;
   // (An empty subset would count every vertex.)
-  if (!near.empty()) physics::count_wrong_side(*body.efg, vertices, front.triangles(), embedding, face_index, inset, near, &crossed, on_face);
+  if (!near.empty())
+    physics::count_wrong_side(*body.efg, vertices, triangles, embedding, face_index, inset, near, &crossed, on_face, &around);
   std::vector<int> merged;
   std::set_union(remap.begin(), remap.end(), crossed.begin(), crossed.end(), std::back_inserter(merged));
   remap.swap(merged);
@@ -811,14 +921,24 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // Each vertex sees its point through no cut face (what wrong_side below measures), the
   // crack front's vertices excepted.
   physics::FrontVisibility visibility{&face_index, inset, front.crack_front(), on_face};
-  physics::map_front_surface(*body.efg, vertices, front.triangles(), planes, remap, embedding, mapping, &visibility);
-  body.front_mapped_base = front.base_vertex_count();
+  physics::map_front_surface(*body.efg, vertices, triangles, planes, remap, embedding, mapping, &visibility, &around);
+  for (const int v : remap)
+    if (v < kept) body.front_reach = std::max(body.front_reach, reach_of(v));
+  body.front_mapped_base = base_vertices;
   body.front_plane_counts.resize(planes.size());
-  for (std::size_t v = 0; v < planes.size(); ++v) body.front_plane_counts[v] = planes[v].size();
-  body.surface = front.triangles();
-  body.render_triangles.resize(3 * body.surface.size());
-  for (std::size_t t = 0; t < body.surface.size(); ++t)
-    for (int c = 0; c < 3; ++c) body.render_triangles[3 * t + static_cast<std::size_t>(c)] = static_cast<std::uint32_t>(body.surface[t][static_cast<std::size_t>(c)]);
+  for (const int v : planed) body.front_plane_counts[static_cast<std::size_t>(v)] = planes[static_cast<std::size_t>(v)].size();
+  for (std::size_t v = static_cast<std::size_t>(kept); v < planes.size(); ++v) body.front_plane_counts[v] = planes[v].size();
+  body.front_planed = front.planed_base_vertices();
+  // The body's and the render's triangles: the differing slots.
+  body.surface.resize(slots_now);
+  body.render_triangles.resize(3 * slots_now);
+  for (const int s : differing) {
+    const auto slot = static_cast<std::size_t>(s);
+    if (slot >= slots_now) continue;
+    body.surface[slot] = triangles[slot];
+    for (std::size_t c = 0; c < 3; ++c) body.render_triangles[3 * slot + c] = static_cast<std::uint32_t>(triangles[slot][c]);
+  }
+  body.front_changed_slots = std::move(now_slots);
   // Which vertices only fixed particles carry: taken again for every row when the fixed
   // particles changed (orphans pinned), else for the rows mapped now, the others moved along.
   if (fixed_changed) {
@@ -826,15 +946,33 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   } else {
     body.fixed_vertices.resize(vertices.size(), 0);
     for (const auto& [v, flag] : moved_fixed_at) body.fixed_vertices[v] = flag;
-    for (const int v : remap) body.fixed_vertices[static_cast<std::size_t>(v)] = fixed_vertex(body, v);
+    for (const int v : remap) body.fixed_vertices[static_cast<size_t>(v)] = fixed_vertex(body, v);
   }
-  physics::CorotationalEfg::surface_positions(embedding, body.state.positions, body.surface_positions);
+  // Positions: on the CPU only the rows that changed (mapped, or moved with their vertex's
+  // new number) are formed again, the others are those update_surface took from the same
+  // particle positions; the GPU's are single precision, so all are taken again.
+  if (body.gpu) {
+    physics::CorotationalEfg::surface_positions(embedding, body.state.positions, body.surface_positions);
+  } else {
+    body.surface_positions.conservativeResize(3 * static_cast<Eigen::Index>(n));
+    const auto position_of = [&](int v) {
+      const std::size_t row = static_cast<std::size_t>(v) * static_cast<std::size_t>(embedding.stride);
+      physics::Vec3 position = physics::Vec3::Zero();
+      for (int k = 0; k < embedding.row_lengths[static_cast<std::size_t>(v)]; ++k)
+        position += embedding.weights[row + static_cast<std::size_t>(k)] *
+                    body.state.positions.segment<3>(3 * static_cast<Eigen::Index>(embedding.particles[row + static_cast<std::size_t>(k)]));
+      body.surface_positions.segment<3>(3 * static_cast<Eigen::Index>(v)) = position;
+    };
+    for (const int v : remap)
+      if (v < kept) position_of(v);
+    for (int v = kept; v < n; ++v) position_of(v);
+  }
   stats.ms_mapping += ms_since(start);
   start = Clock::now();
   if (recount) {
     body.front_topology = physics::surface_topology(body.surface);
   } else {
-    const physics::SurfaceTopology touched_edges_now = physics::surface_topology(body.surface, touched_now);
+    const physics::SurfaceTopology touched_edges_now = physics::surface_topology(edges_now, touched_now);
     body.front_topology.boundary_edges += touched_edges_now.boundary_edges - touched_edges_before.boundary_edges;
     body.front_topology.nonmanifold_edges += touched_edges_now.nonmanifold_edges - touched_edges_before.nonmanifold_edges;
   }
@@ -846,16 +984,27 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // Against the cut faces the surface shows: a vertex pulled a tenth of a cell inside, joined
   // to its integration point, must cross them an even number of times.
   // The crack front's vertices, where the two sides meet, belong to neither: not counted.
-  // Kept per vertex and taken again where it can have changed: the remapped vertices and
-  // those near what the stroke made.
+  // Kept per vertex and taken again where it can have changed: the remapped vertices (those
+  // near what the stroke made and not remapped were just tested, their rows as they are).
+  const auto& crack = front.crack_front();
+  const auto counts = [&](int v) { return body.front_wrong_side[static_cast<std::size_t>(v)] != 0 && crack[static_cast<std::size_t>(v)] == 0 ? 1L : 0L; };
+  for (int v = body.front_wrong_upto; v < kept; ++v) body.front_wrong_base += counts(v);
+  body.front_wrong_upto = std::max(body.front_wrong_upto, kept);
+  std::vector<int> across;
+  if (!remap.empty()) physics::count_wrong_side(*body.efg, vertices, triangles, embedding, face_index, inset, remap, &across, on_face, &around);
   std::vector<int> tested;
   std::set_union(remap.begin(), remap.end(), near.begin(), near.end(), std::back_inserter(tested));
-  for (const int v : tested) body.front_wrong_side[static_cast<std::size_t>(v)] = 0;
-  std::vector<int> across;
-  if (!tested.empty()) physics::count_wrong_side(*body.efg, vertices, body.surface, embedding, face_index, inset, tested, &across, on_face);
+  for (const int v : tested) {
+    if (v < kept) body.front_wrong_base -= counts(v);
+    body.front_wrong_side[static_cast<std::size_t>(v)] = 0;
+  }
   for (const int v : across) body.front_wrong_side[static_cast<std::size_t>(v)] = 1;
-  long wrong = 0;
-  for (std::size_t v = 0; v < vertices.size(); ++v) wrong += body.front_wrong_side[v] != 0 && front.crack_front()[v] == 0 ? 1 : 0;
+  for (const int v : crossed)
+    if (!std::binary_search(remap.begin(), remap.end(), v)) body.front_wrong_side[static_cast<std::size_t>(v)] = 1;
+  for (const int v : tested)
+    if (v < kept) body.front_wrong_base += counts(v);
+  long wrong = body.front_wrong_base;
+  for (int v = kept; v < n; ++v) wrong += counts(v);
   cut_totals_.wrong_side = std::max(cut_totals_.wrong_side, wrong);
   cut_totals_.elements_linked_across = physics::update_elements_linked_across(
       *body.efg, *body.front_rest_cut, body.linked_across, dirty_lo, dirty_hi, &changed, &body.link_boxes, &body.linked_seen);

@@ -77,6 +77,17 @@ struct Body {
   int front_mapped_base = 0;   // the surface's base vertex count at the last mapping
   physics::FrontVertexIdentity front_identity;  // the stroke's vertices at the last mapping
   std::vector<physics::Vec3> front_stroke_rest;  // their rest positions (from front_identity.first on)
+  // What the stroke had changed at the last mapping (FrontSurface: the replaced slots and
+  // those after the base's; the base vertices given planes): the surface elsewhere is the same
+  // until the stroke changes it, so each mapping looks at what changed since, not at it all.
+  std::vector<int> front_changed_slots, front_planed;
+  // The largest distance (per axis) from a vertex below front_reach_upto to its integration
+  // point, over its rows since they were counted (a bound: for finding the segments near a box).
+  double front_reach = 0;
+  int front_reach_upto = 0;
+  // The vertices below front_wrong_upto whose point is across a cut face, off the crack front.
+  long front_wrong_base = 0;
+  int front_wrong_upto = 0;
   // The surface's boundary and non-manifold edges, kept up to date where it changes (a full
   // count when the body is built).
   physics::SurfaceTopology front_topology;

@@ -385,6 +385,19 @@ std::span<const int> FrontSurface::base_triangles_around(int v) const {
 
 const std::vector<int>& FrontSurface::base_cut_face_slots() const { return base_->cut_face_slots; }
 
+void FrontSurface::base_vertices_in(const Vec3& lo, const Vec3& hi, std::vector<int>& out) const {
+  // Every vertex is a corner of a triangle whose box holds it.
+  out.clear();
+  base_->triangle_bins.near(lo, hi, [&](int t) {
+    for (const int v : base_triangles_[static_cast<size_t>(t)]) {
+      const Vec3& x = base_vertices_[static_cast<size_t>(v)];
+      if ((x.array() >= lo.array()).all() && (x.array() <= hi.array()).all()) out.push_back(v);
+    }
+  });
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+}
+
 FrontSurface::FrontSurface(std::vector<Vec3> vertices, std::vector<std::array<int, 3>> triangles, double front_width)
     : front_width_(front_width), base_vertices_(std::move(vertices)), base_triangles_(std::move(triangles)) {
   if (!(front_width_ > 0) || !std::isfinite(front_width_))

@@ -157,6 +157,9 @@ class FrontSurface {
   // triangles.
   std::span<const int> base_triangles_around(int v) const;
   const std::vector<int>& base_cut_face_slots() const;
+  // The base's vertices whose rest position lies in the box [lo, hi], increasing (appended
+  // to `out`, which is cleared first).
+  void base_vertices_in(const Vec3& lo, const Vec3& hi, std::vector<int>& out) const;
 
  private:
   struct Base;    // the base mesh's edges, and its edges and triangles binned

@@ -569,7 +569,9 @@ TEST(FrontSurface, WhatAStrokeLeavesAloneKeepsItsSlotAndIndexAndTheChangeIsListe
     for (int k = 0; k < 24; ++k) {
       const double z = 1.3 - 0.1 * k;
       surface.advance(blade_at(x, z, 0));
-      if (k == 12) EXPECT_FALSE(surface.advance(blade_at(x, z - 0.1, 1.5)).ok());  // left out
+      if (k == 12) {
+        EXPECT_FALSE(surface.advance(blade_at(x, z - 0.1, 1.5)).ok());  // left out
+      }
       ++samples;
       const auto& slots = surface.replaced_slots();
       ASSERT_TRUE(std::is_sorted(slots.begin(), slots.end()));
