@@ -490,6 +490,7 @@ CutFaceIndex::CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<
   for (size_t t = 0; t < faces_.size(); ++t) {
     const auto& tri = faces_[t];
     const Vec3 lo = tri[0].cwiseMin(tri[1]).cwiseMin(tri[2]), hi = tri[0].cwiseMax(tri[1]).cwiseMax(tri[2]);
+    boxes_.push_back({lo, hi});
     const auto l = cell(lo), h = cell(hi);
     if ((h[0] - l[0] + 1) * (h[1] - l[1] + 1) * (h[2] - l[2] + 1) > large_cells) {
       large_.push_back(static_cast<int>(t));
@@ -500,6 +501,7 @@ CutFaceIndex::CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<
         for (long long i = l[0]; i <= h[0]; ++i) binned_.emplace_back(key(i, j, k), static_cast<int>(t));
   }
   std::sort(binned_.begin(), binned_.end());
+  seen_.assign(faces_.size(), 0);
 }
 
 std::array<long long, 3> CutFaceIndex::cell(const Vec3& p) const {
@@ -516,18 +518,31 @@ std::uint64_t CutFaceIndex::key(long long i, long long j, long long k) {
 
 int CutFaceIndex::crossings(const Vec3& p, const Vec3& q, double skip_near_p) const {
   int count = 0;
-  for (const int t : large_) count += segment_crosses_triangle(p, q, faces_[static_cast<size_t>(t)], skip_near_p) ? 1 : 0;
+  // A face crossed holds the crossing point, which lies in the segment's box: faces whose box
+  // misses it (by more than roundoff) are not tested.
+  const Vec3 lo = p.cwiseMin(q).array() - box_slack, hi = p.cwiseMax(q).array() + box_slack;
+  const auto test = [&](int t) {
+    const auto& box = boxes_[static_cast<size_t>(t)];
+    if ((box[0].array() > hi.array()).any() || (box[1].array() < lo.array()).any()) return 0;
+    return segment_crosses_triangle(p, q, faces_[static_cast<size_t>(t)], skip_near_p) ? 1 : 0;
+  };
+  for (const int t : large_) count += test(t);
   const auto l = cell(p.cwiseMin(q)), h = cell(p.cwiseMax(q));
-  seen_.clear();
+  // Each face once per query (it may be binned in several of the cells): stamped.
+  if (++query_ == 0) {
+    std::fill(seen_.begin(), seen_.end(), 0);
+    query_ = 1;
+  }
   for (long long k = l[2]; k <= h[2]; ++k)
     for (long long j = l[1]; j <= h[1]; ++j)
       for (long long i = l[0]; i <= h[0]; ++i) {
         const std::uint64_t c = key(i, j, k);
         auto it = std::lower_bound(binned_.begin(), binned_.end(), std::pair<std::uint64_t, int>(c, -1));
         for (; it != binned_.end() && it->first == c; ++it) {
-          if (std::find(seen_.begin(), seen_.end(), it->second) != seen_.end()) continue;
-          seen_.push_back(it->second);
-          count += segment_crosses_triangle(p, q, faces_[static_cast<size_t>(it->second)], skip_near_p) ? 1 : 0;
+          unsigned& stamp = seen_[static_cast<size_t>(it->second)];
+          if (stamp == query_) continue;
+          stamp = query_;
+          count += test(it->second);
         }
       }
   return count;

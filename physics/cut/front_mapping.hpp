@@ -86,12 +86,15 @@ class CutFaceIndex {
   static constexpr long long large_cells = 4096;  // faces over more cells are tested against every segment
   std::array<long long, 3> cell(const Vec3& p) const;
   static std::uint64_t key(long long i, long long j, long long k);
+  static constexpr double box_slack = 1e-9;  // m: far beyond roundoff at body scale
   std::vector<std::array<Vec3, 3>> faces_;
+  std::vector<std::array<Vec3, 2>> boxes_;  // per face
   double a_;
   Vec3 origin_;
   std::vector<std::pair<std::uint64_t, int>> binned_;
   std::vector<int> large_;
-  mutable std::vector<int> seen_;
+  mutable std::vector<unsigned> seen_;  // per face: the query that last tested it
+  mutable unsigned query_ = 0;
 };
 
 // A fourth criterion for map_front_surface, the one wrong_side measures: the segment from the
