@@ -321,24 +321,36 @@ TEST(WorldCut, ABladeThatMissesCutsNothing) {
   EXPECT_EQ(world.cut_totals().events, 0);
 }
 
-TEST(WorldCut, TheFrontSurfaceKeptWhereTheStrokeChangedItIsTheWholeSurfacesAtEveryEventOfAShippedScene) {
-  // A curved blade turning as it advances, two strokes (the second's base holds the first's
-  // cut), retractors after: at every event what the world keeps is the whole surface's.
-  const std::filesystem::path file = std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes/cut_twisting_blade.json";
-  const Scene scene = load_scene(file);
-  ASSERT_EQ(scene.bodies[0].efg.cut_surface, "front");
+// A shipped scene (assets/scenes/NAME.json) replayed whole, `surface` its body's cut surface
+// design; `at_event(world, body, step)` after every cut event, until a fatal failure. Returns
+// the number of events.
+template <typename AtEvent>
+int replay_shipped_scene(const std::string& name, const std::string& surface, const AtEvent& at_event) {
+  Scene scene = load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes" / (name + ".json"));
+  scene.bodies[0].efg.cut_surface = surface;
   World world(scene, read_trajectory(*scene.tool->trajectory));
-  const Body& body = world.bodies()[0];
   const long steps = std::lround(scene.solver.duration / scene.solver.dt);
   int events = 0;
   for (long k = 0; k < steps; ++k) {
     if (!world.step().cut_event) continue;
     ++events;
-    expect_front_kept_as_whole(world, body, "step " + std::to_string(k));
-    if (::testing::Test::HasFatalFailure()) return;
+    at_event(world, world.bodies()[0], k);
+    if (::testing::Test::HasFatalFailure()) break;
   }
+  return events;
+}
+
+TEST(WorldCut, TheFrontSurfaceKeptWhereTheStrokeChangedItIsTheWholeSurfacesAtEveryEventOfAShippedScene) {
+  // A curved blade turning as it advances, two strokes (the second's base holds the first's
+  // cut), retractors after: at every event what the world keeps is the whole surface's.
+  ASSERT_EQ(load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes/cut_twisting_blade.json").bodies[0].efg.cut_surface, "front");
+  long wrong_side = -1;
+  const int events = replay_shipped_scene("cut_twisting_blade", "front", [&](const World& world, const Body& body, long k) {
+    expect_front_kept_as_whole(world, body, "step " + std::to_string(k));
+    wrong_side = world.cut_totals().wrong_side;
+  });
   EXPECT_GT(events, 20);
-  EXPECT_EQ(world.cut_totals().wrong_side, 0);
+  EXPECT_EQ(wrong_side, 0);
 }
 
 TEST(WorldCut, TheMappingKeptAcrossTheShippedCutScenesIsAFreshOneAtEveryEvent) {
@@ -348,16 +360,7 @@ TEST(WorldCut, TheMappingKeptAcrossTheShippedCutScenesIsAFreshOneAtEveryEvent) {
   // and the watertightness and linked-across counts kept incrementally the full ones. The
   // scenes ship with the front surface; this is the voxel design's check, so they take it.
   for (const char* name : {"cut_twisting_blade", "cut_falling_cylinder", "cut_rising_blade"}) {
-    const std::filesystem::path file = std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes" / (std::string(name) + ".json");
-    Scene scene = load_scene(file);
-    scene.bodies[0].efg.cut_surface = "voxel";
-    World world(scene, read_trajectory(*scene.tool->trajectory));
-    const Body& body = world.bodies()[0];
-    const long steps = std::lround(scene.solver.duration / scene.solver.dt);
-    int events = 0;
-    for (long k = 0; k < steps; ++k) {
-      if (!world.step().cut_event) continue;
-      ++events;
+    const int events = replay_shipped_scene(name, "voxel", [&](const World& world, const Body& body, long k) {
       ASSERT_EQ(rows_unlike_a_fresh_mapping(body), 0) << name << ", step " << k;
       // The body's and the render's triangles, patched with the range the rebuild wrote, are
       // the surface's.
@@ -372,7 +375,7 @@ TEST(WorldCut, TheMappingKeptAcrossTheShippedCutScenesIsAFreshOneAtEveryEvent) {
       // The linked-across count kept around each cut (with cached link boxes) is the full one.
       ASSERT_EQ(world.cut_totals().elements_linked_across,
                 physics::elements_linked_across(*body.efg, body.cut_surface->rest_cut())) << name << ", step " << k;
-    }
+    });
     EXPECT_GT(events, 5) << name;
   }
 }
