@@ -662,20 +662,17 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   std::vector<int> now_slots = front.replaced_slots();
   for (std::size_t s = static_cast<std::size_t>(front.base_triangle_count()); s < slots_now; ++s) now_slots.push_back(static_cast<int>(s));
   const std::vector<int>& before_slots = body.front_changed_slots;
-  // Per slot: 1 changed now, 2 a triangle with a corner at or above `lowest` (the stroke's,
-  // and those of a stroke ended since the last mapping), 4 changed then, 8 looked at below.
+  // Per slot: 1 changed now, 8 looked at in the edge recount below.
   std::vector<std::uint8_t> slot_flags(std::max(slots_now, slots_before), 0);
-  std::vector<int> stroke_slots;  // flag 2, increasing
-  for (const int s : now_slots) slot_flags[static_cast<std::size_t>(s)] |= 1 | 2;
-  for (int v = lowest; v < base_vertices; ++v)
-    for (const int s : front.base_triangles_around(v)) slot_flags[static_cast<std::size_t>(s)] |= 2;
-  for (const int s : now_slots) stroke_slots.push_back(s);
+  for (const int s : now_slots) slot_flags[static_cast<std::size_t>(s)] |= 1;
+  // The triangles with a corner at or above `lowest` (the stroke's, and those of a stroke
+  // ended since the last mapping, now base triangles around its vertices), increasing.
+  std::vector<int> stroke_slots = now_slots;
   for (int v = lowest; v < base_vertices; ++v)
     for (const int s : front.base_triangles_around(v))
       if (!(slot_flags[static_cast<std::size_t>(s)] & 1)) stroke_slots.push_back(s);
   std::sort(stroke_slots.begin(), stroke_slots.end());
   stroke_slots.erase(std::unique(stroke_slots.begin(), stroke_slots.end()), stroke_slots.end());
-  for (const int s : before_slots) slot_flags[static_cast<std::size_t>(s)] |= 4;
   // The slots that can differ (changed then, or with a stroke's vertex now), increasing.
   std::vector<int> differing;
   std::set_union(stroke_slots.begin(), stroke_slots.end(), before_slots.begin(), before_slots.end(), std::back_inserter(differing));
