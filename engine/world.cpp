@@ -11,10 +11,10 @@
 #include "physics/gpu/efg_step.hpp"
 
 #include <algorithm>
+#include <numeric>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <set>
 #include <cstdlib>
 #include <cstring>
 #include <functional>
@@ -859,20 +859,28 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
     for (const int s : now_slots)
       if (front.on_cut_face()[static_cast<std::size_t>(s)]) face_slots.push_back(s);
     std::sort(face_slots.begin(), face_slots.end());
-    std::set<std::array<double, 9>> seen;
-    for (const int s : face_slots) {
-      const auto& tri = triangles[static_cast<std::size_t>(s)];
+    // Each face's corners sorted, as its key; the first slot of each key is kept, in slot order.
+    std::vector<std::array<physics::Vec3, 3>> all(face_slots.size());
+    std::vector<std::array<double, 9>> keys(face_slots.size());
+    for (std::size_t k = 0; k < face_slots.size(); ++k) {
+      const auto& tri = triangles[static_cast<std::size_t>(face_slots[k])];
       for (const int v : tri) on_face[static_cast<size_t>(v)] = 1;
-      std::array<physics::Vec3, 3> corners{vertices[static_cast<size_t>(tri[0])], vertices[static_cast<size_t>(tri[1])],
-                                           vertices[static_cast<size_t>(tri[2])]};
+      auto& corners = all[k];
+      corners = {vertices[static_cast<size_t>(tri[0])], vertices[static_cast<size_t>(tri[1])], vertices[static_cast<size_t>(tri[2])]};
       std::sort(corners.begin(), corners.end(), [](const physics::Vec3& l, const physics::Vec3& r) {
         return std::lexicographical_compare(l.data(), l.data() + 3, r.data(), r.data() + 3);
       });
-      std::array<double, 9> key{};
       for (int c = 0; c < 3; ++c)
-        for (int d = 0; d < 3; ++d) key[static_cast<size_t>(3 * c + d)] = corners[static_cast<size_t>(c)][d];
-      if (seen.insert(key).second) faces.push_back(corners);
+        for (int d = 0; d < 3; ++d) keys[k][static_cast<size_t>(3 * c + d)] = corners[static_cast<size_t>(c)][d];
     }
+    std::vector<int> by_key(face_slots.size());
+    std::iota(by_key.begin(), by_key.end(), 0);
+    std::stable_sort(by_key.begin(), by_key.end(), [&](int l, int r) { return keys[static_cast<std::size_t>(l)] < keys[static_cast<std::size_t>(r)]; });
+    std::vector<std::uint8_t> first(face_slots.size(), 0);
+    for (std::size_t k = 0; k < by_key.size(); ++k)
+      if (k == 0 || keys[static_cast<std::size_t>(by_key[k])] != keys[static_cast<std::size_t>(by_key[k - 1])]) first[static_cast<std::size_t>(by_key[k])] = 1;
+    for (std::size_t k = 0; k < all.size(); ++k)
+      if (first[k]) faces.push_back(all[k]);
   }
   // The kept rows whose segment the cut crosses now (the second trigger, taken on the cut as
   // the surface shows it rather than on this step's sweep, which the stroke may have left out
