@@ -5,7 +5,6 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <cstdint>
 #include <deque>
@@ -25,34 +24,6 @@ namespace {
 // keeps lattice-like inputs (whose differences are exact) at one or two components.
 // ---------------------------------------------------------------------------------------
 using Expansion = std::vector<double>;
-
-// An expansion of at most N components held in place (orient2d's exact path needs 16: the
-// vector's allocations were most of its cost on lattice points, whose orientation is often
-// exactly zero and so always takes the exact path).
-template <std::size_t N>
-class FixedExpansion {
- public:
-  using value_type = double;
-  void push_back(double x) {
-    if (size_ == N) throw std::logic_error("FixedExpansion: more than " + std::to_string(N) + " components");
-    values_[size_++] = x;
-  }
-  void reserve(std::size_t) {}
-  std::size_t size() const { return size_; }
-  bool empty() const { return size_ == 0; }
-  double back() const { return values_[size_ - 1]; }
-  double operator[](std::size_t i) const { return values_[i]; }
-  double* begin() { return values_.data(); }
-  double* end() { return values_.data() + size_; }
-  const double* begin() const { return values_.data(); }
-  const double* end() const { return values_.data() + size_; }
-
- private:
-  std::array<double, N> values_{};
-  std::size_t size_ = 0;
-};
-using OrientExpansion = FixedExpansion<16>;
-
 
 // a + b = sum + error exactly (Knuth's two-sum, no precondition on magnitudes).
 inline void two_sum(double a, double b, double& sum, double& error) {
@@ -81,12 +52,11 @@ inline void two_product(double a, double b, double& product, double& error) {
 #endif
 }
 
-template <typename E = Expansion>
-E difference(double a, double b) {
+Expansion difference(double a, double b) {
   double sum = 0.0;
   double error = 0.0;
   two_sum(a, -b, sum, error);
-  E e;
+  Expansion e;
   if (error != 0.0) e.push_back(error);
   if (sum != 0.0) e.push_back(sum);
   return e;
@@ -94,13 +64,12 @@ E difference(double a, double b) {
 
 // Merge by magnitude, then one sweep of two-sums (Shewchuk's FAST-EXPANSION-SUM with zero
 // elimination).
-template <typename E>
-E sum(const E& e, const E& f) {
-  E merged;
+Expansion sum(const Expansion& e, const Expansion& f) {
+  Expansion merged;
   merged.reserve(e.size() + f.size());
   std::merge(e.begin(), e.end(), f.begin(), f.end(), std::back_inserter(merged),
              [](double x, double y) { return std::abs(x) < std::abs(y); });
-  E h;
+  Expansion h;
   if (merged.empty()) return h;
   h.reserve(merged.size());
   double q = merged[0];
@@ -113,16 +82,14 @@ E sum(const E& e, const E& f) {
   return h;
 }
 
-template <typename E>
-E negated(E e) {
+Expansion negated(Expansion e) {
   for (double& x : e) x = -x;
   return e;
 }
 
 // e * b (Shewchuk's SCALE-EXPANSION with zero elimination).
-template <typename E>
-E scaled(const E& e, double b) {
-  E h;
+Expansion scaled(const Expansion& e, double b) {
+  Expansion h;
   if (e.empty() || b == 0.0) return h;
   h.reserve(2 * e.size());
   double q = 0.0;
@@ -143,15 +110,13 @@ E scaled(const E& e, double b) {
   return h;
 }
 
-template <typename E>
-E product(const E& e, const E& f) {
-  E h;
+Expansion product(const Expansion& e, const Expansion& f) {
+  Expansion h;
   for (double component : f) h = sum(h, scaled(e, component));
   return h;
 }
 
-template <typename E>
-double sign_of(const E& e) {
+double sign_of(const Expansion& e) {
   if (e.empty()) return 0.0;
   return e.back() > 0.0 ? 1.0 : -1.0;
 }
@@ -162,10 +127,10 @@ constexpr double orient_error_bound = (3.0 + 16.0 * epsilon) * epsilon;
 constexpr double incircle_error_bound = (10.0 + 96.0 * epsilon) * epsilon;
 
 double orient2d_exact(const Vec2& a, const Vec2& b, const Vec2& c) {
-  const OrientExpansion acx = difference<OrientExpansion>(a.x(), c.x());
-  const OrientExpansion acy = difference<OrientExpansion>(a.y(), c.y());
-  const OrientExpansion bcx = difference<OrientExpansion>(b.x(), c.x());
-  const OrientExpansion bcy = difference<OrientExpansion>(b.y(), c.y());
+  const Expansion acx = difference(a.x(), c.x());
+  const Expansion acy = difference(a.y(), c.y());
+  const Expansion bcx = difference(b.x(), c.x());
+  const Expansion bcy = difference(b.y(), c.y());
   return sign_of(sum(product(acx, bcy), negated(product(acy, bcx))));
 }
 
