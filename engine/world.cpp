@@ -277,6 +277,18 @@ std::uint8_t fixed_vertex(const Body& body, int v) {
   return 1;
 }
 
+// Surface vertex v's position from its embedding row and the particles' positions (one row of
+// CorotationalEfg::surface_positions, for the rows a cut remapped).
+void set_surface_position(Body& body, int v) {
+  const physics::SurfaceEmbedding& embedding = *body.embedding;
+  const std::size_t row = static_cast<std::size_t>(v) * static_cast<std::size_t>(embedding.stride);
+  physics::Vec3 position = physics::Vec3::Zero();
+  for (int k = 0; k < embedding.row_lengths[static_cast<std::size_t>(v)]; ++k)
+    position += embedding.weights[row + static_cast<std::size_t>(k)] *
+                body.state.positions.segment<3>(3 * static_cast<Eigen::Index>(embedding.particles[row + static_cast<std::size_t>(k)]));
+  body.surface_positions.segment<3>(3 * static_cast<Eigen::Index>(v)) = position;
+}
+
 void set_fixed_vertices(Body& body) {
   const auto& embedding = *body.embedding;
   body.fixed_vertices.resize(static_cast<std::size_t>(embedding.vertex_count()));
@@ -611,14 +623,7 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
   } else {
     const auto& embedding = *body.embedding;
     body.surface_positions.conservativeResize(3 * static_cast<Eigen::Index>(embedding.vertex_count()));
-    for (int v : reuse.remapped) {
-      const std::size_t row = static_cast<std::size_t>(v) * embedding.stride;
-      physics::Vec3 position = physics::Vec3::Zero();
-      for (int k = 0; k < embedding.row_lengths[v]; ++k)
-        position += embedding.weights[row + k] *
-                    body.state.positions.segment<3>(3 * static_cast<Eigen::Index>(embedding.particles[row + k]));
-      body.surface_positions.segment<3>(3 * static_cast<Eigen::Index>(v)) = position;
-    }
+    for (int v : reuse.remapped) set_surface_position(body, v);
   }
   stats.ms_mapping += ms_since(start);
   start = Clock::now();
@@ -960,17 +965,9 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
     physics::CorotationalEfg::surface_positions(embedding, body.state.positions, body.surface_positions);
   } else {
     body.surface_positions.conservativeResize(3 * static_cast<Eigen::Index>(n));
-    const auto position_of = [&](int v) {
-      const std::size_t row = static_cast<std::size_t>(v) * static_cast<std::size_t>(embedding.stride);
-      physics::Vec3 position = physics::Vec3::Zero();
-      for (int k = 0; k < embedding.row_lengths[static_cast<std::size_t>(v)]; ++k)
-        position += embedding.weights[row + static_cast<std::size_t>(k)] *
-                    body.state.positions.segment<3>(3 * static_cast<Eigen::Index>(embedding.particles[row + static_cast<std::size_t>(k)]));
-      body.surface_positions.segment<3>(3 * static_cast<Eigen::Index>(v)) = position;
-    };
     for (const int v : remap)
-      if (v < kept) position_of(v);
-    for (int v = kept; v < n; ++v) position_of(v);
+      if (v < kept) set_surface_position(body, v);
+    for (int v = kept; v < n; ++v) set_surface_position(body, v);
   }
   stats.ms_mapping += ms_since(start);
   start = Clock::now();
