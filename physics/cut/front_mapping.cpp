@@ -486,7 +486,12 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
 }
 
 CutFaceIndex::CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<Vec3, 3>> faces)
-    : faces_(std::move(faces)), a_(model.spacing()), origin_(model.grid_origin()) {
+    : faces_(std::move(faces)), cell_size_(model.spacing()), origin_(model.grid_origin()) {
+  // The faces' boxes, and the box of those to bin; the cells grow until the grid over it is
+  // small enough (a cut's faces span a few hundred cells of side a).
+  std::vector<int> to_bin;
+  Vec3 lo_all = Vec3::Constant(1e300), hi_all = Vec3::Constant(-1e300);
+  boxes_.reserve(faces_.size());
   for (size_t t = 0; t < faces_.size(); ++t) {
     const auto& tri = faces_[t];
     const Vec3 lo = tri[0].cwiseMin(tri[1]).cwiseMin(tri[2]), hi = tri[0].cwiseMax(tri[1]).cwiseMax(tri[2]);
@@ -496,24 +501,43 @@ CutFaceIndex::CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<
       large_.push_back(static_cast<int>(t));
       continue;
     }
+    to_bin.push_back(static_cast<int>(t));
+    lo_all = lo_all.cwiseMin(lo), hi_all = hi_all.cwiseMax(hi);
+  }
+  seen_.assign(faces_.size(), 0);
+  if (to_bin.empty()) return;
+  for (;;) {
+    const auto l = cell(lo_all), h = cell(hi_all);
+    long long cells = 1;
+    for (int axis = 0; axis < 3; ++axis) cells *= h[static_cast<size_t>(axis)] - l[static_cast<size_t>(axis)] + 1;
+    if (cells <= most_cells) {
+      first_ = l;
+      for (int axis = 0; axis < 3; ++axis) count_[static_cast<size_t>(axis)] = h[static_cast<size_t>(axis)] - l[static_cast<size_t>(axis)] + 1;
+      break;
+    }
+    cell_size_ *= 2;
+  }
+  // Counted, then filled (compressed rows, faces increasing within a cell).
+  start_.assign(static_cast<size_t>(count_[0] * count_[1] * count_[2] + 1), 0);
+  const auto for_cells = [&](int t, const auto& visit) {
+    const auto l = cell(boxes_[static_cast<size_t>(t)][0]), h = cell(boxes_[static_cast<size_t>(t)][1]);
     for (long long k = l[2]; k <= h[2]; ++k)
       for (long long j = l[1]; j <= h[1]; ++j)
-        for (long long i = l[0]; i <= h[0]; ++i) binned_.emplace_back(key(i, j, k), static_cast<int>(t));
-  }
-  std::sort(binned_.begin(), binned_.end());
-  seen_.assign(faces_.size(), 0);
+        for (long long i = l[0]; i <= h[0]; ++i)
+          visit(static_cast<size_t>((i - first_[0]) + count_[0] * ((j - first_[1]) + count_[1] * (k - first_[2]))));
+  };
+  for (const int t : to_bin) for_cells(t, [&](size_t c) { ++start_[c + 1]; });
+  for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
+  binned_.resize(static_cast<size_t>(start_.back()));
+  std::vector<int> fill(start_.begin(), start_.end() - 1);
+  for (const int t : to_bin) for_cells(t, [&](size_t c) { binned_[static_cast<size_t>(fill[c]++)] = t; });
 }
 
 std::array<long long, 3> CutFaceIndex::cell(const Vec3& p) const {
   std::array<long long, 3> c{};
   for (int axis = 0; axis < 3; ++axis)
-    c[static_cast<size_t>(axis)] = static_cast<long long>(std::floor(std::clamp((p[axis] - origin_[axis]) / a_, -1e6, 1e6)));
+    c[static_cast<size_t>(axis)] = static_cast<long long>(std::floor(std::clamp((p[axis] - origin_[axis]) / cell_size_, -1e6, 1e6)));
   return c;
-}
-
-std::uint64_t CutFaceIndex::key(long long i, long long j, long long k) {
-  const auto part = [](long long x) { return static_cast<std::uint64_t>(x + (1 << 20)) & 0x1fffff; };
-  return (part(i) << 42) | (part(j) << 21) | part(k);
 }
 
 int CutFaceIndex::crossings(const Vec3& p, const Vec3& q, double skip_near_p) const {
@@ -527,7 +551,15 @@ int CutFaceIndex::crossings(const Vec3& p, const Vec3& q, double skip_near_p) co
     return segment_crosses_triangle(p, q, faces_[static_cast<size_t>(t)], skip_near_p) ? 1 : 0;
   };
   for (const int t : large_) count += test(t);
-  const auto l = cell(p.cwiseMin(q)), h = cell(p.cwiseMax(q));
+  if (start_.empty()) return count;
+  // The segment's cells within the grid (each face's box lies in it).
+  std::array<long long, 3> l = cell(p.cwiseMin(q)), h = cell(p.cwiseMax(q));
+  for (int axis = 0; axis < 3; ++axis) {
+    const auto a = static_cast<size_t>(axis);
+    l[a] = std::max(l[a], first_[a]);
+    h[a] = std::min(h[a], first_[a] + count_[a] - 1);
+    if (l[a] > h[a]) return count;
+  }
   // Each face once per query (it may be binned in several of the cells): stamped.
   if (++query_ == 0) {
     std::fill(seen_.begin(), seen_.end(), 0);
@@ -536,13 +568,13 @@ int CutFaceIndex::crossings(const Vec3& p, const Vec3& q, double skip_near_p) co
   for (long long k = l[2]; k <= h[2]; ++k)
     for (long long j = l[1]; j <= h[1]; ++j)
       for (long long i = l[0]; i <= h[0]; ++i) {
-        const std::uint64_t c = key(i, j, k);
-        auto it = std::lower_bound(binned_.begin(), binned_.end(), std::pair<std::uint64_t, int>(c, -1));
-        for (; it != binned_.end() && it->first == c; ++it) {
-          unsigned& stamp = seen_[static_cast<size_t>(it->second)];
+        const auto c = static_cast<size_t>((i - first_[0]) + count_[0] * ((j - first_[1]) + count_[1] * (k - first_[2])));
+        for (int e = start_[c]; e < start_[c + 1]; ++e) {
+          const int t = binned_[static_cast<size_t>(e)];
+          unsigned& stamp = seen_[static_cast<size_t>(t)];
           if (stamp == query_) continue;
           stamp = query_;
-          count += test(it->second);
+          count += test(t);
         }
       }
   return count;
@@ -666,8 +698,9 @@ FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, con
   return identity;
 }
 
-std::vector<int> match_front_vertices(const FrontVertexIdentity& before, const FrontVertexIdentity& now) {
+std::vector<int> match_front_vertices(const FrontVertexIdentity& before, const FrontVertexIdentity& now, std::vector<int>* same_point) {
   std::vector<int> match(static_cast<size_t>(now.first) + now.key.size(), -1);
+  if (same_point != nullptr) same_point->assign(match.size(), -1);
   if (before.first != now.first) return match;
   // Sorted (key, index) of each side; a key found twice on a side matches nothing.
   const auto sorted = [](const FrontVertexIdentity& side) {
@@ -686,6 +719,7 @@ std::vector<int> match_front_vertices(const FrontVertexIdentity& before, const F
     while (o < old_keys.size() && old_keys[o].first < new_keys[k].first) ++o;
     if (o == old_keys.size() || old_keys[o].first != new_keys[k].first || !unique_at(old_keys, o)) continue;
     const int u = old_keys[o].second, v = new_keys[k].second;
+    if (same_point != nullptr) (*same_point)[static_cast<size_t>(v)] = u;
     if (before.ring[static_cast<size_t>(u - before.first)] == now.ring[static_cast<size_t>(v - now.first)]) match[static_cast<size_t>(v)] = u;
   }
   return match;

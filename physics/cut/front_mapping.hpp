@@ -84,14 +84,18 @@ class CutFaceIndex {
 
  private:
   static constexpr long long large_cells = 4096;  // faces over more cells are tested against every segment
+  static constexpr long long most_cells = 1 << 22;  // the grid's cells double in size until it has no more
   std::array<long long, 3> cell(const Vec3& p) const;
-  static std::uint64_t key(long long i, long long j, long long k);
   static constexpr double box_slack = 1e-9;  // m: far beyond roundoff at body scale
   std::vector<std::array<Vec3, 3>> faces_;
   std::vector<std::array<Vec3, 2>> boxes_;  // per face
-  double a_;
+  double cell_size_;
   Vec3 origin_;
-  std::vector<std::pair<std::uint64_t, int>> binned_;
+  // A dense grid over the binned faces' box (cells of cell_size_ from origin_, the first at
+  // first_): per cell, its faces in binned_[start_[c], start_[c + 1]).
+  std::array<long long, 3> first_{0, 0, 0}, count_{0, 0, 0};
+  std::vector<int> start_;
+  std::vector<int> binned_;
   std::vector<int> large_;
   mutable std::vector<unsigned> seen_;  // per face: the query that last tested it
   mutable unsigned query_ = 0;
@@ -164,7 +168,11 @@ FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, con
 // Per vertex of `now` (indices from now.first on; the vector has now.first + now.key.size()
 // entries, -1 below now.first): the index in `before` of the same vertex, -1 when it is new,
 // its triangles changed or its key is not unique. Nothing matches when the two `first`
-// differ.
-std::vector<int> match_front_vertices(const FrontVertexIdentity& before, const FrontVertexIdentity& now);
+// differ. `same_point` (when given, the same size): the match by key alone, whatever the
+// triangles: the same rest position, planes and flag, so the same mapping inputs but the
+// normal (seed 004 §2.6 does not remap a vertex whose triangles changed, only on its four
+// triggers).
+std::vector<int> match_front_vertices(const FrontVertexIdentity& before, const FrontVertexIdentity& now,
+                                      std::vector<int>* same_point = nullptr);
 
 }  // namespace incise::physics

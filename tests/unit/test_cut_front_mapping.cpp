@@ -597,9 +597,16 @@ TEST(FrontMapping, TellsTheStrokesVerticesBehindTheFrontFromThoseItMadeAnew) {
     ++t;
   ASSERT_LT(t, turned.size());
   std::swap(turned[t][1], turned[t][2]);
-  const std::vector<int> after_turn =
-      match_front_vertices(before, front_vertex_identity(vertices, turned, surface.vertex_planes(), surface.crack_front(), base_count));
+  std::vector<int> point_after_turn;
+  const std::vector<int> after_turn = match_front_vertices(
+      before, front_vertex_identity(vertices, turned, surface.vertex_planes(), surface.crack_front(), base_count), &point_after_turn);
   for (const int v : turned[t]) EXPECT_EQ(after_turn[static_cast<size_t>(v)], -1) << "corner " << v;
+  // By key alone (the same point, planes and flag) they are still the same points, and every
+  // other match is the same as before.
+  ASSERT_EQ(point_after_turn.size(), after_turn.size());
+  for (const int v : turned[t]) EXPECT_EQ(point_after_turn[static_cast<size_t>(v)], same[static_cast<size_t>(v)]) << "corner " << v;
+  for (int v = 0; v < n; ++v)
+    if (after_turn[static_cast<size_t>(v)] >= 0) EXPECT_EQ(point_after_turn[static_cast<size_t>(v)], after_turn[static_cast<size_t>(v)]) << "vertex " << v;
   int still = 0;
   for (int v = base_count; v < n; ++v) still += after_turn[static_cast<size_t>(v)] >= 0;
   EXPECT_EQ(still, matched - 3);
