@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <set>
@@ -290,6 +292,149 @@ struct OutlineHit {
   bool entering;  // the outline goes into the body here
 };
 
+// The last sample's cut face as triangulated, in (s, t): the region's points and boundary and
+// the constrained Delaunay triangles (before the shared inner edges are split).
+struct FaceCache {
+  bool valid = false;
+  PlanarRegion region;
+  std::vector<std::array<int, 3>> triangles;
+};
+
+using StKey = std::pair<double, double>;
+StKey st_key(const Vec2& p) { return {p.x(), p.y()}; }
+
+// triangulate_region(region), keeping what the last sample's triangulation (`cache`) has well
+// behind the front. Between two samples the region changes only at and above some t (the
+// lowest t of a point added or gone, or of an end of a boundary edge added or gone: the
+// front, its new crossings, a crossing a fold cancelled): a last triangle whose circumcircle
+// lies below that t keeps its corners, has no new point in its circle and no new boundary
+// edge through it, and stays inside (the boundary's change is a closed chain above it), so it
+// is a triangle of the new constrained Delaunay triangulation too (which is unique for points
+// in general position: the cut face's lattice is moved off its cocircular spots). Only the
+// rest is triangulated again, bounded by the kept triangles' edges. The result is the same
+// as triangulate_region's, element for element (both sorted, each triangle from its smallest
+// index). Falls back to the whole region when nothing is kept or the rest cannot be
+// triangulated on its own. Points are told apart by their exact (s, t) (the stroke computes
+// them the same way at every sample).
+std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, FaceCache& cache, double slack, int& kept_count) {
+  kept_count = 0;
+  const auto whole = [&] {
+    std::vector<std::array<int, 3>> face = triangulate_region(region);
+    cache.valid = true;
+    cache.region = region;
+    cache.triangles = face;
+    return face;
+  };
+  if (!cache.valid) return whole();
+  const auto& old_points = cache.region.points;
+  const auto& points = region.points;
+  // Old point -> new point (-1: gone), by exact (s, t).
+  std::vector<std::pair<StKey, int>> old_sorted(old_points.size()), new_sorted(points.size());
+  for (size_t k = 0; k < old_points.size(); ++k) old_sorted[k] = {st_key(old_points[k]), static_cast<int>(k)};
+  for (size_t k = 0; k < points.size(); ++k) new_sorted[k] = {st_key(points[k]), static_cast<int>(k)};
+  std::sort(old_sorted.begin(), old_sorted.end());
+  std::sort(new_sorted.begin(), new_sorted.end());
+  std::vector<int> to_new(old_points.size(), -1);
+  double t_change = std::numeric_limits<double>::infinity();
+  {
+    size_t o = 0, n = 0;
+    while (o < old_sorted.size() || n < new_sorted.size()) {
+      if (n == new_sorted.size() || (o < old_sorted.size() && old_sorted[o].first < new_sorted[n].first)) {
+        t_change = std::min(t_change, old_sorted[o++].first.second);  // gone
+      } else if (o == old_sorted.size() || new_sorted[n].first < old_sorted[o].first) {
+        t_change = std::min(t_change, new_sorted[n++].first.second);  // added
+      } else {
+        to_new[static_cast<size_t>(old_sorted[o++].second)] = new_sorted[n++].second;
+      }
+    }
+  }
+  // Boundary edges added or gone, in the new numbering (an old edge with a gone end is gone).
+  std::vector<std::array<int, 2>> old_boundary, new_boundary = region.boundary;
+  for (const auto& e : cache.region.boundary) {
+    const int a = to_new[static_cast<size_t>(e[0])], b = to_new[static_cast<size_t>(e[1])];
+    if (a < 0 || b < 0) {
+      t_change = std::min({t_change, old_points[static_cast<size_t>(e[0])].y(), old_points[static_cast<size_t>(e[1])].y()});
+      continue;
+    }
+    old_boundary.push_back({a, b});
+  }
+  std::sort(old_boundary.begin(), old_boundary.end());
+  std::sort(new_boundary.begin(), new_boundary.end());
+  {
+    std::vector<std::array<int, 2>> differ;
+    std::set_symmetric_difference(old_boundary.begin(), old_boundary.end(), new_boundary.begin(), new_boundary.end(), std::back_inserter(differ));
+    for (const auto& e : differ) t_change = std::min({t_change, points[static_cast<size_t>(e[0])].y(), points[static_cast<size_t>(e[1])].y()});
+  }
+  // The kept triangles: all corners still there, the circumcircle below t_change.
+  std::vector<std::array<int, 3>> kept;
+  for (const auto& tri : cache.triangles) {
+    const std::array<int, 3> now{to_new[static_cast<size_t>(tri[0])], to_new[static_cast<size_t>(tri[1])], to_new[static_cast<size_t>(tri[2])]};
+    if (now[0] < 0 || now[1] < 0 || now[2] < 0) continue;
+    const Vec2& a = old_points[static_cast<size_t>(tri[0])];
+    const Vec2 b = old_points[static_cast<size_t>(tri[1])] - a, c = old_points[static_cast<size_t>(tri[2])] - a;
+    const double d = 2 * (b.x() * c.y() - b.y() * c.x());
+    if (!(std::abs(d) > 0)) continue;
+    const Vec2 centre((c.y() * b.squaredNorm() - b.y() * c.squaredNorm()) / d, (b.x() * c.squaredNorm() - c.x() * b.squaredNorm()) / d);
+    if (!(a.y() + centre.y() + centre.norm() < t_change - slack)) continue;
+    kept.push_back(now);
+  }
+  if (kept.empty()) return whole();
+  kept_count = static_cast<int>(kept.size());
+  // The rest's boundary: the region's edges no kept triangle has, and the kept triangles'
+  // edges that neither another kept triangle nor the region's boundary has, turned round.
+  std::vector<std::array<int, 2>> kept_edges;
+  kept_edges.reserve(3 * kept.size());
+  for (const auto& tri : kept)
+    for (int k = 0; k < 3; ++k) kept_edges.push_back({tri[static_cast<size_t>(k)], tri[static_cast<size_t>((k + 1) % 3)]});
+  std::sort(kept_edges.begin(), kept_edges.end());
+  PlanarRegion rest;
+  std::vector<int> rest_index(points.size(), -1), from_rest;
+  std::vector<std::uint8_t> used(points.size(), 0);
+  for (const auto& tri : kept)
+    for (const int p : tri) used[static_cast<size_t>(p)] = 1;
+  std::vector<std::array<int, 2>> rest_boundary;
+  for (const auto& e : region.boundary)
+    if (!std::binary_search(kept_edges.begin(), kept_edges.end(), e)) rest_boundary.push_back(e);
+  for (const auto& e : kept_edges)
+    if (!std::binary_search(kept_edges.begin(), kept_edges.end(), std::array<int, 2>{e[1], e[0]}) &&
+        !std::binary_search(new_boundary.begin(), new_boundary.end(), e))
+      rest_boundary.push_back({e[1], e[0]});
+  // The rest's points: the ends of its boundary, and those no kept triangle uses within its
+  // boundary's box (a point outside the box is outside the rest, and the triangulation
+  // ignores it).
+  const auto take = [&](int p) {
+    if (rest_index[static_cast<size_t>(p)] < 0) {
+      rest_index[static_cast<size_t>(p)] = static_cast<int>(rest.points.size());
+      rest.points.push_back(points[static_cast<size_t>(p)]);
+      from_rest.push_back(p);
+    }
+    return rest_index[static_cast<size_t>(p)];
+  };
+  for (const auto& e : rest_boundary) rest.boundary.push_back({take(e[0]), take(e[1])});
+  Eigen::AlignedBox2d box;
+  for (const Vec2& p : rest.points) box.extend(p);
+  for (size_t p = 0; p < points.size(); ++p)
+    if (!used[p] && box.contains(points[p])) take(static_cast<int>(p));
+  std::vector<std::array<int, 3>> face = kept;
+  if (!rest.boundary.empty()) {
+    std::vector<std::array<int, 3>> rest_face;
+    try {
+      rest_face = triangulate_region(rest);
+    } catch (const std::invalid_argument&) {
+      kept_count = 0;
+      return whole();
+    }
+    for (const auto& tri : rest_face)
+      face.push_back({from_rest[static_cast<size_t>(tri[0])], from_rest[static_cast<size_t>(tri[1])], from_rest[static_cast<size_t>(tri[2])]});
+  }
+  // In triangulate_region's order: each triangle from its smallest index, sorted.
+  for (auto& tri : face) std::rotate(tri.begin(), std::min_element(tri.begin(), tri.end()), tri.end());
+  std::sort(face.begin(), face.end());
+  cache.region = region;
+  cache.triangles = face;
+  return face;
+}
+
 }  // namespace
 
 struct FrontSurface::Base {
@@ -309,9 +454,12 @@ struct FrontSurface::Stroke {
   // Hits of the outline's fixed segments: the first sample's, and each interval's segment of
   // the far end's path (first to last) and the near end's (last to first).
   std::vector<std::vector<OutlineHit>> first_sample, far_end, near_end;
+  // The last sample's cut face (triangulate_face), not kept by a snapshot: a stroke undone
+  // to one triangulates its next face whole.
+  FaceCache face;
 
   // What a sample may have to be undone to: all but edge_cut (as long as the base's edges),
-  // which follows from cut_edges.
+  // which follows from cut_edges, and the face's cache.
   Stroke snapshot() const {
     Stroke copy;
     copy.intervals_searched = intervals_searched;
@@ -1020,10 +1168,33 @@ void FrontSurface::recompute(FrontCutReport& report) {
     for (int r = r0; r <= r1; ++r)
       for (int c = c0; c <= c1; ++c) edge_cells[static_cast<size_t>(r) * static_cast<size_t>(columns) + static_cast<size_t>(c)].push_back(static_cast<int>(e));
   }
-  for (int r = 1; r * row < extent.y(); ++r)
+  // Per lattice row, where the boundary crosses it (s, and +1 going up in t, -1 going down;
+  // each edge taken half-open, from its lower end): a point is inside the region when the
+  // crossings on its right wind round it (the region is on the edges' left). The points
+  // outside (where the blade's sheet is outside the body) would only be triangulated away.
+  std::vector<std::vector<std::pair<double, int>>> row_crossings(static_cast<size_t>(std::floor(extent.y() / row)) + 2);
+  for (const auto& edge : region.boundary) {
+    const Vec2& a = region.points[static_cast<size_t>(edge[0])];
+    const Vec2& b = region.points[static_cast<size_t>(edge[1])];
+    if (a.y() == b.y()) continue;
+    const Vec2& low = a.y() < b.y() ? a : b;
+    const Vec2& high = a.y() < b.y() ? b : a;
+    for (int r = std::max(1, static_cast<int>(std::ceil(low.y() / row))); r < static_cast<int>(row_crossings.size()) && r * row < high.y(); ++r) {
+      if (r * row < low.y()) continue;
+      const double f = (r * row - low.y()) / (high.y() - low.y());
+      row_crossings[static_cast<size_t>(r)].emplace_back(low.x() + f * (high.x() - low.x()), a.y() < b.y() ? 1 : -1);
+    }
+  }
+  for (int r = 1; r * row < extent.y(); ++r) {
+    auto& crossings = row_crossings[static_cast<size_t>(r)];
+    std::sort(crossings.begin(), crossings.end());
+    int winding = 0;  // of the crossings right of the point
+    for (const auto& crossing : crossings) winding += crossing.second;
+    size_t passed = 0;
     for (int c = 0; (c + 0.5 * (r % 2)) * w < extent.x(); ++c) {
       const Vec2 p((c + 0.5 * (r % 2)) * w, r * row);
-      if (p.x() <= 0) continue;
+      for (; passed < crossings.size() && crossings[passed].first <= p.x(); ++passed) winding -= crossings[passed].second;
+      if (p.x() <= 0 || winding <= 0) continue;
       bool near = false;
       const auto [cc, unused_c] = cell_range(p.x(), p.x(), columns);
       const auto [rr, unused_r] = cell_range(p.y(), p.y(), rows);
@@ -1048,10 +1219,15 @@ void FrontSurface::recompute(FrontCutReport& report) {
       };
       add_point(p + Vec2(jitter(1), jitter(2)), -1, -1);
     }
+  }
 
   std::vector<std::array<int, 3>> face;
   try {
-    face = triangulate_region(region);
+    if (reuse_face_) {
+      face = triangulate_face(region, stroke.face, 1e-6 * w, report.face_triangles_kept);
+    } else {
+      face = triangulate_region(region);
+    }
   } catch (const std::invalid_argument& error) {
     problem(std::string("the cut face could not be triangulated: ") + error.what());
     restore_base();

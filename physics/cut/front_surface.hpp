@@ -45,8 +45,10 @@
 // triangle with more than two cut ends in one stroke (the sweep turning within one triangle,
 // or crossing its own earlier part), a base edge crossed twice otherwise (the sweep
 // passing over it again), a stroke starting with the blade inside the body (a cut
-// continued from an earlier stroke's front), chords that cross in the (s, t) plane. Each call triangulates the whole cut face of the stroke again (what is behind the
-// front comes out the same, but the cost grows with the face: docs/status.md has figures).
+// continued from an earlier stroke's front), chords that cross in the (s, t) plane. Each call keeps the last call's cut-face triangles
+// that lie well behind the front (their circumcircle below the lowest t the sample changed)
+// and triangulates only the rest; the rest of the stroke's work (the lift, the planes, the
+// output) still grows with its face: docs/status.md has figures.
 #pragma once
 
 #include "physics/core/model.hpp"
@@ -75,6 +77,7 @@ struct FrontCutReport {
   int cut_face_triangles = 0;  // per side
   int front_vertices = 0;      // transient vertices on the front and the other inside boundary
   int lattice_vertices = 0;    // fixed vertices inside the cut face
+  int face_triangles_kept = 0; // of the last sample's cut face (FrontSurface::reuse_face), per side
   bool front_in_body = false;  // part of the last sample (the front) is inside the body
   int samples_held = 0;        // 1: this sample was left out (back over the cut, or a problem)
   // Base edges the stroke's sheet crossed twice (it folds back over them at rest): left uncut,
@@ -121,6 +124,10 @@ class FrontSurface {
   // through.
   bool end_stroke(double reach = 0);
   int stroke_samples() const { return static_cast<int>(samples_.size()); }
+  // Whether a sample keeps the last one's cut-face triangles that lie well behind the front
+  // (the default) or triangulates the stroke's whole face again: the same surface either way
+  // (its tests compare them), the first's cost following the front rather than the stroke.
+  void reuse_face(bool on) { reuse_face_ = on; }
 
   // The current surface: the base split by the stroke, with its two cut faces.
   const std::vector<Vec3>& vertices() const { return vertices_; }
@@ -185,6 +192,7 @@ class FrontSurface {
   std::vector<std::uint8_t> base_cut_face_, cut_face_;
   std::vector<int> replaced_slots_, planed_base_;
   FrontCutReport last_report_;  // of the last sample taken
+  bool reuse_face_ = true;
 };
 
 }  // namespace incise::physics

@@ -602,3 +602,57 @@ TEST(FrontSurface, WhatAStrokeLeavesAloneKeepsItsSlotAndIndexAndTheChangeIsListe
   }
   EXPECT_GT(replaced, samples);  // the strokes did replace triangles
 }
+
+// What lies well behind the front is kept from the last sample's cut face instead of being
+// triangulated again (FrontSurface::reuse_face): the surface is the same, to the bit, as when
+// the whole face is triangulated at every sample, and the reuse is not idle.
+TEST(FrontSurface, KeepingTheFaceBehindTheFrontGivesTheSurfaceOfTriangulatingItWhole) {
+  const Mesh mesh = icosphere(3, 1.0);
+  const auto same_surface = [](const FrontSurface& kept, const FrontSurface& whole, const std::string& when) {
+    ASSERT_EQ(kept.vertices(), whole.vertices()) << when;
+    ASSERT_EQ(kept.triangles(), whole.triangles()) << when;
+    ASSERT_EQ(kept.crack_front(), whole.crack_front()) << when;
+    ASSERT_EQ(kept.vertex_planes().size(), whole.vertex_planes().size()) << when;
+    for (size_t v = 0; v < kept.vertex_planes().size(); ++v) {
+      ASSERT_EQ(kept.vertex_planes()[v].size(), whole.vertex_planes()[v].size()) << when;
+      for (size_t p = 0; p < kept.vertex_planes()[v].size(); ++p) {
+        ASSERT_EQ(kept.vertex_planes()[v][p].point, whole.vertex_planes()[v][p].point) << when;
+        ASSERT_EQ(kept.vertex_planes()[v][p].normal, whole.vertex_planes()[v][p].normal) << when;
+      }
+    }
+  };
+  // A curved blade, twisting and going on after a pause, then a second stroke beside it.
+  FrontSurface kept(mesh.vertices, mesh.triangles, 0.05), whole(mesh.vertices, mesh.triangles, 0.05);
+  whole.reuse_face(false);
+  long kept_triangles = 0, face_triangles = 0;
+  const auto blade = [](double z, double twist, double x) {
+    std::vector<Vec3> points;
+    for (int i = 0; i < 6; ++i) {
+      const double y = -1.5 + 3.0 * i / 5;
+      points.push_back(Eigen::AngleAxisd(twist, Vec3::UnitZ()) * Vec3(x + 0.15 * std::cos(1.2 * y), y, z + 0.1 * y * y));
+    }
+    return points;
+  };
+  for (int stroke = 0; stroke < 2; ++stroke) {
+    const int samples = 70;
+    for (int k = 0; k < samples; ++k) {
+      const double f = static_cast<double>(k) / (samples - 1);
+      // Held for three samples a third of the way down (the same sample: left as it is).
+      const double g = k < 23 ? f : k < 26 ? 22.0 / (samples - 1) : f;
+      const auto points = blade(1.3 - 2.6 * g, 0.4 * g, stroke == 0 ? 0.0 : 0.4);
+      const FrontCutReport a = kept.advance(points), b = whole.advance(points);
+      const std::string when = "stroke " + std::to_string(stroke) + ", sample " + std::to_string(k);
+      ASSERT_EQ(a.ok(), b.ok()) << when;
+      ASSERT_EQ(b.face_triangles_kept, 0) << when;
+      kept_triangles += a.face_triangles_kept;
+      face_triangles += a.cut_face_triangles;
+      same_surface(kept, whole, when);
+      if (testing::Test::HasFatalFailure()) return;
+    }
+    kept.end_stroke();
+    whole.end_stroke();
+    same_surface(kept, whole, "after stroke " + std::to_string(stroke));
+  }
+  std::printf("cut-face triangles kept from the last sample: %ld of %ld\n", kept_triangles, face_triangles);
+  EXPECT_GT(kept_triangles, face_triangles / 2);
+}
