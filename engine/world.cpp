@@ -839,19 +839,36 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   }
   body.front_identity = std::move(identity);
   // The triangles around each vertex, for the mapping's normals and one-rings: a base vertex's
-  // unchanged base triangles and, for every vertex, the changed slots it is a corner of.
-  std::vector<std::pair<int, int>> changed_around;  // (vertex, slot), sorted
+  // unchanged base triangles and, for every vertex, the changed slots it is a corner of: for
+  // the stroke's vertices in compressed rows (counted, then filled), for the base's (the
+  // corners of split triangles: few) as sorted (vertex, slot) pairs.
+  std::vector<int> stroke_around_start(static_cast<std::size_t>(std::max(0, n - base_vertices)) + 1, 0), stroke_around;
+  std::vector<std::pair<int, int>> base_around;
   for (const int s : now_slots)
-    for (const int v : triangles[static_cast<std::size_t>(s)]) changed_around.emplace_back(v, s);
-  std::sort(changed_around.begin(), changed_around.end());
+    for (const int v : triangles[static_cast<std::size_t>(s)])
+      if (v >= base_vertices) ++stroke_around_start[static_cast<std::size_t>(v - base_vertices) + 1];
+      else base_around.emplace_back(v, s);
+  for (std::size_t k = 1; k < stroke_around_start.size(); ++k) stroke_around_start[k] += stroke_around_start[k - 1];
+  stroke_around.resize(static_cast<std::size_t>(stroke_around_start.back()));
+  {
+    std::vector<int> fill(stroke_around_start.begin(), stroke_around_start.end() - 1);
+    for (const int s : now_slots)
+      for (const int v : triangles[static_cast<std::size_t>(s)])
+        if (v >= base_vertices) stroke_around[static_cast<std::size_t>(fill[static_cast<std::size_t>(v - base_vertices)]++)] = s;
+  }
+  std::sort(base_around.begin(), base_around.end());
   const physics::TrianglesAround around = [&](int v, std::vector<int>& out) {
     const std::size_t first = out.size();
-    if (v < base_vertices)
+    if (v >= base_vertices) {
+      const auto k = static_cast<std::size_t>(v - base_vertices);
+      out.insert(out.end(), stroke_around.begin() + stroke_around_start[k], stroke_around.begin() + stroke_around_start[k + 1]);
+    } else {
       for (const int s : front.base_triangles_around(v))
         if (!(slot_flags[static_cast<std::size_t>(s)] & 1)) out.push_back(s);
-    for (auto it = std::lower_bound(changed_around.begin(), changed_around.end(), std::pair<int, int>(v, -1));
-         it != changed_around.end() && it->first == v; ++it)
-      out.push_back(it->second);
+      for (auto it = std::lower_bound(base_around.begin(), base_around.end(), std::pair<int, int>(v, -1));
+           it != base_around.end() && it->first == v; ++it)
+        out.push_back(it->second);
+    }
     std::sort(out.begin() + static_cast<std::ptrdiff_t>(first), out.end());
   };
   // The cut faces, each once (both sides' copies lie on it, with the same corners), and per
