@@ -1303,18 +1303,12 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
   // (`seen`, per element). Those unchanged elements to test are tested against the triangles
   // added since the earliest of their `seen` only (a triangle among them that is older than an
   // element's own `seen` was in the cut its flag was taken with), the same answer as the full
-  // cut's. Elements are never re-activated (CorotationalEfg::deactivate_element is final).
-  std::optional<RestCut> added;
-  if (seen && cached && !all) {
-    int earliest = cut.size();
-    for (int e = 0; e < elements; ++e)
-      if (model.element_active(e) && !(*changed)[e] && !linked[e] && in_box((*boxes)[e])) earliest = std::min(earliest, (*seen)[e]);
-    if (earliest >= 0) {
-      added.emplace(model.spacing());
-      for (int t = earliest; t < cut.size(); ++t) added->add(cut.triangles()[t]);
-    }
-  }
-  int across = 0;
+  // cut's; but one whose flag is older than the last added_limit triangles (an element the
+  // growing cut's box reaches for the first time) is tested against the whole cut, which is
+  // indexed already, so that a long cut's triangles are not indexed again at every call.
+  // Elements are never re-activated (CorotationalEfg::deactivate_element is final).
+  // One pass over the elements: those to test (changed, or whose links reach into the box).
+  std::vector<int> to_test;
   for (int e = 0; e < elements; ++e) {
     if (!model.element_active(e)) {
       linked[e] = 0;
@@ -1322,18 +1316,37 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
     }
     const bool element_changed = changed && (*changed)[e];
     if (cached && element_changed) (*boxes)[e] = link_box(e);
-    bool check = all || element_changed;
-    if (!check) check = in_box(boxes ? (*boxes)[e] : link_box(e));
-    if (check) {
-      if (added && !element_changed) {
-        if (!linked[e]) linked[e] = element_linked_across(model, *added, e) ? 1 : 0;
-      } else {
-        linked[e] = element_linked_across(model, cut, e) ? 1 : 0;
-      }
-      if (seen) (*seen)[e] = cut.size();
-    }
-    across += linked[e];
+    if (all || element_changed || in_box(boxes ? (*boxes)[e] : link_box(e))) to_test.push_back(e);
   }
+  const bool since_flag = seen && cached && !all;  // unchanged elements: the triangles since their flag
+  std::optional<RestCut> added;
+  int added_from = cut.size();
+  if (since_flag) {
+    constexpr int added_limit = 2048;
+    const int recent = std::max(0, cut.size() - added_limit);
+    for (const int e : to_test)
+      if (!(*changed)[e] && !linked[e] && (*seen)[e] >= recent) added_from = std::min(added_from, (*seen)[e]);
+    if (added_from < cut.size()) {
+      added.emplace(model.spacing());
+      for (int t = added_from; t < cut.size(); ++t) added->add(cut.triangles()[t]);
+    }
+  }
+  for (const int e : to_test) {
+    if (since_flag && !(*changed)[e]) {
+      // Linked before, linked still; else only the triangles since its flag can link it.
+      if (!linked[e]) {
+        if ((*seen)[e] < added_from)
+          linked[e] = element_linked_across(model, cut, e) ? 1 : 0;
+        else if (added)
+          linked[e] = element_linked_across(model, *added, e) ? 1 : 0;
+      }
+    } else {
+      linked[e] = element_linked_across(model, cut, e) ? 1 : 0;
+    }
+    if (seen) (*seen)[e] = cut.size();
+  }
+  int across = 0;
+  for (const std::uint8_t flag : linked) across += flag;
   return across;
 }
 
