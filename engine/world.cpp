@@ -950,7 +950,7 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // Each vertex sees its point through no cut face (what wrong_side below measures), the
   // crack front's vertices excepted.
   physics::FrontVisibility visibility{&face_index, inset, front.crack_front(), on_face};
-  physics::map_front_surface(*body.efg, vertices, triangles, planes, remap, embedding, mapping, &visibility, &around);
+  physics::map_front_surface(*body.efg, vertices, triangles, planes, remap, embedding, mapping, &visibility, &around, &body.front_cubes);
   for (const int v : remap)
     if (v < kept) body.front_reach = std::max(body.front_reach, reach_of(v));
   body.front_mapped_base = base_vertices;

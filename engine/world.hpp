@@ -85,6 +85,7 @@ struct Body {
   // point, over its rows since they were counted (a bound: for finding the segments near a box).
   double front_reach = 0;
   int front_reach_upto = 0;
+  physics::ElementCubes front_cubes;  // the mapping's candidates, kept between cut events
   // The vertices below front_wrong_upto whose point is across a cut face, off the crack front.
   long front_wrong_base = 0;
   int front_wrong_upto = 0;

@@ -123,29 +123,6 @@ struct OneRing {
   }
 };
 
-// The active elements binned by their integration cube (each rest integration point lies in
-// its cube, so a point in the cube r rings from the vertex's is at least (r - 1) a away).
-struct ElementBins {
-  std::array<long long, 3> counts{0, 0, 0};
-  std::vector<int> element_of_cube;  // -1: no active element
-
-  explicit ElementBins(const CorotationalEfg& model) {
-    const auto& cubes = model.element_grid_coordinates();
-    for (const auto& c : cubes)
-      for (int axis = 0; axis < 3; ++axis) counts[axis] = std::max<long long>(counts[axis], c[axis] + 1);
-    element_of_cube.assign(static_cast<size_t>(counts[0] * counts[1] * counts[2]), -1);
-    for (int e = 0; e < model.element_count(); ++e) {
-      if (!model.element_active(e)) continue;
-      const auto& c = cubes[static_cast<size_t>(e)];
-      element_of_cube[static_cast<size_t>(c[0] + counts[0] * (c[1] + counts[1] * c[2]))] = e;
-    }
-  }
-  int at(long long i, long long j, long long k) const {
-    if (i < 0 || j < 0 || k < 0 || i >= counts[0] || j >= counts[1] || k >= counts[2]) return -1;
-    return element_of_cube[static_cast<size_t>(i + counts[0] * (j + counts[1] * k))];
-  }
-};
-
 std::array<long long, 3> cube_of(const CorotationalEfg& model, const Vec3& point) {
   std::array<long long, 3> cube{};
   for (int axis = 0; axis < 3; ++axis) {
@@ -206,8 +183,8 @@ class Mapper {
  public:
   Mapper(const CorotationalEfg& model, const std::vector<Vec3>& vertices, const std::vector<Vec3>& normals,
          const std::vector<std::vector<ConstraintPlane>>& planes, const FrontVisibility* visibility,
-         const std::vector<Vec3>* inward)
-      : model_(model), vertices_(vertices), normals_(normals), planes_(planes), visibility_(visibility), inward_(inward), bins_(model) {}
+         const std::vector<Vec3>* inward, const ElementCubes& bins)
+      : model_(model), vertices_(vertices), normals_(normals), planes_(planes), visibility_(visibility), inward_(inward), bins_(bins) {}
 
   // The element for vertex v, given the elements its one-ring neighbours are mapped to (for
   // criterion 1). Sets `relaxed` if no candidate met all three criteria.
@@ -326,7 +303,8 @@ class Mapper {
   const std::vector<std::vector<ConstraintPlane>>& planes_;
   const FrontVisibility* visibility_;
   const std::vector<Vec3>* inward_;  // per vertex, its start point for visibility
-  ElementBins bins_;
+  const ElementCubes& bins_;  // each rest integration point lies in its cube, so a point in the
+                              // cube r rings from the vertex's is at least (r - 1) a away
   std::vector<std::pair<double, int>> candidates_;
   std::vector<Vec3> positions_;
 };
@@ -389,11 +367,27 @@ std::vector<int> triangles_of(const std::vector<Vec3>& vertices, const std::vect
 
 }  // namespace
 
+void ElementCubes::update(const CorotationalEfg& from) {
+  if (model == &from && deactivated == from.deactivated_elements()) return;
+  model = &from;
+  deactivated = from.deactivated_elements();
+  const auto& cubes = from.element_grid_coordinates();
+  counts = {0, 0, 0};
+  for (const auto& c : cubes)
+    for (int axis = 0; axis < 3; ++axis) counts[axis] = std::max<long long>(counts[axis], c[axis] + 1);
+  element_of_cube.assign(static_cast<size_t>(counts[0] * counts[1] * counts[2]), -1);
+  for (int e = 0; e < from.element_count(); ++e) {
+    if (!from.element_active(e)) continue;
+    const auto& c = cubes[static_cast<size_t>(e)];
+    element_of_cube[static_cast<size_t>(c[0] + counts[0] * (c[1] + counts[1] * c[2]))] = e;
+  }
+}
+
 void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                        const std::vector<std::array<int, 3>>& triangles,
                        const std::vector<std::vector<ConstraintPlane>>& planes, std::span<const int> remap,
                        SurfaceEmbedding& embedding, FrontMappingReport& report, const FrontVisibility* visibility,
-                       const TrianglesAround* around) {
+                       const TrianglesAround* around, ElementCubes* cubes) {
   const int n = static_cast<int>(vertices.size());
   if (visibility != nullptr && visibility->faces == nullptr) fail("the visibility criterion has no cut faces");
   if (visibility != nullptr && !(visibility->inset >= 0 && std::isfinite(visibility->inset)))
@@ -439,7 +433,10 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
     for (const int v : remap) inward[static_cast<size_t>(v)] = inset_point(vertices[static_cast<size_t>(v)], pseudo[static_cast<size_t>(v)], visibility->inset, *visibility->faces,
                                                              flagged(visibility->on_face, v));
   }
-  Mapper mapper(model, vertices, normals, planes, visibility, &inward);
+  ElementCubes own;
+  if (cubes == nullptr) cubes = &own;
+  cubes->update(model);
+  Mapper mapper(model, vertices, normals, planes, visibility, &inward, *cubes);
 
   // A neighbour that is listed is read at its first-pass element (second pass only), the
   // others at their row's.

@@ -67,11 +67,27 @@ struct FrontVisibility;
 // map_front_surface and count_wrong_side read the listed vertices' triangles instead of
 // scanning the whole surface. It must give every triangle of each vertex it is asked for.
 using TrianglesAround = std::function<void(int vertex, std::vector<int>& triangles)>;
+// The model's active elements binned by their integration cube (one per cube): where the
+// candidates are looked for. A caller mapping at every cut event keeps one between calls
+// (`cubes` below); it is taken again when the model's count of deactivated elements changed
+// (deactivation is final, so the count tells).
+struct ElementCubes {
+  const CorotationalEfg* model = nullptr;
+  int deactivated = -1;
+  std::array<long long, 3> counts{0, 0, 0};
+  std::vector<int> element_of_cube;  // -1: no active element
+  void update(const CorotationalEfg& from);
+  int at(long long i, long long j, long long k) const {
+    if (i < 0 || j < 0 || k < 0 || i >= counts[0] || j >= counts[1] || k >= counts[2]) return -1;
+    return element_of_cube[static_cast<size_t>(i + counts[0] * (j + counts[1] * k))];
+  }
+};
 void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                        const std::vector<std::array<int, 3>>& triangles,
                        const std::vector<std::vector<ConstraintPlane>>& planes, std::span<const int> remap,
                        SurfaceEmbedding& embedding, FrontMappingReport& report,
-                       const FrontVisibility* visibility = nullptr, const TrianglesAround* around = nullptr);
+                       const FrontVisibility* visibility = nullptr, const TrianglesAround* around = nullptr,
+                       ElementCubes* cubes = nullptr);
 
 // Cut faces (rest positions, each face once) binned on the model's integration grid, for
 // counting the faces a segment crosses: its ends strictly on both sides of a face's plane,
