@@ -616,3 +616,27 @@ TEST(FrontMapping, TellsTheStrokesVerticesBehindTheFrontFromThoseItMadeAnew) {
   EXPECT_TRUE(std::all_of(other.begin(), other.end(), [](int u) { return u < 0; }));
   EXPECT_THROW(front_vertex_identity(vertices, surface.triangles(), surface.vertex_planes(), surface.crack_front(), n + 1), std::invalid_argument);
 }
+
+// The elements binned by cube, kept by the caller between calls (ElementCubes), follow the
+// model: an element deactivated since the last call is no longer a candidate.
+TEST(FrontMapping, KeptElementCubesFollowTheModelsDeactivatedElements) {
+  CorotationalEfg model(Vec3::Constant(-0.4), Vec3::Constant(0.4), Material{1e5, 0.3, 1000}, settings_with(0.1));
+  const std::vector<Vec3> vertices{{0.05, 0.05, 0.4}, {0.15, 0.05, 0.4}, {0.05, 0.15, 0.4}};
+  const std::vector<std::array<int, 3>> triangles{{0, 1, 2}};
+  ElementCubes cubes;
+  SurfaceEmbedding embedding;
+  FrontMappingReport report;
+  map_front_surface(model, vertices, triangles, {}, all_of(3), embedding, report, nullptr, nullptr, &cubes);
+  const int nearest = element_at(model, Vec3(0.05, 0.05, 0.35));
+  ASSERT_GE(nearest, 0);
+  ASSERT_EQ(embedding.elements[0], nearest);
+  model.deactivate_element(nearest);
+  const int remap[] = {0};
+  map_front_surface(model, vertices, triangles, {}, remap, embedding, report, nullptr, nullptr, &cubes);
+  EXPECT_NE(embedding.elements[0], nearest);
+  EXPECT_TRUE(model.element_active(embedding.elements[0]));
+  // The same as without a kept copy.
+  SurfaceEmbedding fresh = embedding;
+  map_front_surface(model, vertices, triangles, {}, remap, fresh, report);
+  EXPECT_EQ(fresh.elements[0], embedding.elements[0]);
+}
