@@ -1320,6 +1320,7 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
   }
   const bool since_flag = seen && cached && !all;  // unchanged elements: the triangles since their flag
   std::optional<RestCut> added;
+  Vec3 added_lo = Vec3::Constant(std::numeric_limits<double>::infinity()), added_hi = -added_lo;
   int added_from = cut.size();
   if (since_flag) {
     constexpr int added_limit = 2048;
@@ -1328,16 +1329,25 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
       if (!(*changed)[e] && !linked[e] && (*seen)[e] >= recent) added_from = std::min(added_from, (*seen)[e]);
     if (added_from < cut.size()) {
       added.emplace(model.spacing());
-      for (int t = added_from; t < cut.size(); ++t) added->add(cut.triangles()[t]);
+      for (int t = added_from; t < cut.size(); ++t) {
+        const RestTriangle& triangle = cut.triangles()[t];
+        added->add(triangle);
+        for (const Vec3* p : {&triangle.a, &triangle.b, &triangle.c}) added_lo = added_lo.cwiseMin(*p), added_hi = added_hi.cwiseMax(*p);
+      }
     }
   }
+  // An element whose links' box misses the added triangles' box is not linked across them.
+  const auto meets_added = [&](int e) {
+    const auto& box = (*boxes)[e];
+    return (box[0].array() <= added_hi.array()).all() && (box[1].array() >= added_lo.array()).all();
+  };
   for (const int e : to_test) {
     if (since_flag && !(*changed)[e]) {
       // Linked before, linked still; else only the triangles since its flag can link it.
       if (!linked[e]) {
         if ((*seen)[e] < added_from)
           linked[e] = element_linked_across(model, cut, e) ? 1 : 0;
-        else if (added)
+        else if (added && meets_added(e))
           linked[e] = element_linked_across(model, *added, e) ? 1 : 0;
       }
     } else {
