@@ -1,5 +1,6 @@
 #include "physics/cut/front_mapping.hpp"
 
+#include "physics/core/mix.hpp"
 #include "physics/cut/cut_surface.hpp"
 
 #include "physics/efg/mls.hpp"
@@ -79,13 +80,11 @@ std::vector<Vec3> angle_weighted_normals(const std::vector<Vec3>& vertices, cons
 // compressed rows in the order of the list, from the triangles of `subset` (see
 // for_each_triangle).
 struct OneRing {
-  std::span<const int> listed;
   std::vector<int> start;  // position in listed -> first entry; start[size] = end
   std::vector<int> neighbours;
 
-  OneRing(std::span<const int> listed_vertices, const std::vector<std::array<int, 3>>& triangles,
-          const std::vector<std::uint8_t>& only, std::span<const int> subset, bool all)
-      : listed(listed_vertices) {
+  OneRing(std::span<const int> listed, const std::vector<std::array<int, 3>>& triangles,
+          const std::vector<std::uint8_t>& only, std::span<const int> subset, bool all) {
     const size_t count = listed.size();
     const auto position = [&](int v) { return static_cast<size_t>(std::lower_bound(listed.begin(), listed.end(), v) - listed.begin()); };
     start.assign(count + 1, 0);
@@ -626,13 +625,6 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
 
 namespace {
 
-std::uint64_t mix(std::uint64_t x) {  // splitmix64's finaliser
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
-
 std::uint64_t bits(double x) {
   std::uint64_t b = 0;
   std::memcpy(&b, &x, sizeof b);
@@ -667,15 +659,15 @@ FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, con
   identity.key.resize(static_cast<size_t>(n - first));
   identity.ring.assign(static_cast<size_t>(n - first), 0);
   for (int v = first; v < n; ++v) {
-    std::uint64_t h = mix(flagged(crack_front, v) ? 1 : 2);
-    for (int d = 0; d < 3; ++d) h = mix(h ^ bits(vertices[static_cast<size_t>(v)][d]));
+    std::uint64_t h = mix64(flagged(crack_front, v) ? 1 : 2);
+    for (int d = 0; d < 3; ++d) h = mix64(h ^ bits(vertices[static_cast<size_t>(v)][d]));
     if (static_cast<size_t>(v) < planes.size())
       for (const ConstraintPlane& plane : planes[static_cast<size_t>(v)])
-        for (int d = 0; d < 3; ++d) h = mix(mix(h ^ bits(plane.point[d])) ^ bits(plane.normal[d]));
+        for (int d = 0; d < 3; ++d) h = mix64(mix64(h ^ bits(plane.point[d])) ^ bits(plane.normal[d]));
     identity.key[static_cast<size_t>(v - first)] = h;
   }
   // A base vertex is its index (salted apart from the content keys).
-  const auto key_of = [&](int v) { return v < first ? mix(0x5eedULL + static_cast<std::uint64_t>(v)) : identity.key[static_cast<size_t>(v - first)]; };
+  const auto key_of = [&](int v) { return v < first ? mix64(0x5eedULL + static_cast<std::uint64_t>(v)) : identity.key[static_cast<size_t>(v - first)]; };
   const auto visit = [&](const std::array<int, 3>& tri) {
     if (tri[0] < first && tri[1] < first && tri[2] < first) return;
     for (int k = 0; k < 3; ++k) {
@@ -684,7 +676,7 @@ FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, con
       // The two other corners in order (the triangle's orientation counts); summed over the
       // triangles, so their order does not.
       identity.ring[static_cast<size_t>(v - first)] +=
-          mix(mix(key_of(tri[static_cast<size_t>((k + 1) % 3)])) ^ key_of(tri[static_cast<size_t>((k + 2) % 3)]));
+          mix64(mix64(key_of(tri[static_cast<size_t>((k + 1) % 3)])) ^ key_of(tri[static_cast<size_t>((k + 2) % 3)]));
     }
   };
   if (among.empty()) {

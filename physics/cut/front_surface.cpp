@@ -1,5 +1,6 @@
 #include "physics/cut/front_surface.hpp"
 
+#include "physics/core/mix.hpp"
 #include "physics/cut/triangulate_2d.hpp"
 
 #include <Eigen/Geometry>
@@ -1210,11 +1211,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
       // its row and column): six lattice neighbours lie on one circle around each point, and
       // every such empty-circle test would take the triangulation's exact (slow) path.
       const auto jitter = [&](std::uint64_t salt) {
-        std::uint64_t x = (static_cast<std::uint64_t>(r) << 32) ^ static_cast<std::uint64_t>(c) ^ salt;
-        x += 0x9e3779b97f4a7c15ULL;
-        x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-        x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-        x ^= x >> 31;
+        const std::uint64_t x = mix64((static_cast<std::uint64_t>(r) << 32) ^ static_cast<std::uint64_t>(c) ^ salt);
         return (static_cast<double>(x >> 11) / 9007199254740992.0 - 0.5) * 1e-3 * w;
       };
       add_point(p + Vec2(jitter(1), jitter(2)), -1, -1);
