@@ -45,10 +45,12 @@
 // triangle with more than two cut ends in one stroke (the sweep turning within one triangle,
 // or crossing its own earlier part), a base edge crossed twice otherwise (the sweep
 // passing over it again), a stroke starting with the blade inside the body (a cut
-// continued from an earlier stroke's front), chords that cross in the (s, t) plane. Each call keeps the last call's cut-face triangles
-// that lie well behind the front (their circumcircle below the lowest t the sample changed)
-// and triangulates only the rest; the rest of the stroke's work (the lift, the planes, the
-// output) still grows with its face: docs/status.md has figures.
+// continued from an earlier stroke's front), chords that cross in the (s, t) plane.
+//
+// Cost: each call keeps the last call's cut-face triangles that lie well behind the front
+// (their circumcircle below the lowest t the sample changed) and triangulates only the rest;
+// the rest of the stroke's work (the lift, the planes, the output) still grows with its
+// face: docs/status.md has figures.
 #pragma once
 
 #include "physics/core/model.hpp"
