@@ -166,15 +166,14 @@ bool segment_crosses_triangle(const Vec3& p, const Vec3& q, const std::array<Vec
 // not, down to the vertex itself.
 // A vertex on a cut face (`on_face`) is always pulled in by the full inset: its own face's
 // neighbours at rest are wavy by more than any tolerance would allow for.
-Vec3 inset_point(const Vec3& vertex, const Vec3& normal, double inset, const CutFaceIndex& faces, bool on_face,
-                 CutFaceIndex::Scratch& scratch) {
+Vec3 inset_point(const Vec3& vertex, const Vec3& normal, double inset, const CutFaceIndex& faces, bool on_face) {
   const double length = normal.norm();
   if (!(length > 0)) return vertex;
   if (on_face) return vertex - (inset / length) * normal;
   for (int k = 0; k < 16; ++k, inset *= 0.5) {
     const Vec3 p = vertex - (inset / length) * normal;
     // The faces through the vertex itself (its own, on a cut face) are not in the way.
-    if (faces.crossings(vertex, p, 1e-6 * inset, scratch) == 0) return p;
+    if (faces.crossings(vertex, p, 1e-6 * inset) == 0) return p;
   }
   return vertex;
 }
@@ -289,7 +288,7 @@ class Mapper {
   bool visible(int v, int e) const {
     if (visibility_ == nullptr) return true;
     if (flagged(visibility_->exempt, v)) return true;
-    return visibility_->faces->crossings((*inward_)[static_cast<size_t>(v)], model_.element_centres()[static_cast<size_t>(e)], 0, scratch_) % 2 == 0;
+    return visibility_->faces->crossings((*inward_)[static_cast<size_t>(v)], model_.element_centres()[static_cast<size_t>(e)]) % 2 == 0;
   }
   bool shares_with_neighbours(int e, std::span<const int> neighbour_elements) const {
     for (const int f : neighbour_elements)
@@ -305,10 +304,8 @@ class Mapper {
   const std::vector<Vec3>* inward_;  // per vertex, its start point for visibility
   const ElementCubes& bins_;  // each rest integration point lies in its cube, so a point in the
                               // cube r rings from the vertex's is at least (r - 1) a away
-  // Scratch: one mapper per thread.
   std::vector<std::pair<double, int>> candidates_;
   std::vector<Vec3> positions_;
-  mutable CutFaceIndex::Scratch scratch_;
 };
 
 void check_surface(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
@@ -428,32 +425,23 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
 
   fit_rows(embedding, n, std::max(embedding.stride, model.row_stride()));
   const std::vector<Vec3> normals = area_weighted_normals(vertices, triangles, wanted, remap, subset, all);
-  // Each vertex's choice reads only the rows of vertices not listed and, in the second pass,
-  // the first pass's choices: the vertices are independent within a pass, so each pass runs
-  // over ranges of them on the model's threads, the same result for any split.
-  const int listed = static_cast<int>(remap.size());
-  constexpr int vertices_per_thread = 16;  // a vertex takes a few microseconds; waking a thread about as long
   std::vector<Vec3> inward;
   if (visibility != nullptr) {
     const std::vector<Vec3> pseudo = angle_weighted_normals(vertices, triangles, wanted, remap, subset, all);
     inward.resize(vertices.size());
-    model.for_ranges(listed, [&](int begin, int end) {
-      CutFaceIndex::Scratch scratch;
-      for (int k = begin; k < end; ++k) {
-        const auto v = static_cast<size_t>(remap[static_cast<size_t>(k)]);
-        inward[v] = inset_point(vertices[v], pseudo[v], visibility->inset, *visibility->faces, flagged(visibility->on_face, static_cast<int>(v)), scratch);
-      }
-    }, vertices_per_thread);
+    for (const int v : remap) inward[static_cast<size_t>(v)] = inset_point(vertices[static_cast<size_t>(v)], pseudo[static_cast<size_t>(v)], visibility->inset, *visibility->faces,
+                                                             flagged(visibility->on_face, v));
   }
   ElementCubes own;
   if (cubes == nullptr) cubes = &own;
   cubes->update(model);
-  const Mapper prototype(model, vertices, normals, planes, visibility, &inward, *cubes);
+  Mapper mapper(model, vertices, normals, planes, visibility, &inward, *cubes);
 
   // A neighbour that is listed is read at its first-pass element (second pass only), the
   // others at their row's.
   std::vector<int> first(remap.size());
-  const auto gather = [&](size_t k, bool second_pass, std::vector<int>& neighbour_elements) {
+  std::vector<int> neighbour_elements;
+  const auto gather = [&](size_t k, bool second_pass) {
     neighbour_elements.clear();
     for (const int u : ring.of_listed(k)) {
       // The crack front's vertices belong to neither side: criterion 1 does not follow them.
@@ -467,42 +455,30 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
     std::sort(neighbour_elements.begin(), neighbour_elements.end());
     neighbour_elements.erase(std::unique(neighbour_elements.begin(), neighbour_elements.end()), neighbour_elements.end());
   };
+  bool relaxed = false;
   // First pass: only the neighbours not being remapped, whose rows are as given.
   std::vector<std::uint8_t> first_relaxed(remap.size(), 0);
-  model.for_ranges(listed, [&](int begin, int end) {
-    Mapper mapper = prototype;
-    std::vector<int> neighbour_elements;
-    bool relaxed = false;
-    for (auto k = static_cast<size_t>(begin); k < static_cast<size_t>(end); ++k) {
-      gather(k, false, neighbour_elements);
-      first[k] = mapper.choose(remap[k], neighbour_elements, relaxed);
-      first_relaxed[k] = relaxed ? 1 : 0;
-    }
-  }, vertices_per_thread);
+  for (size_t k = 0; k < remap.size(); ++k) {
+    gather(k, false);
+    first[k] = mapper.choose(remap[k], neighbour_elements, relaxed);
+    first_relaxed[k] = relaxed ? 1 : 0;
+  }
   // Second pass: every neighbour, the remapped ones at their first-pass element (a snapshot:
-  // nothing this pass writes is read by it: it writes the listed vertices' rows, and reads
-  // the others').
+  // nothing this pass writes is read by it).
   // The second pass only adds constraints (criterion 1 against more neighbours), so a
   // first-pass point that met all three criteria and meets the new ones is still the first
   // valid candidate in the same order: it is kept without a new search.
-  std::vector<std::uint8_t> fell_back(remap.size(), 0);
-  model.for_ranges(listed, [&](int begin, int end) {
-    Mapper mapper = prototype;
-    std::vector<int> neighbour_elements;
-    bool relaxed = false;
-    for (auto k = static_cast<size_t>(begin); k < static_cast<size_t>(end); ++k) {
-      gather(k, true, neighbour_elements);
-      int e = first[k];
-      if (first_relaxed[k] || !std::all_of(neighbour_elements.begin(), neighbour_elements.end(),
-                                           [&](int f) { return share_a_particle(model, e, f); })) {
-        e = mapper.choose(remap[k], neighbour_elements, relaxed);
-        fell_back[k] = relaxed ? 1 : 0;
-      }
-      mapper.write_row(remap[k], e, embedding);
+  for (size_t k = 0; k < remap.size(); ++k) {
+    gather(k, true);
+    int e = first[k];
+    if (first_relaxed[k] || !std::all_of(neighbour_elements.begin(), neighbour_elements.end(),
+                                         [&](int f) { return share_a_particle(model, e, f); })) {
+      e = mapper.choose(remap[k], neighbour_elements, relaxed);
+      if (relaxed) ++report.relaxed_fallbacks;
     }
-  }, vertices_per_thread);
-  report.relaxed_fallbacks += static_cast<int>(std::count(fell_back.begin(), fell_back.end(), std::uint8_t{1}));
-  report.mapped += listed;
+    mapper.write_row(remap[k], e, embedding);
+    ++report.mapped;
+  }
 }
 
 CutFaceIndex::CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<Vec3, 3>> faces)
@@ -524,6 +500,7 @@ CutFaceIndex::CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<
     to_bin.push_back(static_cast<int>(t));
     lo_all = lo_all.cwiseMin(lo), hi_all = hi_all.cwiseMax(hi);
   }
+  seen_.assign(faces_.size(), 0);
   if (to_bin.empty()) return;
   for (;;) {
     const auto l = cell(lo_all), h = cell(hi_all);
@@ -559,7 +536,7 @@ std::array<long long, 3> CutFaceIndex::cell(const Vec3& p) const {
   return c;
 }
 
-int CutFaceIndex::crossings(const Vec3& p, const Vec3& q, double skip_near_p, Scratch& scratch) const {
+int CutFaceIndex::crossings(const Vec3& p, const Vec3& q, double skip_near_p) const {
   int count = 0;
   // A face crossed holds the crossing point, which lies in the segment's box: faces whose box
   // misses it (by more than roundoff) are not tested.
@@ -580,11 +557,9 @@ int CutFaceIndex::crossings(const Vec3& p, const Vec3& q, double skip_near_p, Sc
     if (l[a] > h[a]) return count;
   }
   // Each face once per query (it may be binned in several of the cells): stamped.
-  auto& seen = scratch.seen_;
-  if (seen.size() != faces_.size()) seen.assign(faces_.size(), 0), scratch.query_ = 0;
-  if (++scratch.query_ == 0) {
-    std::fill(seen.begin(), seen.end(), 0);
-    scratch.query_ = 1;
+  if (++query_ == 0) {
+    std::fill(seen_.begin(), seen_.end(), 0);
+    query_ = 1;
   }
   for (long long k = l[2]; k <= h[2]; ++k)
     for (long long j = l[1]; j <= h[1]; ++j)
@@ -592,9 +567,9 @@ int CutFaceIndex::crossings(const Vec3& p, const Vec3& q, double skip_near_p, Sc
         const auto c = static_cast<size_t>((i - first_[0]) + count_[0] * ((j - first_[1]) + count_[1] * (k - first_[2])));
         for (int e = start_[c]; e < start_[c + 1]; ++e) {
           const int t = binned_[static_cast<size_t>(e)];
-          unsigned& stamp = seen[static_cast<size_t>(t)];
-          if (stamp == scratch.query_) continue;
-          stamp = scratch.query_;
+          unsigned& stamp = seen_[static_cast<size_t>(t)];
+          if (stamp == query_) continue;
+          stamp = query_;
           count += test(t);
         }
       }
@@ -633,26 +608,17 @@ int count_wrong_side(const CorotationalEfg& model, const std::vector<Vec3>& vert
   }
   const std::vector<int> triangle_subset = triangles_of(vertices, triangles, subset, around, "count_wrong_side");
   const std::vector<Vec3> normals = angle_weighted_normals(vertices, triangles, wanted, subset, triangle_subset, around == nullptr);
-  // Each vertex on its own: over ranges of them on the model's threads.
-  std::vector<std::uint8_t> crosses(subset.size(), 0);
-  model.for_ranges(static_cast<int>(subset.size()), [&](int begin, int end) {
-    CutFaceIndex::Scratch scratch;
-    for (auto k = static_cast<size_t>(begin); k < static_cast<size_t>(end); ++k) {
-      const int v = subset[k];
-      if (v >= rows) continue;
-      const Vec3 p = inset_point(vertices[static_cast<size_t>(v)], normals[static_cast<size_t>(v)], inset, faces, flagged(on_face, v), scratch);
-      const Vec3& q = model.element_centres()[static_cast<size_t>(embedding.elements[static_cast<size_t>(v)])];
-      // Across means an odd number of crossings: a wavy cut face (the blade mapped to rest
-      // moment by moment) can be crossed and crossed back on the way to a point on the same
-      // side. The faces must be each face once (not both sides' coincident copies).
-      crosses[k] = faces.crossings(p, q, 0, scratch) % 2 == 1 ? 1 : 0;
-    }
-  }, 64);
   int wrong = 0;
-  for (size_t k = 0; k < subset.size(); ++k) {
-    if (!crosses[k]) continue;
-    ++wrong;
-    if (which) which->push_back(subset[k]);
+  for (const int v : subset) {
+    if (v >= rows) continue;
+    const Vec3 p = inset_point(vertices[static_cast<size_t>(v)], normals[static_cast<size_t>(v)], inset, faces, flagged(on_face, v));
+    const Vec3& q = model.element_centres()[static_cast<size_t>(embedding.elements[static_cast<size_t>(v)])];
+    // Across means an odd number of crossings: a wavy cut face (the blade mapped to rest
+    // moment by moment) can be crossed and crossed back on the way to a point on the same
+    // side. The faces must be each face once (not both sides' coincident copies).
+    const bool crosses = faces.crossings(p, q) % 2 == 1;
+    wrong += crosses ? 1 : 0;
+    if (crosses && which) which->push_back(v);
   }
   return wrong;
 }

@@ -95,17 +95,8 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
 class CutFaceIndex {
  public:
   CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<Vec3, 3>> faces);
-  // What a query remembers (the faces it tested, each binned in several cells): one per
-  // thread querying at the same time.
-  class Scratch {
-    friend class CutFaceIndex;
-    std::vector<unsigned> seen_;  // per face: the query that last tested it
-    unsigned query_ = 0;
-  };
   // `skip_near_p` > 0: faces whose plane passes within that distance of p are not counted.
-  // Without a scratch, the index's own: one thread at a time.
-  int crossings(const Vec3& p, const Vec3& q, double skip_near_p = 0) const { return crossings(p, q, skip_near_p, own_); }
-  int crossings(const Vec3& p, const Vec3& q, double skip_near_p, Scratch& scratch) const;
+  int crossings(const Vec3& p, const Vec3& q, double skip_near_p = 0) const;
 
  private:
   static constexpr long long large_cells = 4096;  // faces over more cells are tested against every segment
@@ -122,7 +113,8 @@ class CutFaceIndex {
   std::vector<int> start_;
   std::vector<int> binned_;
   std::vector<int> large_;
-  mutable Scratch own_;
+  mutable std::vector<unsigned> seen_;  // per face: the query that last tested it
+  mutable unsigned query_ = 0;
 };
 
 // A fourth criterion for map_front_surface, the one wrong_side measures: the segment from the

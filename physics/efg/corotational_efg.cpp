@@ -118,10 +118,6 @@ CorotationalEfg& CorotationalEfg::operator=(CorotationalEfg&&) noexcept = defaul
 
 int CorotationalEfg::thread_count() const { return pool_->thread_count(); }
 
-void CorotationalEfg::for_ranges(int count, const std::function<void(int, int)>& task, int minimum_per_thread) const {
-  pool_->run(count, task, minimum_per_thread);
-}
-
 void CorotationalEfg::set_thread_count(int threads) {
   if (threads < 1) fail("threads must be at least 1, got " + std::to_string(threads));
   if (threads == pool_->thread_count()) return;

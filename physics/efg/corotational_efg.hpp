@@ -204,11 +204,6 @@ class CorotationalEfg final : public DeformableModel {
   // Threads of the element loops (>= 1).
   int thread_count() const;
   void set_thread_count(int threads);
-  // Runs task(begin, end) over consecutive ranges covering [0, count) on the same threads, the
-  // caller's among them (at most count / minimum_per_thread of them), for work on the model
-  // whose items are independent (the cut's surface mapping): what it computes must not depend
-  // on the split. Not while an element loop runs (one run at a time, as the const methods).
-  void for_ranges(int count, const std::function<void(int begin, int end)>& task, int minimum_per_thread) const;
 
   // Topology. Rows: element * row_stride() + k for k < row_lengths()[element].
   int element_count() const { return static_cast<int>(volumes_.size()); }

@@ -340,36 +340,6 @@ TEST(FrontMapping, MapsNoVertexAcrossAStraightCutThroughABallWhereTheNearestPoin
   const int wrong_visible = count_wrong_side(model, vertices, triangles, visible_only, cut_faces, 0.01 * a);
   EXPECT_EQ(wrong_visible, 0);
   EXPECT_GT(count_wrong_side(model, vertices, triangles, tangent_only, cut_faces, 0.01 * a), 10);
-  // The vertices are mapped and checked each on its own, over ranges on the model's threads:
-  // rows, fallbacks and the vertices found across are the same, bit for bit, for any count.
-  {
-    std::vector<SurfaceEmbedding> mapped;
-    std::vector<int> fallbacks;
-    std::vector<std::vector<int>> across;
-    for (const int threads : {1, 2, 3}) {
-      model.set_thread_count(threads);
-      SurfaceEmbedding rows = before;
-      FrontMappingReport threaded;
-      map_front_surface(model, vertices, triangles, surface.vertex_planes(), list, rows, threaded, &visibility);
-      EXPECT_EQ(threaded.mapped, static_cast<int>(list.size()));
-      mapped.push_back(rows);
-      fallbacks.push_back(threaded.relaxed_fallbacks);
-      std::vector<int> which;
-      count_wrong_side(model, vertices, triangles, tangent_only, face_index, 0.01 * a, all_of(n), &which);
-      across.push_back(which);
-    }
-    model.set_thread_count(2);
-    ASSERT_GT(list.size(), 3u * 16);  // enough for three ranges
-    EXPECT_GT(across[0].size(), 10u);
-    for (size_t k = 1; k < mapped.size(); ++k) {
-      EXPECT_EQ(mapped[k].elements, mapped[0].elements) << k + 1 << " threads";
-      EXPECT_EQ(mapped[k].row_lengths, mapped[0].row_lengths) << k + 1 << " threads";
-      EXPECT_EQ(mapped[k].particles, mapped[0].particles) << k + 1 << " threads";
-      EXPECT_EQ(mapped[k].weights, mapped[0].weights) << k + 1 << " threads";
-      EXPECT_EQ(fallbacks[k], fallbacks[0]) << k + 1 << " threads";
-      EXPECT_EQ(across[k], across[0]) << k + 1 << " threads";
-    }
-  }
   // The index counts what a scan of every face counts (from the vertices off the sheet).
   int compared = 0;
   for (int v = 0; v < n; v += 3) {
@@ -635,9 +605,8 @@ TEST(FrontMapping, TellsTheStrokesVerticesBehindTheFrontFromThoseItMadeAnew) {
   // other match is the same as before.
   ASSERT_EQ(point_after_turn.size(), after_turn.size());
   for (const int v : turned[t]) EXPECT_EQ(point_after_turn[static_cast<size_t>(v)], same[static_cast<size_t>(v)]) << "corner " << v;
-  for (int v = 0; v < n; ++v) {
+  for (int v = 0; v < n; ++v)
     if (after_turn[static_cast<size_t>(v)] >= 0) EXPECT_EQ(point_after_turn[static_cast<size_t>(v)], after_turn[static_cast<size_t>(v)]) << "vertex " << v;
-  }
   int still = 0;
   for (int v = base_count; v < n; ++v) still += after_turn[static_cast<size_t>(v)] >= 0;
   EXPECT_EQ(still, matched - 3);
