@@ -606,7 +606,9 @@ TEST(FrontMapping, TellsTheStrokesVerticesBehindTheFrontFromThoseItMadeAnew) {
   ASSERT_EQ(point_after_turn.size(), after_turn.size());
   for (const int v : turned[t]) EXPECT_EQ(point_after_turn[static_cast<size_t>(v)], same[static_cast<size_t>(v)]) << "corner " << v;
   for (int v = 0; v < n; ++v) {
-    if (after_turn[static_cast<size_t>(v)] >= 0) EXPECT_EQ(point_after_turn[static_cast<size_t>(v)], after_turn[static_cast<size_t>(v)]) << "vertex " << v;
+    if (after_turn[static_cast<size_t>(v)] >= 0) {
+      EXPECT_EQ(point_after_turn[static_cast<size_t>(v)], after_turn[static_cast<size_t>(v)]) << "vertex " << v;
+    }
   }
   int still = 0;
   for (int v = base_count; v < n; ++v) still += after_turn[static_cast<size_t>(v)] >= 0;
