@@ -703,26 +703,31 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
     if (nearest < 0) return {};
     seeds.push_back(nearest);
   }
-  // Breadth-first over the particle-particle links that remain.
-  std::map<int, int> distance;
-  std::vector<int> frontier = seeds;
-  for (int p : seeds) distance[p] = 0;
+  // Breadth-first over the particle-particle links that remain; each particle reached is
+  // stamped with this search (the seeds at level 0 are not candidates).
+  if (reached_.size() != links_of_particle_.size()) reached_.assign(links_of_particle_.size(), 0), search_ = 0;
+  if (++search_ == 0) {
+    std::fill(reached_.begin(), reached_.end(), 0);
+    search_ = 1;
+  }
+  std::vector<std::tuple<int, double, int>> candidates;  // graph distance, rest distance^2, particle
+  std::vector<int> frontier = seeds, next;
+  for (int p : seeds) reached_[p] = search_;
   for (int level = 1; level <= graph_radius; ++level) {
-    std::vector<int> next;
+    next.clear();
     for (int p : frontier) {
       for (int link : links_of_particle_[p]) {
         if (particle_link_severed_[link]) continue;
         const int q = particle_links_[link][0] == p ? particle_links_[link][1] : particle_links_[link][0];
-        if (distance.emplace(q, level).second) next.push_back(q);
+        if (reached_[q] == search_) continue;
+        reached_[q] = search_;
+        next.push_back(q);
+        candidates.emplace_back(level, (rest(q) - centre).squaredNorm(), q);
       }
     }
     frontier.swap(next);
   }
-  std::vector<std::tuple<int, double, int>> candidates;  // graph distance, rest distance^2, particle
-  for (const auto& [p, level] : distance) {
-    if (std::find(seeds.begin(), seeds.end(), p) != seeds.end()) continue;
-    candidates.emplace_back(level, (rest(p) - centre).squaredNorm(), p);
-  }
+  // A total order (each particle once): the same whatever order they were reached in.
   std::sort(candidates.begin(), candidates.end());
 
   const int nominal = model_.settings().neighbours;

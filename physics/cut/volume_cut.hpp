@@ -161,6 +161,9 @@ class VolumeCutter {
   std::vector<int> stale_list_;               // the elements with element_stale_ set
   long total_links_severed_ = 0;
   std::vector<int> candidates_;  // reused
+  // reselect's breadth-first search: per particle, the search that last reached it (stamp).
+  std::vector<unsigned> reached_;
+  unsigned search_ = 0;
   // The endpoints of the call in progress (valid only inside cut()).
   struct StepPoints;  // the integration points formed in the call in progress
   std::unique_ptr<StepPoints> step_points_;
