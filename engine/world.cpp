@@ -260,6 +260,11 @@ void make_render_surface(Body& body, const BodySpec& spec, const BodyShape& shap
         rest_vertices.segment<3>(3 * vertex_of[node]) = mesh.rest.segment<3>(3 * static_cast<Eigen::Index>(node));
     body.surface.clear();
     for (const auto& t : boundary) body.surface.push_back({vertex_of[t[0]], vertex_of[t[1]], vertex_of[t[2]]});
+    // Embedded, this surface carries no element: onto the shape and evened out along it.
+    std::vector<physics::Vec3> faired(static_cast<std::size_t>(vertices));
+    for (int v = 0; v < vertices; ++v) faired[static_cast<std::size_t>(v)] = rest_vertices.segment<3>(3 * v);
+    physics::fair_surface_onto_shape(faired, body.surface, shape.inside, resolution);
+    for (int v = 0; v < vertices; ++v) rest_vertices.segment<3>(3 * v) = faired[static_cast<std::size_t>(v)];
   }
   body.render_triangles.clear();
   for (const auto& t : body.surface)
@@ -319,6 +324,9 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
       const physics::CutSurface initial(shape.inside, shape.lo, shape.hi, resolution);
       std::vector<physics::Vec3> vertices(static_cast<std::size_t>(initial.rest_vertices().size() / 3));
       for (std::size_t v = 0; v < vertices.size(); ++v) vertices[v] = initial.rest_vertices().segment<3>(3 * static_cast<Eigen::Index>(v));
+      // No element carries this surface: its vertices go onto the shape and even out along it
+      // (the voxel snap stops short where its tetrahedra would flatten: a hammered look).
+      physics::fair_surface_onto_shape(vertices, initial.triangles(), shape.inside, resolution);
       body.front_surface = std::make_unique<physics::FrontSurface>(std::move(vertices), initial.triangles(), 1.5 * resolution);
       body.front_rest_cut = std::make_unique<physics::RestCut>(2 * resolution);
       body.cutter = std::make_unique<physics::VolumeCutter>(*model, 1e-6, 0.5 * spec.resolution);

@@ -2,7 +2,12 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <span>
+#include <numbers>
+#include <optional>
 
 namespace incise::physics {
 
@@ -27,6 +32,21 @@ double bisect(const std::function<bool(const Vec3&)>& inside, const Vec3& p, con
       hi = mid;
   }
   return 0.5 * (lo + hi);
+}
+
+// Where the line p + s n crosses the boundary of `inside` within |s| <= reach: a coarse march
+// (so that a thin feature is not jumped over), then bisection.
+std::optional<double> crossing(const std::function<bool(const Vec3&)>& inside, const Vec3& p, const Vec3& n,
+                               double reach, int steps, int bisections) {
+  const bool p_inside = inside(p);
+  const double sign = p_inside ? 1.0 : -1.0;  // inside: the boundary is further out
+  double previous = 0;
+  for (int k = 1; k <= steps; ++k) {
+    const double s = sign * reach * k / steps;
+    if (inside(p + s * n) != p_inside) return bisect(inside, p, n, previous, s, p_inside, bisections);
+    previous = s;
+  }
+  return std::nullopt;
 }
 
 }  // namespace
@@ -105,6 +125,178 @@ SnapReport snap_boundary_to_surface(TetMesh& mesh, const std::function<bool(cons
   for (std::size_t t = 0; t < mesh.tets.size(); ++t)
     report.min_volume_ratio =
         std::min(report.min_volume_ratio, signed_volume(mesh.rest, mesh.tets[t]) / original_volume[t]);
+  return report;
+}
+
+
+FairReport fair_surface_onto_shape(std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                                   const std::function<bool(const Vec3&)>& inside, double cell, int passes) {
+  FairReport report;
+  const int n = static_cast<int>(vertices.size());
+  // Per vertex its triangles and its one-ring's vertices, in compressed rows.
+  std::vector<int> tri_start(static_cast<std::size_t>(n) + 1, 0), tris;
+  for (const auto& t : triangles)
+    for (const int v : t) ++tri_start[static_cast<std::size_t>(v) + 1];
+  for (int v = 0; v < n; ++v) tri_start[static_cast<std::size_t>(v) + 1] += tri_start[static_cast<std::size_t>(v)];
+  tris.resize(static_cast<std::size_t>(tri_start.back()));
+  {
+    std::vector<int> fill(tri_start.begin(), tri_start.end() - 1);
+    for (std::size_t t = 0; t < triangles.size(); ++t)
+      for (const int v : triangles[t]) tris[static_cast<std::size_t>(fill[static_cast<std::size_t>(v)]++)] = static_cast<int>(t);
+  }
+  std::vector<int> ring_start(static_cast<std::size_t>(n) + 1, 0), ring;
+  for (int v = 0; v < n; ++v) {
+    std::vector<int> around;
+    for (int k = tri_start[static_cast<std::size_t>(v)]; k < tri_start[static_cast<std::size_t>(v) + 1]; ++k)
+      for (const int u : triangles[static_cast<std::size_t>(tris[static_cast<std::size_t>(k)])])
+        if (u != v) around.push_back(u);
+    std::sort(around.begin(), around.end());
+    around.erase(std::unique(around.begin(), around.end()), around.end());
+    ring.insert(ring.end(), around.begin(), around.end());
+    ring_start[static_cast<std::size_t>(v) + 1] = static_cast<int>(ring.size());
+  }
+  const auto triangles_of = [&](int v) {
+    return std::span<const int>(tris.data() + tri_start[static_cast<std::size_t>(v)],
+                                tris.data() + tri_start[static_cast<std::size_t>(v) + 1]);
+  };
+  const auto area_normal = [&](int t) {
+    const auto& c = triangles[static_cast<std::size_t>(t)];
+    const Vec3& a = vertices[static_cast<std::size_t>(c[0])];
+    return Vec3((vertices[static_cast<std::size_t>(c[1])] - a).cross(vertices[static_cast<std::size_t>(c[2])] - a));
+  };
+  // The angle-weighted normal at v (zero when its triangles are degenerate).
+  const auto normal_at = [&](int v) {
+    Vec3 sum = Vec3::Zero();
+    for (const int t : triangles_of(v)) {
+      const auto& c = triangles[static_cast<std::size_t>(t)];
+      const int at = c[0] == v ? 0 : c[1] == v ? 1 : 2;
+      const Vec3& p = vertices[static_cast<std::size_t>(v)];
+      const Vec3 e1 = vertices[static_cast<std::size_t>(c[static_cast<std::size_t>((at + 1) % 3)])] - p;
+      const Vec3 e2 = vertices[static_cast<std::size_t>(c[static_cast<std::size_t>((at + 2) % 3)])] - p;
+      const Vec3 face = e1.cross(e2);
+      const double length = face.norm();
+      if (!(length > 0)) continue;
+      sum += std::atan2(length, e1.dot(e2)) * face / length;
+    }
+    const double length = sum.norm();
+    return length > 0 ? Vec3(sum / length) : Vec3::Zero();
+  };
+  const int steps = 12, bisections = 40;
+  // Moves v to `to` unless that turns one of its triangles over or collapses one; says
+  // whether it did. Over is judged against the vector area of v's one-ring, which does not
+  // depend on where v is: a star folded already (the snap can leave one) may unfold.
+  const auto move_to = [&](int v, const Vec3& to) {
+    Vec3 ring_area = Vec3::Zero();
+    for (const int t : triangles_of(v)) ring_area += area_normal(t);
+    const auto over = [&] {
+      int count = 0;
+      for (const int t : triangles_of(v)) count += !(area_normal(t).dot(ring_area) > 0);
+      return count;
+    };
+    const int over_before = over();
+    const Vec3 from = vertices[static_cast<std::size_t>(v)];
+    vertices[static_cast<std::size_t>(v)] = to;
+    bool collapsed = false;
+    for (const int t : triangles_of(v)) collapsed = collapsed || !(area_normal(t).squaredNorm() > 1e-12 * ring_area.squaredNorm());
+    if (collapsed || over() > over_before) {
+      vertices[static_cast<std::size_t>(v)] = from;
+      return false;
+    }
+    return true;
+  };
+  // Onto the boundary, every vertex.
+  std::vector<std::uint8_t> crease(static_cast<std::size_t>(n), 0), found(static_cast<std::size_t>(n), 0),
+      on_shape(static_cast<std::size_t>(n), 0);
+  report.vertices = 0;
+  for (int v = 0; v < n; ++v) {
+    if (tri_start[static_cast<std::size_t>(v)] == tri_start[static_cast<std::size_t>(v) + 1]) continue;  // on no triangle
+    ++report.vertices;
+    const Vec3 normal = normal_at(v);
+    const Vec3 p = vertices[static_cast<std::size_t>(v)];
+    const auto s = normal.isZero() ? std::nullopt : crossing(inside, p, normal, 1.5 * cell, steps, bisections);
+    if (!s) {
+      ++report.not_found;
+      continue;
+    }
+    found[static_cast<std::size_t>(v)] = 1;
+    if (move_to(v, p + *s * normal)) {
+      ++report.projected;
+      on_shape[static_cast<std::size_t>(v)] = 1;
+    }
+  }
+  // A vertex that could not go straight onto the boundary (the tip of a bump where the voxel
+  // build filled a pinch: going in along its normal would turn its triangles over) goes to
+  // its one-ring's centroid first, then onto the boundary.
+  const auto centroid_of = [&](int v) {
+    const int first = ring_start[static_cast<std::size_t>(v)], last = ring_start[static_cast<std::size_t>(v) + 1];
+    Vec3 centroid = Vec3::Zero();
+    for (int k = first; k < last; ++k) centroid += vertices[static_cast<std::size_t>(ring[static_cast<std::size_t>(k)])];
+    return last > first ? Vec3(centroid / (last - first)) : vertices[static_cast<std::size_t>(v)];
+  };
+  const auto onto_shape_from_centroid = [&](int v) {
+    const Vec3 from = vertices[static_cast<std::size_t>(v)];
+    vertices[static_cast<std::size_t>(v)] = centroid_of(v);
+    const Vec3 normal = normal_at(v);
+    const Vec3 q = vertices[static_cast<std::size_t>(v)];
+    vertices[static_cast<std::size_t>(v)] = from;
+    const auto s = normal.isZero() ? std::nullopt : crossing(inside, q, normal, 1.5 * cell, steps, bisections);
+    return s && move_to(v, q + *s * normal);
+  };
+  for (int v = 0; v < n; ++v)
+    if (found[static_cast<std::size_t>(v)] && !on_shape[static_cast<std::size_t>(v)] && onto_shape_from_centroid(v)) {
+      on_shape[static_cast<std::size_t>(v)] = 1;
+      ++report.projected;
+    }
+  // Creases: the boundary half a cell away leaves the tangent plane by more than cell / 8.
+  const double r = 0.5 * cell;
+  for (int v = 0; v < n; ++v) {
+    if (!found[static_cast<std::size_t>(v)]) continue;
+    const Vec3 normal = normal_at(v);
+    if (normal.isZero()) {
+      crease[static_cast<std::size_t>(v)] = 1;
+      continue;
+    }
+    const Vec3 t1 = normal.unitOrthogonal(), t2 = normal.cross(t1);
+    const Vec3& p = vertices[static_cast<std::size_t>(v)];
+    for (int k = 0; k < 8 && !crease[static_cast<std::size_t>(v)]; ++k) {
+      const double angle = k * std::numbers::pi / 4;
+      const Vec3 q = p + r * (std::cos(angle) * t1 + std::sin(angle) * t2);
+      const auto s = crossing(inside, q, normal, r, 8, 24);
+      if (!s || std::abs(*s) > 0.25 * r) crease[static_cast<std::size_t>(v)] = 1;
+    }
+    report.creases += crease[static_cast<std::size_t>(v)];
+  }
+  // Slide towards the one-ring's centroid in the tangent plane, back onto the boundary.
+  for (int pass = 0; pass < passes; ++pass) {
+    for (int v = 0; v < n; ++v) {
+      if (!found[static_cast<std::size_t>(v)]) continue;
+      if (!on_shape[static_cast<std::size_t>(v)]) {
+        if (onto_shape_from_centroid(v)) {
+          on_shape[static_cast<std::size_t>(v)] = 1;
+          ++report.projected;
+        }
+        continue;
+      }
+      if (crease[static_cast<std::size_t>(v)]) continue;
+      const int first = ring_start[static_cast<std::size_t>(v)], last = ring_start[static_cast<std::size_t>(v) + 1];
+      if (last == first) continue;
+      Vec3 centroid = Vec3::Zero();
+      for (int k = first; k < last; ++k) centroid += vertices[static_cast<std::size_t>(ring[static_cast<std::size_t>(k)])];
+      centroid /= last - first;
+      const Vec3 normal = normal_at(v);
+      if (normal.isZero()) continue;
+      const Vec3& p = vertices[static_cast<std::size_t>(v)];
+      Vec3 slide = 0.5 * (centroid - p);
+      slide -= normal.dot(slide) * normal;
+      const Vec3 q = p + slide;
+      const auto s = crossing(inside, q, normal, cell, steps, bisections);
+      if (s && move_to(v, q + *s * normal))
+        ++report.slid;
+      else
+        ++report.refused;
+    }
+  }
+  for (int v = 0; v < n; ++v) report.off_shape += found[static_cast<std::size_t>(v)] && !on_shape[static_cast<std::size_t>(v)];
   return report;
 }
 

@@ -7,7 +7,9 @@
 
 #include <Eigen/Geometry>
 
+#include <array>
 #include <functional>
+#include <vector>
 
 namespace incise::physics {
 
@@ -26,5 +28,31 @@ struct SnapReport {
 SnapReport snap_boundary_to_surface(TetMesh& mesh, const std::function<bool(const Vec3&)>& inside,
                                     double reach, double min_volume_ratio = 0.25,
                                     int bisections = 12);
+
+struct FairReport {
+  int vertices = 0;     // on a triangle (the others are left alone)
+  int projected = 0;     // put on the boundary (along their normal, or from their one-ring's centroid)
+  int not_found = 0;     // no boundary crossing within reach: left where they were
+  int off_shape = 0;     // a crossing found, but every move onto it would turn a triangle over
+  int creases = 0;       // on a crease or corner of the shape: projected, never slid
+  int slid = 0;          // tangential moves taken, over every pass
+  int refused = 0;       // tangential moves refused (no crossing, or a triangle would turn over)
+};
+
+// Fairs a closed triangle surface that approximates the boundary of `inside` (a voxel
+// boundary snapped by snap_boundary_to_surface, whose nodes stop short or land unevenly where
+// the voxel normals are quantised: the organ's hammered look). Every vertex is put on the
+// boundary along its angle-weighted normal (bisection, within 1.5 cell), or, where that
+// would turn one of its triangles over (the tip of a bump), from its one-ring's centroid; then, `passes`
+// times in index order, each vertex away from a crease slides towards the centroid of its
+// one-ring within its tangent plane and is put back on the boundary, unless that would turn
+// one of its triangles over. A vertex is on a crease when the boundary, followed along the
+// normal half a cell away from it in any of eight tangent directions, lies more than an
+// eighth of a cell from its tangent plane (a smooth boundary's radius of curvature would
+// have to be under a cell): box edges and corners, a flat base's rim. Only positions
+// change; the triangles are the same. Deterministic. For surfaces carried by no element (an
+// embedded surface): the tetrahedra a snap keeps from flattening are not looked at.
+FairReport fair_surface_onto_shape(std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                                   const std::function<bool(const Vec3&)>& inside, double cell, int passes = 3);
 
 }  // namespace incise::physics
