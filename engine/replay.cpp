@@ -447,6 +447,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
                       {"links_severed_at_rest", totals.links_severed_at_rest},
                       {"elements_reselected", totals.elements_reselected},
                       {"isolated_elements", totals.isolated_elements},
+                      {"nonlocal_reselections", totals.nonlocal_reselections},
                       {"reselection_failures", totals.reselection_failures},
                       {"orphaned_particles", totals.orphaned_particles},
                       {"positive_mass_elements", totals.positive_mass_elements},

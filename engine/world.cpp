@@ -1271,6 +1271,7 @@ void World::cut_body(Body& body, StepStats& stats) {
     cut_totals_.links_severed_at_rest += report.links_severed_at_rest;
     cut_totals_.elements_reselected += report.elements_reselected;
     cut_totals_.isolated_elements += report.elements_isolated;
+    cut_totals_.nonlocal_reselections += report.elements_nonlocal;
     cut_totals_.reselection_failures += report.reselection_failures;
   }
 }

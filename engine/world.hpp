@@ -165,6 +165,7 @@ struct CutTotals {
   long links_severed_at_rest = 0;  // by the agreement with the rest cut
   long elements_reselected = 0;
   long isolated_elements = 0;     // thesis failure: several cuts in one element
+  long nonlocal_reselections = 0;  // re-selected past two particle spacings (thin slices, rims)
   long reselection_failures = 0;
   long orphaned_particles = 0;      // left by every element, pinned
   long positive_mass_elements = 0;  // share their mass by the positive part of phi

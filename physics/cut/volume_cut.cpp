@@ -650,9 +650,10 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
       const int p = model_.neighbours()[base + k];
       if (std::find(severed.begin(), severed.end(), p) == severed.end()) kept.push_back(p);
     }
-    bool isolated = false;
-    const std::vector<int> row = reselect(element, kept, severed, sweep, isolated);
+    bool isolated = false, nonlocal = false;
+    const std::vector<int> row = reselect(element, kept, severed, sweep, isolated, nonlocal);
     report.elements_isolated += isolated ? 1 : 0;
+    report.elements_nonlocal += nonlocal ? 1 : 0;
     // No valid neighbourhood left on its side (a sliver, several cuts in one element): the
     // element leaves the mechanics rather than keep links across the cut (counted).
     bool placed = !row.empty();
@@ -682,7 +683,7 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
 }
 
 std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kept, const std::vector<int>& severed,
-                                        const Sweep& sweep, bool& isolated) {
+                                        const Sweep& sweep, bool& isolated, bool& nonlocal) {
   const Vec3 centre = model_.element_centres()[element];
   const auto rest = [&](int p) { return Vec3(model_.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(p))); };
   const auto particle = [](const Vector& x, int p) { return Vec3(x.segment<3>(3 * static_cast<Eigen::Index>(p))); };
@@ -731,7 +732,17 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
   std::sort(candidates.begin(), candidates.end());
 
   const int nominal = model_.settings().neighbours;
-  std::vector<int> row = seeds;
+  // Local: within two particle spacings of the point along every axis (offsets a / 2, 3a / 2,
+  // 5a / 2 or 7a / 2: the corners of its particle cell and the layer past them). Without the
+  // bound a blade drawn along a layer of particles (which lie in its sweep) carried the
+  // neighbourhoods ahead of it: each mirror below was taken about a kept particle of that
+  // layer, one step further along it, then severed when the blade got there, 25 a away after
+  // 30 steps (test VolumeCut.ABladeDrawnAlongAParticleLayerKeepsEveryNeighbourhoodLocal).
+  const double reach = 3.5 * model_.spacing() * (1 + 1e-9);
+  const auto local = [&](int p) { return ((rest(p) - centre).cwiseAbs().array() <= reach).all(); };
+  std::vector<int> row;
+  for (int p : seeds)
+    if (local(p)) row.push_back(p);
   std::vector<Vec3> positions;
   for (int p : row) positions.push_back(rest(p));
   // Not across the cut so far (at rest), nor across this very step's sweep.
@@ -769,14 +780,26 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
       const double d = (rest(q) - target).squaredNorm();
       if (d < best_distance || (d == best_distance && best >= 0 && q < best)) best_distance = d, best = q;
     }
-    if (best < 0 || std::find(row.begin(), row.end(), best) != row.end() || !eligible(best)) continue;
+    if (best < 0 || !local(best) || std::find(row.begin(), row.end(), best) != row.end() || !eligible(best)) continue;
     add(best);
   }
-  for (const auto& [level, squared, p] : candidates) {
-    if (static_cast<int>(row.size()) >= nominal && spans_three_dimensions(positions)) break;
-    if (static_cast<int>(row.size()) >= slots_per_element) break;
-    if (std::find(row.begin(), row.end(), p) != row.end() || !eligible(p)) continue;
-    add(p);
+  const auto fill = [&](bool only_local) {
+    for (const auto& [level, squared, p] : candidates) {
+      if (static_cast<int>(row.size()) >= nominal && spans_three_dimensions(positions)) break;
+      if (static_cast<int>(row.size()) >= slots_per_element) break;
+      if ((only_local && !local(p)) || std::find(row.begin(), row.end(), p) != row.end() || !eligible(p)) continue;
+      add(p);
+    }
+  };
+  fill(true);
+  // Where no local neighbourhood spans three dimensions (a thin part, the body's rim, a second
+  // cut in the element), the kept neighbours and the candidates farther out, as without the
+  // bound, rather than losing the element.
+  if (!spans_three_dimensions(positions)) {
+    nonlocal = true;
+    for (int p : seeds)
+      if (!local(p) && static_cast<int>(row.size()) < slots_per_element) add(p);
+    fill(false);
   }
   if (!spans_three_dimensions(positions)) return {};
   std::sort(row.begin(), row.end());

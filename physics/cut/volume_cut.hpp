@@ -50,6 +50,9 @@ struct VolumeCutReport {
   int elements_reselected = 0;
   int elements_isolated = 0;       // left with no linked neighbour (thesis §4.3.3 failure)
   int reselection_failures = 0;    // no valid neighbourhood: the element was deactivated
+  // Re-selected past two particle spacings from the point along an axis: no neighbourhood
+  // within them spanned three dimensions (a thin slice, the body's rim, a second cut).
+  int elements_nonlocal = 0;
   std::vector<int> changed_elements;  // increasing: rows to re-upload, vertices to remap
   // Where the links were cut, in the rest configuration (the hit's fraction along the link,
   // applied to its rest endpoints, §2.3), in the order found.
@@ -146,7 +149,7 @@ class VolumeCutter {
   std::optional<PolylineHit> sweep_hit(const Sweep& sweep, const Vec3& a0, const Vec3& b0,
                                        const Vec3& a1, const Vec3& b1) const;
   std::vector<int> reselect(int element, const std::vector<int>& kept, const std::vector<int>& severed,
-                            const Sweep& sweep, bool& isolated);
+                            const Sweep& sweep, bool& isolated, bool& nonlocal);
 
   CorotationalEfg& model_;
   EdgeBroadPhase broad_phase_;
