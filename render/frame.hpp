@@ -56,7 +56,23 @@ Camera fit_camera(std::array<float, 3> box_min, std::array<float, 3> box_max, fl
 std::array<float, 2> project_to_pixel(const Camera& camera, int width, int height, std::array<float, 3> point);
 
 // Area-weighted vertex normals (unit length; zero for vertices of degenerate triangles only).
-// The renderer uses this when SurfaceMesh::normals is empty.
 std::vector<float> vertex_normals(const std::vector<float>& positions, const std::vector<uint32_t>& triangles);
+
+// Smooth shading that keeps sharp edges sharp, what the renderer draws when
+// SurfaceMesh::normals is empty. At each vertex its triangles are grouped by facing, in
+// triangle order: a triangle joins the first group whose first triangle faces within
+// `crease_degrees` of it, else starts one. The first group keeps the vertex; each other gets
+// a copy appended to the positions, and the triangles' corners in it point at the copy. Each
+// group's normal is the area-weighted sum of its triangles' (unit length; zero for degenerate
+// triangles only, which join the first group). A cut's lip, where the skin meets the cut face
+// at about 90 degrees, and a box's edges stay sharp instead of darkening the faces beside
+// them; a smooth surface (every vertex one group) is shaded exactly as by vertex_normals.
+struct ShadedSurface {
+    std::vector<float> positions;
+    std::vector<float> normals;
+    std::vector<uint32_t> triangles;
+};
+void crease_shading(const std::vector<float>& positions, const std::vector<uint32_t>& triangles, float crease_degrees,
+                    ShadedSurface& out);
 
 }  // namespace render

@@ -25,6 +25,10 @@
 namespace render {
 namespace {
 
+// Neighbouring triangles facing further apart than this meet at a sharp edge (crease_shading):
+// a fairly meshed organ's meet at a few degrees, a cut's lip at about 90.
+constexpr float crease_degrees = 50.0f;
+
 // Lighting is computed in linear space and gamma-encoded at the end, so colours given
 // in sRGB (as in SurfaceMesh::color) come out as picked and highlights do not wash out.
 // Material colours are linearised on the CPU: per fragment it costs llvmpipe measurably.
@@ -353,7 +357,7 @@ struct GlRenderer::State {
     GLuint text_buffer = 0;
     std::vector<MeshBuffers> mesh_buffers;
     SurfaceMesh tool_mesh;                 // reused to avoid reallocating every frame
-    std::vector<float> computed_normals;   // likewise
+    ShadedSurface shaded;                  // likewise
     std::vector<char> text_scratch;
     std::vector<char> text_quads;
     std::vector<float> text_vertices;
@@ -501,16 +505,17 @@ void GlRenderer::draw(const Frame& frame, int width, int height) {
             mesh_bounds.add(p);
         }
         if (mesh.triangles.empty()) continue;
-        const std::vector<float>* normals = &mesh.normals;
-        if (mesh.normals.empty()) {
-            s.computed_normals = vertex_normals(mesh.positions, mesh.triangles);
-            normals = &s.computed_normals;
-        }
         // Tissue is moist: a moderately tight highlight. The inside of a cut is
         // darker and redder than the surface.
         Vec3 back_color{mesh.color[0] * 0.78f, mesh.color[1] * 0.42f, mesh.color[2] * 0.42f};
         set_material(s.surface_program, mesh.color, back_color, 0.22f, 48.0f);
-        s.draw_surface(slot++, mesh.positions, *normals, mesh.triangles);
+        if (mesh.normals.empty()) {
+            // Smooth, but a cut's lips and a box's edges kept sharp (crease_shading).
+            crease_shading(mesh.positions, mesh.triangles, crease_degrees, s.shaded);
+            s.draw_surface(slot++, s.shaded.positions, s.shaded.normals, s.shaded.triangles);
+        } else {
+            s.draw_surface(slot++, mesh.positions, mesh.normals, mesh.triangles);
+        }
     }
 
     for (const ToolShape& tool : frame.tools) {

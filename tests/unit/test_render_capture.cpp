@@ -360,3 +360,50 @@ TEST(RenderImage, WritePngNamesThePathOnFailure) {
 }
 
 }  // namespace
+
+TEST(RenderMath, CreaseShadingKeepsABoxsEdgesSharpAndASmoothSurfaceAsItWas) {
+    // A unit cube, two triangles per face, outward: each corner meets three faces at 90 degrees.
+    const std::vector<float> cube = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
+    const std::vector<uint32_t> faces = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
+                                         2, 3, 7, 2, 7, 6, 1, 2, 6, 1, 6, 5, 0, 4, 7, 0, 7, 3};
+    render::ShadedSurface shaded;
+    render::crease_shading(cube, faces, 50.0f, shaded);
+    ASSERT_EQ(shaded.positions.size(), 3u * 24u);  // each corner once per face
+    ASSERT_EQ(shaded.normals.size(), shaded.positions.size());
+    ASSERT_EQ(shaded.triangles.size(), faces.size());
+    for (size_t t = 0; t < faces.size() / 3; ++t) {
+        // Every corner of a face carries that face's own normal, and the corner's position.
+        const uint32_t* c = &shaded.triangles[3 * t];
+        const auto p = [&](uint32_t i, int k) { return shaded.positions[3 * i + k]; };
+        const float e1[3] = {p(c[1], 0) - p(c[0], 0), p(c[1], 1) - p(c[0], 1), p(c[1], 2) - p(c[0], 2)};
+        const float e2[3] = {p(c[2], 0) - p(c[0], 0), p(c[2], 1) - p(c[0], 1), p(c[2], 2) - p(c[0], 2)};
+        const float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        for (int k = 0; k < 3; ++k) {
+            for (int d = 0; d < 3; ++d) {
+                EXPECT_EQ(shaded.positions[3 * c[k] + d], cube[3 * faces[3 * t + k] + d]);
+                EXPECT_NEAR(shaded.normals[3 * c[k] + d], n[d], 1e-6f) << "triangle " << t;
+            }
+        }
+    }
+    // A smooth bowl z = (x^2 + y^2) / 4 over [-1, 1]^2: no vertex split, the normals those of
+    // vertex_normals.
+    std::vector<float> positions;
+    std::vector<uint32_t> triangles;
+    const int m = 12;
+    for (int j = 0; j <= m; ++j)
+        for (int i = 0; i <= m; ++i) {
+            const float x = -1 + 2.0f * i / m, y = -1 + 2.0f * j / m;
+            positions.insert(positions.end(), {x, y, 0.25f * (x * x + y * y)});
+        }
+    for (int j = 0; j < m; ++j)
+        for (int i = 0; i < m; ++i) {
+            const uint32_t a = static_cast<uint32_t>(j * (m + 1) + i), b = a + 1, c = a + m + 1, d = c + 1;
+            triangles.insert(triangles.end(), {a, b, d, a, d, c});
+        }
+    render::crease_shading(positions, triangles, 50.0f, shaded);
+    EXPECT_EQ(shaded.positions, positions);
+    EXPECT_EQ(shaded.triangles, triangles);
+    const auto smooth = render::vertex_normals(positions, triangles);
+    ASSERT_EQ(shaded.normals.size(), smooth.size());
+    for (size_t i = 0; i < smooth.size(); ++i) EXPECT_NEAR(shaded.normals[i], smooth[i], 1e-6f);
+}
