@@ -168,10 +168,11 @@ void RestCut::add(const RestTriangle& triangle) {
       for (long long i = first[0]; i <= last[0]; ++i) bin(i, j, k)->push_back(index);
 }
 
-bool RestCut::crosses(const Vec3& p, const Vec3& q) const {
+bool RestCut::crosses(const Vec3& p, const Vec3& q, int from) const {
+  if (from >= size()) return false;
   bool crossed = false;
   for_each_near(p.cwiseMin(q), p.cwiseMax(q), 0, [&](int t) {
-    crossed = segment_crosses_triangle(p, q, triangles_[t]).has_value();
+    crossed = t >= from && segment_crosses_triangle(p, q, triangles_[t]).has_value();
     return crossed;
   });
   return crossed;
@@ -1255,13 +1256,14 @@ void remap_surface(const CorotationalEfg& model, const CutSurface& surface, Surf
 
 namespace {
 
-bool element_linked_across(const CorotationalEfg& model, const RestCut& cut, int e) {
+// Whether a link of element e crosses the cut (its triangles from index `from` on).
+bool element_linked_across(const CorotationalEfg& model, const RestCut& cut, int e, int from = 0) {
   if (!model.element_active(e)) return false;
   const Vec3 centre = model.element_centres()[e];
   const size_t base = static_cast<size_t>(e) * model.row_stride();
   for (int k = 0; k < model.row_lengths()[e]; ++k) {
     const Vec3 particle = model.rest_positions().segment<3>(3 * static_cast<Eigen::Index>(model.neighbours()[base + k]));
-    if (cut.crosses(centre, particle)) return true;
+    if (cut.crosses(centre, particle, from)) return true;
   }
   return false;
 }
@@ -1311,12 +1313,9 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
   };
   // The cut only grows and an unchanged element keeps its links: one linked across stays so,
   // and one that was not becomes so only through a triangle added since its flag was taken
-  // (`seen`, per element). Those unchanged elements to test are tested against the triangles
-  // added since the earliest of their `seen` only (a triangle among them that is older than an
-  // element's own `seen` was in the cut its flag was taken with), the same answer as the full
-  // cut's; but one whose flag is older than the last added_limit triangles (an element the
-  // growing cut's box reaches for the first time) is tested against the whole cut, which is
-  // indexed already, so that a long cut's triangles are not indexed again at every call.
+  // (`seen`, per element): those unchanged elements are tested against the cut's triangles
+  // from their `seen` on only (RestCut::crosses(p, q, from): the cut's own index, nothing
+  // built per call), the same answer as the full cut's.
   // Elements are never re-activated (CorotationalEfg::deactivate_element is final).
   // One pass over the elements: those to test (changed, or whose links reach into the box).
   std::vector<int> to_test;
@@ -1330,24 +1329,17 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
     if (all || element_changed || in_box(boxes ? (*boxes)[e] : link_box(e))) to_test.push_back(e);
   }
   const bool since_flag = seen && cached && !all;  // unchanged elements: the triangles since their flag
-  std::optional<RestCut> added;
-  Vec3 added_lo = Vec3::Constant(std::numeric_limits<double>::infinity()), added_hi = -added_lo;
+  // The box of the triangles any of them is tested against: one whose links' box misses it
+  // is not linked across them.
   int added_from = cut.size();
-  if (since_flag) {
-    constexpr int added_limit = 2048;
-    const int recent = std::max(0, cut.size() - added_limit);
+  if (since_flag)
     for (const int e : to_test)
-      if (!(*changed)[e] && !linked[e] && (*seen)[e] >= recent) added_from = std::min(added_from, (*seen)[e]);
-    if (added_from < cut.size()) {
-      added.emplace(model.spacing());
-      for (int t = added_from; t < cut.size(); ++t) {
-        const RestTriangle& triangle = cut.triangles()[t];
-        added->add(triangle);
-        for (const Vec3* p : {&triangle.a, &triangle.b, &triangle.c}) added_lo = added_lo.cwiseMin(*p), added_hi = added_hi.cwiseMax(*p);
-      }
-    }
+      if (!(*changed)[e] && !linked[e]) added_from = std::min(added_from, std::max(0, (*seen)[e]));
+  Vec3 added_lo = Vec3::Constant(std::numeric_limits<double>::infinity()), added_hi = -added_lo;
+  for (int t = added_from; t < cut.size(); ++t) {
+    const RestTriangle& triangle = cut.triangles()[static_cast<size_t>(t)];
+    for (const Vec3* p : {&triangle.a, &triangle.b, &triangle.c}) added_lo = added_lo.cwiseMin(*p), added_hi = added_hi.cwiseMax(*p);
   }
-  // An element whose links' box misses the added triangles' box is not linked across them.
   const auto meets_added = [&](int e) {
     const auto& box = (*boxes)[e];
     return (box[0].array() <= added_hi.array()).all() && (box[1].array() >= added_lo.array()).all();
@@ -1355,12 +1347,7 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
   for (const int e : to_test) {
     if (since_flag && !(*changed)[e]) {
       // Linked before, linked still; else only the triangles since its flag can link it.
-      if (!linked[e]) {
-        if ((*seen)[e] < added_from)
-          linked[e] = element_linked_across(model, cut, e) ? 1 : 0;
-        else if (added && meets_added(e))
-          linked[e] = element_linked_across(model, *added, e) ? 1 : 0;
-      }
+      if (!linked[e] && meets_added(e)) linked[e] = element_linked_across(model, cut, e, std::max(0, (*seen)[e])) ? 1 : 0;
     } else {
       linked[e] = element_linked_across(model, cut, e) ? 1 : 0;
     }

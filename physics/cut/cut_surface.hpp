@@ -79,8 +79,8 @@ class RestCut {
   void add(const RestTriangle& triangle);
   int size() const { return static_cast<int>(triangles_.size()); }
   const std::vector<RestTriangle>& triangles() const { return triangles_; }
-  // True if [p, q] crosses any triangle.
-  bool crosses(const Vec3& p, const Vec3& q) const;
+  // True if [p, q] crosses any triangle (any of those added at or after index `from`).
+  bool crosses(const Vec3& p, const Vec3& q, int from = 0) const;
   // The nearest point on the cut to p within `reach`, or nothing.
   std::optional<Vec3> nearest_point(const Vec3& p, double reach) const;
   // Whether anything lies within `reach` of the box [lo, hi].

@@ -565,7 +565,9 @@ TEST(FrontSurface, WhatAStrokeLeavesAloneKeepsItsSlotAndIndexAndTheChangeIsListe
       ASSERT_EQ(std::vector<int>(listed.begin(), listed.end()), around[v]) << "vertex " << v;
     }
     ASSERT_EQ(surface.base_cut_face_slots(), faces);
-    if (x > 0) EXPECT_FALSE(faces.empty());  // the first stroke's faces
+    if (x > 0) {
+      EXPECT_FALSE(faces.empty());  // the first stroke's faces
+    }
     for (int k = 0; k < 24; ++k) {
       const double z = 1.3 - 0.1 * k;
       surface.advance(blade_at(x, z, 0));

@@ -527,8 +527,11 @@ TEST(EfgRotation, DeformationGradientForcesAreTheGradientOfTheEnergy) {
                 rotation == EfgRotation::shape_matching ? "shape matching" : "deformation gradient",
                 difference, work, error);
     // Measured: 6.7e-10 (the differences' rounding) and 1.6e-4.
-    if (rotation == EfgRotation::deformation_gradient) EXPECT_LT(error, 1e-7);
-    else EXPECT_GT(error, 1e-5);
+    if (rotation == EfgRotation::deformation_gradient) {
+      EXPECT_LT(error, 1e-7);
+    } else {
+      EXPECT_GT(error, 1e-5);
+    }
   }
 }
 
