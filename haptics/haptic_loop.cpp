@@ -1,5 +1,6 @@
 #include "haptics/haptic_loop.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <numbers>
@@ -58,6 +59,8 @@ HapticLoop::HapticLoop(Device& device, ContactChannel& contacts, HapticLoopConfi
   if (!(config_.velocity_cutoff_hz > 0)) throw std::invalid_argument("haptic loop velocity_cutoff_hz must be > 0");
   if (config_.spin_ns < 0 || config_.max_extrapolation_ns < 0)
     throw std::invalid_argument("haptic loop spin_ns and max_extrapolation_ns must be >= 0");
+  if (config_.blend_ns < -1 || config_.max_blend_ns < 0)
+    throw std::invalid_argument("haptic loop blend_ns must be >= -1 and max_blend_ns >= 0");
   period_s_ = 1.0 / config_.rate_hz;
   period_ns_ = static_cast<std::int64_t>(std::llround(1e9 / config_.rate_hz));
   validate(config_.coupling, period_s_);
@@ -96,7 +99,26 @@ TickSample HapticLoop::step(std::int64_t now_ns) {
   previous_time_ns_ = now_ns;
   s.velocity = velocity_;
 
-  const ContactModel& model = contacts_.read();
+  // A new model fades in over blend_ns (or the last interval between models), the one it
+  // replaces fading out: each is evaluated at the device's position now.
+  const ContactModel& latest = contacts_.read();
+  if (!has_shown_ || latest.step != shown_.step) {
+    if (has_shown_) {
+      fading_ = shown_;
+      has_fading_ = true;
+      const std::int64_t lasted = now_ns - shown_since_ns_;
+      blend_over_ns_ = config_.blend_ns >= 0 ? config_.blend_ns : std::clamp<std::int64_t>(lasted, 0, config_.max_blend_ns);
+    }
+    shown_ = latest;
+    has_shown_ = true;
+    shown_since_ns_ = now_ns;
+  }
+  const ContactModel& model = shown_;
+  // The weight of the new model: a tick's worth at its first tick, all of it after blend_over.
+  double weight = 1;
+  if (has_fading_ && blend_over_ns_ > 0)
+    weight = std::clamp(static_cast<double>(now_ns - shown_since_ns_ + period_ns_) / static_cast<double>(blend_over_ns_), 0.0, 1.0);
+  if (weight >= 1) has_fading_ = false;
   s.contact_step = model.step;
   Vector3 total{};
   if (model.has_proxy) {
@@ -108,6 +130,10 @@ TickSample HapticLoop::step(std::int64_t now_ns) {
     total = coupling_force(config_.coupling, period_s_, x, velocity_, proxy, model.proxy_velocity);
   }
   s.contact_force = contact_force(model, x, velocity_, period_s_);
+  if (has_fading_) {
+    const Vector3 before = contact_force(fading_, x, velocity_, period_s_);
+    for (int i = 0; i < 3; ++i) s.contact_force[i] = weight * s.contact_force[i] + (1 - weight) * before[i];
+  }
   for (int i = 0; i < 3; ++i) total[i] += s.contact_force[i];
 
   if (!std::isfinite(total[0]) || !std::isfinite(total[1]) || !std::isfinite(total[2]))

@@ -75,6 +75,14 @@ struct HapticLoopConfig {
   std::size_t ring_capacity = 4096;     // ticks physics may fall behind before samples are lost
   double velocity_cutoff_hz = 200;      // first-order low-pass on the device velocity
   std::int64_t max_extrapolation_ns = 50'000'000;  // proxy extrapolated at most this far
+  // A newly published ContactModel fades in over this long, the one before it fading out (the
+  // contact force is the blend of both, each evaluated at the device's current position):
+  // physics moves the tissue's half-spaces once per step, and rendered at once that step's
+  // motion times the contact stiffness would be a jump of up to 0.65 N within a tick.
+  // -1: over the interval between the last two models (what the physics step takes), at
+  // most max_blend_ns; 0: a new model takes effect on the next tick as it is.
+  std::int64_t blend_ns = -1;
+  std::int64_t max_blend_ns = 50'000'000;
 };
 
 struct TickSample {
@@ -138,6 +146,11 @@ class HapticLoop {
   DeviceLimits limits_;
 
   // Loop-thread state.
+  // The model in effect (copied from the channel when its step changes), the one it replaced,
+  // when it took effect and how long the one before had lasted.
+  ContactModel shown_{}, fading_{};
+  bool has_shown_ = false, has_fading_ = false;
+  std::int64_t shown_since_ns_ = 0, blend_over_ns_ = 0;
   bool has_previous_ = false;
   Vector3 previous_position_{};
   std::int64_t previous_time_ns_ = 0;

@@ -216,7 +216,9 @@ TEST(HapticsLoop, SimulatedTicksIncludeTheDamperAndFollowNewModels) {
   ContactModel model = known_model();
   model.proxy_position = {0, 0, 0.001};
   channel.write(model);
-  HapticLoop loop(device, channel);
+  HapticLoopConfig config;
+  config.blend_ns = 0;  // a new model at once (the fade is the next test's)
+  HapticLoop loop(device, channel, config);
   const double K = 300, B = 300 * 1e-3, k_eff = 1.0 / (1.0 / 500 + 0.001);
   for (int k = 0; k < 300; ++k) {
     if (k == 200) {  // physics publishes a model without contact (say the tool was lifted by a cut)
@@ -234,6 +236,56 @@ TEST(HapticsLoop, SimulatedTicksIncludeTheDamperAndFollowNewModels) {
     EXPECT_EQ(s.contact_step, k < 200 ? 7u : 8u);
   }
   EXPECT_EQ(device.last_force()[2], 0.0);
+}
+
+// By default a new model fades in over the interval between the last two (the physics step),
+// the old one fading out, so that the tissue's motion over a step is not felt as a jump: the
+// device held 1 mm inside the contact of a model published at t = 0, a model without contact
+// at 10 ms (the physics step) takes the force down in ten equal steps, and one with the
+// contact again at 30 ms takes it back up over 20 ms.
+TEST(HapticsLoop, ANewModelFadesInOverTheIntervalBetweenModels) {
+  ScriptedDevice device;
+  device.pose.position = {0, 0, 0.001};
+  ContactModel touching = known_model();
+  touching.step = 1;
+  ContactChannel channel(touching);
+  HapticLoop loop(device, channel);
+  const double full = 1.0 / (1.0 / 500 + 0.001) * 0.001;  // the contact's force 1 mm deep
+  double largest_change = 0, previous = 0;
+  for (int k = 0; k < 60; ++k) {
+    if (k == 10) {
+      ContactModel lifted = touching;
+      lifted.count = 0;
+      lifted.step = 2;
+      channel.write(lifted);
+    }
+    if (k == 30) {
+      touching.step = 3;
+      channel.write(touching);
+    }
+    const double force = loop.tick(k * kMs).contact_force[2];
+    double expected = full;  // the first model at once
+    if (k >= 10 && k < 30) expected = full * std::max(0.0, 1 - (k - 10 + 1) / 10.0);
+    if (k >= 30) expected = full * std::min(1.0, (k - 30 + 1) / 20.0);
+    EXPECT_NEAR(force, expected, 1e-12 * full) << "tick " << k;
+    if (k > 0) largest_change = std::max(largest_change, std::abs(force - previous));
+    previous = force;
+  }
+  EXPECT_NEAR(largest_change, full / 10, 1e-12 * full);  // was `full` in one tick
+  // 0 keeps the old behaviour: the model in effect from the next tick, whole.
+  HapticLoopConfig at_once;
+  at_once.blend_ns = 0;
+  ContactChannel channel_at_once(touching);
+  HapticLoop immediate(device, channel_at_once, at_once);
+  EXPECT_NEAR(immediate.tick(0).contact_force[2], full, 1e-12 * full);
+  ContactModel lifted = touching;
+  lifted.count = 0;
+  lifted.step = 4;
+  channel_at_once.write(lifted);
+  EXPECT_EQ(immediate.tick(kMs).contact_force[2], 0.0);
+  HapticLoopConfig bad;
+  bad.blend_ns = -2;
+  EXPECT_THROW(HapticLoop(device, channel, bad), std::invalid_argument);
 }
 
 TEST(HapticsLoop, LostDeviceGetsZeroForce) {
