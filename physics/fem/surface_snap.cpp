@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdint>
 #include <span>
+#include <stdexcept>
+#include <string>
 #include <numbers>
 #include <optional>
 
@@ -133,6 +135,17 @@ FairReport fair_surface_onto_shape(std::vector<Vec3>& vertices, const std::vecto
                                    const std::function<bool(const Vec3&)>& inside, double cell, int passes) {
   FairReport report;
   const int n = static_cast<int>(vertices.size());
+  if (!(cell > 0) || !std::isfinite(cell))
+    throw std::invalid_argument("fair_surface_onto_shape: cell " + std::to_string(cell) + " is not a positive number");
+  if (passes < 0) throw std::invalid_argument("fair_surface_onto_shape: passes " + std::to_string(passes) + " is negative");
+  for (std::size_t t = 0; t < triangles.size(); ++t)
+    for (const int v : triangles[t]) {
+      if (v < 0 || v >= n)
+        throw std::invalid_argument("fair_surface_onto_shape: triangle " + std::to_string(t) + " has vertex " +
+                                    std::to_string(v) + ", out of range [0, " + std::to_string(n) + ")");
+      if (!vertices[static_cast<std::size_t>(v)].allFinite())
+        throw std::invalid_argument("fair_surface_onto_shape: vertex " + std::to_string(v) + " is not finite");
+    }
   // Per vertex its triangles and its one-ring's vertices, in compressed rows.
   std::vector<int> tri_start(static_cast<std::size_t>(n) + 1, 0), tris;
   for (const auto& t : triangles)

@@ -52,6 +52,9 @@ struct FairReport {
 // have to be under a cell): box edges and corners, a flat base's rim. Only positions
 // change; the triangles are the same. Deterministic. For surfaces carried by no element (an
 // embedded surface): the tetrahedra a snap keeps from flattening are not looked at.
+// Throws std::invalid_argument (naming it) for a cell that is not positive, negative passes,
+// a triangle's vertex out of range or a vertex on a triangle that is not finite, before
+// anything moves.
 FairReport fair_surface_onto_shape(std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
                                    const std::function<bool(const Vec3&)>& inside, double cell, int passes = 3);
 

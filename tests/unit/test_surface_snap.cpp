@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <functional>
 #include <map>
+#include <string>
 #include <numbers>
 
 using namespace incise::physics;
@@ -252,4 +253,26 @@ TEST(FairSurface, PutsACappedCylinderOnItsBoundaryCloserToItsVolume) {
   const double sag = std::pow(cell, 2) / (8 * radius) * 2 * std::numbers::pi * radius * length;
   EXPECT_LT(std::abs(volume_after - exact), sag);
   EXPECT_LT(std::abs(volume_after - exact), std::abs(volume_before - exact));
+}
+
+TEST(FairSurface, RefusesBadInputBeforeMovingAnything) {
+  auto inside = [](const Vec3& p) { return p.norm() <= 1.0; };
+  std::vector<Vec3> vertices{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  const std::vector<Vec3> before = vertices;
+  const auto message = [&](const Triangles& triangles, double cell, int passes) {
+    try {
+      fair_surface_onto_shape(vertices, triangles, inside, cell, passes);
+    } catch (const std::invalid_argument& error) {
+      return std::string(error.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message({{0, 1, 3}}, 0.1, 3).find("triangle 0 has vertex 3"), std::string::npos);
+  EXPECT_NE(message({{0, 1, 2}}, 0.0, 3).find("cell"), std::string::npos);
+  EXPECT_NE(message({{0, 1, 2}}, std::nan(""), 3).find("cell"), std::string::npos);
+  EXPECT_NE(message({{0, 1, 2}}, 0.1, -1).find("passes"), std::string::npos);
+  vertices[2].x() = std::nan("");
+  EXPECT_NE(message({{0, 1, 2}}, 0.1, 3).find("vertex 2 is not finite"), std::string::npos);
+  vertices[2] = before[2];
+  EXPECT_EQ(vertices, before);
 }
