@@ -18,7 +18,9 @@
 //   - At the end of each step, including the step a cut changes the topology, physics builds
 //     the ContactModel from the surface the step left (engine::build_contact_model: half-spaces
 //     at the nearest surface points of the tool's edge, penalty stiffness in series with the
-//     tissue's compliance), validate()s and publish()es it; the next tick uses it.
+//     tissue's compliance), validate()s and publish()es it; the next tick starts fading it
+//     in over the interval between publications (HapticLoopConfig::blend_ns), the model
+//     before it fading out.
 //   - Headless sessions (simulated clock: tests, `incise session`) do not start the thread:
 //     the session calls tick(t) with simulated time between physics steps, so two runs give
 //     identical samples.
