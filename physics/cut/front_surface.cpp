@@ -15,6 +15,7 @@
 #include <optional>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 #include <utility>
 
 namespace incise::physics {
@@ -295,14 +296,22 @@ struct OutlineHit {
 
 // The last sample's cut face as triangulated, in (s, t): the region's points and boundary and
 // the constrained Delaunay triangles (before the shared inner edges are split).
+using StKey = std::pair<double, double>;
+StKey st_key(const Vec2& p) { return {p.x(), p.y()}; }
+
 struct FaceCache {
   bool valid = false;
   PlanarRegion region;
   std::vector<std::array<int, 3>> triangles;
+  std::vector<std::pair<StKey, int>> sorted;  // region's points by (s, t), with their index
 };
 
-using StKey = std::pair<double, double>;
-StKey st_key(const Vec2& p) { return {p.x(), p.y()}; }
+std::vector<std::pair<StKey, int>> sorted_points(const std::vector<Vec2>& points) {
+  std::vector<std::pair<StKey, int>> sorted(points.size());
+  for (size_t k = 0; k < points.size(); ++k) sorted[k] = {st_key(points[k]), static_cast<int>(k)};
+  std::sort(sorted.begin(), sorted.end());
+  return sorted;
+}
 
 // triangulate_region(region), keeping what the last sample's triangulation (`cache`) has well
 // behind the front. Between two samples the region changes only at and above some t (the
@@ -319,22 +328,20 @@ StKey st_key(const Vec2& p) { return {p.x(), p.y()}; }
 // them the same way at every sample).
 std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, FaceCache& cache, double slack, int& kept_count) {
   kept_count = 0;
+  std::vector<std::pair<StKey, int>> new_sorted = sorted_points(region.points);
   const auto whole = [&] {
     std::vector<std::array<int, 3>> face = triangulate_region(region);
     cache.valid = true;
     cache.region = region;
     cache.triangles = face;
+    cache.sorted = std::move(new_sorted);
     return face;
   };
   if (!cache.valid) return whole();
   const auto& old_points = cache.region.points;
   const auto& points = region.points;
   // Old point -> new point (-1: gone), by exact (s, t).
-  std::vector<std::pair<StKey, int>> old_sorted(old_points.size()), new_sorted(points.size());
-  for (size_t k = 0; k < old_points.size(); ++k) old_sorted[k] = {st_key(old_points[k]), static_cast<int>(k)};
-  for (size_t k = 0; k < points.size(); ++k) new_sorted[k] = {st_key(points[k]), static_cast<int>(k)};
-  std::sort(old_sorted.begin(), old_sorted.end());
-  std::sort(new_sorted.begin(), new_sorted.end());
+  const std::vector<std::pair<StKey, int>>& old_sorted = cache.sorted;
   std::vector<int> to_new(old_points.size(), -1);
   double t_change = std::numeric_limits<double>::infinity();
   {
@@ -383,23 +390,39 @@ std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, Fac
   kept_count = static_cast<int>(kept.size());
   // The rest's boundary: the region's edges no kept triangle has, and the kept triangles'
   // edges that neither another kept triangle nor the region's boundary has, turned round.
-  std::vector<std::array<int, 2>> kept_edges;
-  kept_edges.reserve(3 * kept.size());
+  // The kept edges are looked up by their first point (compressed rows: a point starts a few
+  // edges), in the order the kept triangles list them.
+  const size_t point_count = points.size();
+  std::vector<int> edges_start(point_count + 1, 0), edges_to(3 * kept.size());
   for (const auto& tri : kept)
-    for (int k = 0; k < 3; ++k) kept_edges.push_back({tri[static_cast<size_t>(k)], tri[static_cast<size_t>((k + 1) % 3)]});
-  std::sort(kept_edges.begin(), kept_edges.end());
+    for (const int p : tri) ++edges_start[static_cast<size_t>(p) + 1];
+  for (size_t p = 0; p < point_count; ++p) edges_start[p + 1] += edges_start[p];
+  {
+    std::vector<int> fill(edges_start.begin(), edges_start.end() - 1);
+    for (const auto& tri : kept)
+      for (size_t k = 0; k < 3; ++k) edges_to[static_cast<size_t>(fill[static_cast<size_t>(tri[k])]++)] = tri[(k + 1) % 3];
+  }
+  const auto is_kept_edge = [&](int from, int to) {
+    const auto first = edges_to.begin() + edges_start[static_cast<size_t>(from)];
+    const auto last = edges_to.begin() + edges_start[static_cast<size_t>(from) + 1];
+    return std::find(first, last, to) != last;
+  };
   PlanarRegion rest;
-  std::vector<int> rest_index(points.size(), -1), from_rest;
-  std::vector<std::uint8_t> used(points.size(), 0);
-  for (const auto& tri : kept)
-    for (const int p : tri) used[static_cast<size_t>(p)] = 1;
+  std::vector<int> rest_index(point_count, -1), from_rest;
   std::vector<std::array<int, 2>> rest_boundary;
   for (const auto& e : region.boundary)
-    if (!std::binary_search(kept_edges.begin(), kept_edges.end(), e)) rest_boundary.push_back(e);
-  for (const auto& e : kept_edges)
-    if (!std::binary_search(kept_edges.begin(), kept_edges.end(), std::array<int, 2>{e[1], e[0]}) &&
-        !std::binary_search(new_boundary.begin(), new_boundary.end(), e))
-      rest_boundary.push_back({e[1], e[0]});
+    if (!is_kept_edge(e[0], e[1])) rest_boundary.push_back(e);
+  const size_t from_region = rest_boundary.size();
+  for (const auto& tri : kept)
+    for (size_t k = 0; k < 3; ++k) {
+      const int from = tri[k], to = tri[(k + 1) % 3];
+      if (!is_kept_edge(to, from) && !std::binary_search(new_boundary.begin(), new_boundary.end(), std::array<int, 2>{from, to}))
+        rest_boundary.push_back({to, from});
+    }
+  // Those in the order of the kept edges they turn round (the points' numbering below, and
+  // with it the triangulation's ties, follow it).
+  std::sort(rest_boundary.begin() + static_cast<std::ptrdiff_t>(from_region), rest_boundary.end(),
+            [](const std::array<int, 2>& l, const std::array<int, 2>& r) { return std::tie(l[1], l[0]) < std::tie(r[1], r[0]); });
   // The rest's points: the ends of its boundary, and those no kept triangle uses within its
   // boundary's box (a point outside the box is outside the rest, and the triangulation
   // ignores it).
@@ -414,8 +437,8 @@ std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, Fac
   for (const auto& e : rest_boundary) rest.boundary.push_back({take(e[0]), take(e[1])});
   Eigen::AlignedBox2d box;
   for (const Vec2& p : rest.points) box.extend(p);
-  for (size_t p = 0; p < points.size(); ++p)
-    if (!used[p] && box.contains(points[p])) take(static_cast<int>(p));
+  for (size_t p = 0; p < point_count; ++p)
+    if (edges_start[p] == edges_start[p + 1] && box.contains(points[p])) take(static_cast<int>(p));
   std::vector<std::array<int, 3>> face = kept;
   if (!rest.boundary.empty()) {
     std::vector<std::array<int, 3>> rest_face;
@@ -433,6 +456,7 @@ std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, Fac
   std::sort(face.begin(), face.end());
   cache.region = region;
   cache.triangles = face;
+  cache.sorted = std::move(new_sorted);
   return face;
 }
 
