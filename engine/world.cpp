@@ -2,6 +2,7 @@
 
 #include "engine/mesh_import.hpp"
 #include "physics/core/contact.hpp"
+#include "physics/core/mix.hpp"
 #include "physics/efg/efg_static.hpp"
 #include "physics/fem/corotational_fem.hpp"
 #include "physics/fem/static_solve.hpp"
@@ -11,6 +12,7 @@
 #include "physics/gpu/efg_step.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <numeric>
 #include <chrono>
 #include <cmath>
@@ -891,28 +893,39 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
     for (const int s : now_slots)
       if (front.on_cut_face()[static_cast<std::size_t>(s)]) face_slots.push_back(s);
     std::sort(face_slots.begin(), face_slots.end());
-    // Each face's corners sorted, as its key; the first slot of each key is kept, in slot order.
-    std::vector<std::array<physics::Vec3, 3>> all(face_slots.size());
+    // Each face's corners sorted, as its key; the first slot of each key is kept, in slot
+    // order: a key is looked up among those met so far (open addressing on its bits, -0 as 0).
     std::vector<std::array<double, 9>> keys(face_slots.size());
+    std::vector<int> table(std::bit_ceil(2 * face_slots.size() + 1), -1);
+    const std::size_t mask = table.size() - 1;
     for (std::size_t k = 0; k < face_slots.size(); ++k) {
       const auto& tri = triangles[static_cast<std::size_t>(face_slots[k])];
       for (const int v : tri) on_face[static_cast<size_t>(v)] = 1;
-      auto& corners = all[k];
-      corners = {vertices[static_cast<size_t>(tri[0])], vertices[static_cast<size_t>(tri[1])], vertices[static_cast<size_t>(tri[2])]};
+      std::array<physics::Vec3, 3> corners{vertices[static_cast<size_t>(tri[0])], vertices[static_cast<size_t>(tri[1])], vertices[static_cast<size_t>(tri[2])]};
       std::sort(corners.begin(), corners.end(), [](const physics::Vec3& l, const physics::Vec3& r) {
         return std::lexicographical_compare(l.data(), l.data() + 3, r.data(), r.data() + 3);
       });
+      auto& key = keys[k];
+      std::uint64_t hash = 0x5eedULL;
       for (int c = 0; c < 3; ++c)
-        for (int d = 0; d < 3; ++d) keys[k][static_cast<size_t>(3 * c + d)] = corners[static_cast<size_t>(c)][d];
+        for (int d = 0; d < 3; ++d) {
+          const double x = corners[static_cast<size_t>(c)][d] + 0.0;
+          key[static_cast<size_t>(3 * c + d)] = x;
+          std::uint64_t bits = 0;
+          std::memcpy(&bits, &x, sizeof bits);
+          hash = physics::mix64(hash ^ bits);
+        }
+      std::size_t at = hash & mask;
+      bool met = false;
+      for (; table[at] >= 0; at = (at + 1) & mask)
+        if (keys[static_cast<std::size_t>(table[at])] == key) {
+          met = true;
+          break;
+        }
+      if (met) continue;
+      table[at] = static_cast<int>(k);
+      faces.push_back(corners);
     }
-    std::vector<int> by_key(face_slots.size());
-    std::iota(by_key.begin(), by_key.end(), 0);
-    std::stable_sort(by_key.begin(), by_key.end(), [&](int l, int r) { return keys[static_cast<std::size_t>(l)] < keys[static_cast<std::size_t>(r)]; });
-    std::vector<std::uint8_t> first(face_slots.size(), 0);
-    for (std::size_t k = 0; k < by_key.size(); ++k)
-      if (k == 0 || keys[static_cast<std::size_t>(by_key[k])] != keys[static_cast<std::size_t>(by_key[k - 1])]) first[static_cast<std::size_t>(by_key[k])] = 1;
-    for (std::size_t k = 0; k < all.size(); ++k)
-      if (first[k]) faces.push_back(all[k]);
   }
   // The kept rows whose segment the cut crosses now (the second trigger, taken on the cut as
   // the surface shows it rather than on this step's sweep, which the stroke may have left out

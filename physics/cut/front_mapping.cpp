@@ -684,6 +684,9 @@ FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, con
   } else {
     for (const int t : among) visit(triangles[static_cast<size_t>(t)]);
   }
+  identity.sorted.resize(identity.key.size());
+  for (size_t k = 0; k < identity.key.size(); ++k) identity.sorted[k] = {identity.key[k], first + static_cast<int>(k)};
+  std::sort(identity.sorted.begin(), identity.sorted.end());
   return identity;
 }
 
@@ -691,14 +694,19 @@ std::vector<int> match_front_vertices(const FrontVertexIdentity& before, const F
   std::vector<int> match(static_cast<size_t>(now.first) + now.key.size(), -1);
   if (same_point != nullptr) same_point->assign(match.size(), -1);
   if (before.first != now.first) return match;
-  // Sorted (key, index) of each side; a key found twice on a side matches nothing.
-  const auto sorted = [](const FrontVertexIdentity& side) {
-    std::vector<std::pair<std::uint64_t, int>> keys(side.key.size());
-    for (size_t k = 0; k < side.key.size(); ++k) keys[k] = {side.key[k], side.first + static_cast<int>(k)};
-    std::sort(keys.begin(), keys.end());
-    return keys;
+  // Sorted (key, index) of each side (made by front_vertex_identity; made here for an identity
+  // put together otherwise); a key found twice on a side matches nothing.
+  std::vector<std::pair<std::uint64_t, int>> made_old, made_new;
+  const auto sorted = [](const FrontVertexIdentity& side, std::vector<std::pair<std::uint64_t, int>>& made)
+      -> const std::vector<std::pair<std::uint64_t, int>>& {
+    if (side.sorted.size() == side.key.size()) return side.sorted;
+    made.resize(side.key.size());
+    for (size_t k = 0; k < side.key.size(); ++k) made[k] = {side.key[k], side.first + static_cast<int>(k)};
+    std::sort(made.begin(), made.end());
+    return made;
   };
-  const auto old_keys = sorted(before), new_keys = sorted(now);
+  const auto& old_keys = sorted(before, made_old);
+  const auto& new_keys = sorted(now, made_new);
   const auto unique_at = [](const std::vector<std::pair<std::uint64_t, int>>& keys, size_t k) {
     return (k == 0 || keys[k - 1].first != keys[k].first) && (k + 1 == keys.size() || keys[k + 1].first != keys[k].first);
   };

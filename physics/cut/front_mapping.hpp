@@ -176,6 +176,9 @@ struct FrontVertexIdentity {
   int first = 0;
   std::vector<std::uint64_t> key;   // per vertex at or above first: position, planes, flag
   std::vector<std::uint64_t> ring;  // per vertex at or above first: its triangles' other corners
+  // (key, vertex) of every vertex at or above first, sorted: made once, as match_front_vertices
+  // looks each identity up twice (as `now`, then as the next call's `before`).
+  std::vector<std::pair<std::uint64_t, int>> sorted;
 };
 FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
                                           const std::vector<std::vector<ConstraintPlane>>& planes,
