@@ -21,10 +21,16 @@ bool mls_shape_functions(const Vec3& point, std::span<const Vec3> particles, dou
   if (values.size() != count || (!gradients.empty() && gradients.size() != count)) return false;
   if (count < 4 || !(support > 0) || !(scale > 0)) return false;
 
-  // Eq. 4.5: A = sum_i w_i p_i p_i^T, and its derivatives A_,k = sum_i w_i,k p_i p_i^T (A.18).
-  std::vector<Vec4> basis(count);
-  std::vector<double> weights(count);
-  std::vector<Vec3> weight_gradients(count);
+  // Eq. 4.5: A = sum_i w_i p_i p_i^T, and its derivatives A_,k = sum_i w_i,k p_i p_i^T (A.18),
+  // these only when the gradients are asked for. Scratch kept per thread: a surface remapping
+  // calls this for every vertex it maps.
+  thread_local std::vector<Vec4> basis;
+  thread_local std::vector<double> weights;
+  thread_local std::vector<Vec3> weight_gradients;
+  const bool with_gradients = !gradients.empty();
+  basis.resize(count);
+  weights.resize(count);
+  weight_gradients.resize(with_gradients ? count : 0);
   Mat4 moment = Mat4::Zero();
   std::array<Mat4, 3> moment_derivative{Mat4::Zero(), Mat4::Zero(), Mat4::Zero()};
   for (size_t i = 0; i < count; ++i) {
@@ -32,12 +38,13 @@ bool mls_shape_functions(const Vec3& point, std::span<const Vec3> particles, dou
     const double distance = offset.norm();
     basis[i] << 1.0, offset / scale;
     weights[i] = quartic_spline(distance, support);
+    const Mat4 outer = basis[i] * basis[i].transpose();
+    moment += weights[i] * outer;
+    if (!with_gradients) continue;
     // grad_x w(|x - x_i|) = w'(r) (x - x_i) / r; w'(0) = 0 removes the 0/0.
     weight_gradients[i] = distance > 0.0
                               ? Vec3(quartic_spline_derivative(distance, support) * -offset / distance)
                               : Vec3::Zero();
-    const Mat4 outer = basis[i] * basis[i].transpose();
-    moment += weights[i] * outer;
     for (int k = 0; k < 3; ++k) moment_derivative[k] += weight_gradients[i][k] * outer;
   }
 
@@ -54,7 +61,7 @@ bool mls_shape_functions(const Vec3& point, std::span<const Vec3> particles, dou
   for (size_t i = 0; i < count; ++i) {
     const double projection = gamma.dot(basis[i]);
     values[i] = weights[i] * projection;
-    if (gradients.empty()) continue;
+    if (!with_gradients) continue;
     // A.21 with p_,k = e_(k+1) / scale and (A^-1)_,k = -A^-1 A_,k A^-1 (A.19):
     //   phi_i,k = w_i [ (A^-1 p_i)_(k+1) / scale - (A_,k gamma) . (A^-1 p_i) ] + w_i,k gamma . p_i
     const Vec4 solved = inverse * basis[i];
