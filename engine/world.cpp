@@ -793,10 +793,27 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
       const auto index = static_cast<std::size_t>(v);
       if (v < kept && planes[index].size() != (index < body.front_plane_counts.size() ? body.front_plane_counts[index] : 0)) remap.push_back(v);
     }
-    if (std::find(changed.begin(), changed.end(), std::uint8_t{1}) != changed.end()) {
+    // A vertex lies within front_reach (per axis) of its integration point: those on a
+    // re-selected element are among the base's vertices in the box of their points grown by
+    // that (the surface's own bins; not every vertex looked at).
+    const auto& element_centres = body.efg->element_centres();
+    for (int v = body.front_reach_upto; v < kept; ++v)
+      body.front_reach = std::max(body.front_reach, (element_centres[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(v)])] -
+                                                     vertices[static_cast<std::size_t>(v)]).cwiseAbs().maxCoeff());
+    body.front_reach_upto = std::max(body.front_reach_upto, kept);
+    physics::Vec3 changed_centres_lo = physics::Vec3::Constant(1e300), changed_centres_hi = physics::Vec3::Constant(-1e300);
+    for (std::size_t e = 0; e < changed.size(); ++e)
+      if (changed[e] != 0) {
+        changed_centres_lo = changed_centres_lo.cwiseMin(element_centres[e]);
+        changed_centres_hi = changed_centres_hi.cwiseMax(element_centres[e]);
+      }
+    if ((changed_centres_lo.array() <= changed_centres_hi.array()).all()) {
+      const physics::Vec3 grown = physics::Vec3::Constant(body.front_reach + 1e-3 * body.efg->spacing());
       std::vector<int> on_changed;
-      for (int v = 0; v < kept; ++v)
-        if (changed[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(v)])] != 0) on_changed.push_back(v);
+      front.base_vertices_in(changed_centres_lo - grown, changed_centres_hi + grown, on_changed);
+      std::erase_if(on_changed, [&](int v) {
+        return v >= kept || changed[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(v)])] == 0;
+      });
       std::vector<int> merged;
       std::set_union(remap.begin(), remap.end(), on_changed.begin(), on_changed.end(), std::back_inserter(merged));
       remap.swap(merged);
