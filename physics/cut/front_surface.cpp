@@ -9,7 +9,6 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <map>
 #include <numbers>
 #include <set>
 #include <optional>
@@ -621,6 +620,11 @@ void FrontSurface::restore_base() {
   triangles_.resize(base_triangles_.size());
   cut_face_.resize(base_triangles_.size());
   vertices_.resize(base_vertices_.size());
+  // The stroke's vertices' plane lists go to the pool, emptied, for the next sample's.
+  for (size_t v = base_vertices_.size(); v < vertex_planes_.size(); ++v) {
+    vertex_planes_[v].clear();
+    plane_pool_.push_back(std::move(vertex_planes_[v]));
+  }
   vertex_planes_.resize(base_vertices_.size());
   crack_front_.resize(base_vertices_.size());
 }
@@ -955,13 +959,22 @@ void FrontSurface::recompute(FrontCutReport& report) {
   for (const Tip& tip : tips) touched.push_back(tip.triangle);
   std::sort(touched.begin(), touched.end());
   touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
-  std::map<int, std::vector<int>> ends_of;
-  for (const int t : touched) {
-    auto& ends = ends_of[t];
+  // Per touched triangle (same order), its ends: crossings in its edges' order, then tips in
+  // the outline's. Two are handled; the count is kept whole for the report.
+  struct Ends {
+    int count = 0;
+    std::array<int, 4> at{};
+    void add(int end) {
+      if (count < 4) at[static_cast<size_t>(count)] = end;
+      ++count;
+    }
+  };
+  std::vector<Ends> ends_of(touched.size());
+  for (size_t i = 0; i < touched.size(); ++i)
     for (int k = 0; k < 3; ++k)
-      if (const int c = edge_cut[static_cast<size_t>(edges.of_triangle[static_cast<size_t>(t)][static_cast<size_t>(k)])]; c >= 0) ends.push_back(c);
-  }
-  for (size_t k = 0; k < tips.size(); ++k) ends_of[tips[k].triangle].push_back(-1 - static_cast<int>(k));
+      if (const int c = edge_cut[static_cast<size_t>(edges.of_triangle[static_cast<size_t>(touched[i])][static_cast<size_t>(k)])]; c >= 0) ends_of[i].add(c);
+  for (size_t k = 0; k < tips.size(); ++k)
+    ends_of[static_cast<size_t>(std::lower_bound(touched.begin(), touched.end(), tips[k].triangle) - touched.begin())].add(-1 - static_cast<int>(k));
 
   // The cut face's boundary in (s, t): directed edges, the face on their left.
   PlanarRegion region;
@@ -1001,12 +1014,15 @@ void FrontSurface::recompute(FrontCutReport& report) {
     split.push_back({a, b, c});
     split_on_face.push_back(splitting_face);
   };
-  for (const auto& [t, ends] : ends_of) {
-    if (ends.size() != 2) {
-      problem("base triangle " + std::to_string(t) + " has " + std::to_string(ends.size()) +
+  for (size_t touched_index = 0; touched_index < touched.size(); ++touched_index) {
+    const int t = touched[touched_index];
+    const Ends& ends_here = ends_of[touched_index];
+    if (ends_here.count != 2) {
+      problem("base triangle " + std::to_string(t) + " has " + std::to_string(ends_here.count) +
               " cut ends in one stroke (this stage handles two)");
       continue;
     }
+    const std::array<int, 2> ends{ends_here.at[0], ends_here.at[1]};
     const int split_first = static_cast<int>(split.size());
     splitting_face = base_cut_face_[static_cast<size_t>(t)];
     ++report.split_triangles;
@@ -1371,7 +1387,12 @@ void FrontSurface::recompute(FrontCutReport& report) {
 
   // Constraint planes (seed 004 §2.6, criterion 3): each end of a cut edge and its copy of the
   // pair face across the sheet; so do the cut faces' inner vertices, each on its side.
+  const size_t planes_before = vertex_planes_.size();
   vertex_planes_.resize(vertices_.size());
+  for (size_t v = planes_before; v < vertex_planes_.size() && !plane_pool_.empty(); ++v) {
+    vertex_planes_[v] = std::move(plane_pool_.back());
+    plane_pool_.pop_back();
+  }
   crack_front_.resize(vertices_.size(), 0);  // the base's flags, then the stroke's vertices'
   for (const int v : front_vertices) crack_front_[static_cast<size_t>(v)] = 1;
   for (const EdgeCut& cut : cuts) {

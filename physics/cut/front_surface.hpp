@@ -190,6 +190,9 @@ class FrontSurface {
   std::vector<Vec3> vertices_;
   std::vector<std::array<int, 3>> triangles_;
   std::vector<std::vector<ConstraintPlane>> vertex_planes_;
+  // Emptied plane lists of the last sample's stroke vertices, reused by the next sample's
+  // (a sample re-emits every stroke vertex: their lists are not allocated again each time).
+  std::vector<std::vector<ConstraintPlane>> plane_pool_;
   std::vector<std::uint8_t> crack_front_, base_crack_front_;
   std::vector<std::uint8_t> base_cut_face_, cut_face_;
   std::vector<int> replaced_slots_, planed_base_;
