@@ -284,6 +284,16 @@ std::uint8_t fixed_vertex(const Body& body, int v) {
 
 // Surface vertex v's position from its embedding row and the particles' positions (one row of
 // CorotationalEfg::surface_positions, for the rows a cut remapped).
+// The voxel surface's triangles [first, last) on a cut face: every corner on the cut.
+void set_voxel_cut_faces(Body& body, int first, int last) {
+  const auto& on_cut = body.cut_surface->on_cut();
+  for (int t = first; t < last; ++t) {
+    const auto& tri = body.surface[static_cast<std::size_t>(t)];
+    body.render_cut_face[static_cast<std::size_t>(t)] =
+        on_cut[static_cast<std::size_t>(tri[0])] && on_cut[static_cast<std::size_t>(tri[1])] && on_cut[static_cast<std::size_t>(tri[2])];
+  }
+}
+
 void set_surface_position(Body& body, int v) {
   const physics::SurfaceEmbedding& embedding = *body.embedding;
   const std::size_t row = static_cast<std::size_t>(v) * static_cast<std::size_t>(embedding.stride);
@@ -348,6 +358,7 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
       body.render_triangles.clear();
       for (const auto& t : body.surface)
         for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
+      body.render_cut_face = body.front_surface->on_cut_face();
     } else if (spec.cuttable) {
       // The cut surface is a voxel boundary of its own (mesh bodies too: the imported mesh
       // only gives the shape), separated along the cut as the blade passes.
@@ -373,6 +384,8 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
       body.render_triangles.clear();
       for (const auto& t : body.surface)
         for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
+      body.render_cut_face.assign(body.surface.size(), 0);
+      set_voxel_cut_faces(body, 0, static_cast<int>(body.surface.size()));
       // Room for what the cuts add (the cut faces' vertices and triangles), so that the first
       // cuts grow these lists in place rather than move them (about 50 MB at 20k elements,
       // 6 ms of that step's topology); past the room they double as usual.
@@ -613,6 +626,8 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
     for (int t = first; t < last; ++t)
       for (int c = 0; c < 3; ++c)
         body.render_triangles[3 * static_cast<std::size_t>(t) + c] = static_cast<std::uint32_t>(triangles[t][c]);
+    body.render_cut_face.resize(triangles.size(), 0);
+    set_voxel_cut_faces(body, first, last);
   }
   // Only the remapped rows changed, so only their vertices' fixed flags and positions are
   // redone: the others' positions are those update_surface took from the same particle
@@ -999,11 +1014,13 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // The body's and the render's triangles: the differing slots.
   body.surface.resize(slots_now);
   body.render_triangles.resize(3 * slots_now);
+  body.render_cut_face.resize(slots_now, 0);
   for (const int s : differing) {
     const auto slot = static_cast<std::size_t>(s);
     if (slot >= slots_now) continue;
     body.surface[slot] = triangles[slot];
     for (std::size_t c = 0; c < 3; ++c) body.render_triangles[3 * slot + c] = static_cast<std::uint32_t>(triangles[slot][c]);
+    body.render_cut_face[slot] = front.on_cut_face()[slot];
   }
   body.front_changed_slots = std::move(now_slots);
   // Which vertices only fixed particles carry: taken again for every row when the fixed
@@ -1476,6 +1493,8 @@ std::uint64_t World::state_hash() const {
 }
 
 void World::fill_frame(render::Frame& frame, int width, int height) const {
+  // The organ's capsule, and the parenchyma a cut exposes: darker and redder (sRGB).
+  constexpr std::array<float, 3> skin_color{0.85f, 0.45f, 0.42f}, cut_color{0.62f, 0.17f, 0.16f};
   frame.meshes.resize(bodies_.size());
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const auto& body = bodies_[b];
@@ -1492,9 +1511,28 @@ void World::fill_frame(render::Frame& frame, int width, int height) const {
           mesh.positions[3 * i + c] = static_cast<float>(x[3 * body.surface_nodes[i] + c]);
     }
     mesh.normals.clear();
+    mesh.color = skin_color;
     // A cut surface changes its triangles, not always their count.
     if (body.cut_surface || body.front_surface || mesh.triangles.size() != body.render_triangles.size())
       mesh.triangles = body.render_triangles;
+  }
+  // The tissue a cut exposed, drawn apart in its own colour (after the bodies' meshes, which
+  // keep their index): its triangles leave the body's mesh, its vertices are the body's.
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const auto& flags = bodies_[b].render_cut_face;
+    if (std::find(flags.begin(), flags.end(), std::uint8_t{1}) == flags.end()) continue;
+    render::SurfaceMesh cut;
+    cut.color = cut_color;
+    cut.positions = frame.meshes[b].positions;
+    std::vector<std::uint32_t> skin;
+    const auto& triangles = bodies_[b].render_triangles;
+    for (std::size_t t = 0; t < flags.size() && 3 * t + 2 < triangles.size(); ++t) {
+      auto& to = flags[t] ? cut.triangles : skin;
+      const auto corner = triangles.begin() + static_cast<std::ptrdiff_t>(3 * t);
+      to.insert(to.end(), corner, corner + 3);
+    }
+    frame.meshes[b].triangles = std::move(skin);
+    frame.meshes.push_back(std::move(cut));
   }
   frame.tools.clear();
   if (blade()) {

@@ -55,6 +55,10 @@ struct Body {
   std::vector<std::array<int, 3>> surface;
   std::vector<int> surface_nodes;                  // tetrahedral: nodes on the surface, increasing
   std::vector<std::uint32_t> render_triangles;     // surface triangles in render-vertex numbering
+  // Cuttable bodies: per surface triangle, 1 on a cut face (the tissue a cut exposed), which
+  // fill_frame draws in the cut's colour; the front design's flags (FrontSurface::on_cut_face),
+  // the voxel design's triangles whose corners are all on the cut (CutSurface::on_cut).
+  std::vector<std::uint8_t> render_cut_face;
   std::optional<physics::SurfaceEmbedding> embedding;
   physics::Vector surface_positions;               // embedded: 3 x vertices, after the last step
   std::vector<std::uint8_t> fixed_vertices;        // embedded: vertices moved by fixed particles only

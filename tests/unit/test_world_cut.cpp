@@ -6,6 +6,7 @@
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
 #include "physics/cut/front_mapping.hpp"
+#include "render/frame.hpp"
 #include "tests/unit/temp_dir.hpp"
 
 #include <gtest/gtest.h>
@@ -169,6 +170,8 @@ void expect_front_kept_as_whole(const World& world, const Body& body, const std:
   ASSERT_EQ(body.render_triangles.size(), 3 * body.surface.size()) << when;
   for (std::size_t t = 0; t < body.surface.size(); ++t)
     for (int c = 0; c < 3; ++c) ASSERT_EQ(body.render_triangles[3 * t + c], static_cast<std::uint32_t>(body.surface[t][c])) << when;
+  // The cut-face flags the frame is drawn with are the surface's.
+  ASSERT_TRUE(body.render_cut_face == front.on_cut_face()) << when;
   physics::Vector whole;
   physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, whole);
   ASSERT_EQ(whole.size(), body.surface_positions.size()) << when;
@@ -292,6 +295,48 @@ TEST(WorldCut, TheFrontSurfaceCutsTheBeamInTwoClosedPiecesThatFollowTheirOwnSide
   EXPECT_TRUE(physics::surface_topology(body.surface).watertight());
 }
 
+TEST(WorldCut, AFrameDrawsTheExposedCutFacesApartInTheirOwnColour) {
+  // The beam cut through by the front surface: before the cut one mesh per body; after it,
+  // the body's mesh loses exactly the cut faces' triangles to a second mesh of another
+  // colour. At rest the cut faces are the section on each side of the cut: 2 x 0.02 x 0.02 m^2.
+  TempDir dir("incise_world_cut_frame");
+  Scene scene = beam_cut_scene(dir, 0.02);
+  scene.bodies[0].efg.cut_surface = "front";
+  World world(scene, read_trajectory(dir.path / "cut.traj"));
+  const Body& body = world.bodies()[0];
+  render::Frame frame;
+  world.fill_frame(frame, 64, 48);
+  ASSERT_EQ(frame.meshes.size(), 1u);
+  EXPECT_EQ(frame.meshes[0].triangles, body.render_triangles);
+  for (int step = 0; step < 12; ++step) world.step();
+  ASSERT_EQ(world.cut_totals().front_problems, 0) << world.cut_totals().first_front_problem;
+  world.fill_frame(frame, 64, 48);
+  ASSERT_EQ(frame.meshes.size(), 2u);
+  const render::SurfaceMesh& skin = frame.meshes[0];
+  const render::SurfaceMesh& cut = frame.meshes[1];
+  EXPECT_NE(skin.color, cut.color);
+  EXPECT_EQ(cut.positions, skin.positions);
+  ASSERT_EQ(skin.triangles.size() + cut.triangles.size(), body.render_triangles.size());
+  const physics::FrontSurface& front = *body.front_surface;
+  std::vector<std::uint32_t> expect_skin, expect_cut;
+  double cut_area = 0;
+  for (std::size_t t = 0; t < body.surface.size(); ++t) {
+    auto& to = front.on_cut_face()[t] ? expect_cut : expect_skin;
+    for (int c = 0; c < 3; ++c) to.push_back(static_cast<std::uint32_t>(body.surface[t][static_cast<std::size_t>(c)]));
+    if (!front.on_cut_face()[t]) continue;
+    const auto& x = front.vertices();
+    const auto& tri = body.surface[t];
+    cut_area += 0.5 * (x[static_cast<std::size_t>(tri[1])] - x[static_cast<std::size_t>(tri[0])])
+                          .cross(x[static_cast<std::size_t>(tri[2])] - x[static_cast<std::size_t>(tri[0])])
+                          .norm();
+  }
+  EXPECT_EQ(skin.triangles, expect_skin);
+  EXPECT_EQ(cut.triangles, expect_cut);
+  std::printf("frame of the cut beam: %zu skin and %zu cut-face triangles, cut faces %.4e m^2 at rest (section x 2: 8e-4)\n",
+              skin.triangles.size() / 3, cut.triangles.size() / 3, cut_area);
+  EXPECT_NEAR(cut_area, 8e-4, 0.01 * 8e-4);
+}
+
 TEST(WorldCut, AFastBladeIsNotSkippedAndReplaysAreDeterministic) {
   TempDir dir("incise_world_cut_fast");
   // 6 cm in 10 ms (6 m/s): the whole section within two steps of 5 ms.
@@ -370,6 +415,14 @@ TEST(WorldCut, TheMappingKeptAcrossTheShippedCutScenesIsAFreshOneAtEveryEvent) {
       for (std::size_t t = 0; t < body.surface.size(); ++t)
         for (int c = 0; c < 3; ++c)
           ASSERT_EQ(body.render_triangles[3 * t + c], static_cast<std::uint32_t>(body.surface[t][c])) << name << ", step " << k;
+      // A triangle is drawn as cut face when its corners are all on the cut.
+      ASSERT_EQ(body.render_cut_face.size(), body.surface.size()) << name << ", step " << k;
+      for (std::size_t t = 0; t < body.surface.size(); ++t) {
+        const auto& on_cut = body.cut_surface->on_cut();
+        const bool all = on_cut[static_cast<std::size_t>(body.surface[t][0])] && on_cut[static_cast<std::size_t>(body.surface[t][1])] &&
+                         on_cut[static_cast<std::size_t>(body.surface[t][2])];
+        ASSERT_EQ(body.render_cut_face[t] != 0, all) << name << ", step " << k << ", triangle " << t;
+      }
       const physics::SurfaceTopology full = physics::surface_topology(body.surface);
       ASSERT_EQ(body.cut_surface->topology().boundary_edges, full.boundary_edges) << name << ", step " << k;
       ASSERT_EQ(body.cut_surface->topology().nonmanifold_edges, full.nonmanifold_edges) << name << ", step " << k;
