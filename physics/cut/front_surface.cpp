@@ -450,9 +450,17 @@ std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, Fac
     for (const auto& tri : rest_face)
       face.push_back({from_rest[static_cast<size_t>(tri[0])], from_rest[static_cast<size_t>(tri[1])], from_rest[static_cast<size_t>(tri[2])]});
   }
-  // In triangulate_region's order: each triangle from its smallest index, sorted.
+  // In triangulate_region's order: each triangle from its smallest index, sorted. The kept
+  // ones, renumbered, are mostly still in order (the numbering follows the region's, which
+  // changes near the front): when they are, only the rest is sorted and merged in.
   for (auto& tri : face) std::rotate(tri.begin(), std::min_element(tri.begin(), tri.end()), tri.end());
-  std::sort(face.begin(), face.end());
+  const auto rest_begin = face.begin() + static_cast<std::ptrdiff_t>(kept.size());
+  if (std::is_sorted(face.begin(), rest_begin)) {
+    std::sort(rest_begin, face.end());
+    std::inplace_merge(face.begin(), rest_begin, face.end());
+  } else {
+    std::sort(face.begin(), face.end());
+  }
   cache.region = region;
   cache.triangles = face;
   cache.sorted = std::move(new_sorted);
