@@ -1205,17 +1205,27 @@ void FrontSurface::recompute(FrontCutReport& report) {
   };
   // The boundary's edges binned in cells of side w over the (s, t) rectangle.
   const int columns = std::max(1, static_cast<int>(std::ceil(extent.x() / w))), rows = std::max(1, static_cast<int>(std::ceil(extent.y() / w)));
-  std::vector<std::vector<int>> edge_cells(static_cast<size_t>(columns) * static_cast<size_t>(rows));
+  // Compressed rows: per cell its edges, increasing (counted, then filled).
+  const size_t cell_count = static_cast<size_t>(columns) * static_cast<size_t>(rows);
+  std::vector<int> cell_start(cell_count + 1, 0), cell_edges;
   const auto cell_range = [&](double lo, double hi, int count) {
     return std::pair{std::clamp(static_cast<int>(std::floor(lo / w)), 0, count - 1), std::clamp(static_cast<int>(std::floor(hi / w)), 0, count - 1)};
   };
-  for (size_t e = 0; e < region.boundary.size(); ++e) {
+  const auto for_cells_of_edge = [&](size_t e, const auto& visit) {
     const Vec2& a = region.points[static_cast<size_t>(region.boundary[e][0])];
     const Vec2& b = region.points[static_cast<size_t>(region.boundary[e][1])];
     const auto [c0, c1] = cell_range(std::min(a.x(), b.x()) - gap, std::max(a.x(), b.x()) + gap, columns);
     const auto [r0, r1] = cell_range(std::min(a.y(), b.y()) - gap, std::max(a.y(), b.y()) + gap, rows);
     for (int r = r0; r <= r1; ++r)
-      for (int c = c0; c <= c1; ++c) edge_cells[static_cast<size_t>(r) * static_cast<size_t>(columns) + static_cast<size_t>(c)].push_back(static_cast<int>(e));
+      for (int c = c0; c <= c1; ++c) visit(static_cast<size_t>(r) * static_cast<size_t>(columns) + static_cast<size_t>(c));
+  };
+  for (size_t e = 0; e < region.boundary.size(); ++e) for_cells_of_edge(e, [&](size_t cell) { ++cell_start[cell + 1]; });
+  for (size_t cell = 0; cell < cell_count; ++cell) cell_start[cell + 1] += cell_start[cell];
+  cell_edges.resize(static_cast<size_t>(cell_start[cell_count]));
+  {
+    std::vector<int> fill(cell_start.begin(), cell_start.end() - 1);
+    for (size_t e = 0; e < region.boundary.size(); ++e)
+      for_cells_of_edge(e, [&](size_t cell) { cell_edges[static_cast<size_t>(fill[cell]++)] = static_cast<int>(e); });
   }
   // Per lattice row, where the boundary crosses it (s, and +1 going up in t, -1 going down;
   // each edge taken half-open, from its lower end): a point is inside the region when the
@@ -1247,7 +1257,9 @@ void FrontSurface::recompute(FrontCutReport& report) {
       bool near = false;
       const auto [cc, unused_c] = cell_range(p.x(), p.x(), columns);
       const auto [rr, unused_r] = cell_range(p.y(), p.y(), rows);
-      for (const int e : edge_cells[static_cast<size_t>(rr) * static_cast<size_t>(columns) + static_cast<size_t>(cc)]) {
+      const size_t cell = static_cast<size_t>(rr) * static_cast<size_t>(columns) + static_cast<size_t>(cc);
+      for (int k = cell_start[cell]; k < cell_start[cell + 1]; ++k) {
+        const int e = cell_edges[static_cast<size_t>(k)];
         const auto& edge = region.boundary[static_cast<size_t>(e)];
         if (distance_to_segment(p, region.points[static_cast<size_t>(edge[0])], region.points[static_cast<size_t>(edge[1])]) < gap) {
           near = true;
