@@ -282,8 +282,6 @@ std::uint8_t fixed_vertex(const Body& body, int v) {
   return 1;
 }
 
-// Surface vertex v's position from its embedding row and the particles' positions (one row of
-// CorotationalEfg::surface_positions, for the rows a cut remapped).
 // The voxel surface's triangles [first, last) on a cut face: every corner on the cut.
 void set_voxel_cut_faces(Body& body, int first, int last) {
   const auto& on_cut = body.cut_surface->on_cut();
@@ -294,6 +292,8 @@ void set_voxel_cut_faces(Body& body, int first, int last) {
   }
 }
 
+// Surface vertex v's position from its embedding row and the particles' positions (one row of
+// CorotationalEfg::surface_positions, for the rows a cut remapped).
 void set_surface_position(Body& body, int v) {
   const physics::SurfaceEmbedding& embedding = *body.embedding;
   const std::size_t row = static_cast<std::size_t>(v) * static_cast<std::size_t>(embedding.stride);
@@ -796,6 +796,14 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // base vertices given planes by a stroke at the last mapping or since (the ends of cut
   // edges, corners of the split triangles, which hold a stroke's vertex), and those on a
   // re-selected element.
+  // A kept vertex lies within front_reach (per axis) of its integration point (the rows below
+  // kept are the last mapping's until the remapping below, which extends it again).
+  const auto& centres = body.efg->element_centres();
+  const auto reach_of = [&](int v) {
+    return (centres[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(v)])] - vertices[static_cast<std::size_t>(v)]).cwiseAbs().maxCoeff();
+  };
+  for (int v = body.front_reach_upto; v < kept; ++v) body.front_reach = std::max(body.front_reach, reach_of(v));
+  body.front_reach_upto = std::max(body.front_reach_upto, kept);
   std::vector<int> remap;
   std::vector<int> planed = body.front_planed;
   {
@@ -808,19 +816,13 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
       const auto index = static_cast<std::size_t>(v);
       if (v < kept && planes[index].size() != (index < body.front_plane_counts.size() ? body.front_plane_counts[index] : 0)) remap.push_back(v);
     }
-    // A vertex lies within front_reach (per axis) of its integration point: those on a
-    // re-selected element are among the base's vertices in the box of their points grown by
-    // that (the surface's own bins; not every vertex looked at).
-    const auto& element_centres = body.efg->element_centres();
-    for (int v = body.front_reach_upto; v < kept; ++v)
-      body.front_reach = std::max(body.front_reach, (element_centres[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(v)])] -
-                                                     vertices[static_cast<std::size_t>(v)]).cwiseAbs().maxCoeff());
-    body.front_reach_upto = std::max(body.front_reach_upto, kept);
+    // Those on a re-selected element are among the base's vertices in the box of its points
+    // grown by front_reach (the surface's own bins; not every vertex looked at).
     physics::Vec3 changed_centres_lo = physics::Vec3::Constant(1e300), changed_centres_hi = physics::Vec3::Constant(-1e300);
     for (std::size_t e = 0; e < changed.size(); ++e)
       if (changed[e] != 0) {
-        changed_centres_lo = changed_centres_lo.cwiseMin(element_centres[e]);
-        changed_centres_hi = changed_centres_hi.cwiseMax(element_centres[e]);
+        changed_centres_lo = changed_centres_lo.cwiseMin(centres[e]);
+        changed_centres_hi = changed_centres_hi.cwiseMax(centres[e]);
       }
     if ((changed_centres_lo.array() <= changed_centres_hi.array()).all()) {
       const physics::Vec3 grown = physics::Vec3::Constant(body.front_reach + 1e-3 * body.efg->spacing());
@@ -967,12 +969,6 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   // from it, so the base's vertices are taken from the box grown by that.
   const double inset = 0.1 * front.front_width() / 1.5;  // a tenth of a surface cell
   const physics::CutFaceIndex face_index(*body.efg, faces);
-  const auto& centres = body.efg->element_centres();
-  const auto reach_of = [&](int v) {
-    return (centres[static_cast<std::size_t>(embedding.elements[static_cast<std::size_t>(v)])] - vertices[static_cast<std::size_t>(v)]).cwiseAbs().maxCoeff();
-  };
-  for (int v = body.front_reach_upto; v < kept; ++v) body.front_reach = std::max(body.front_reach, reach_of(v));
-  body.front_reach_upto = std::max(body.front_reach_upto, kept);
   std::vector<int> near;
   const auto segment_near = [&](int v) {
     const physics::Vec3& x = vertices[static_cast<size_t>(v)];
