@@ -294,7 +294,9 @@ struct OutlineHit {
 };
 
 // The last sample's cut face as triangulated, in (s, t): the region's points and boundary and
-// the constrained Delaunay triangles (before the shared inner edges are split).
+// the constrained Delaunay triangles (before the shared inner edges are split). The region's
+// points are the boundary's (the ends of its edges: chords, outline, slits), then the
+// lattice's, row by row, each row by increasing column.
 using StKey = std::pair<double, double>;
 StKey st_key(const Vec2& p) { return {p.x(), p.y()}; }
 
@@ -302,15 +304,28 @@ struct FaceCache {
   bool valid = false;
   PlanarRegion region;
   std::vector<std::array<int, 3>> triangles;
-  std::vector<std::pair<StKey, int>> sorted;  // region's points by (s, t), with their index
+  std::vector<std::pair<StKey, int>> sorted;  // the boundary's points by (s, t), with their index
+  int lattice_begin = 0;                      // the lattice's first point in region.points
+  std::vector<int> row_start;                 // per lattice row r: its points from lattice_begin + row_start[r]
+  std::vector<int> column;                    // per lattice point: its column
 };
 
-std::vector<std::pair<StKey, int>> sorted_points(const std::vector<Vec2>& points) {
-  std::vector<std::pair<StKey, int>> sorted(points.size());
-  for (size_t k = 0; k < points.size(); ++k) sorted[k] = {st_key(points[k]), static_cast<int>(k)};
+std::vector<std::pair<StKey, int>> sorted_points(const std::vector<Vec2>& points, size_t count) {
+  std::vector<std::pair<StKey, int>> sorted(count);
+  for (size_t k = 0; k < count; ++k) sorted[k] = {st_key(points[k]), static_cast<int>(k)};
   std::sort(sorted.begin(), sorted.end());
   return sorted;
 }
+
+// What changed in the region since the last sample's (FaceCache): per old point its new
+// index (-1: gone), points told apart by their exact (s, t), which the stroke computes the
+// same way at every sample; and the lowest t of a point added or gone, or of an end of a
+// boundary edge added or gone.
+struct FaceChange {
+  std::vector<int> to_new;
+  double t_change = std::numeric_limits<double>::infinity();
+  std::vector<std::array<int, 2>> sorted_boundary;  // the region's boundary, sorted
+};
 
 // triangulate_region(region), keeping what the last sample's triangulation (`cache`) has well
 // behind the front. Between two samples the region changes only at and above some t (the
@@ -322,56 +337,29 @@ std::vector<std::pair<StKey, int>> sorted_points(const std::vector<Vec2>& points
 // in general position: the cut face's lattice is moved off its cocircular spots). Only the
 // rest is triangulated again, bounded by the kept triangles' edges. The result is the same
 // as triangulate_region's, element for element (both sorted, each triangle from its smallest
-// index). Falls back to the whole region when nothing is kept or the rest cannot be
-// triangulated on its own. Points are told apart by their exact (s, t) (the stroke computes
-// them the same way at every sample).
-std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, FaceCache& cache, double slack, int& kept_count) {
+// index). Falls back to the whole region when nothing is kept, the rest cannot be
+// triangulated on its own, or `change` is null (no valid cache). `next` is what the cache
+// keeps of this region (its sorted boundary points and its lattice's rows), for the next.
+std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, FaceCache& cache, const FaceChange* change,
+                                                 FaceCache&& next, double slack, int& kept_count) {
   kept_count = 0;
-  std::vector<std::pair<StKey, int>> new_sorted = sorted_points(region.points);
-  const auto whole = [&] {
-    std::vector<std::array<int, 3>> face = triangulate_region(region);
+  const auto keep = [&](std::vector<std::array<int, 3>> face) {
     cache.valid = true;
     cache.region = region;
     cache.triangles = face;
-    cache.sorted = std::move(new_sorted);
+    cache.sorted = std::move(next.sorted);
+    cache.lattice_begin = next.lattice_begin;
+    cache.row_start = std::move(next.row_start);
+    cache.column = std::move(next.column);
     return face;
   };
-  if (!cache.valid) return whole();
+  const auto whole = [&] { return keep(triangulate_region(region)); };
+  if (!cache.valid || !change) return whole();
   const auto& old_points = cache.region.points;
   const auto& points = region.points;
-  // Old point -> new point (-1: gone), by exact (s, t).
-  const std::vector<std::pair<StKey, int>>& old_sorted = cache.sorted;
-  std::vector<int> to_new(old_points.size(), -1);
-  double t_change = std::numeric_limits<double>::infinity();
-  {
-    size_t o = 0, n = 0;
-    while (o < old_sorted.size() || n < new_sorted.size()) {
-      if (n == new_sorted.size() || (o < old_sorted.size() && old_sorted[o].first < new_sorted[n].first)) {
-        t_change = std::min(t_change, old_sorted[o++].first.second);  // gone
-      } else if (o == old_sorted.size() || new_sorted[n].first < old_sorted[o].first) {
-        t_change = std::min(t_change, new_sorted[n++].first.second);  // added
-      } else {
-        to_new[static_cast<size_t>(old_sorted[o++].second)] = new_sorted[n++].second;
-      }
-    }
-  }
-  // Boundary edges added or gone, in the new numbering (an old edge with a gone end is gone).
-  std::vector<std::array<int, 2>> old_boundary, new_boundary = region.boundary;
-  for (const auto& e : cache.region.boundary) {
-    const int a = to_new[static_cast<size_t>(e[0])], b = to_new[static_cast<size_t>(e[1])];
-    if (a < 0 || b < 0) {
-      t_change = std::min({t_change, old_points[static_cast<size_t>(e[0])].y(), old_points[static_cast<size_t>(e[1])].y()});
-      continue;
-    }
-    old_boundary.push_back({a, b});
-  }
-  std::sort(old_boundary.begin(), old_boundary.end());
-  std::sort(new_boundary.begin(), new_boundary.end());
-  {
-    std::vector<std::array<int, 2>> differ;
-    std::set_symmetric_difference(old_boundary.begin(), old_boundary.end(), new_boundary.begin(), new_boundary.end(), std::back_inserter(differ));
-    for (const auto& e : differ) t_change = std::min({t_change, points[static_cast<size_t>(e[0])].y(), points[static_cast<size_t>(e[1])].y()});
-  }
+  const std::vector<int>& to_new = change->to_new;
+  const double t_change = change->t_change;
+  const std::vector<std::array<int, 2>>& new_boundary = change->sorted_boundary;
   // The kept triangles: all corners still there, the circumcircle below t_change.
   std::vector<std::array<int, 3>> kept;
   for (const auto& tri : cache.triangles) {
@@ -461,10 +449,7 @@ std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, Fac
   } else {
     std::sort(face.begin(), face.end());
   }
-  cache.region = region;
-  cache.triangles = face;
-  cache.sorted = std::move(new_sorted);
-  return face;
+  return keep(std::move(face));
 }
 
 }  // namespace
@@ -1197,6 +1182,55 @@ void FrontSurface::recompute(FrontCutReport& report) {
   const double row = w * std::sqrt(3.0) / 2;
   const double gap = 0.45 * w;
   const Vec2 extent(blade_s_.back(), sample_t_.back());
+  // What changed since the last sample's region (FaceCache), for triangulate_face: the
+  // boundary's points matched by their exact (s, t) and its edges compared. The boundary
+  // changes only at and above t_boundary; a lattice row lower than that by more than the
+  // gap (and the jitter, below) sees the same boundary edges near it and across it, so it
+  // comes out as it was: it is taken from the last sample's instead of being made again.
+  const size_t boundary_points = region.points.size();
+  FaceCache next;
+  next.lattice_begin = static_cast<int>(boundary_points);
+  next.sorted = sorted_points(region.points, boundary_points);
+  FaceCache& cache = stroke.face;
+  const bool incremental = reuse_face_ && cache.valid;
+  FaceChange change;
+  double t_boundary = std::numeric_limits<double>::infinity();
+  if (incremental) {
+    const auto& old_points = cache.region.points;
+    change.to_new.assign(old_points.size(), -1);
+    const auto& old_sorted = cache.sorted;
+    const auto& new_sorted = next.sorted;
+    size_t o = 0, n = 0;
+    while (o < old_sorted.size() || n < new_sorted.size()) {
+      if (n == new_sorted.size() || (o < old_sorted.size() && old_sorted[o].first < new_sorted[n].first)) {
+        t_boundary = std::min(t_boundary, old_sorted[o++].first.second);  // gone
+      } else if (o == old_sorted.size() || new_sorted[n].first < old_sorted[o].first) {
+        t_boundary = std::min(t_boundary, new_sorted[n++].first.second);  // added
+      } else {
+        change.to_new[static_cast<size_t>(old_sorted[o++].second)] = new_sorted[n++].second;
+      }
+    }
+    // Boundary edges added or gone, in the new numbering (an old edge with a gone end is gone).
+    std::vector<std::array<int, 2>> old_boundary;
+    old_boundary.reserve(cache.region.boundary.size());
+    for (const auto& e : cache.region.boundary) {
+      const int from = change.to_new[static_cast<size_t>(e[0])], to = change.to_new[static_cast<size_t>(e[1])];
+      if (from < 0 || to < 0) {
+        t_boundary = std::min({t_boundary, old_points[static_cast<size_t>(e[0])].y(), old_points[static_cast<size_t>(e[1])].y()});
+        continue;
+      }
+      old_boundary.push_back({from, to});
+    }
+    change.sorted_boundary = region.boundary;
+    std::sort(old_boundary.begin(), old_boundary.end());
+    std::sort(change.sorted_boundary.begin(), change.sorted_boundary.end());
+    std::vector<std::array<int, 2>> differ;
+    std::set_symmetric_difference(old_boundary.begin(), old_boundary.end(), change.sorted_boundary.begin(), change.sorted_boundary.end(),
+                                  std::back_inserter(differ));
+    for (const auto& e : differ)
+      t_boundary = std::min({t_boundary, region.points[static_cast<size_t>(e[0])].y(), region.points[static_cast<size_t>(e[1])].y()});
+    change.t_change = t_boundary;
+  }
   const auto distance_to_segment = [](const Vec2& p, const Vec2& a, const Vec2& b) {
     const Vec2 d = b - a;
     const double length_squared = d.squaredNorm();
@@ -1244,12 +1278,28 @@ void FrontSurface::recompute(FrontCutReport& report) {
       row_crossings[static_cast<size_t>(r)].emplace_back(low.x() + f * (high.x() - low.x()), a.y() < b.y() ? 1 : -1);
     }
   }
+  // Rows taken whole from the last sample's lattice: below t_boundary by the gap and the
+  // jitter (a thousandth of w) with room.
+  const int old_rows = incremental ? static_cast<int>(cache.row_start.size()) - 1 : 0;
+  next.row_start.assign(2, 0);  // rows 0 (empty) and, below, 1, 2, ...
   for (int r = 1; r * row < extent.y(); ++r) {
+    const int old_first = r < old_rows ? cache.row_start[static_cast<size_t>(r)] : 0;
+    const int old_last = r < old_rows ? cache.row_start[static_cast<size_t>(r) + 1] : 0;
+    if (r < old_rows && r * row + gap + 2e-3 * w < t_boundary) {
+      for (int k = old_first; k < old_last; ++k) {
+        const int old_index = cache.lattice_begin + k;
+        change.to_new[static_cast<size_t>(old_index)] = add_point(cache.region.points[static_cast<size_t>(old_index)], -1, -1);
+        next.column.push_back(cache.column[static_cast<size_t>(k)]);
+      }
+      next.row_start.push_back(static_cast<int>(next.column.size()));
+      continue;
+    }
     auto& crossings = row_crossings[static_cast<size_t>(r)];
     std::sort(crossings.begin(), crossings.end());
     int winding = 0;  // of the crossings right of the point
     for (const auto& crossing : crossings) winding += crossing.second;
     size_t passed = 0;
+    int old_k = old_first;  // the last sample's points of this row, by column
     for (int c = 0; (c + 0.5 * (r % 2)) * w < extent.x(); ++c) {
       const Vec2 p((c + 0.5 * (r % 2)) * w, r * row);
       for (; passed < crossings.size() && crossings[passed].first <= p.x(); ++passed) winding -= crossings[passed].second;
@@ -1274,14 +1324,35 @@ void FrontSurface::recompute(FrontCutReport& report) {
         const std::uint64_t x = mix64((static_cast<std::uint64_t>(r) << 32) ^ static_cast<std::uint64_t>(c) ^ salt);
         return (static_cast<double>(x >> 11) / 9007199254740992.0 - 0.5) * 1e-3 * w;
       };
-      add_point(p + Vec2(jitter(1), jitter(2)), -1, -1);
+      const Vec2 jittered = p + Vec2(jitter(1), jitter(2));
+      const int index = add_point(jittered, -1, -1);
+      next.column.push_back(c);
+      if (!incremental) continue;
+      // Against the last sample's row: the points it had at lower columns are gone, this one
+      // (same row and column, same point) kept or added.
+      for (; old_k < old_last && cache.column[static_cast<size_t>(old_k)] < c; ++old_k)
+        change.t_change = std::min(change.t_change, cache.region.points[static_cast<size_t>(cache.lattice_begin + old_k)].y());
+      if (old_k < old_last && cache.column[static_cast<size_t>(old_k)] == c) {
+        change.to_new[static_cast<size_t>(cache.lattice_begin + old_k)] = index;
+        ++old_k;
+      } else {
+        change.t_change = std::min(change.t_change, jittered.y());
+      }
     }
+    if (incremental)
+      for (; old_k < old_last; ++old_k)
+        change.t_change = std::min(change.t_change, cache.region.points[static_cast<size_t>(cache.lattice_begin + old_k)].y());
+    next.row_start.push_back(static_cast<int>(next.column.size()));
   }
+  // Rows the last sample had above this one's (none while the stroke goes forward): gone.
+  if (const int new_rows = static_cast<int>(next.row_start.size()) - 1; incremental && new_rows < old_rows)
+    for (int k = cache.row_start[static_cast<size_t>(new_rows)]; k < static_cast<int>(cache.column.size()); ++k)
+      change.t_change = std::min(change.t_change, cache.region.points[static_cast<size_t>(cache.lattice_begin + k)].y());
 
   std::vector<std::array<int, 3>> face;
   try {
     if (reuse_face_) {
-      face = triangulate_face(region, stroke.face, 1e-6 * w, report.face_triangles_kept);
+      face = triangulate_face(region, cache, incremental ? &change : nullptr, std::move(next), 1e-6 * w, report.face_triangles_kept);
     } else {
       face = triangulate_region(region);
     }
