@@ -308,6 +308,10 @@ struct FaceCache {
   int lattice_begin = 0;                      // the lattice's first point in region.points
   std::vector<int> row_start;                 // per lattice row r: its points from lattice_begin + row_start[r]
   std::vector<int> column;                    // per lattice point: its column
+  // Per lattice point: its point on the sheet, once the cell of the sheet that holds it is
+  // fixed (between two samples before the last: it no longer changes), else lifted_final 0.
+  std::vector<Vec3> lifted;
+  std::vector<std::uint8_t> lifted_final;
 };
 
 std::vector<std::pair<StKey, int>> sorted_points(const std::vector<Vec2>& points, size_t count) {
@@ -351,6 +355,8 @@ std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, Fac
     cache.lattice_begin = next.lattice_begin;
     cache.row_start = std::move(next.row_start);
     cache.column = std::move(next.column);
+    cache.lifted = std::move(next.lifted);
+    cache.lifted_final = std::move(next.lifted_final);
     return face;
   };
   const auto whole = [&] { return keep(triangulate_region(region)); };
@@ -1290,6 +1296,8 @@ void FrontSurface::recompute(FrontCutReport& report) {
         const int old_index = cache.lattice_begin + k;
         change.to_new[static_cast<size_t>(old_index)] = add_point(cache.region.points[static_cast<size_t>(old_index)], -1, -1);
         next.column.push_back(cache.column[static_cast<size_t>(k)]);
+        next.lifted.push_back(cache.lifted[static_cast<size_t>(k)]);
+        next.lifted_final.push_back(cache.lifted_final[static_cast<size_t>(k)]);
       }
       next.row_start.push_back(static_cast<int>(next.column.size()));
       continue;
@@ -1327,6 +1335,8 @@ void FrontSurface::recompute(FrontCutReport& report) {
       const Vec2 jittered = p + Vec2(jitter(1), jitter(2));
       const int index = add_point(jittered, -1, -1);
       next.column.push_back(c);
+      next.lifted.emplace_back(Vec3::Zero());
+      next.lifted_final.push_back(0);
       if (!incremental) continue;
       // Against the last sample's row: the points it had at lower columns are gone, this one
       // (same row and column, same point) kept or added.
@@ -1334,6 +1344,8 @@ void FrontSurface::recompute(FrontCutReport& report) {
         change.t_change = std::min(change.t_change, cache.region.points[static_cast<size_t>(cache.lattice_begin + old_k)].y());
       if (old_k < old_last && cache.column[static_cast<size_t>(old_k)] == c) {
         change.to_new[static_cast<size_t>(cache.lattice_begin + old_k)] = index;
+        next.lifted.back() = cache.lifted[static_cast<size_t>(old_k)];
+        next.lifted_final.back() = cache.lifted_final[static_cast<size_t>(old_k)];
         ++old_k;
       } else {
         change.t_change = std::min(change.t_change, jittered.y());
@@ -1420,12 +1432,28 @@ void FrontSurface::recompute(FrontCutReport& report) {
     if (alpha >= beta) return Vec3(p00 + alpha * (p10 - p00) + beta * (p11 - p10));
     return Vec3(p00 + beta * (p01 - p00) + alpha * (p11 - p01));
   };
+  // A lattice point in a cell of the sheet between two samples before the last is where the
+  // last sample put it (FaceCache::lifted: the cell's samples no longer change).
+  FaceCache& lattice = stroke.face;  // this sample's, with reuse_face_
+  const double fixed_below = intervals >= 2 ? sample_t_[static_cast<size_t>(intervals - 1)] : -std::numeric_limits<double>::infinity();
+  const auto lift = [&](int p) {
+    const Vec2& st = region.points[static_cast<size_t>(p)];
+    const size_t k = static_cast<size_t>(p - lattice.lattice_begin);
+    if (!reuse_face_ || p < lattice.lattice_begin || k >= lattice.column.size()) return sheet_point(st);
+    if (lattice.lifted_final[k]) return lattice.lifted[k];
+    const Vec3 x = sheet_point(st);
+    if (st.y() < fixed_below) {
+      lattice.lifted[k] = x;
+      lattice.lifted_final[k] = 1;
+    }
+    return x;
+  };
   std::vector<int> inner_points;
   for (const auto& triangle : face)
     for (const int p : triangle)
       if (region_vertex[static_cast<size_t>(p)] < 0) {
         // Each side's face has its own inner vertices: the two separate as the cut opens.
-        const Vec3 x = sheet_point(region.points[static_cast<size_t>(p)]);
+        const Vec3 x = lift(p);
         region_vertex[static_cast<size_t>(p)] = static_cast<int>(vertices_.size());
         vertices_.push_back(x);
         region_vertex_plus[static_cast<size_t>(p)] = static_cast<int>(vertices_.size());
@@ -1444,15 +1472,9 @@ void FrontSurface::recompute(FrontCutReport& report) {
     const Vec3 n = (b - a).cross(c - a);
     for (const int p : triangle) face_normal[static_cast<size_t>(p)] += n;
   }
-  std::vector<std::pair<int, ConstraintPlane>> face_planes;
   // The slits' middle pairs too: on the face's rim, each on one side (not the crack front).
+  // (Their planes are attached below, after the cut edges'.)
   inner_points.insert(inner_points.end(), slit_points.begin(), slit_points.end());
-  for (const int p : inner_points) {
-    const Vec3& x = vertices_[static_cast<size_t>(region_vertex[static_cast<size_t>(p)])];
-    const Vec3 normal = face_normal[static_cast<size_t>(p)].normalized();
-    face_planes.push_back({region_vertex[static_cast<size_t>(p)], {x, normal}});
-    face_planes.push_back({region_vertex_plus[static_cast<size_t>(p)], {x, -normal}});
-  }
 
   // The output is the base's (restore_base); each split's first triangle takes its base
   // triangle's slot, the others follow the base's triangles.
@@ -1496,7 +1518,12 @@ void FrontSurface::recompute(FrontCutReport& report) {
     vertex_planes_[static_cast<size_t>(cut.copy_lower)].push_back(lower);
     vertex_planes_[static_cast<size_t>(cut.copy_higher)].push_back(higher);
   }
-  for (const auto& [v, plane] : face_planes) vertex_planes_[static_cast<size_t>(v)].push_back(plane);
+  for (const int p : inner_points) {
+    const Vec3& x = vertices_[static_cast<size_t>(region_vertex[static_cast<size_t>(p)])];
+    const Vec3 normal = face_normal[static_cast<size_t>(p)].normalized();
+    vertex_planes_[static_cast<size_t>(region_vertex[static_cast<size_t>(p)])].push_back({x, normal});
+    vertex_planes_[static_cast<size_t>(region_vertex_plus[static_cast<size_t>(p)])].push_back({x, -normal});
+  }
   std::sort(planed_base_.begin(), planed_base_.end());
   planed_base_.erase(std::unique(planed_base_.begin(), planed_base_.end()), planed_base_.end());
 }
