@@ -886,9 +886,11 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
       // box grown by the drift (points are binned where they were at the rebuild), or among
       // the loose ones. The first R: just beyond the previous choice's distance (the points
       // of a polyline come in order), else beyond q's distance to the points' box.
+      // The previous choice is a point within its distance of q: no box larger than that is
+      // needed (a box of a cell or more would look at up to 64 bins).
       double reach = bins.cell;
       if (hint >= 0) {
-        reach = std::max(reach, 1.001 * (point_of(hint) - q).norm() + 1e-12);
+        reach = 1.001 * (point_of(hint) - q).norm() + 1e-12;
       } else {
         const Vec3 outside = (bins.lo - q).cwiseMax(q - bins.hi).cwiseMax(Vec3::Zero());
         reach = std::max(reach, std::max(0.0, outside.norm() - drift) + bins.cell);
