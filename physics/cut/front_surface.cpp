@@ -366,59 +366,91 @@ std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, Fac
   const std::vector<int>& to_new = change->to_new;
   const double t_change = change->t_change;
   const std::vector<std::array<int, 2>>& new_boundary = change->sorted_boundary;
-  // The kept triangles: all corners still there, the circumcircle below t_change.
+  // The kept triangles: all corners still there, the circumcircle below t_change. The last
+  // triangles are also listed around each of their corners (compressed rows), to find the
+  // rest's boundary from the triangles not kept, which lie near the front.
+  const auto& old_triangles = cache.triangles;
+  const size_t old_count = old_points.size();
+  std::vector<int> around_start(old_count + 1, 0), around(3 * old_triangles.size());
+  std::vector<std::uint8_t> is_kept(old_triangles.size(), 0);
   std::vector<std::array<int, 3>> kept;
-  for (const auto& tri : cache.triangles) {
+  std::vector<int> not_kept;
+  for (size_t t = 0; t < old_triangles.size(); ++t) {
+    const auto& tri = old_triangles[t];
+    for (const int p : tri) ++around_start[static_cast<size_t>(p) + 1];
     const std::array<int, 3> now{to_new[static_cast<size_t>(tri[0])], to_new[static_cast<size_t>(tri[1])], to_new[static_cast<size_t>(tri[2])]};
-    if (now[0] < 0 || now[1] < 0 || now[2] < 0) continue;
-    const Vec2& a = old_points[static_cast<size_t>(tri[0])];
-    const Vec2 b = old_points[static_cast<size_t>(tri[1])] - a, c = old_points[static_cast<size_t>(tri[2])] - a;
-    const double d = 2 * (b.x() * c.y() - b.y() * c.x());
-    if (!(std::abs(d) > 0)) continue;
-    const Vec2 centre((c.y() * b.squaredNorm() - b.y() * c.squaredNorm()) / d, (b.x() * c.squaredNorm() - c.x() * b.squaredNorm()) / d);
-    if (!(a.y() + centre.y() + centre.norm() < t_change - slack)) continue;
-    kept.push_back(now);
+    const bool keep_it = [&] {
+      if (now[0] < 0 || now[1] < 0 || now[2] < 0) return false;
+      const Vec2& a = old_points[static_cast<size_t>(tri[0])];
+      const Vec2 b = old_points[static_cast<size_t>(tri[1])] - a, c = old_points[static_cast<size_t>(tri[2])] - a;
+      const double d = 2 * (b.x() * c.y() - b.y() * c.x());
+      if (!(std::abs(d) > 0)) return false;
+      const Vec2 centre((c.y() * b.squaredNorm() - b.y() * c.squaredNorm()) / d, (b.x() * c.squaredNorm() - c.x() * b.squaredNorm()) / d);
+      return a.y() + centre.y() + centre.norm() < t_change - slack;
+    }();
+    if (keep_it) {
+      is_kept[t] = 1;
+      kept.push_back(now);
+    } else {
+      not_kept.push_back(static_cast<int>(t));
+    }
   }
   if (kept.empty()) return whole();
   kept_count = static_cast<int>(kept.size());
+  for (size_t p = 0; p < old_count; ++p) around_start[p + 1] += around_start[p];
+  {
+    std::vector<int> fill(around_start.begin(), around_start.end() - 1);
+    for (size_t t = 0; t < old_triangles.size(); ++t)
+      for (const int p : old_triangles[t]) around[static_cast<size_t>(fill[static_cast<size_t>(p)]++)] = static_cast<int>(t);
+  }
+  // The last triangle with the directed edge a -> b (last numbering), or -1.
+  const auto triangle_with = [&](int a, int b) {
+    for (int k = around_start[static_cast<size_t>(a)]; k < around_start[static_cast<size_t>(a) + 1]; ++k) {
+      const int t = around[static_cast<size_t>(k)];
+      const auto& tri = old_triangles[static_cast<size_t>(t)];
+      for (size_t c = 0; c < 3; ++c)
+        if (tri[c] == a && tri[(c + 1) % 3] == b) return t;
+    }
+    return -1;
+  };
+  const auto kept_edge = [&](int a, int b) {
+    const int t = a >= 0 && b >= 0 ? triangle_with(a, b) : -1;
+    return t >= 0 && is_kept[static_cast<size_t>(t)] != 0;
+  };
+  const size_t point_count = points.size();
+  std::vector<int> old_of_new(point_count, -1);
+  for (size_t o = 0; o < old_count; ++o)
+    if (to_new[o] >= 0) old_of_new[static_cast<size_t>(to_new[o])] = static_cast<int>(o);
   // The rest's boundary: the region's edges no kept triangle has, and the kept triangles'
   // edges that neither another kept triangle nor the region's boundary has, turned round.
-  // The kept edges are looked up by their first point (compressed rows: a point starts a few
-  // edges), in the order the kept triangles list them.
-  const size_t point_count = points.size();
-  std::vector<int> edges_start(point_count + 1, 0), edges_to(3 * kept.size());
-  for (const auto& tri : kept)
-    for (const int p : tri) ++edges_start[static_cast<size_t>(p) + 1];
-  for (size_t p = 0; p < point_count; ++p) edges_start[p + 1] += edges_start[p];
-  {
-    std::vector<int> fill(edges_start.begin(), edges_start.end() - 1);
-    for (const auto& tri : kept)
-      for (size_t k = 0; k < 3; ++k) edges_to[static_cast<size_t>(fill[static_cast<size_t>(tri[k])]++)] = tri[(k + 1) % 3];
-  }
-  const auto is_kept_edge = [&](int from, int to) {
-    const auto first = edges_to.begin() + edges_start[static_cast<size_t>(from)];
-    const auto last = edges_to.begin() + edges_start[static_cast<size_t>(from) + 1];
-    return std::find(first, last, to) != last;
-  };
+  // Such a kept edge is the twin of an edge of a triangle not kept or, with no twin, an edge
+  // of the last region's boundary (the triangulation covers the region exactly: every
+  // other edge has two triangles).
   PlanarRegion rest;
   std::vector<int> rest_index(point_count, -1), from_rest;
   std::vector<std::array<int, 2>> rest_boundary;
   for (const auto& e : region.boundary)
-    if (!is_kept_edge(e[0], e[1])) rest_boundary.push_back(e);
+    if (!kept_edge(old_of_new[static_cast<size_t>(e[0])], old_of_new[static_cast<size_t>(e[1])])) rest_boundary.push_back(e);
   const size_t from_region = rest_boundary.size();
-  for (const auto& tri : kept)
-    for (size_t k = 0; k < 3; ++k) {
-      const int from = tri[k], to = tri[(k + 1) % 3];
-      if (!is_kept_edge(to, from) && !std::binary_search(new_boundary.begin(), new_boundary.end(), std::array<int, 2>{from, to}))
-        rest_boundary.push_back({to, from});
-    }
+  const auto turn_round = [&](int a, int b) {  // the kept edge a -> b (last numbering)
+    const int from = to_new[static_cast<size_t>(a)], to = to_new[static_cast<size_t>(b)];
+    if (!std::binary_search(new_boundary.begin(), new_boundary.end(), std::array<int, 2>{from, to})) rest_boundary.push_back({to, from});
+  };
+  for (const int t : not_kept) {
+    const auto& tri = old_triangles[static_cast<size_t>(t)];
+    for (size_t c = 0; c < 3; ++c)
+      if (kept_edge(tri[(c + 1) % 3], tri[c])) turn_round(tri[(c + 1) % 3], tri[c]);
+  }
+  for (const auto& e : cache.region.boundary)
+    if (kept_edge(e[0], e[1]) && triangle_with(e[1], e[0]) < 0) turn_round(e[0], e[1]);
   // Those in the order of the kept edges they turn round (the points' numbering below, and
   // with it the triangulation's ties, follow it).
   std::sort(rest_boundary.begin() + static_cast<std::ptrdiff_t>(from_region), rest_boundary.end(),
             [](const std::array<int, 2>& l, const std::array<int, 2>& r) { return std::tie(l[1], l[0]) < std::tie(r[1], r[0]); });
   // The rest's points: the ends of its boundary, and those no kept triangle uses within its
   // boundary's box (a point outside the box is outside the rest, and the triangulation
-  // ignores it).
+  // ignores it), by increasing index: the new points, and the last ones with no kept
+  // triangle around them (the corners of triangles not kept, and those with none).
   const auto take = [&](int p) {
     if (rest_index[static_cast<size_t>(p)] < 0) {
       rest_index[static_cast<size_t>(p)] = static_cast<int>(rest.points.size());
@@ -428,10 +460,25 @@ std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, Fac
     return rest_index[static_cast<size_t>(p)];
   };
   for (const auto& e : rest_boundary) rest.boundary.push_back({take(e[0]), take(e[1])});
+  std::vector<int> free_points;
+  for (size_t p = 0; p < point_count; ++p)
+    if (old_of_new[p] < 0) free_points.push_back(static_cast<int>(p));
+  const auto unused = [&](int o) {
+    for (int k = around_start[static_cast<size_t>(o)]; k < around_start[static_cast<size_t>(o) + 1]; ++k)
+      if (is_kept[static_cast<size_t>(around[static_cast<size_t>(k)])]) return false;
+    return true;
+  };
+  for (const int t : not_kept)
+    for (const int o : old_triangles[static_cast<size_t>(t)])
+      if (to_new[static_cast<size_t>(o)] >= 0 && unused(o)) free_points.push_back(to_new[static_cast<size_t>(o)]);
+  for (size_t o = 0; o < old_count; ++o)
+    if (around_start[o] == around_start[o + 1] && to_new[o] >= 0) free_points.push_back(to_new[o]);
+  std::sort(free_points.begin(), free_points.end());
+  free_points.erase(std::unique(free_points.begin(), free_points.end()), free_points.end());
   Eigen::AlignedBox2d box;
   for (const Vec2& p : rest.points) box.extend(p);
-  for (size_t p = 0; p < point_count; ++p)
-    if (edges_start[p] == edges_start[p + 1] && box.contains(points[p])) take(static_cast<int>(p));
+  for (const int p : free_points)
+    if (box.contains(points[static_cast<size_t>(p)])) take(p);
   std::vector<std::array<int, 3>> face = kept;
   if (!rest.boundary.empty()) {
     std::vector<std::array<int, 3>> rest_face;
@@ -682,7 +729,7 @@ FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
     if (stroke_before)
       stroke_->restore(std::move(*stroke_before));
     else
-      stroke_.reset();
+      drop_stroke();
     FrontCutReport again;
     recompute(again);
     FrontCutReport held = last_report_;
@@ -697,7 +744,7 @@ FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
     sample_t_.assign(1, 0.0);
     blade_s_.assign(1, 0.0);
     for (size_t i = 1; i < blade.size(); ++i) blade_s_.push_back(blade_s_.back() + (blade[i] - blade[i - 1]).norm());
-    stroke_.reset();
+    drop_stroke();
   }
   return report;
 }
@@ -722,7 +769,7 @@ bool FrontSurface::end_stroke(double reach) {
         // the stroke's base.
         samples_.pop_back();
         sample_t_.pop_back();
-        stroke_.reset();
+        drop_stroke();
         FrontCutReport again;
         recompute(again);
         last_report_ = again;
@@ -739,13 +786,23 @@ bool FrontSurface::end_stroke(double reach) {
     base_crack_front_ = crack_front_;
     index_base();
   }
-  stroke_.reset();
+  drop_stroke();
   last_report_ = FrontCutReport();
   show_base();
   samples_.clear();
   sample_t_.clear();
   blade_s_.clear();
   return carried;
+}
+
+void FrontSurface::drop_stroke() {
+  if (!stroke_) return;
+  // Its per-edge index is kept, reset where set, for the next stroke on the same base: a
+  // stroke that touches nothing starts again at every sample until the blade meets the body,
+  // and the index is as long as the base's edges.
+  for (const int e : stroke_->cut_edges) stroke_->edge_cut[static_cast<size_t>(e)] = -1;
+  spare_edge_cut_ = std::move(stroke_->edge_cut);
+  stroke_.reset();
 }
 
 void FrontSurface::recompute(FrontCutReport& report) {
@@ -759,7 +816,11 @@ void FrontSurface::recompute(FrontCutReport& report) {
 
   if (!stroke_) {
     stroke_ = std::make_unique<Stroke>();
-    stroke_->edge_cut.assign(base_->edges.ends.size(), -1);
+    if (spare_edge_cut_.size() == base_->edges.ends.size())
+      stroke_->edge_cut = std::move(spare_edge_cut_);  // all -1 (drop_stroke)
+    else
+      stroke_->edge_cut.assign(base_->edges.ends.size(), -1);
+    spare_edge_cut_.clear();
   }
   Stroke& stroke = *stroke_;
   const auto st_of = [&](int point, int sample) { return Vec2(blade_s_[static_cast<size_t>(point)], sample_t_[static_cast<size_t>(sample)]); };

@@ -177,12 +177,14 @@ class FrontSurface {
   void show_base();     // the surface is the base's (copied whole: after a new base)
   void restore_base();  // the same from an output of the base's (undoing only what a stroke changed)
   void recompute(FrontCutReport& report);
+  void drop_stroke();  // stroke_.reset(), keeping its per-edge index (all -1) for the next
 
   double front_width_;
   std::vector<Vec3> base_vertices_;
   std::vector<std::array<int, 3>> base_triangles_;
   std::unique_ptr<Base> base_;
   std::unique_ptr<Stroke> stroke_;
+  std::vector<int> spare_edge_cut_;  // a dropped stroke's Stroke::edge_cut, all -1
   std::vector<std::vector<Vec3>> samples_;
   std::vector<double> sample_t_;  // t of each sample
   std::vector<double> blade_s_;   // s of each blade point
