@@ -712,6 +712,7 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
     search_ = 1;
   }
   std::vector<std::tuple<int, double, int>> candidates;  // graph distance, rest distance^2, particle
+  std::vector<size_t> level_end;                         // per level from 1: where its candidates end
   std::vector<int> frontier = seeds, next;
   for (int p : seeds) reached_[p] = search_;
   for (int level = 1; level <= graph_radius; ++level) {
@@ -727,9 +728,19 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
       }
     }
     frontier.swap(next);
+    level_end.push_back(candidates.size());
   }
-  // A total order (each particle once): the same whatever order they were reached in.
-  std::sort(candidates.begin(), candidates.end());
+  // A total order (each particle once): the same whatever order they were reached in. The
+  // candidates come level by level, so each level is sorted on its own, when the fill below
+  // first reaches it (it mostly stops within the first two).
+  size_t sorted_end = 0;
+  const auto sorted_upto = [&](size_t i) {
+    for (const size_t end : level_end)
+      if (sorted_end <= i && sorted_end < end) {
+        std::sort(candidates.begin() + static_cast<std::ptrdiff_t>(sorted_end), candidates.begin() + static_cast<std::ptrdiff_t>(end));
+        sorted_end = end;
+      }
+  };
 
   const int nominal = model_.settings().neighbours;
   // Local: within two particle spacings of the point along every axis (offsets a / 2, 3a / 2,
@@ -776,6 +787,7 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
     const double tolerance = 0.25 * nearest;  // (half the step)^2
     int best = -1;
     double best_distance = tolerance;
+    // (The nearest to the target, the lowest particle among ties: in any order.)
     for (const auto& [level, squared, q] : candidates) {
       const double d = (rest(q) - target).squaredNorm();
       if (d < best_distance || (d == best_distance && best >= 0 && q < best)) best_distance = d, best = q;
@@ -784,7 +796,9 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
     add(best);
   }
   const auto fill = [&](bool only_local) {
-    for (const auto& [level, squared, p] : candidates) {
+    for (size_t i = 0; i < candidates.size(); ++i) {
+      sorted_upto(i);
+      const int p = std::get<2>(candidates[i]);
       if (static_cast<int>(row.size()) >= nominal && spans_three_dimensions(positions)) break;
       if (static_cast<int>(row.size()) >= slots_per_element) break;
       if ((only_local && !local(p)) || std::find(row.begin(), row.end(), p) != row.end() || !eligible(p)) continue;
