@@ -940,16 +940,18 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
         return std::lexicographical_compare(l.data(), l.data() + 3, r.data(), r.data() + 3);
       });
       auto& key = keys[k];
-      std::uint64_t hash = 0x5eedULL;
+      // The nine coordinates' bits each times its own odd constant, summed, then mixed once:
+      // independent products, not a chain of nine mixes (any hash gives the same faces).
+      std::uint64_t sum = 0;
       for (int c = 0; c < 3; ++c)
         for (int d = 0; d < 3; ++d) {
           const double x = corners[static_cast<size_t>(c)][d] + 0.0;
           key[static_cast<size_t>(3 * c + d)] = x;
           std::uint64_t bits = 0;
           std::memcpy(&bits, &x, sizeof bits);
-          hash = physics::mix64(hash ^ bits);
+          sum += bits * (0x9e3779b97f4a7c15ULL + 2 * static_cast<std::uint64_t>(3 * c + d));
         }
-      std::size_t at = hash & mask;
+      std::size_t at = physics::mix64(sum) & mask;
       bool met = false;
       for (; table[at] >= 0; at = (at + 1) & mask)
         if (keys[static_cast<std::size_t>(table[at])] == key) {
