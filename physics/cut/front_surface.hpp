@@ -48,9 +48,11 @@
 // continued from an earlier stroke's front), chords that cross in the (s, t) plane.
 //
 // Cost: each call keeps the last call's cut-face triangles that lie well behind the front
-// (their circumcircle below the lowest t the sample changed) and triangulates only the rest;
-// the rest of the stroke's work (the lift, the planes, the output) still grows with its
-// face: docs/status.md has figures.
+// (their circumcircle below the lowest t the sample changed) and triangulates only the rest,
+// takes the lattice's rows below that t from the last call, and keeps the lift of lattice
+// points in the sheet's fixed cells; the rest of the stroke's work (matching the face's
+// points, the planes, the output, renumbered at every call) still grows with its face:
+// docs/status.md has figures.
 #pragma once
 
 #include "physics/core/model.hpp"
