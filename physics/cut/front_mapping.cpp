@@ -486,6 +486,7 @@ CutFaceIndex::CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<
   // The faces' boxes, and the box of those to bin; the cells grow until the grid over it is
   // small enough (a cut's faces span a few hundred cells of side a).
   std::vector<int> to_bin;
+  std::vector<std::array<long long, 6>> cells_of;  // per face to bin: its cells' range (cells of side a)
   Vec3 lo_all = Vec3::Constant(1e300), hi_all = Vec3::Constant(-1e300);
   boxes_.reserve(faces_.size());
   for (size_t t = 0; t < faces_.size(); ++t) {
@@ -498,10 +499,12 @@ CutFaceIndex::CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<
       continue;
     }
     to_bin.push_back(static_cast<int>(t));
+    cells_of.push_back({l[0], l[1], l[2], h[0], h[1], h[2]});
     lo_all = lo_all.cwiseMin(lo), hi_all = hi_all.cwiseMax(hi);
   }
   seen_.assign(faces_.size(), 0);
   if (to_bin.empty()) return;
+  const double binned_cell = cell_size_;
   for (;;) {
     const auto l = cell(lo_all), h = cell(hi_all);
     long long cells = 1;
@@ -515,18 +518,28 @@ CutFaceIndex::CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<
   }
   // Counted, then filled (compressed rows, faces increasing within a cell).
   start_.assign(static_cast<size_t>(count_[0] * count_[1] * count_[2] + 1), 0);
-  const auto for_cells = [&](int t, const auto& visit) {
-    const auto l = cell(boxes_[static_cast<size_t>(t)][0]), h = cell(boxes_[static_cast<size_t>(t)][1]);
+  // Each face's cells as found above while the grid's cells are those (else found again).
+  const bool same_cells = cell_size_ == binned_cell;
+  const auto for_cells = [&](size_t k_face, const auto& visit) {
+    const int t = to_bin[k_face];
+    std::array<long long, 3> l{}, h{};
+    if (same_cells) {
+      const auto& range = cells_of[k_face];
+      l = {range[0], range[1], range[2]};
+      h = {range[3], range[4], range[5]};
+    } else {
+      l = cell(boxes_[static_cast<size_t>(t)][0]), h = cell(boxes_[static_cast<size_t>(t)][1]);
+    }
     for (long long k = l[2]; k <= h[2]; ++k)
       for (long long j = l[1]; j <= h[1]; ++j)
         for (long long i = l[0]; i <= h[0]; ++i)
           visit(static_cast<size_t>((i - first_[0]) + count_[0] * ((j - first_[1]) + count_[1] * (k - first_[2]))));
   };
-  for (const int t : to_bin) for_cells(t, [&](size_t c) { ++start_[c + 1]; });
+  for (size_t k = 0; k < to_bin.size(); ++k) for_cells(k, [&](size_t c) { ++start_[c + 1]; });
   for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
   binned_.resize(static_cast<size_t>(start_.back()));
   std::vector<int> fill(start_.begin(), start_.end() - 1);
-  for (const int t : to_bin) for_cells(t, [&](size_t c) { binned_[static_cast<size_t>(fill[c]++)] = t; });
+  for (size_t k = 0; k < to_bin.size(); ++k) for_cells(k, [&](size_t c) { binned_[static_cast<size_t>(fill[c]++)] = to_bin[k]; });
 }
 
 std::array<long long, 3> CutFaceIndex::cell(const Vec3& p) const {
@@ -658,13 +671,20 @@ FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, con
   identity.first = first;
   identity.key.resize(static_cast<size_t>(n - first));
   identity.ring.assign(static_cast<size_t>(n - first), 0);
+  // Each number mixed on its own with its place in the list, and the mixes summed: the same
+  // content gives the same key, and the mixes are independent (not one chain per vertex).
+  constexpr std::uint64_t step = 0x9e3779b97f4a7c15ULL;
   for (int v = first; v < n; ++v) {
     std::uint64_t h = mix64(flagged(crack_front, v) ? 1 : 2);
-    for (int d = 0; d < 3; ++d) h = mix64(h ^ bits(vertices[static_cast<size_t>(v)][d]));
+    std::uint64_t place = 0;
+    for (int d = 0; d < 3; ++d) h += mix64(bits(vertices[static_cast<size_t>(v)][d]) + (place += step));
     if (static_cast<size_t>(v) < planes.size())
       for (const ConstraintPlane& plane : planes[static_cast<size_t>(v)])
-        for (int d = 0; d < 3; ++d) h = mix64(mix64(h ^ bits(plane.point[d])) ^ bits(plane.normal[d]));
-    identity.key[static_cast<size_t>(v - first)] = h;
+        for (int d = 0; d < 3; ++d) {
+          h += mix64(bits(plane.point[d]) + (place += step));
+          h += mix64(bits(plane.normal[d]) + (place += step));
+        }
+    identity.key[static_cast<size_t>(v - first)] = mix64(h);
   }
   // A base vertex is its index (salted apart from the content keys).
   const auto key_of = [&](int v) { return v < first ? mix64(0x5eedULL + static_cast<std::uint64_t>(v)) : identity.key[static_cast<size_t>(v - first)]; };
