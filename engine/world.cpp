@@ -843,6 +843,10 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   std::vector<int> moved_from, moved_elements, moved_lengths, moved_particles;
   std::vector<double> moved_weights;
   std::vector<std::uint8_t> moved_wrong, moved_fixed;
+  // Their positions too (the CPU's: those update_surface formed from the particles as they
+  // still are, the same sums set_surface_position would do again).
+  std::vector<physics::Vec3> moved_positions;
+  const bool keep_positions = !body.gpu;
   const int stride = embedding.stride;
   for (int v = kept; v < n; ++v) {
     const int u = same_point[static_cast<std::size_t>(v)];
@@ -855,6 +859,9 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
     moved_weights.insert(moved_weights.end(), embedding.weights.begin() + row, embedding.weights.begin() + row + stride);
     moved_wrong.push_back(static_cast<size_t>(u) < body.front_wrong_side.size() ? body.front_wrong_side[static_cast<size_t>(u)] : 0);
     moved_fixed.push_back(static_cast<size_t>(u) < body.fixed_vertices.size() ? body.fixed_vertices[static_cast<size_t>(u)] : 0);
+    if (keep_positions) moved_positions.push_back(3 * static_cast<Eigen::Index>(u) + 3 <= body.surface_positions.size()
+                                                      ? physics::Vec3(body.surface_positions.segment<3>(3 * static_cast<Eigen::Index>(u)))
+                                                      : physics::Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
   }
   physics::fit_rows(embedding, n, stride);
   body.front_wrong_side.resize(vertices.size(), 0);
@@ -1039,7 +1046,16 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
     body.surface_positions.conservativeResize(3 * static_cast<Eigen::Index>(n));
     for (const int v : remap)
       if (v < kept) set_surface_position(body, v);
-    for (int v = kept; v < n; ++v) set_surface_position(body, v);
+    // The stroke's vertices: the moved rows not mapped again take their position along.
+    std::vector<std::uint8_t> taken(static_cast<std::size_t>(n - kept), 0);
+    for (std::size_t k = 0; k < moved_from.size(); ++k) {
+      const int v = moved_from[k];
+      if (std::binary_search(remap.begin(), remap.end(), v) || !moved_positions[k].allFinite()) continue;
+      body.surface_positions.segment<3>(3 * static_cast<Eigen::Index>(v)) = moved_positions[k];
+      taken[static_cast<std::size_t>(v - kept)] = 1;
+    }
+    for (int v = kept; v < n; ++v)
+      if (!taken[static_cast<std::size_t>(v - kept)]) set_surface_position(body, v);
   }
   stats.ms_mapping += ms_since(start);
   start = Clock::now();
