@@ -644,6 +644,29 @@ std::uint64_t bits(double x) {
   return b;
 }
 
+// Sorts (key, index) pairs whose keys are mixed (uniform) 64-bit values: bucketed by the
+// keys' top bits (about one pair per bucket), each bucket then sorted. The same order as
+// std::sort, in linear time.
+void sort_mixed_keys(std::vector<std::pair<std::uint64_t, int>>& pairs) {
+  const size_t n = pairs.size();
+  if (n < 64) {
+    std::sort(pairs.begin(), pairs.end());
+    return;
+  }
+  int bits_used = 1;
+  while (bits_used < 16 && (size_t{1} << bits_used) < n) ++bits_used;
+  const int shift = 64 - bits_used;
+  std::vector<int> start((size_t{1} << bits_used) + 1, 0);
+  for (const auto& pair : pairs) ++start[static_cast<size_t>(pair.first >> shift) + 1];
+  for (size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
+  std::vector<std::pair<std::uint64_t, int>> out(n);
+  std::vector<int> fill(start.begin(), start.end() - 1);
+  for (const auto& pair : pairs) out[static_cast<size_t>(fill[static_cast<size_t>(pair.first >> shift)]++)] = pair;
+  for (size_t b = 0; b + 1 < start.size(); ++b)
+    if (start[b + 1] - start[b] > 1) std::sort(out.begin() + start[b], out.begin() + start[b + 1]);
+  pairs.swap(out);
+}
+
 }  // namespace
 
 FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
@@ -706,7 +729,7 @@ FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, con
   }
   identity.sorted.resize(identity.key.size());
   for (size_t k = 0; k < identity.key.size(); ++k) identity.sorted[k] = {identity.key[k], first + static_cast<int>(k)};
-  std::sort(identity.sorted.begin(), identity.sorted.end());
+  sort_mixed_keys(identity.sorted);
   return identity;
 }
 
