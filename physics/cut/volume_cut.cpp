@@ -930,7 +930,11 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
                 if (!search.loose.loose[e]) consider(e);
               }
             }
-        for (int e : search.loose.list) consider(e);
+        // The loose ones are where they are now: only those within reach of q (per axis) can be
+        // nearer than the bound, which must stay below reach (else the box grows, below), unless
+        // the box holds every bin (then the bound is not checked: all of them).
+        for (int e : search.loose.list)
+          if (everything || ((point_of(e) - q).cwiseAbs().array() <= reach).all()) consider(e);
         if (!std::isfinite(least)) {
           if (everything) break;  // no finite distance: the scan below decides
           reach *= 2;
