@@ -711,9 +711,13 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
     std::fill(reached_.begin(), reached_.end(), 0);
     search_ = 1;
   }
-  std::vector<std::tuple<int, double, int>> candidates;  // graph distance, rest distance^2, particle
-  std::vector<size_t> level_end;                         // per level from 1: where its candidates end
-  std::vector<int> frontier = seeds, next;
+  // Scratch kept per thread between calls (a few elements per step, each growing these
+  // from empty otherwise).
+  thread_local std::vector<std::tuple<int, double, int>> candidates;  // graph distance, rest distance^2, particle
+  thread_local std::vector<int> frontier, next;
+  candidates.clear();
+  frontier.assign(seeds.begin(), seeds.end());
+  std::vector<size_t> level_end;  // per level from 1: where its candidates end
   for (int p : seeds) reached_[p] = search_;
   for (int level = 1; level <= graph_radius; ++level) {
     next.clear();
@@ -752,9 +756,11 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
   const double reach = 3.5 * model_.spacing() * (1 + 1e-9);
   const auto local = [&](int p) { return ((rest(p) - centre).cwiseAbs().array() <= reach).all(); };
   std::vector<int> row;
+  row.reserve(static_cast<size_t>(slots_per_element) + seeds.size());
   for (int p : seeds)
     if (local(p)) row.push_back(p);
   std::vector<Vec3> positions;
+  positions.reserve(row.capacity());
   for (int p : row) positions.push_back(rest(p));
   // Not across the cut so far (at rest), nor across this very step's sweep.
   const auto eligible = [&](int p) {
