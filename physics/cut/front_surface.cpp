@@ -331,6 +331,49 @@ struct FaceChange {
   std::vector<std::array<int, 2>> sorted_boundary;  // the region's boundary, sorted
 };
 
+// What changed in the region's boundary since the last sample's (`cache`): its points matched
+// by their exact (s, t) (`new_sorted`: the region's boundary points sorted), its edges
+// compared; t_change is the lowest t of a point or edge end added or gone. Lattice points are
+// matched afterwards, by row and column (FrontSurface::recompute).
+FaceChange boundary_change(const FaceCache& cache, const PlanarRegion& region, const std::vector<std::pair<StKey, int>>& new_sorted) {
+  FaceChange change;
+  double t_boundary = std::numeric_limits<double>::infinity();
+  const auto& old_points = cache.region.points;
+  change.to_new.assign(old_points.size(), -1);
+  const auto& old_sorted = cache.sorted;
+  size_t o = 0, n = 0;
+  while (o < old_sorted.size() || n < new_sorted.size()) {
+    if (n == new_sorted.size() || (o < old_sorted.size() && old_sorted[o].first < new_sorted[n].first)) {
+      t_boundary = std::min(t_boundary, old_sorted[o++].first.second);  // gone
+    } else if (o == old_sorted.size() || new_sorted[n].first < old_sorted[o].first) {
+      t_boundary = std::min(t_boundary, new_sorted[n++].first.second);  // added
+    } else {
+      change.to_new[static_cast<size_t>(old_sorted[o++].second)] = new_sorted[n++].second;
+    }
+  }
+  // Boundary edges added or gone, in the new numbering (an old edge with a gone end is gone).
+  std::vector<std::array<int, 2>> old_boundary;
+  old_boundary.reserve(cache.region.boundary.size());
+  for (const auto& e : cache.region.boundary) {
+    const int from = change.to_new[static_cast<size_t>(e[0])], to = change.to_new[static_cast<size_t>(e[1])];
+    if (from < 0 || to < 0) {
+      t_boundary = std::min({t_boundary, old_points[static_cast<size_t>(e[0])].y(), old_points[static_cast<size_t>(e[1])].y()});
+      continue;
+    }
+    old_boundary.push_back({from, to});
+  }
+  change.sorted_boundary = region.boundary;
+  std::sort(old_boundary.begin(), old_boundary.end());
+  std::sort(change.sorted_boundary.begin(), change.sorted_boundary.end());
+  std::vector<std::array<int, 2>> differ;
+  std::set_symmetric_difference(old_boundary.begin(), old_boundary.end(), change.sorted_boundary.begin(), change.sorted_boundary.end(),
+                                std::back_inserter(differ));
+  for (const auto& e : differ)
+    t_boundary = std::min({t_boundary, region.points[static_cast<size_t>(e[0])].y(), region.points[static_cast<size_t>(e[1])].y()});
+  change.t_change = t_boundary;
+  return change;
+}
+
 // triangulate_region(region), keeping what the last sample's triangulation (`cache`) has well
 // behind the front. Between two samples the region changes only at and above some t (the
 // lowest t of a point added or gone, or of an end of a boundary edge added or gone: the
@@ -348,15 +391,10 @@ std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, Fac
                                                  FaceCache&& next, double slack, int& kept_count) {
   kept_count = 0;
   const auto keep = [&](std::vector<std::array<int, 3>> face) {
-    cache.valid = true;
-    cache.region = region;
-    cache.triangles = face;
-    cache.sorted = std::move(next.sorted);
-    cache.lattice_begin = next.lattice_begin;
-    cache.row_start = std::move(next.row_start);
-    cache.column = std::move(next.column);
-    cache.lifted = std::move(next.lifted);
-    cache.lifted_final = std::move(next.lifted_final);
+    next.valid = true;
+    next.region = region;
+    next.triangles = face;
+    cache = std::move(next);
     return face;
   };
   const auto whole = [&] { return keep(triangulate_region(region)); };
@@ -1261,43 +1299,8 @@ void FrontSurface::recompute(FrontCutReport& report) {
   FaceCache& cache = stroke.face;
   const bool incremental = reuse_face_ && cache.valid;
   FaceChange change;
-  double t_boundary = std::numeric_limits<double>::infinity();
-  if (incremental) {
-    const auto& old_points = cache.region.points;
-    change.to_new.assign(old_points.size(), -1);
-    const auto& old_sorted = cache.sorted;
-    const auto& new_sorted = next.sorted;
-    size_t o = 0, n = 0;
-    while (o < old_sorted.size() || n < new_sorted.size()) {
-      if (n == new_sorted.size() || (o < old_sorted.size() && old_sorted[o].first < new_sorted[n].first)) {
-        t_boundary = std::min(t_boundary, old_sorted[o++].first.second);  // gone
-      } else if (o == old_sorted.size() || new_sorted[n].first < old_sorted[o].first) {
-        t_boundary = std::min(t_boundary, new_sorted[n++].first.second);  // added
-      } else {
-        change.to_new[static_cast<size_t>(old_sorted[o++].second)] = new_sorted[n++].second;
-      }
-    }
-    // Boundary edges added or gone, in the new numbering (an old edge with a gone end is gone).
-    std::vector<std::array<int, 2>> old_boundary;
-    old_boundary.reserve(cache.region.boundary.size());
-    for (const auto& e : cache.region.boundary) {
-      const int from = change.to_new[static_cast<size_t>(e[0])], to = change.to_new[static_cast<size_t>(e[1])];
-      if (from < 0 || to < 0) {
-        t_boundary = std::min({t_boundary, old_points[static_cast<size_t>(e[0])].y(), old_points[static_cast<size_t>(e[1])].y()});
-        continue;
-      }
-      old_boundary.push_back({from, to});
-    }
-    change.sorted_boundary = region.boundary;
-    std::sort(old_boundary.begin(), old_boundary.end());
-    std::sort(change.sorted_boundary.begin(), change.sorted_boundary.end());
-    std::vector<std::array<int, 2>> differ;
-    std::set_symmetric_difference(old_boundary.begin(), old_boundary.end(), change.sorted_boundary.begin(), change.sorted_boundary.end(),
-                                  std::back_inserter(differ));
-    for (const auto& e : differ)
-      t_boundary = std::min({t_boundary, region.points[static_cast<size_t>(e[0])].y(), region.points[static_cast<size_t>(e[1])].y()});
-    change.t_change = t_boundary;
-  }
+  if (incremental) change = boundary_change(cache, region, next.sorted);
+  const double t_boundary = change.t_change;  // infinite when not incremental
   const auto distance_to_segment = [](const Vec2& p, const Vec2& a, const Vec2& b) {
     const Vec2 d = b - a;
     const double length_squared = d.squaredNorm();
