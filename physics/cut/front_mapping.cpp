@@ -181,7 +181,7 @@ Vec3 inset_point(const Vec3& vertex, const Vec3& normal, double inset, const Cut
 class Mapper {
  public:
   Mapper(const CorotationalEfg& model, const std::vector<Vec3>& vertices, const std::vector<Vec3>& normals,
-         const std::vector<std::vector<ConstraintPlane>>& planes, const FrontVisibility* visibility,
+         const VertexPlanes& planes, const FrontVisibility* visibility,
          const std::vector<Vec3>* inward, const ElementCubes& bins)
       : model_(model), vertices_(vertices), normals_(normals), planes_(planes), visibility_(visibility), inward_(inward), bins_(bins) {}
 
@@ -299,7 +299,7 @@ class Mapper {
   const CorotationalEfg& model_;
   const std::vector<Vec3>& vertices_;
   const std::vector<Vec3>& normals_;
-  const std::vector<std::vector<ConstraintPlane>>& planes_;
+  const VertexPlanes& planes_;
   const FrontVisibility* visibility_;
   const std::vector<Vec3>* inward_;  // per vertex, its start point for visibility
   const ElementCubes& bins_;  // each rest integration point lies in its cube, so a point in the
@@ -384,7 +384,7 @@ void ElementCubes::update(const CorotationalEfg& from) {
 
 void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                        const std::vector<std::array<int, 3>>& triangles,
-                       const std::vector<std::vector<ConstraintPlane>>& planes, std::span<const int> remap,
+                       const VertexPlanes& planes, std::span<const int> remap,
                        SurfaceEmbedding& embedding, FrontMappingReport& report, const FrontVisibility* visibility,
                        const TrianglesAround* around, ElementCubes* cubes) {
   const int n = static_cast<int>(vertices.size());
@@ -670,7 +670,7 @@ void sort_mixed_keys(std::vector<std::pair<std::uint64_t, int>>& pairs) {
 }  // namespace
 
 FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
-                                          const std::vector<std::vector<ConstraintPlane>>& planes,
+                                          const VertexPlanes& planes,
                                           std::span<const std::uint8_t> crack_front, int first,
                                           std::span<const int> among) {
   const int n = static_cast<int>(vertices.size());

@@ -84,7 +84,7 @@ struct ElementCubes {
 };
 void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                        const std::vector<std::array<int, 3>>& triangles,
-                       const std::vector<std::vector<ConstraintPlane>>& planes, std::span<const int> remap,
+                       const VertexPlanes& planes, std::span<const int> remap,
                        SurfaceEmbedding& embedding, FrontMappingReport& report,
                        const FrontVisibility* visibility = nullptr, const TrianglesAround* around = nullptr,
                        ElementCubes* cubes = nullptr);
@@ -181,7 +181,7 @@ struct FrontVertexIdentity {
   std::vector<std::pair<std::uint64_t, int>> sorted;
 };
 FrontVertexIdentity front_vertex_identity(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
-                                          const std::vector<std::vector<ConstraintPlane>>& planes,
+                                          const VertexPlanes& planes,
                                           std::span<const std::uint8_t> crack_front, int first,
                                           std::span<const int> among = {});
 // Per vertex of `now` (indices from now.first on; the vector has now.first + now.key.size()

@@ -589,6 +589,34 @@ struct FrontSurface::Stroke {
   }
 };
 
+std::vector<std::vector<ConstraintPlane>> VertexPlanes::lists() const {
+  std::vector<std::vector<ConstraintPlane>> all = lists_;
+  all.reserve(size());
+  for (std::size_t v = lists_.size(); v < size(); ++v) {
+    const auto planes = (*this)[v];
+    all.emplace_back(planes.begin(), planes.end());
+  }
+  return all;
+}
+
+void VertexPlanes::set_singles(std::size_t count) {
+  singles_ = count;
+  if (single_.size() < count) single_.resize(count);
+  has_single_.assign(count, 0);
+}
+
+void VertexPlanes::add(std::size_t v, const ConstraintPlane& plane) {
+  if (v < lists_.size()) {
+    lists_[v].push_back(plane);
+    return;
+  }
+  const std::size_t k = v - lists_.size();
+  if (k >= singles_) throw std::logic_error("VertexPlanes::add: vertex " + std::to_string(v) + " is past the last one");
+  if (has_single_[k]) throw std::logic_error("VertexPlanes::add: vertex " + std::to_string(v) + " takes one plane and has it");
+  single_[k] = plane;
+  has_single_[k] = 1;
+}
+
 FrontSurface::~FrontSurface() = default;
 FrontSurface::FrontSurface(FrontSurface&&) noexcept = default;
 FrontSurface& FrontSurface::operator=(FrontSurface&&) noexcept = default;
@@ -682,7 +710,7 @@ FrontSurface::FrontSurface(std::vector<Vec3> vertices, std::vector<std::array<in
 void FrontSurface::show_base() {
   vertices_ = base_vertices_;
   triangles_ = base_triangles_;
-  vertex_planes_ = base_planes_;
+  vertex_planes_ = VertexPlanes(base_planes_);
   crack_front_ = base_crack_front_;
   crack_front_.resize(vertices_.size(), 0);
   cut_face_ = base_cut_face_;
@@ -698,18 +726,13 @@ void FrontSurface::restore_base() {
     triangles_[static_cast<size_t>(s)] = base_triangles_[static_cast<size_t>(s)];
     cut_face_[static_cast<size_t>(s)] = base_cut_face_[static_cast<size_t>(s)];
   }
-  for (const int v : planed_base_) vertex_planes_[static_cast<size_t>(v)] = base_planes_[static_cast<size_t>(v)];
+  for (const int v : planed_base_) vertex_planes_.listed()[static_cast<size_t>(v)] = base_planes_[static_cast<size_t>(v)];
   replaced_slots_.clear();
   planed_base_.clear();
   triangles_.resize(base_triangles_.size());
   cut_face_.resize(base_triangles_.size());
   vertices_.resize(base_vertices_.size());
-  // The stroke's vertices' plane lists go to the pool, emptied, for the next sample's.
-  for (size_t v = base_vertices_.size(); v < vertex_planes_.size(); ++v) {
-    vertex_planes_[v].clear();
-    plane_pool_.push_back(std::move(vertex_planes_[v]));
-  }
-  vertex_planes_.resize(base_vertices_.size());
+  vertex_planes_.set_singles(0);
   crack_front_.resize(base_vertices_.size());
 }
 
@@ -819,7 +842,7 @@ bool FrontSurface::end_stroke(double reach) {
   if (report.ok() && samples_.size() >= 2) {
     base_vertices_ = vertices_;
     base_triangles_ = triangles_;
-    base_planes_ = vertex_planes_;
+    base_planes_ = vertex_planes_.lists();
     base_cut_face_ = cut_face_;
     base_crack_front_ = crack_front_;
     index_base();
@@ -1564,29 +1587,24 @@ void FrontSurface::recompute(FrontCutReport& report) {
 
   // Constraint planes (seed 004 §2.6, criterion 3): each end of a cut edge and its copy of the
   // pair face across the sheet; so do the cut faces' inner vertices, each on its side.
-  const size_t planes_before = vertex_planes_.size();
-  vertex_planes_.resize(vertices_.size());
-  for (size_t v = planes_before; v < vertex_planes_.size() && !plane_pool_.empty(); ++v) {
-    vertex_planes_[v] = std::move(plane_pool_.back());
-    plane_pool_.pop_back();
-  }
+  vertex_planes_.set_singles(vertices_.size() - base_vertices_.size());
   crack_front_.resize(vertices_.size(), 0);  // the base's flags, then the stroke's vertices'
   for (const int v : front_vertices) crack_front_[static_cast<size_t>(v)] = 1;
   for (const EdgeCut& cut : cuts) {
     const ConstraintPlane lower{cut.point, cut.lower_on_plus ? Vec3(-cut.normal) : cut.normal};
     const ConstraintPlane higher{cut.point, -lower.normal};
-    vertex_planes_[static_cast<size_t>(cut.lower)].push_back(lower);
-    vertex_planes_[static_cast<size_t>(cut.higher)].push_back(higher);
+    vertex_planes_.add(static_cast<size_t>(cut.lower), lower);
+    vertex_planes_.add(static_cast<size_t>(cut.higher), higher);
     planed_base_.push_back(cut.lower);
     planed_base_.push_back(cut.higher);
-    vertex_planes_[static_cast<size_t>(cut.copy_lower)].push_back(lower);
-    vertex_planes_[static_cast<size_t>(cut.copy_higher)].push_back(higher);
+    vertex_planes_.add(static_cast<size_t>(cut.copy_lower), lower);
+    vertex_planes_.add(static_cast<size_t>(cut.copy_higher), higher);
   }
   for (const int p : inner_points) {
     const Vec3& x = vertices_[static_cast<size_t>(region_vertex[static_cast<size_t>(p)])];
     const Vec3 normal = face_normal[static_cast<size_t>(p)].normalized();
-    vertex_planes_[static_cast<size_t>(region_vertex[static_cast<size_t>(p)])].push_back({x, normal});
-    vertex_planes_[static_cast<size_t>(region_vertex_plus[static_cast<size_t>(p)])].push_back({x, -normal});
+    vertex_planes_.add(static_cast<size_t>(region_vertex[static_cast<size_t>(p)]), {x, normal});
+    vertex_planes_.add(static_cast<size_t>(region_vertex_plus[static_cast<size_t>(p)]), {x, -normal});
   }
   std::sort(planed_base_.begin(), planed_base_.end());
   planed_base_.erase(std::unique(planed_base_.begin(), planed_base_.end()), planed_base_.end());

@@ -74,6 +74,36 @@ struct ConstraintPlane {
   Vec3 normal = Vec3::Zero();
 };
 
+// Per vertex, its constraint planes: a list each for the first vertices (all of them when
+// made from lists), then at most one each for those after. FrontSurface keeps its base's
+// vertices in lists (a base vertex at the end of several cut edges has a plane per edge)
+// and its stroke's vertices, which get one plane or none and are all made again at every
+// sample, in one flat array (no list per vertex to allocate, fill and clear).
+class VertexPlanes {
+ public:
+  VertexPlanes() = default;
+  VertexPlanes(std::vector<std::vector<ConstraintPlane>> lists) : lists_(std::move(lists)) {}  // NOLINT: implicit on purpose
+  std::size_t size() const { return lists_.size() + singles_; }
+  std::span<const ConstraintPlane> operator[](std::size_t v) const {
+    if (v < lists_.size()) return lists_[v];
+    const std::size_t k = v - lists_.size();
+    return {single_.data() + k, has_single_[k] ? std::size_t{1} : std::size_t{0}};
+  }
+  // Every vertex's planes as lists.
+  std::vector<std::vector<ConstraintPlane>> lists() const;
+
+  // For FrontSurface: the listed vertices' lists, and the one-plane vertices after them.
+  std::vector<std::vector<ConstraintPlane>>& listed() { return lists_; }
+  void set_singles(std::size_t count);  // `count` vertices after the listed ones, with no plane
+  void add(std::size_t v, const ConstraintPlane& plane);  // to a list, or a one-plane vertex's only one
+
+ private:
+  std::vector<std::vector<ConstraintPlane>> lists_;
+  std::vector<ConstraintPlane> single_;  // may be longer than singles_ (kept between samples)
+  std::vector<std::uint8_t> has_single_;
+  std::size_t singles_ = 0;
+};
+
 struct FrontCutReport {
   int crossings = 0;           // base edges the stroke's sheet crosses
   int tips = 0;                // base triangles the sheet's boundary crosses
@@ -141,7 +171,7 @@ class FrontSurface {
   // keeps it across strokes; each vertex of a pair, of a slit's middle pair, and each inner
   // vertex of a cut face, gets the plane of the sheet on its side; the shared vertices along
   // the front get none.
-  const std::vector<std::vector<ConstraintPlane>>& vertex_planes() const { return vertex_planes_; }
+  const VertexPlanes& vertex_planes() const { return vertex_planes_; }
   // Per vertex: 1 where the two sides of a cut meet (the stroke's tips, and the vertices
   // along the front and the other parts of the sheet's outline inside the body; and those
   // of the cracks earlier strokes left inside the body), which belong to neither side.
@@ -193,10 +223,7 @@ class FrontSurface {
   std::vector<std::vector<ConstraintPlane>> base_planes_;
   std::vector<Vec3> vertices_;
   std::vector<std::array<int, 3>> triangles_;
-  std::vector<std::vector<ConstraintPlane>> vertex_planes_;
-  // Emptied plane lists of the last sample's stroke vertices, reused by the next sample's
-  // (a sample re-emits every stroke vertex: their lists are not allocated again each time).
-  std::vector<std::vector<ConstraintPlane>> plane_pool_;
+  VertexPlanes vertex_planes_;  // the base's vertices listed, the stroke's one plane or none each
   std::vector<std::uint8_t> crack_front_, base_crack_front_;
   std::vector<std::uint8_t> base_cut_face_, cut_face_;
   std::vector<int> replaced_slots_, planed_base_;

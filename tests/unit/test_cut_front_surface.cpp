@@ -550,7 +550,7 @@ TEST(FrontSurface, WhatAStrokeLeavesAloneKeepsItsSlotAndIndexAndTheChangeIsListe
   for (const double x : {-0.3, 0.25}) {
     const std::vector<Vec3> base_vertices = surface.vertices();
     const std::vector<std::array<int, 3>> base_triangles = surface.triangles();
-    const std::vector<std::vector<ConstraintPlane>> base_planes = surface.vertex_planes();
+    const std::vector<std::vector<ConstraintPlane>> base_planes = surface.vertex_planes().lists();
     const std::vector<std::uint8_t> base_crack = surface.crack_front(), base_face = surface.on_cut_face();
     ASSERT_EQ(surface.base_triangle_count(), static_cast<int>(base_triangles.size()));
     ASSERT_EQ(surface.base_vertex_count(), static_cast<int>(base_vertices.size()));
