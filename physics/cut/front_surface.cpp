@@ -950,7 +950,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
   stroke.intervals_searched = intervals;
   report.problems = stroke.problems;
   report.folded_edges = stroke.folded_edges;
-  std::vector<EdgeCut> cuts = stroke.cuts;  // this call's copy: its output vertices
+  std::vector<EdgeCut>& cuts = stroke.cuts;  // their output vertices are set below, at every call
   const std::vector<int>& edge_cut = stroke.edge_cut;
   const EdgeTable& edges = base_->edges;
   report.crossings = static_cast<int>(cuts.size());
