@@ -37,6 +37,7 @@ struct PointBins {
   double cell = 1;
   std::array<long long, 3> count{0, 0, 0};
   std::vector<int> start, items;
+  std::vector<Vec3> item_points;  // per item, its point at the build
 
   bool build(const std::vector<Vec3>& points, double spacing) {
     if (points.empty()) return false;
@@ -69,6 +70,8 @@ struct PointBins {
     items.resize(points.size());
     std::vector<int> fill(start.begin(), start.end() - 1);
     for (size_t e = 0; e < points.size(); ++e) items[static_cast<size_t>(fill[static_cast<size_t>(slot_of[e])]++)] = static_cast<int>(e);
+    item_points.resize(points.size());
+    for (size_t s = 0; s < items.size(); ++s) item_points[s] = points[static_cast<size_t>(items[s])];
     return true;
   }
   std::array<long long, 3> coordinates(const Vec3& p) const {
@@ -927,13 +930,20 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
           candidates.emplace_back(e, d);
           least = std::min(least, d);
         };
+        // A binned point farther than reach + drift from q where it was binned is farther than
+        // reach now: it can be neither within the bound nor near it (both below reach, checked
+        // below), and is passed over without being formed; all are taken when the box holds
+        // every bin. (The box is a cube around that ball.)
+        const double ball = (reach + drift) * (reach + drift) * (1 + 1e-9);
         for (long long k = first[2]; k <= last[2]; ++k)
           for (long long j = first[1]; j <= last[1]; ++j)
             for (long long i = first[0]; i <= last[0]; ++i) {
               const size_t b = static_cast<size_t>(i + bins.count[0] * (j + bins.count[1] * k));
               for (int s = bins.start[b]; s < bins.start[b + 1]; ++s) {
                 const int e = bins.items[static_cast<size_t>(s)];
-                if (!search.loose.loose[e]) consider(e);
+                if (search.loose.loose[e]) continue;
+                if (!everything && (bins.item_points[static_cast<size_t>(s)] - q).squaredNorm() > ball) continue;
+                consider(e);
               }
             }
         // The loose ones are where they are now: only those within reach of q (per axis) can be
