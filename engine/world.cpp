@@ -353,7 +353,7 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
       body.front_identity.first = body.front_mapped_base;
       body.front_topology = physics::surface_topology(body.front_surface->triangles());
       physics::update_elements_linked_across(*model, *body.front_rest_cut, body.linked_across, shape.lo, shape.hi,
-                                             nullptr, &body.link_boxes, &body.linked_seen);
+                                             nullptr, &body.link_boxes, &body.linked_seen, &body.linked_index);
       body.surface = body.front_surface->triangles();
       body.render_triangles.clear();
       for (const auto& t : body.surface)
@@ -379,7 +379,7 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
         throw std::logic_error("remapping an unchanged surface recomputed rows");
       // Likewise the linked-across check's box of each element's links.
       physics::update_elements_linked_across(*model, body.cut_surface->rest_cut(), body.linked_across, shape.lo,
-                                             shape.hi, nullptr, &body.link_boxes, &body.linked_seen);
+                                             shape.hi, nullptr, &body.link_boxes, &body.linked_seen, &body.linked_index);
       body.surface = body.cut_surface->triangles();
       body.render_triangles.clear();
       for (const auto& t : body.surface)
@@ -662,7 +662,7 @@ void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const
   // Every triangle the cut gained this step lies in the dirty box (the sweep's, grown).
   cut_totals_.elements_linked_across = physics::update_elements_linked_across(
       *body.efg, body.cut_surface->rest_cut(), body.linked_across, dirty_lo, dirty_hi, &changed,
-      &body.link_boxes, &body.linked_seen);
+      &body.link_boxes, &body.linked_seen, &body.linked_index);
   stats.ms_checks += ms_since(start);
 }
 
@@ -1097,7 +1097,7 @@ void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, con
   for (int v = kept; v < n; ++v) wrong += counts(v);
   cut_totals_.wrong_side = std::max(cut_totals_.wrong_side, wrong);
   cut_totals_.elements_linked_across = physics::update_elements_linked_across(
-      *body.efg, *body.front_rest_cut, body.linked_across, dirty_lo, dirty_hi, &changed, &body.link_boxes, &body.linked_seen);
+      *body.efg, *body.front_rest_cut, body.linked_across, dirty_lo, dirty_hi, &changed, &body.link_boxes, &body.linked_seen, &body.linked_index);
   stats.ms_checks += ms_since(start);
 }
 

@@ -106,6 +106,7 @@ struct Body {
   std::vector<std::uint8_t> linked_across;          // per element, kept by update_elements_linked_across
   std::vector<std::array<physics::Vec3, 2>> link_boxes;  // its cache of the elements' link boxes
   std::vector<int> linked_seen;  // and per element the rest cut's size when its flag was taken
+  physics::LinkedAcrossIndex linked_index;  // and its index of the elements by their centre
   physics::Vector gravity;                         // 3n, constant
   physics::ImplicitEulerSettings integrator;
   // solver.backend "gpu": the body's step, surface and rows on the GPU (its own context).

@@ -310,8 +310,21 @@ int elements_linked_across(const CorotationalEfg& model, const RestCut& cut);
 // `changed`) keeps per element the cut's size when its flag was last taken: an unchanged
 // element is then tested against the triangles added since only (it keeps its links and the
 // cut only grows: linked before, linked still), with the same outcome as the whole cut's.
+// `index` (may be null; used with `boxes` and `changed`) finds the elements whose links can
+// reach into [lo, hi] from their centres (at rest, which never move) binned, within the
+// largest reach of a cached link box from its centre, instead of looking at every element's
+// box: the same elements, the same flags.
+struct LinkedAcrossIndex {
+  double cell = 0;
+  Vec3 origin = Vec3::Zero();
+  std::array<long long, 3> count{0, 0, 0};
+  std::vector<int> start, items;  // per bin its elements (compressed rows); empty: to be built
+  double reach = 0;               // per axis, over the cached boxes (kept as they change: only grows)
+  int deactivated = -1;           // the model's deactivated elements when their flags were last cleared
+};
 int update_elements_linked_across(const CorotationalEfg& model, const RestCut& cut, std::vector<std::uint8_t>& linked,
                                   const Vec3& lo, const Vec3& hi, const std::vector<std::uint8_t>* changed,
-                                  std::vector<std::array<Vec3, 2>>* boxes = nullptr, std::vector<int>* seen = nullptr);
+                                  std::vector<std::array<Vec3, 2>>* boxes = nullptr, std::vector<int>* seen = nullptr,
+                                  LinkedAcrossIndex* index = nullptr);
 
 }  // namespace incise::physics

@@ -241,6 +241,12 @@ TEST(CutSurface, LinkedAcrossKeptUpToDateEqualsTheFullCount) {
   const std::vector<std::uint8_t> unchanged(static_cast<size_t>(model.element_count()), 0);
   std::vector<std::array<Vec3, 2>> boxes, boxes_seen, boxes_skipping, boxes_skipping_seen;
   std::vector<int> seen, skipping_seen;
+  // Found by their centres (LinkedAcrossIndex), with every seventh element marked changed.
+  std::vector<std::uint8_t> linked_indexed, some_changed(static_cast<size_t>(model.element_count()), 0);
+  for (size_t e = 0; e < some_changed.size(); e += 7) some_changed[e] = 1;
+  std::vector<std::array<Vec3, 2>> boxes_indexed;
+  std::vector<int> seen_indexed;
+  LinkedAcrossIndex index;
   int previous = 0;
   for (int strip = 0; strip < 8; ++strip) {
     // A slanted strip: x from 0.02 + 0.008 strip, top to bottom.
@@ -263,6 +269,11 @@ TEST(CutSurface, LinkedAcrossKeptUpToDateEqualsTheFullCount) {
     EXPECT_EQ(since, full) << "strip " << strip;
     EXPECT_EQ(linked_cached, linked) << "strip " << strip;
     EXPECT_EQ(linked_seen, linked) << "strip " << strip;
+    const int indexed = update_elements_linked_across(model, surface.rest_cut(), linked_indexed, lo, hi, &some_changed,
+                                                      &boxes_indexed, &seen_indexed, &index);
+    EXPECT_EQ(indexed, full) << "strip " << strip;
+    EXPECT_EQ(linked_indexed, linked) << "strip " << strip;
+    EXPECT_EQ(index.items.size(), strip == 0 ? 0u : static_cast<size_t>(model.element_count())) << "strip " << strip << ": built after the first";
     // Called only every other strip with that strip's box (the triangles of the strip between
     // are outside it: the count can miss them), the per-element `seen` must still give
     // exactly what testing the whole cut gives.

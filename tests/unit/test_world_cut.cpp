@@ -183,6 +183,9 @@ void expect_front_kept_as_whole(const World& world, const Body& body, const std:
   const physics::SurfaceTopology full = physics::surface_topology(body.surface);
   EXPECT_EQ(body.front_topology.boundary_edges, full.boundary_edges) << when;
   EXPECT_EQ(body.front_topology.nonmanifold_edges, full.nonmanifold_edges) << when;
+  // The linked-across count kept around each cut (the elements found by their centres) is the
+  // full one.
+  EXPECT_EQ(world.cut_totals().elements_linked_across, physics::elements_linked_across(*body.efg, *body.front_rest_cut)) << when;
   std::set<std::array<double, 9>> seen;
   std::vector<std::array<physics::Vec3, 3>> faces;
   std::vector<std::uint8_t> on_face(front.vertices().size(), 0);
