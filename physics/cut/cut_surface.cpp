@@ -1302,7 +1302,7 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
     for (int e = 0; e < elements; ++e) (*boxes)[e] = link_box(e);
   }
   // The index stands for the cached boxes: built again after they were all taken again.
-  if (index && (!cached || cut.size() == 0)) index->items.clear();
+  if (index && (!cached || cut.size() == 0)) index->centres.items.clear();
   if (cut.size() == 0) {  // nothing to be linked across (the boxes are kept up to date all the same)
     if (cached)
       for (int e = 0; e < elements; ++e)
@@ -1321,50 +1321,22 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
   // Elements are never re-activated (CorotationalEfg::deactivate_element is final).
   // One pass over the elements: those to test (changed, or whose links reach into the box).
   std::vector<int> to_test;
-  if (index && cached && !all) {
+  // How far an element's cached link box reaches from its centre (per axis).
+  const auto extent = [&](int e) {
+    const Vec3 centre = model.element_centres()[e];
+    const auto& box = (*boxes)[e];
+    return std::max((centre - box[0]).maxCoeff(), (box[1] - centre).maxCoeff());
+  };
+  bool indexed = index && cached && !all;
+  if (indexed && index->centres.items.empty()) {
+    index->reach = 0;
+    for (int e = 0; e < elements; ++e) index->reach = std::max(index->reach, extent(e));
+    index->deactivated = -1;
+    indexed = index->centres.build(model.element_centres(), model.spacing());  // else the plain pass below
+  }
+  if (indexed) {
     // The same elements from the index: those changed (their boxes taken again, the reach
     // grown to hold them), and those whose centre lies within the reach of the box, tested.
-    const auto extent = [&](int e) {
-      const Vec3 centre = model.element_centres()[e];
-      const auto& box = (*boxes)[e];
-      return std::max((centre - box[0]).maxCoeff(), (box[1] - centre).maxCoeff());
-    };
-    if (index->items.empty()) {
-      index->reach = 0;
-      Vec3 centres_lo = model.element_centres()[0], centres_hi = centres_lo;
-      for (int e = 0; e < elements; ++e) {
-        centres_lo = centres_lo.cwiseMin(model.element_centres()[e]);
-        centres_hi = centres_hi.cwiseMax(model.element_centres()[e]);
-        index->reach = std::max(index->reach, extent(e));
-      }
-      index->origin = centres_lo;
-      index->cell = std::max(model.spacing(), 1e-12);
-      for (;;) {  // about an element per bin at most: coarser when the body is spread out
-        long long total = 1;
-        for (int axis = 0; axis < 3; ++axis) {
-          index->count[static_cast<size_t>(axis)] = static_cast<long long>((centres_hi[axis] - centres_lo[axis]) / index->cell) + 1;
-          total *= index->count[static_cast<size_t>(axis)];
-        }
-        if (total <= 8 * static_cast<long long>(elements) + 64) break;
-        index->cell *= 2;
-      }
-      const auto bin_of = [&](const Vec3& x) {
-        long long b = 0;
-        for (int axis = 2; axis >= 0; --axis) {
-          const long long c = std::clamp(static_cast<long long>(std::floor((x[axis] - index->origin[axis]) / index->cell)), 0LL,
-                                         index->count[static_cast<size_t>(axis)] - 1);
-          b = b * index->count[static_cast<size_t>(axis)] + c;
-        }
-        return static_cast<size_t>(b);
-      };
-      index->start.assign(static_cast<size_t>(index->count[0] * index->count[1] * index->count[2]) + 1, 0);
-      for (int e = 0; e < elements; ++e) ++index->start[bin_of(model.element_centres()[e]) + 1];
-      for (size_t b = 1; b < index->start.size(); ++b) index->start[b] += index->start[b - 1];
-      index->items.resize(static_cast<size_t>(elements));
-      std::vector<int> fill(index->start.begin(), index->start.end() - 1);
-      for (int e = 0; e < elements; ++e) index->items[static_cast<size_t>(fill[bin_of(model.element_centres()[e])]++)] = e;
-      index->deactivated = -1;
-    }
     // Elements are never re-activated: their flags are cleared once, when the count moves.
     if (index->deactivated != model.deactivated_elements()) {
       for (int e = 0; e < elements; ++e)
@@ -1378,32 +1350,17 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
         to_test.push_back(e);
       }
     const size_t changed_count = to_test.size();
-    // Bins holding every centre within the reach of [lo, hi] (with room for rounding).
-    const double margin = index->reach * (1 + 1e-9) + 1e-12 * index->cell;
-    std::array<long long, 3> first{}, last{};
-    bool empty = false;
-    for (int axis = 0; axis < 3; ++axis) {
-      const double from = std::floor((lo[axis] - margin - index->origin[axis]) / index->cell);
-      const double to = std::floor((hi[axis] + margin - index->origin[axis]) / index->cell);
-      const long long n = index->count[static_cast<size_t>(axis)];
-      if (!(to >= 0) || !(from <= static_cast<double>(n - 1))) empty = true;
-      first[static_cast<size_t>(axis)] = std::clamp(static_cast<long long>(std::max(from, -1.0)), 0LL, n - 1);
-      last[static_cast<size_t>(axis)] = std::clamp(static_cast<long long>(std::min(to, static_cast<double>(n))), 0LL, n - 1);
-    }
-    if (!empty)
-      for (long long k = first[2]; k <= last[2]; ++k)
-        for (long long j = first[1]; j <= last[1]; ++j)
-          for (long long i = first[0]; i <= last[0]; ++i) {
-            const size_t b = static_cast<size_t>(i + index->count[0] * (j + index->count[1] * k));
-            for (int s = index->start[b]; s < index->start[b + 1]; ++s) {
-              const int e = index->items[static_cast<size_t>(s)];
-              if (!(*changed)[e] && model.element_active(e) && in_box((*boxes)[e])) to_test.push_back(e);
-            }
-          }
+    // The bins holding every centre within the reach of [lo, hi] (with room for rounding).
+    const double margin = index->reach * (1 + 1e-9) + 1e-12 * index->centres.cell;
+    const PointBins& bins = index->centres;
+    bins.visit_box(lo - Vec3::Constant(margin), hi + Vec3::Constant(margin), [&](int s) {
+      const int e = bins.items[static_cast<size_t>(s)];
+      if (!(*changed)[e] && model.element_active(e) && in_box((*boxes)[e])) to_test.push_back(e);
+    });
     std::sort(to_test.begin() + static_cast<std::ptrdiff_t>(changed_count), to_test.end());
     std::inplace_merge(to_test.begin(), to_test.begin() + static_cast<std::ptrdiff_t>(changed_count), to_test.end());
   } else {
-    if (index) index->items.clear();  // the boxes may change without it
+    if (index) index->centres.items.clear();  // the boxes may change without it
     for (int e = 0; e < elements; ++e) {
       if (!model.element_active(e)) {
         linked[e] = 0;

@@ -45,6 +45,7 @@
 #pragma once
 
 #include "physics/cut/broad_phase.hpp"
+#include "physics/cut/point_bins.hpp"
 #include "physics/efg/corotational_efg.hpp"
 
 #include <array>
@@ -315,12 +316,9 @@ int elements_linked_across(const CorotationalEfg& model, const RestCut& cut);
 // largest reach of a cached link box from its centre, instead of looking at every element's
 // box: the same elements, the same flags.
 struct LinkedAcrossIndex {
-  double cell = 0;
-  Vec3 origin = Vec3::Zero();
-  std::array<long long, 3> count{0, 0, 0};
-  std::vector<int> start, items;  // per bin its elements (compressed rows); empty: to be built
-  double reach = 0;               // per axis, over the cached boxes (kept as they change: only grows)
-  int deactivated = -1;           // the model's deactivated elements when their flags were last cleared
+  PointBins centres;     // the elements' centres; no items: to be built
+  double reach = 0;      // per axis, over the cached boxes (kept as they change: only grows)
+  int deactivated = -1;  // the model's deactivated elements when their flags were last cleared
 };
 int update_elements_linked_across(const CorotationalEfg& model, const RestCut& cut, std::vector<std::uint8_t>& linked,
                                   const Vec3& lo, const Vec3& hi, const std::vector<std::uint8_t>* changed,

@@ -1,6 +1,7 @@
 #include "physics/cut/volume_cut.hpp"
 
 #include "physics/cut/continuous_collision.hpp"
+#include "physics/cut/point_bins.hpp"
 #include "physics/efg/mls.hpp"
 
 #include <Eigen/LU>
@@ -29,58 +30,6 @@ constexpr int graph_radius = 3;
 void check_finite(const Vector& v, const char* name) {
   if (!v.allFinite()) fail(std::string(name) + " holds a non-finite value");
 }
-
-// The integration points binned in cubes of side `cell` over their box, each bin's elements
-// by increasing index (to_rest's search; rebuilt when the points may have moved a spacing).
-struct PointBins {
-  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
-  double cell = 1;
-  std::array<long long, 3> count{0, 0, 0};
-  std::vector<int> start, items;
-  std::vector<Vec3> item_points;  // per item, its point at the build
-
-  bool build(const std::vector<Vec3>& points, double spacing) {
-    if (points.empty()) return false;
-    hi = points[0];
-    lo = points[0];
-    for (const Vec3& p : points) {
-      if (!p.allFinite()) return false;
-      lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-    }
-    // About one point per bin; coarser when the body is spread out (never more bins than 8
-    // per point).
-    cell = spacing;
-    for (;;) {
-      long long total = 1;
-      for (int axis = 0; axis < 3; ++axis) {
-        count[axis] = static_cast<long long>((hi[axis] - lo[axis]) / cell) + 1;
-        total *= count[axis];
-      }
-      if (total <= 8 * static_cast<long long>(points.size()) + 64) break;
-      cell *= 2;
-    }
-    start.assign(static_cast<size_t>(count[0] * count[1] * count[2]) + 1, 0);
-    std::vector<long long> slot_of(points.size());
-    for (size_t e = 0; e < points.size(); ++e) {
-      const auto c = coordinates(points[e]);
-      slot_of[e] = c[0] + count[0] * (c[1] + count[1] * c[2]);
-      ++start[static_cast<size_t>(slot_of[e]) + 1];
-    }
-    for (size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
-    items.resize(points.size());
-    std::vector<int> fill(start.begin(), start.end() - 1);
-    for (size_t e = 0; e < points.size(); ++e) items[static_cast<size_t>(fill[static_cast<size_t>(slot_of[e])]++)] = static_cast<int>(e);
-    item_points.resize(points.size());
-    for (size_t s = 0; s < items.size(); ++s) item_points[s] = points[static_cast<size_t>(items[s])];
-    return true;
-  }
-  std::array<long long, 3> coordinates(const Vec3& p) const {
-    std::array<long long, 3> c{};
-    for (int axis = 0; axis < 3; ++axis)
-      c[axis] = std::clamp(static_cast<long long>(std::floor((p[axis] - lo[axis]) / cell)), 0LL, count[axis] - 1);
-    return c;
-  }
-};
 
 // Whether the boxes [lo_a, hi_a] and [lo_b, hi_b] overlap (touching counts; a NaN bound
 // meets nothing).
@@ -126,25 +75,7 @@ struct BoxIndex {
   template <class Visit>
   void query(const Vec3& lo, const Vec3& hi, double grow, Visit&& visit) const {
     const double r = reach + grow + slack;
-    std::array<long long, 3> first{}, last{};
-    for (int axis = 0; axis < 3; ++axis) {
-      const double low = lo[axis] - r, high = hi[axis] + r;
-      const auto cell = [&](double x) {
-        const double c = std::floor((x - bins.lo[axis]) / bins.cell);
-        return static_cast<long long>(std::clamp(c, 0.0, static_cast<double>(bins.count[axis] - 1)));
-      };
-      if (std::isnan(low) || std::isnan(high)) {
-        first[axis] = 0, last[axis] = bins.count[axis] - 1;
-      } else {
-        first[axis] = cell(low), last[axis] = cell(high);
-      }
-    }
-    for (long long k = first[2]; k <= last[2]; ++k)
-      for (long long j = first[1]; j <= last[1]; ++j)
-        for (long long i = first[0]; i <= last[0]; ++i) {
-          const size_t b = static_cast<size_t>(i + bins.count[0] * (j + bins.count[1] * k));
-          for (int s = bins.start[b]; s < bins.start[b + 1]; ++s) visit(bins.items[static_cast<size_t>(s)]);
-        }
+    bins.visit_box(lo - Vec3::Constant(r), hi + Vec3::Constant(r), [&](int s) { visit(bins.items[static_cast<size_t>(s)]); });
   }
 };
 
@@ -935,17 +866,12 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
         // below), and is passed over without being formed; all are taken when the box holds
         // every bin. (The box is a cube around that ball.)
         const double ball = (reach + drift) * (reach + drift) * (1 + 1e-9);
-        for (long long k = first[2]; k <= last[2]; ++k)
-          for (long long j = first[1]; j <= last[1]; ++j)
-            for (long long i = first[0]; i <= last[0]; ++i) {
-              const size_t b = static_cast<size_t>(i + bins.count[0] * (j + bins.count[1] * k));
-              for (int s = bins.start[b]; s < bins.start[b + 1]; ++s) {
-                const int e = bins.items[static_cast<size_t>(s)];
-                if (search.loose.loose[e]) continue;
-                if (!everything && (bins.item_points[static_cast<size_t>(s)] - q).squaredNorm() > ball) continue;
-                consider(e);
-              }
-            }
+        bins.visit_box(q - Vec3::Constant(reach + drift), q + Vec3::Constant(reach + drift), [&](int s) {
+          const int e = bins.items[static_cast<size_t>(s)];
+          if (search.loose.loose[e]) return;
+          if (!everything && (bins.item_points[static_cast<size_t>(s)] - q).squaredNorm() > ball) return;
+          consider(e);
+        });
         // The loose ones are where they are now: only those within reach of q (per axis) can be
         // nearer than the bound, which must stay below reach (else the box grows, below), unless
         // the box holds every bin (then the bound is not checked: all of them).
