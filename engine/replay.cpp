@@ -499,7 +499,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     std::ofstream steps_csv(options.out_dir / "steps.csv");
     steps_csv << "step,time_s,ms_total,ms_tool_input,ms_contact,ms_solve,ms_surface,cg_iterations,"
                  "cg_residual,contacts,tool_force_x,tool_force_y,tool_force_z,elastic_energy_J,kinetic_energy_J,"
-                 "ms_ccd,ms_topology,links_severed,ms_rest_cut,ms_reselect,ms_surface_rebuild,ms_mapping,ms_checks\n";
+                 "ms_ccd,ms_topology,links_severed,ms_rest_cut,ms_reselect,ms_surface_rebuild,ms_mapping,ms_checks,ms_front_cut,ms_front_wait\n";
     for (std::size_t k = 0; k < stats.size(); ++k) {
       const auto& s = stats[k];
       steps_csv << (k + 1) << ',' << static_cast<double>(k + 1) * scene.solver.dt << ',' << s.ms_total << ','
@@ -508,7 +508,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
                 << ',' << s.tool_force[1] << ',' << s.tool_force[2] << ',' << s.elastic_energy << ','
                 << s.kinetic_energy << ',' << s.ms_ccd << ',' << s.ms_topology << ',' << s.links_severed << ','
                 << s.ms_rest_cut << ',' << s.ms_reselect << ',' << s.ms_surface_rebuild << ',' << s.ms_mapping << ','
-                << s.ms_checks << '\n';
+                << s.ms_checks << ',' << s.ms_front_cut << ',' << s.ms_front_wait << '\n';
     }
   }
   std::ofstream out(options.out_dir / "metrics.json");

@@ -341,6 +341,7 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
       physics::fair_surface_onto_shape(vertices, initial.triangles(), shape.inside, resolution);
       body.front_surface = std::make_unique<physics::FrontSurface>(std::move(vertices), initial.triangles(), 1.5 * resolution);
       body.front_rest_cut = std::make_unique<physics::RestCut>(2 * resolution);
+      if (spec.efg.threads >= 2) body.front_pool = std::make_unique<physics::WorkerPool>(2);
       body.cutter = std::make_unique<physics::VolumeCutter>(*model, 1e-6, 0.5 * spec.resolution);
       body.embedding.emplace();
       std::vector<int> all(body.front_surface->vertices().size());
@@ -1245,12 +1246,12 @@ void World::cut_body(Body& body, StepStats& stats) {
     }
   }
   int faces = 0;
-  if (body.cut_surface) {
-    faces = body.cut_surface->cut(triangles);
-  } else {
-    // The thesis's surface cut: each moment is a blade sample of the stroke; a stroke ends
-    // when the blade disengages or its front has left the body after cutting.
-    for (const auto& t : triangles) body.front_rest_cut->add(t);
+  // The thesis's surface cut: each moment is a blade sample of the stroke; a stroke ends when
+  // the blade disengages or its front has left the body after cutting. It needs nothing the
+  // volume's cut below makes, nor the volume anything it makes (the volume's agreement pass
+  // reads the sweep at rest, front_rest_cut, filled here first), so with a front pool the two
+  // run side by side.
+  const auto cut_front = [&] {
     physics::FrontSurface& front = *body.front_surface;
     for (const auto& [blade_at_rest, starts_run] : moments) {
       if (starts_run && front.stroke_samples() > 1) {
@@ -1278,10 +1279,13 @@ void World::cut_body(Body& body, StepStats& stats) {
       if (cut.crossings + cut.tips > 0) ++faces;
       if (cut.ok() && cut.crossings > 0 && !cut.front_in_body) close_front_stroke(body, 0);
     }
-    body.front_engaged = active.back() != 0;
+  };
+  if (body.cut_surface) {
+    faces = body.cut_surface->cut(triangles);
+  } else {
+    for (const auto& t : triangles) body.front_rest_cut->add(t);
   }
-  const double ms_rest = ms_since(topology_start);
-  stats.ms_rest_cut += ms_rest;
+  double ms_rest = ms_since(topology_start);
   // The volume: CCD of the sweep against the links, re-selection kept consistent with the
   // rest cut around this sweep.
   physics::VolumeCutter::RestVisibility visibility;
@@ -1293,9 +1297,48 @@ void World::cut_body(Body& body, StepStats& stats) {
     for (const auto* p : {&t.a, &t.b, &t.c}) visibility.lo = visibility.lo.cwiseMin(*p), visibility.hi = visibility.hi.cwiseMax(*p);
   visibility.lo -= physics::Vec3::Constant(2 * body.efg->spacing());
   visibility.hi += physics::Vec3::Constant(2 * body.efg->spacing());
-  const physics::VolumeCutReport report = body.cutter->cut(tool_.blade_poses, tool_.blade_fractions, active,
-                                                           body.previous_positions, body.state.positions,
-                                                           triangles.empty() ? nullptr : &visibility);
+  physics::VolumeCutReport report;
+  const auto cut_volume = [&] {
+    report = body.cutter->cut(tool_.blade_poses, tool_.blade_fractions, active, body.previous_positions, body.state.positions,
+                              triangles.empty() ? nullptr : &visibility);
+  };
+  if (body.front_surface && !moments.empty()) {
+    // The volume on this thread (a GPU body's context is current here), the surface on the
+    // pool's other one. The step waits for the surface only when it takes longer than the
+    // volume: that wait is the surface cut's share of the step (ms_rest_cut, ms_topology),
+    // its whole time ms_front_cut.
+    const auto fork = Clock::now();
+    double ms_volume = 0, ms_front = 0;
+    const auto job = [&](int k) {
+      const auto start = Clock::now();
+      if (k == 0) {
+        cut_volume();
+        ms_volume = ms_since(start);
+      } else {
+        cut_front();
+        ms_front = ms_since(start);
+      }
+    };
+    if (body.front_pool) {
+      body.front_pool->run(2, [&](int begin, int end) {
+        for (int k = begin; k < end; ++k) job(k);
+      });
+    } else {
+      job(1);
+      job(0);
+    }
+    const double wall = ms_since(fork);
+    const double wait = std::max(0.0, wall - ms_volume);
+    stats.ms_front_cut += ms_front;
+    stats.ms_front_wait += wait;
+    ms_rest += wait;
+  } else {
+    if (body.front_surface) cut_front();
+    ms_rest = ms_since(topology_start);
+    cut_volume();
+  }
+  if (body.front_surface) body.front_engaged = active.back() != 0;
+  stats.ms_rest_cut += ms_rest;
   stats.ms_ccd += report.ms_ccd;
   stats.ms_reselect += report.ms_topology;
   topology_start = Clock::now();

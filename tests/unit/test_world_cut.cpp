@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <set>
 #include <string>
+#include <tuple>
 
 
 using namespace incise::engine;
@@ -400,6 +401,43 @@ TEST(WorldCut, TheFrontSurfaceKeptWhereTheStrokeChangedItIsTheWholeSurfacesAtEve
   }, 110);
   EXPECT_GT(events, 20);
   EXPECT_EQ(wrong_side, 0);
+}
+
+TEST(WorldCut, TheFrontSurfacesCutBesideTheVolumesGivesWhatItGivesInSequence) {
+  // With efg.threads >= 2 a cutting step runs the surface's cut (FrontSurface::advance) on a
+  // second thread beside the volume's CCD and re-selection; with 1 it runs before them, as
+  // it always did. Neither reads what the other writes, so the steps must agree bit for bit:
+  // the particles, the surface, the counts (and ThreadSanitizer, in CI, sees the overlap).
+  const auto run = [](int threads, double& front_ms) {
+    Scene scene = load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes/cut_twisting_blade.json");
+    scene.bodies[0].efg.threads = threads;
+    World world(scene, read_trajectory(*scene.tool->trajectory));
+    EXPECT_EQ(world.bodies()[0].front_pool != nullptr, threads >= 2);
+    front_ms = 0;
+    int events = 0;
+    for (int k = 0; k < 100; ++k) {
+      const StepStats stats = world.step();
+      events += stats.cut_event ? 1 : 0;
+      front_ms += stats.ms_front_cut;
+    }
+    const Body& body = world.bodies()[0];
+    return std::make_tuple(world.state_hash(), body.front_surface->vertices(), body.surface, events,
+                           world.cut_totals().links_severed, world.cut_totals().front_problems, world.cut_totals().wrong_side);
+  };
+  double beside_ms = 0, sequence_ms = 0;
+  const auto beside = run(2, beside_ms);
+  const auto sequence = run(1, sequence_ms);
+  EXPECT_GT(std::get<3>(beside), 20);
+  EXPECT_GT(beside_ms, 0);  // the surface's cut ran, and was timed, on the pool
+  EXPECT_GT(sequence_ms, 0);
+  EXPECT_EQ(std::get<0>(beside), std::get<0>(sequence));
+  EXPECT_TRUE(std::get<1>(beside) == std::get<1>(sequence));
+  EXPECT_TRUE(std::get<2>(beside) == std::get<2>(sequence));
+  EXPECT_EQ(std::get<3>(beside), std::get<3>(sequence));
+  EXPECT_EQ(std::get<4>(beside), std::get<4>(sequence));
+  EXPECT_EQ(std::get<5>(beside), 0);
+  EXPECT_EQ(std::get<5>(sequence), 0);
+  EXPECT_EQ(std::get<6>(beside), std::get<6>(sequence));
 }
 
 TEST(WorldCut, TheMappingKeptAcrossTheShippedCutScenesIsAFreshOneAtEveryEvent) {
