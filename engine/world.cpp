@@ -341,7 +341,7 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
       physics::fair_surface_onto_shape(vertices, initial.triangles(), shape.inside, resolution);
       body.front_surface = std::make_unique<physics::FrontSurface>(std::move(vertices), initial.triangles(), 1.5 * resolution);
       body.front_rest_cut = std::make_unique<physics::RestCut>(2 * resolution);
-      if (spec.efg.threads >= 2) body.front_pool = std::make_unique<physics::WorkerPool>(2);
+      if (spec.efg.threads >= 2) body.front_side = std::make_unique<physics::SideRunner>();
       body.cutter = std::make_unique<physics::VolumeCutter>(*model, 1e-6, 0.5 * spec.resolution);
       body.embedding.emplace();
       std::vector<int> all(body.front_surface->vertices().size());
@@ -1304,28 +1304,26 @@ void World::cut_body(Body& body, StepStats& stats) {
   };
   if (body.front_surface && !moments.empty()) {
     // The volume on this thread (a GPU body's context is current here), the surface on the
-    // pool's other one. The step waits for the surface only when it takes longer than the
-    // volume: that wait is the surface cut's share of the step (ms_rest_cut, ms_topology),
-    // its whole time ms_front_cut.
+    // helper (or here, after the volume, if the helper has not begun it by then). The step
+    // waits for the surface only when it takes longer than the volume: that wait is the
+    // surface cut's share of the step (ms_rest_cut, ms_topology), its whole time ms_front_cut.
     const auto fork = Clock::now();
     double ms_volume = 0, ms_front = 0;
-    const auto job = [&](int k) {
-      const auto start = Clock::now();
-      if (k == 0) {
-        cut_volume();
-        ms_volume = ms_since(start);
-      } else {
-        cut_front();
-        ms_front = ms_since(start);
-      }
+    const std::function<void()> volume_job = [&] {
+      cut_volume();
+      ms_volume = ms_since(fork);
     };
-    if (body.front_pool) {
-      body.front_pool->run(2, [&](int begin, int end) {
-        for (int k = begin; k < end; ++k) job(k);
-      });
+    const std::function<void()> front_job = [&] {
+      const auto start = Clock::now();
+      cut_front();
+      ms_front = ms_since(start);
+    };
+    if (body.front_side) {
+      body.front_side->run(volume_job, front_job);
     } else {
-      job(1);
-      job(0);
+      front_job();
+      volume_job();
+      ms_volume -= ms_front;
     }
     const double wall = ms_since(fork);
     const double wait = std::max(0.0, wall - ms_volume);

@@ -75,10 +75,10 @@ struct Body {
   // the count of each vertex's constraint planes at its last mapping.
   std::unique_ptr<physics::FrontSurface> front_surface;
   std::unique_ptr<physics::RestCut> front_rest_cut;
-  // Two threads (the deformation thread and one more) when efg.threads >= 2: a cutting step's
-  // surface cut (FrontSurface::advance, the blade's samples at rest) runs beside the volume's
-  // CCD and re-selection, which need nothing from it (World::cut_body).
-  std::unique_ptr<physics::WorkerPool> front_pool;
+  // A helper thread when efg.threads >= 2: a cutting step's surface cut (FrontSurface::advance,
+  // the blade's samples at rest) runs on it beside the volume's CCD and re-selection, which
+  // need nothing from it (World::cut_body).
+  std::unique_ptr<physics::SideRunner> front_side;
   std::vector<std::size_t> front_plane_counts;
   int front_stroke_folds = 0;  // folded_edges of the stroke's last report
   std::vector<std::uint8_t> front_wrong_side;  // per surface vertex: its point across a cut face when last tested

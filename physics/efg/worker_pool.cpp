@@ -93,4 +93,83 @@ void WorkerPool::work(int index) {
   }
 }
 
+SideRunner::SideRunner() : thread_([this] { work(); }) {}
+
+SideRunner::~SideRunner() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  thread_.join();
+}
+
+std::uint64_t SideRunner::taken_by_helper() const {
+  std::lock_guard lock(mutex_);
+  return taken_;
+}
+
+void SideRunner::run(const std::function<void()>& own, const std::function<void()>& side) {
+  {
+    std::lock_guard lock(mutex_);
+    job_ = &side;
+    error_ = nullptr;
+  }
+  wake_.notify_one();
+  std::exception_ptr own_error;
+  try {
+    own();
+  } catch (...) {
+    own_error = std::current_exception();
+  }
+  bool mine = false;
+  std::exception_ptr side_error;
+  {
+    std::unique_lock lock(mutex_);
+    if (job_) {
+      job_ = nullptr;  // the helper has not begun it: it is done here
+      mine = true;
+    } else {
+      done_.wait(lock, [this] { return !running_; });
+      side_error = error_;
+    }
+  }
+  if (mine) {
+    try {
+      side();
+    } catch (...) {
+      side_error = std::current_exception();
+    }
+  }
+  if (own_error) std::rethrow_exception(own_error);
+  if (side_error) std::rethrow_exception(side_error);
+}
+
+void SideRunner::work() {
+  for (;;) {
+    const std::function<void()>* job = nullptr;
+    {
+      std::unique_lock lock(mutex_);
+      wake_.wait(lock, [this] { return stopping_ || job_ != nullptr; });
+      if (stopping_) return;
+      job = job_;
+      job_ = nullptr;
+      running_ = true;
+      ++taken_;
+    }
+    std::exception_ptr error;
+    try {
+      (*job)();
+    } catch (...) {
+      error = std::current_exception();
+    }
+    {
+      std::lock_guard lock(mutex_);
+      error_ = error;
+      running_ = false;
+    }
+    done_.notify_all();
+  }
+}
+
 }  // namespace incise::physics

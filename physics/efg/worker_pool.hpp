@@ -1,5 +1,6 @@
-// A fixed set of worker threads that split a loop into contiguous ranges (std::thread only:
-// the physics library takes no OpenMP or TBB dependency).
+// A fixed set of worker threads that split a loop into contiguous ranges, and a helper thread
+// that runs one job beside the caller's (std::thread only: the physics library takes no
+// OpenMP or TBB dependency).
 #pragma once
 
 #include <condition_variable>
@@ -45,6 +46,36 @@ class WorkerPool {
   int pending_ = 0;
   bool stopping_ = false;
   std::exception_ptr error_;
+};
+
+// One helper thread for one job beside the caller's own: run(own, side) calls own() on the
+// calling thread and side() on the helper, or on the calling thread after own() when the
+// helper has not begun it by then, so that a helper the system wakes late never makes the
+// caller wait for it (a pool's run must wait for every thread it wakes to check in). Returns
+// when both are done; an exception of either is rethrown here (own's first). Not reentrant.
+class SideRunner {
+ public:
+  SideRunner();
+  ~SideRunner();
+  SideRunner(const SideRunner&) = delete;
+  SideRunner& operator=(const SideRunner&) = delete;
+
+  void run(const std::function<void()>& own, const std::function<void()>& side);
+  // Runs so far whose side job the helper took (the others ran on the calling thread).
+  std::uint64_t taken_by_helper() const;
+
+ private:
+  void work();
+
+  mutable std::mutex mutex_;
+  std::condition_variable wake_;
+  std::condition_variable done_;
+  const std::function<void()>* job_ = nullptr;  // posted and not yet taken
+  bool running_ = false;                        // the helper took the job and runs it
+  bool stopping_ = false;
+  std::uint64_t taken_ = 0;
+  std::exception_ptr error_;  // the helper's, for the current run
+  std::thread thread_;        // last: started once the rest is set up
 };
 
 }  // namespace incise::physics
