@@ -1341,7 +1341,15 @@ void FrontSurface::recompute(FrontCutReport& report) {
     const double f = length_squared > 0 ? std::clamp((p - a).dot(d) / length_squared, 0.0, 1.0) : 0.0;
     return (p - (a + f * d)).norm();
   };
-  // The boundary's edges binned in cells of side w over the (s, t) rectangle.
+  // Rows taken whole from the last sample's lattice: below t_boundary by the gap and the
+  // jitter (a thousandth of w) with room. The rows made again are those from r_first on: only
+  // they look at the boundary's edges (binned below) and at where it crosses them.
+  const int old_rows = incremental ? static_cast<int>(cache.row_start.size()) - 1 : 0;
+  const auto row_taken = [&](int r) { return r < old_rows && r * row + gap + 2e-3 * w < t_boundary; };
+  int r_first = 1;
+  while (row_taken(r_first)) ++r_first;
+  // The boundary's edges binned in cells of side w over the (s, t) rectangle (the cells below
+  // the lowest one a point of row r_first falls in are never looked at: left empty).
   const int columns = std::max(1, static_cast<int>(std::ceil(extent.x() / w))), rows = std::max(1, static_cast<int>(std::ceil(extent.y() / w)));
   // Compressed rows: per cell its edges, increasing (counted, then filled).
   const size_t cell_count = static_cast<size_t>(columns) * static_cast<size_t>(rows);
@@ -1349,12 +1357,13 @@ void FrontSurface::recompute(FrontCutReport& report) {
   const auto cell_range = [&](double lo, double hi, int count) {
     return std::pair{std::clamp(static_cast<int>(std::floor(lo / w)), 0, count - 1), std::clamp(static_cast<int>(std::floor(hi / w)), 0, count - 1)};
   };
+  const int lowest_cell_row = cell_range(r_first * row, r_first * row, rows).first;
   const auto for_cells_of_edge = [&](size_t e, const auto& visit) {
     const Vec2& a = region.points[static_cast<size_t>(region.boundary[e][0])];
     const Vec2& b = region.points[static_cast<size_t>(region.boundary[e][1])];
     const auto [c0, c1] = cell_range(std::min(a.x(), b.x()) - gap, std::max(a.x(), b.x()) + gap, columns);
     const auto [r0, r1] = cell_range(std::min(a.y(), b.y()) - gap, std::max(a.y(), b.y()) + gap, rows);
-    for (int r = r0; r <= r1; ++r)
+    for (int r = std::max(r0, lowest_cell_row); r <= r1; ++r)
       for (int c = c0; c <= c1; ++c) visit(static_cast<size_t>(r) * static_cast<size_t>(columns) + static_cast<size_t>(c));
   };
   for (size_t e = 0; e < region.boundary.size(); ++e) for_cells_of_edge(e, [&](size_t cell) { ++cell_start[cell + 1]; });
@@ -1376,20 +1385,17 @@ void FrontSurface::recompute(FrontCutReport& report) {
     if (a.y() == b.y()) continue;
     const Vec2& low = a.y() < b.y() ? a : b;
     const Vec2& high = a.y() < b.y() ? b : a;
-    for (int r = std::max(1, static_cast<int>(std::ceil(low.y() / row))); r < static_cast<int>(row_crossings.size()) && r * row < high.y(); ++r) {
+    for (int r = std::max(r_first, static_cast<int>(std::ceil(low.y() / row))); r < static_cast<int>(row_crossings.size()) && r * row < high.y(); ++r) {
       if (r * row < low.y()) continue;
       const double f = (r * row - low.y()) / (high.y() - low.y());
       row_crossings[static_cast<size_t>(r)].emplace_back(low.x() + f * (high.x() - low.x()), a.y() < b.y() ? 1 : -1);
     }
   }
-  // Rows taken whole from the last sample's lattice: below t_boundary by the gap and the
-  // jitter (a thousandth of w) with room.
-  const int old_rows = incremental ? static_cast<int>(cache.row_start.size()) - 1 : 0;
   next.row_start.assign(2, 0);  // rows 0 (empty) and, below, 1, 2, ...
   for (int r = 1; r * row < extent.y(); ++r) {
     const int old_first = r < old_rows ? cache.row_start[static_cast<size_t>(r)] : 0;
     const int old_last = r < old_rows ? cache.row_start[static_cast<size_t>(r) + 1] : 0;
-    if (r < old_rows && r * row + gap + 2e-3 * w < t_boundary) {
+    if (r < r_first) {
       for (int k = old_first; k < old_last; ++k) {
         const int old_index = cache.lattice_begin + k;
         change.to_new[static_cast<size_t>(old_index)] = add_point(cache.region.points[static_cast<size_t>(old_index)], -1, -1);
