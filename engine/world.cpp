@@ -1249,8 +1249,8 @@ void World::cut_body(Body& body, StepStats& stats) {
   // The thesis's surface cut: each moment is a blade sample of the stroke; a stroke ends when
   // the blade disengages or its front has left the body after cutting. It needs nothing the
   // volume's cut below makes, nor the volume anything it makes (the volume's agreement pass
-  // reads the sweep at rest, front_rest_cut, filled here first), so with a front pool the two
-  // run side by side.
+  // reads the sweep at rest, front_rest_cut, filled here first), so with a helper thread
+  // (Body::front_side) the two run side by side.
   const auto cut_front = [&] {
     physics::FrontSurface& front = *body.front_surface;
     for (const auto& [blade_at_rest, starts_run] : moments) {
