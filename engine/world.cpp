@@ -1310,8 +1310,9 @@ void World::cut_body(Body& body, StepStats& stats) {
     const auto fork = Clock::now();
     double ms_volume = 0, ms_front = 0;
     const std::function<void()> volume_job = [&] {
+      const auto start = Clock::now();
       cut_volume();
-      ms_volume = ms_since(fork);
+      ms_volume = ms_since(start);
     };
     const std::function<void()> front_job = [&] {
       const auto start = Clock::now();
@@ -1323,7 +1324,6 @@ void World::cut_body(Body& body, StepStats& stats) {
     } else {
       front_job();
       volume_job();
-      ms_volume -= ms_front;
     }
     const double wall = ms_since(fork);
     const double wait = std::max(0.0, wall - ms_volume);
@@ -1331,9 +1331,7 @@ void World::cut_body(Body& body, StepStats& stats) {
     stats.ms_front_wait += wait;
     ms_rest += wait;
   } else {
-    if (body.front_surface) cut_front();
-    ms_rest = ms_since(topology_start);
-    cut_volume();
+    cut_volume();  // no surface sample to cut this step (or the voxel design, cut above)
   }
   if (body.front_surface) body.front_engaged = active.back() != 0;
   stats.ms_rest_cut += ms_rest;
