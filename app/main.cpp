@@ -124,11 +124,7 @@ int main(int argc, char** argv) {
   performance_cmd->add_option("--backend", performance_backend, "gpu: also run every size on the GPU backend")
       ->check(CLI::IsMember({"cpu", "gpu"}))
       ->capture_default_str();
-  std::string performance_surface = "front";
-  performance_cmd->add_option("--surface", performance_surface,
-                              "The lobe's efg.cut_surface: front (the scene's), voxel, or both (each size with each)")
-      ->check(CLI::IsMember({"voxel", "front", "both"}))
-      ->capture_default_str();
+  const std::string performance_surface = "front";
 
   incise::bench::HapticsBenchOptions haptics_bench;
   std::string haptics_scene;

@@ -356,10 +356,8 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
       physics::Vector rest_vertices;
       physics::CorotationalEfg::surface_positions(*body.embedding, rest, rest_vertices);
       const auto indices = static_cast<std::size_t>(body.embedding->vertex_count());
-      // A cut surface keeps the indices its rebuilds left unused (in no triangle): not counted.
-      surface_vertices = body.cut_surface ? static_cast<std::size_t>(body.cut_surface->vertex_count()) : indices;
+      surface_vertices = indices;
       for (std::size_t v = 0; v < indices; ++v) {
-        if (body.cut_surface && !body.cut_surface->vertex_used(static_cast<int>(v))) continue;
         const auto at = static_cast<Eigen::Index>(3 * v);
         surface_max = std::max(surface_max, (body.surface_positions.segment<3>(at) - rest_vertices.segment<3>(at)).norm());
       }
@@ -459,7 +457,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     long vertices = 0, triangles = 0;
     int boundary = 0, nonmanifold = 0;
     for (const auto& body : world.bodies()) {
-      vertices += body.cut_surface ? body.cut_surface->vertex_count() : static_cast<long>(body.surface_positions.size() / 3);
+      vertices += static_cast<long>(body.surface_positions.size() / 3);
       triangles += static_cast<long>(body.surface.size());
       const physics::SurfaceTopology topology_now = physics::surface_topology(body.surface);
       boundary += topology_now.boundary_edges;
@@ -473,7 +471,6 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
                           {"worst_boundary_edges", totals.worst_boundary_edges},
                           {"worst_nonmanifold_edges", totals.worst_nonmanifold_edges},
                           {"watertight_after_every_event", totals.worst_boundary_edges == 0 && totals.worst_nonmanifold_edges == 0},
-                          {"pinches_closed", totals.pinches_closed},
                           {"front_problems", totals.front_problems},
                           {"first_front_problem", totals.first_front_problem},
                           {"front_folded_edges", totals.front_folded_edges},

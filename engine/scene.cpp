@@ -259,7 +259,11 @@ BodySpec read_body(const Json& node, const std::string& path, const std::filesys
       if (er.has("surface_resolution"))
         b.efg.surface_resolution = er.number("surface_resolution", false, 0.005, 1e-4, 10, true);
       cut_surface_given = er.has("cut_surface");
-      b.efg.cut_surface = er.text("cut_surface", false, "front", {"voxel", "front"});
+      // One cut-surface design: the voxel boundary separated along the cut gave way to the
+      // thesis's front (seed 004 §2.5), which follows the blade's path rather than cells.
+      if (er.text("cut_surface", false, "front", {"voxel", "front"}) == "voxel")
+        er.error(er.child("cut_surface"), "'voxel' was removed: the thesis's front surface ('front', the default) "
+                                          "replaced it; drop the key or write \"front\"");
     }
   }
   b.cuttable = r.boolean("cuttable", false);

@@ -58,10 +58,6 @@ struct EfgSpec {
   bool estimate_volumes = true;  // false: every touched cube counts a full a^3
   int threads = 2;               // element loop threads (results do not depend on it)
   std::optional<double> surface_resolution;  // render surface cell size (generated bodies), m
-  // Cuttable bodies: "front" (the default), the thesis's explicit surface cut
-  // (physics/cut/front_surface.hpp), or "voxel", the voxel boundary separated along the cut
-  // (physics/cut/cut_surface.hpp). Both run on either backend.
-  std::string cut_surface = "front";
 };
 
 struct BodySpec {

@@ -282,16 +282,6 @@ std::uint8_t fixed_vertex(const Body& body, int v) {
   return 1;
 }
 
-// The voxel surface's triangles [first, last) on a cut face: every corner on the cut.
-void set_voxel_cut_faces(Body& body, int first, int last) {
-  const auto& on_cut = body.cut_surface->on_cut();
-  for (int t = first; t < last; ++t) {
-    const auto& tri = body.surface[static_cast<std::size_t>(t)];
-    body.render_cut_face[static_cast<std::size_t>(t)] =
-        on_cut[static_cast<std::size_t>(tri[0])] && on_cut[static_cast<std::size_t>(tri[1])] && on_cut[static_cast<std::size_t>(tri[2])];
-  }
-}
-
 // Surface vertex v's position from its embedding row and the particles' positions (one row of
 // CorotationalEfg::surface_positions, for the rows a cut remapped).
 void set_surface_position(Body& body, int v) {
@@ -328,18 +318,17 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
   physics::Vector rest_vertices;
   try {
     model = std::make_unique<physics::CorotationalEfg>(shape.inside, shape.lo, shape.hi, material, settings);
-    if (spec.cuttable && spec.efg.cut_surface == "front") {
+    if (spec.cuttable) {
       // The thesis's explicit surface cut, starting from the same voxel boundary (snapped
       // onto the shape), its front's width w 1.5 cells (seed 004 §2.5: about the surface's
       // triangle size).
       const double resolution = spec.efg.surface_resolution.value_or(0.5 * spec.resolution);
-      const physics::CutSurface initial(shape.inside, shape.lo, shape.hi, resolution);
-      std::vector<physics::Vec3> vertices(static_cast<std::size_t>(initial.rest_vertices().size() / 3));
-      for (std::size_t v = 0; v < vertices.size(); ++v) vertices[v] = initial.rest_vertices().segment<3>(3 * static_cast<Eigen::Index>(v));
+      physics::TriangleSurface initial = physics::voxel_boundary(shape.inside, shape.lo, shape.hi, resolution);
+      std::vector<physics::Vec3>& vertices = initial.vertices;
       // No element carries this surface: its vertices go onto the shape and even out along it
       // (the voxel snap stops short where its tetrahedra would flatten: a hammered look).
-      physics::fair_surface_onto_shape(vertices, initial.triangles(), shape.inside, resolution);
-      body.front_surface = std::make_unique<physics::FrontSurface>(std::move(vertices), initial.triangles(), 1.5 * resolution);
+      physics::fair_surface_onto_shape(vertices, initial.triangles, shape.inside, resolution);
+      body.front_surface = std::make_unique<physics::FrontSurface>(std::move(vertices), initial.triangles, 1.5 * resolution);
       body.front_rest_cut = std::make_unique<physics::RestCut>(2 * resolution);
       if (spec.efg.threads >= 2) body.front_side = std::make_unique<physics::SideRunner>();
       body.cutter = std::make_unique<physics::VolumeCutter>(*model, 1e-6, 0.5 * spec.resolution);
@@ -360,40 +349,6 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
       for (const auto& t : body.surface)
         for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
       body.render_cut_face = body.front_surface->on_cut_face();
-    } else if (spec.cuttable) {
-      // The cut surface is a voxel boundary of its own (mesh bodies too: the imported mesh
-      // only gives the shape), separated along the cut as the blade passes.
-      const double resolution = spec.efg.surface_resolution.value_or(0.5 * spec.resolution);
-      body.cut_surface = std::make_unique<physics::CutSurface>(shape.inside, shape.lo, shape.hi, resolution);
-      body.cutter = std::make_unique<physics::VolumeCutter>(*model, 1e-6, 0.5 * spec.resolution);
-      physics::SurfaceMappingReport mapping;
-      body.embedding = physics::map_surface(*model, *body.cut_surface, mapping);
-      body.mapping_reuse.keys = body.cut_surface->vertex_keys();
-      body.mapping_reuse.rest_vertices = body.cut_surface->rest_vertices();
-      body.mapping_reuse.anchors = body.cut_surface->anchors();
-      body.mapping_reuse.triangles_mapped = body.cut_surface->rest_cut().size();
-      body.mapping_reuse.revision = body.cut_surface->revision();
-      // Once more, remapping nothing, to index the rows by element now rather than at the
-      // first cut (about 25 ms at 20k elements, which would land in that step's topology).
-      physics::remap_surface(*model, *body.cut_surface, *body.embedding, mapping, body.mapping_reuse);
-      if (mapping.mapped != static_cast<int>(body.cut_surface->vertex_count()))
-        throw std::logic_error("remapping an unchanged surface recomputed rows");
-      // Likewise the linked-across check's box of each element's links.
-      physics::update_elements_linked_across(*model, body.cut_surface->rest_cut(), body.linked_across, shape.lo,
-                                             shape.hi, nullptr, &body.link_boxes, &body.linked_seen, &body.linked_index);
-      body.surface = body.cut_surface->triangles();
-      body.render_triangles.clear();
-      for (const auto& t : body.surface)
-        for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
-      body.render_cut_face.assign(body.surface.size(), 0);
-      set_voxel_cut_faces(body, 0, static_cast<int>(body.surface.size()));
-      // Room for what the cuts add (the cut faces' vertices and triangles), so that the first
-      // cuts grow these lists in place rather than move them (about 50 MB at 20k elements,
-      // 6 ms of that step's topology); past the room they double as usual.
-      const auto room = [](auto& list) { list.reserve(list.size() + list.size() / 4); };
-      room(body.surface), room(body.render_triangles), room(body.mapping_reuse.keys), room(body.mapping_reuse.anchors);
-      room(body.embedding->elements), room(body.embedding->row_lengths), room(body.embedding->particles);
-      room(body.embedding->weights);
     } else {
       make_render_surface(body, spec, shape, rest_vertices);
     }
@@ -599,72 +554,6 @@ std::vector<physics::NodalSpring> World::contact(const Body& body, StepStats& st
     }
   }
   return springs;
-}
-
-void World::rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
-                                const std::vector<std::uint8_t>& changed, bool surface_changed,
-                                bool fixed_changed, StepStats& stats) {
-  // Only the volume changed (links cut, no cube face): the surface is the same, its
-  // vertices near the changed elements are remapped.
-  auto start = Clock::now();
-  if (surface_changed) body.cut_surface->rebuild();
-  stats.ms_surface_rebuild += ms_since(start);
-  start = Clock::now();
-  physics::SurfaceMappingReport mapping;
-  physics::MappingReuse& reuse = body.mapping_reuse;
-  reuse.element_changed = &changed;
-  physics::remap_surface(*body.efg, *body.cut_surface, *body.embedding, mapping, reuse);
-  reuse.element_changed = nullptr;
-  if (surface_changed) {
-    // The rebuild patched its triangle list in place and says which range it wrote: the
-    // body's and the render's copies (equal to the list before the rebuild) take that range
-    // only, not the whole list.
-    const auto& triangles = body.cut_surface->triangles();
-    const auto [first, last] = body.cut_surface->changed_triangles();
-    body.surface.resize(triangles.size());
-    std::copy(triangles.begin() + first, triangles.begin() + last, body.surface.begin() + first);
-    body.render_triangles.resize(3 * triangles.size());
-    for (int t = first; t < last; ++t)
-      for (int c = 0; c < 3; ++c)
-        body.render_triangles[3 * static_cast<std::size_t>(t) + c] = static_cast<std::uint32_t>(triangles[t][c]);
-    body.render_cut_face.resize(triangles.size(), 0);
-    set_voxel_cut_faces(body, first, last);
-  }
-  // Only the remapped rows changed, so only their vertices' fixed flags and positions are
-  // redone: the others' positions are those update_surface took from the same particle
-  // positions (on the CPU; the GPU's are single precision, so all are taken again), and
-  // their flags stand unless particles were pinned this step (an unused index's kept row
-  // may hold a particle left orphaned).
-  if (fixed_changed) {
-    set_fixed_vertices(body);
-  } else {
-    const auto& embedding = *body.embedding;
-    body.fixed_vertices.resize(static_cast<std::size_t>(embedding.vertex_count()), 1);
-    for (int v : reuse.remapped) body.fixed_vertices[static_cast<std::size_t>(v)] = fixed_vertex(body, v);
-  }
-  if (body.gpu) {
-    physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
-  } else {
-    const auto& embedding = *body.embedding;
-    body.surface_positions.conservativeResize(3 * static_cast<Eigen::Index>(embedding.vertex_count()));
-    for (int v : reuse.remapped) set_surface_position(body, v);
-  }
-  stats.ms_mapping += ms_since(start);
-  start = Clock::now();
-  if (surface_changed) {
-    const physics::SurfaceTopology topology = body.cut_surface->topology();
-    cut_totals_.worst_boundary_edges = std::max(cut_totals_.worst_boundary_edges, topology.boundary_edges);
-    cut_totals_.worst_nonmanifold_edges = std::max(cut_totals_.worst_nonmanifold_edges, topology.nonmanifold_edges);
-  }
-  cut_totals_.vertices_remapped += mapping.mapped;
-  cut_totals_.relaxed_fallbacks += mapping.relaxed_fallbacks;
-  cut_totals_.wrong_side += mapping.wrong_side;
-  cut_totals_.pinches_closed = body.cut_surface->pinches_closed();
-  // Every triangle the cut gained this step lies in the dirty box (the sweep's, grown).
-  cut_totals_.elements_linked_across = physics::update_elements_linked_across(
-      *body.efg, body.cut_surface->rest_cut(), body.linked_across, dirty_lo, dirty_hi, &changed,
-      &body.link_boxes, &body.linked_seen, &body.linked_index);
-  stats.ms_checks += ms_since(start);
 }
 
 void World::rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
@@ -1280,16 +1169,12 @@ void World::cut_body(Body& body, StepStats& stats) {
       if (cut.ok() && cut.crossings > 0 && !cut.front_in_body) close_front_stroke(body, 0);
     }
   };
-  if (body.cut_surface) {
-    faces = body.cut_surface->cut(triangles);
-  } else {
-    for (const auto& t : triangles) body.front_rest_cut->add(t);
-  }
+  for (const auto& t : triangles) body.front_rest_cut->add(t);
   double ms_rest = ms_since(topology_start);
   // The volume: CCD of the sweep against the links, re-selection kept consistent with the
   // rest cut around this sweep.
   physics::VolumeCutter::RestVisibility visibility;
-  const physics::RestCut& rest_cut = body.cut_surface ? body.cut_surface->rest_cut() : *body.front_rest_cut;
+  const physics::RestCut& rest_cut = *body.front_rest_cut;
   visibility.blocked = [&rest_cut](const physics::Vec3& a, const physics::Vec3& b) { return rest_cut.crosses(a, b); };
   visibility.lo = physics::Vec3::Constant(1e300);
   visibility.hi = physics::Vec3::Constant(-1e300);
@@ -1331,7 +1216,7 @@ void World::cut_body(Body& body, StepStats& stats) {
     stats.ms_front_wait += wait;
     ms_rest += wait;
   } else {
-    cut_volume();  // no surface sample to cut this step (or the voxel design, cut above)
+    cut_volume();  // no surface sample to cut this step
   }
   if (body.front_surface) body.front_engaged = active.back() != 0;
   stats.ms_rest_cut += ms_rest;
@@ -1360,10 +1245,7 @@ void World::cut_body(Body& body, StepStats& stats) {
     // those with a link reaching into the box of this step's triangles (grown by 2 a).
     std::vector<std::uint8_t> element_changed(static_cast<std::size_t>(body.efg->element_count()), 0);
     for (int e : report.changed_elements) element_changed[e] = 1;
-    if (body.cut_surface)
-      rebuild_cut_surface(body, visibility.lo, visibility.hi, element_changed, faces > 0, pinned, stats);
-    else
-      rebuild_front_surface(body, visibility.lo, visibility.hi, element_changed, pinned, stats);
+    rebuild_front_surface(body, visibility.lo, visibility.hi, element_changed, pinned, stats);
   }
   stats.ms_topology += ms_rest + report.ms_topology + ms_since(topology_start);
   stats.links_severed += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;
@@ -1566,7 +1448,7 @@ void World::fill_frame(render::Frame& frame, int width, int height) const {
     mesh.normals.clear();
     mesh.color = skin_color;
     // A cut surface changes its triangles, not always their count.
-    if (body.cut_surface || body.front_surface || mesh.triangles.size() != body.render_triangles.size())
+    if (body.front_surface || mesh.triangles.size() != body.render_triangles.size())
       mesh.triangles = body.render_triangles;
   }
   // The tissue a cut exposed, drawn apart in its own colour (after the bodies' meshes, which

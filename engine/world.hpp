@@ -11,7 +11,10 @@
 #include "engine/trajectory.hpp"
 #include "physics/core/model.hpp"
 #include "physics/core/implicit_euler.hpp"
-#include "physics/cut/cut_surface.hpp"
+#include "physics/cut/linked_across.hpp"
+#include "physics/cut/rest_cut.hpp"
+#include "physics/cut/surface_topology.hpp"
+#include "physics/cut/voxel_boundary.hpp"
 #include "physics/cut/front_surface.hpp"
 #include "physics/cut/front_mapping.hpp"
 #include "physics/cut/volume_cut.hpp"
@@ -57,22 +60,19 @@ struct Body {
   std::vector<int> surface_nodes;                  // tetrahedral: nodes on the surface, increasing
   std::vector<std::uint32_t> render_triangles;     // surface triangles in render-vertex numbering
   // Cuttable bodies: per surface triangle, 1 on a cut face (the tissue a cut exposed), which
-  // fill_frame draws in the cut's colour; the front design's flags (FrontSurface::on_cut_face),
-  // the voxel design's triangles whose corners are all on the cut (CutSurface::on_cut).
+  // fill_frame draws in the cut's colour (FrontSurface::on_cut_face).
   std::vector<std::uint8_t> render_cut_face;
   std::optional<physics::SurfaceEmbedding> embedding;
   physics::Vector surface_positions;               // embedded: 3 x vertices, after the last step
   std::vector<std::uint8_t> fixed_vertices;        // embedded: vertices moved by fixed particles only
   // Cuttable bodies (seed 004 §2): the topology graph with its cutter, and the cut surface
-  // (physics/cut/cut_surface.hpp), which then is the render surface. `previous_positions` are
+  // (physics/cut/front_surface.hpp), which then is the render surface. `previous_positions` are
   // the particles before the last solve: the links move from there to state.positions over
   // the step the blade is tested against (user input happens during the last motion, §2.7).
   physics::CorotationalEfg* efg = nullptr;         // the model, when it is an EFG one
   std::unique_ptr<physics::VolumeCutter> cutter;
-  std::unique_ptr<physics::CutSurface> cut_surface;
-  // efg.cut_surface "front": the thesis's explicit surface cut instead (physics/cut/
-  // front_surface.hpp), with the sweep at rest kept apart for the volume's agreement pass and
-  // the count of each vertex's constraint planes at its last mapping.
+  // The thesis's explicit surface cut, with the sweep at rest kept apart for the volume's
+  // agreement pass and the count of each vertex's constraint planes at its last mapping.
   std::unique_ptr<physics::FrontSurface> front_surface;
   std::unique_ptr<physics::RestCut> front_rest_cut;
   // A helper thread when efg.threads >= 2: a cutting step's surface cut (FrontSurface::advance,
@@ -104,9 +104,6 @@ struct Body {
   std::vector<int> front_blade_pieces;  // the blade's resampling, per segment, kept for the strokes
   physics::Vector previous_positions;
   std::size_t orphans_pinned = 0;       // of efg->orphaned_particles()
-  // The cut surface's vertex keys, rest positions and anchors and the rest cut's size at the
-  // last mapping, so the next one reuses what did not change (physics::remap_surface).
-  physics::MappingReuse mapping_reuse;
   physics::Vec3 surface_min = physics::Vec3::Zero(), surface_max = physics::Vec3::Zero();  // rest box
   std::vector<std::uint8_t> linked_across;          // per element, kept by update_elements_linked_across
   std::vector<std::array<physics::Vec3, 2>> link_boxes;  // its cache of the elements' link boxes
@@ -192,7 +189,6 @@ struct CutTotals {
   long elements_linked_across = 0;  // after the last event: volume and surface cuts disagree
   int worst_boundary_edges = 0;   // over every cut event
   int worst_nonmanifold_edges = 0;
-  long pinches_closed = 0;
   // efg.cut_surface "front": the stroke samples its stage could not cut (left out: the
   // surface stays as the stroke's last good sample left it, closed), and the first such
   // problem in words.
@@ -267,17 +263,12 @@ class World {
   // carried through; returns whether it was.
   bool close_front_stroke(Body& body, double reach);
   // dirty_lo/hi: rest box around what the cut changed (for the linked-across check);
-  // changed: per element, re-selected;
-  // surface_changed: cube faces were cut (else only the mapping is redone); fixed_changed:
-  // particles were pinned this step (every vertex's fixed flag is taken again).
-  // The same for a front surface: its rows are redone where the stroke renumbers vertices,
+  // changed: per element, re-selected; fixed_changed: particles were pinned this step (every
+  // vertex's fixed flag is taken again). The rows are redone where the stroke renumbers vertices,
   // where a vertex gained a constraint plane, sits on a changed element, or has the segment
   // to its integration point crossed by the cut faces (seed 004 §2.6's triggers).
   void rebuild_front_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
                              const std::vector<std::uint8_t>& changed, bool fixed_changed, StepStats& stats);
-  void rebuild_cut_surface(Body& body, const physics::Vec3& dirty_lo, const physics::Vec3& dirty_hi,
-                           const std::vector<std::uint8_t>& changed, bool surface_changed, bool fixed_changed,
-                           StepStats& stats);
   void solve_body(Body& body, const std::vector<physics::NodalSpring>& springs, double end_time,
                   StepStats& stats);
 

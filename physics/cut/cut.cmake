@@ -8,7 +8,10 @@ add_library(incise_cut STATIC
   ${CMAKE_CURRENT_LIST_DIR}/continuous_collision.cpp
   ${CMAKE_CURRENT_LIST_DIR}/broad_phase.cpp
   ${CMAKE_CURRENT_LIST_DIR}/volume_cut.cpp
-  ${CMAKE_CURRENT_LIST_DIR}/cut_surface.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/rest_cut.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/surface_topology.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/linked_across.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/voxel_boundary.cpp
   ${CMAKE_CURRENT_LIST_DIR}/front_surface.cpp
   ${CMAKE_CURRENT_LIST_DIR}/front_mapping.cpp
   ${CMAKE_CURRENT_LIST_DIR}/triangulate_2d.cpp

@@ -1,7 +1,6 @@
 #include "physics/cut/front_mapping.hpp"
 
 #include "physics/core/mix.hpp"
-#include "physics/cut/cut_surface.hpp"
 
 #include "physics/efg/mls.hpp"
 
@@ -380,6 +379,38 @@ void ElementCubes::update(const CorotationalEfg& from) {
     const auto& c = cubes[static_cast<size_t>(e)];
     element_of_cube[static_cast<size_t>(c[0] + counts[0] * (c[1] + counts[1] * c[2]))] = e;
   }
+}
+
+void fit_rows(SurfaceEmbedding& embedding, int vertices, int stride) {
+  // A list that must grow gets room for a quarter more: a cut adds vertices at every event,
+  // and moving these lists (tens of MB at organ resolution) costs milliseconds.
+  const auto fit = [](auto& list, size_t size) {
+    if (size > list.capacity()) list.reserve(size + size / 4);
+    list.resize(size, {});
+  };
+  if (embedding.stride != stride && !embedding.elements.empty()) {
+    const size_t rows = embedding.elements.size(), wanted = std::max(rows, static_cast<size_t>(std::max(vertices, 0)));
+    std::vector<int> particles;
+    std::vector<double> weights;
+    particles.reserve((wanted + wanted / 4) * static_cast<size_t>(stride));
+    weights.reserve(particles.capacity());
+    particles.resize(rows * static_cast<size_t>(stride), 0);
+    weights.resize(particles.size(), 0.0);
+    for (size_t v = 0; v < rows; ++v) {
+      const int length = std::min(embedding.row_lengths[v], stride);
+      std::copy_n(embedding.particles.begin() + static_cast<std::ptrdiff_t>(v * embedding.stride), length,
+                  particles.begin() + static_cast<std::ptrdiff_t>(v * stride));
+      std::copy_n(embedding.weights.begin() + static_cast<std::ptrdiff_t>(v * embedding.stride), length,
+                  weights.begin() + static_cast<std::ptrdiff_t>(v * stride));
+    }
+    embedding.particles.swap(particles);
+    embedding.weights.swap(weights);
+  }
+  embedding.stride = stride;
+  fit(embedding.elements, static_cast<size_t>(vertices));
+  fit(embedding.row_lengths, static_cast<size_t>(vertices));
+  fit(embedding.particles, static_cast<size_t>(vertices) * stride);
+  fit(embedding.weights, static_cast<size_t>(vertices) * stride);
 }
 
 void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& vertices,

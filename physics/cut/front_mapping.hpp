@@ -23,6 +23,10 @@ struct FrontMappingReport {
   int relaxed_fallbacks = 0;  // vertices for which no candidate met all three criteria (counted, never silent)
 };
 
+// Rows sized for `vertices` at `stride`: the existing ones kept (moved to the new stride if
+// it changed), those beyond `vertices` dropped, new ones zero.
+void fit_rows(SurfaceEmbedding& embedding, int vertices, int stride);
+
 // (Re)maps the vertices listed in `remap` (strictly increasing; indices at or above the
 // embedding's row count are appended, and every one of them must be listed) onto one active
 // integration point each. The candidates are the elements whose rest integration point lies

@@ -79,11 +79,9 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
     std::ofstream csv(out_dir / "performance.csv");
     if (backend != "cpu" && backend != "gpu")
       throw std::runtime_error("--backend: '" + backend + "' is not cpu or gpu");
-    if (surface != "voxel" && surface != "front" && surface != "both")
-      throw std::runtime_error("--surface: '" + surface + "' is not voxel, front or both");
-    std::vector<std::string> surfaces;
-    if (surface != "voxel") surfaces.push_back("front");
-    if (surface != "front") surfaces.push_back("voxel");
+    if (surface != "front")
+      throw std::runtime_error("--surface: '" + surface + "': the front is the one cut surface (voxel was removed)");
+    const std::vector<std::string> surfaces{"front"};
     csv << "scene,backend,elements,triangles,ms_ccd,ms_topology,ms_solve,ms_surface,ms_total,"
            "dofs,steps,ms_topology_max,cut_share_pct,cut_events,device,bytes_uploaded_per_cut_step,"
            "bytes_full_upload,cut_surface,ms_cut,ms_mapping,ms_checks,ms_cut_first_quarter,ms_cut_last_quarter,ms_front_cut,ms_cut_cpu,ms_cut_cpu_last_quarter\n";
@@ -98,7 +96,6 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
     for (const Resolution& resolution : rows) for (const std::string& row_surface : surfaces) for (const std::string& row_backend : backends) {
       engine::Scene scene = base;
       scene.solver.backend = row_backend;
-      scene.bodies[0].efg.cut_surface = row_surface;
       scene.bodies[0].resolution = resolution.spacing;
       scene.bodies[0].efg.surface_resolution = resolution.surface;
       scene.render.capture_every = 0;

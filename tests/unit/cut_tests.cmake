@@ -4,8 +4,7 @@
 add_executable(test_cut
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_ccd.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_volume.cpp
-  ${CMAKE_CURRENT_LIST_DIR}/test_cut_surface.cpp
-  ${CMAKE_CURRENT_LIST_DIR}/test_cut_surface_incremental.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_cut_voxel_boundary.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_front_surface.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_front_mapping.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_accuracy.cpp

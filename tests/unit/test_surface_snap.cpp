@@ -1,6 +1,6 @@
 // Boundary snapping: the voxel body gets closer to the true shape and no element inverts.
 #include "physics/fem/surface_snap.hpp"
-#include "physics/cut/cut_surface.hpp"
+#include "physics/cut/voxel_boundary.hpp"
 
 #include <gtest/gtest.h>
 
@@ -60,13 +60,8 @@ struct VoxelSurface {
 };
 
 VoxelSurface voxel_surface(const std::function<bool(const Vec3&)>& inside, const Vec3& lo, const Vec3& hi, double cell) {
-  const CutSurface surface(inside, lo, hi, cell);
-  VoxelSurface out;
-  out.vertices.resize(static_cast<std::size_t>(surface.rest_vertices().size() / 3));
-  for (std::size_t v = 0; v < out.vertices.size(); ++v)
-    out.vertices[v] = surface.rest_vertices().segment<3>(3 * static_cast<Eigen::Index>(v));
-  out.triangles = surface.triangles();
-  return out;
+  TriangleSurface surface = voxel_boundary(inside, lo, hi, cell);
+  return {std::move(surface.vertices), std::move(surface.triangles)};
 }
 
 double enclosed_volume(const std::vector<Vec3>& x, const Triangles& triangles) {

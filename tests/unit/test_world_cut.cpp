@@ -52,7 +52,7 @@ Scene beam_cut_scene(const TempDir& dir, double cut_seconds, double blade_x = 0.
       "name": "beam", "model": "efg", "cuttable": true,
       "generator": {"type": "box", "min": [0, -0.01, -0.01], "max": [0.1, 0.01, 0.01]},
       "resolution": 0.0025,
-      "efg": {"surface_resolution": 0.00125, "samples_per_axis": 4, "cut_surface": "voxel"},
+      "efg": {"surface_resolution": 0.00125, "samples_per_axis": 4},
       "material": {"E": 1e5, "nu": 0.3, "rho": 1000},
       "fixed": [{"min": [-1, -1, -1], "max": [0.0001, 1, 1]}]
     }],
@@ -60,26 +60,6 @@ Scene beam_cut_scene(const TempDir& dir, double cut_seconds, double blade_x = 0.
     "solver": {"dt": 0.005, "duration": 0.3, "tolerance": 1e-9, "max_iterations": 3000}
   })");
   return parse_scene(scene.dump(), dir.path / "scene.json");
-}
-
-// Used vertices whose row in the body's mapping (kept up to date in place cut after cut)
-// differs from a fresh map_surface of its cut surface.
-int rows_unlike_a_fresh_mapping(const Body& body) {
-  physics::SurfaceMappingReport report;
-  const physics::SurfaceEmbedding fresh = physics::map_surface(*body.efg, *body.cut_surface, report);
-  const physics::SurfaceEmbedding& kept = *body.embedding;
-  if (fresh.vertex_count() != kept.vertex_count() || fresh.stride != kept.stride) return -1;
-  int differ = 0;
-  for (int v = 0; v < fresh.vertex_count(); ++v) {
-    if (!body.cut_surface->vertex_used(v)) continue;
-    bool same = fresh.elements[v] == kept.elements[v] && fresh.row_lengths[v] == kept.row_lengths[v];
-    for (int k = 0; same && k < fresh.row_lengths[v]; ++k) {
-      const std::size_t at = static_cast<std::size_t>(v) * fresh.stride + k;
-      same = fresh.particles[at] == kept.particles[at] && fresh.weights[at] == kept.weights[at];
-    }
-    differ += same ? 0 : 1;
-  }
-  return differ;
 }
 
 // The free piece of the beam (particles right of the cut at x = 0.0512): how far its centre of
@@ -115,51 +95,6 @@ Fall free_piece_fall(World& world, const Body& body, const std::vector<int>& pie
 
 }  // namespace
 
-TEST(WorldCut, ABladeThroughTheBeamCutsItInTwoClosedPiecesAndTheFreeOneFalls) {
-  TempDir dir("incise_world_cut");
-  Scene scene = beam_cut_scene(dir, 0.02);  // 3 m/s: the section in 4 steps
-  World world(scene, read_trajectory(dir.path / "cut.traj"));
-  const Body& body = world.bodies()[0];
-  const int dofs = 3 * body.model->node_count();
-  const physics::SurfaceTopology before = physics::surface_topology(body.surface);
-  ASSERT_TRUE(before.watertight());
-  const std::size_t triangles_before = body.surface.size();
-
-  // Cut, checking the surface after every step that changed the topology.
-  int events = 0, step = 0;
-  for (; step < 12; ++step) {
-    const StepStats stats = world.step();
-    if (!stats.cut_event) continue;
-    ++events;
-    const physics::SurfaceTopology now = physics::surface_topology(body.surface);
-    EXPECT_TRUE(now.watertight()) << "step " << step << ": " << now.boundary_edges << " boundary, "
-                                  << now.nonmanifold_edges << " non-manifold edges";
-    EXPECT_EQ(3 * body.model->node_count(), dofs);
-    // The watertightness the rebuild keeps is the full count; the mapping is a fresh one.
-    EXPECT_EQ(body.cut_surface->topology().boundary_edges, now.boundary_edges) << "step " << step;
-    EXPECT_EQ(body.cut_surface->topology().nonmanifold_edges, now.nonmanifold_edges) << "step " << step;
-    EXPECT_EQ(rows_unlike_a_fresh_mapping(body), 0) << "step " << step;
-  }
-  EXPECT_GT(events, 0);
-  std::vector<int> piece;
-  ASSERT_EQ(body.cutter->pieces(piece), 2);
-  EXPECT_GT(body.surface.size(), triangles_before);
-  EXPECT_EQ(world.cut_totals().wrong_side, 0);
-  EXPECT_EQ(world.cut_totals().relaxed_fallbacks, 0);
-  EXPECT_EQ(world.cut_totals().elements_linked_across, 0);
-  EXPECT_EQ(world.cut_totals().isolated_elements, 0);
-
-  const auto [fallen, expected, t] = free_piece_fall(world, body, piece, scene.solver.dt);
-  std::printf("engine cut: %d events, %zu -> %zu triangles; free piece fell %.5f m in %.2f s, law %.5f m\n", events,
-              triangles_before, body.surface.size(), fallen, t, expected);
-  EXPECT_NEAR(fallen, expected, 0.03 * expected);  // 1 / k = 2.5 % for k = 40, from implicit Euler
-  // The surface still closed, and its vertices on the free piece fell with it.
-  EXPECT_TRUE(physics::surface_topology(body.surface).watertight());
-}
-
-// The same cut with the thesis's explicit surface (efg.cut_surface "front"): closed after
-// every event, two closed surfaces at the end, every vertex on its own side, and the surface
-// of the free piece falling with it.
 // What the world keeps of a front surface where the stroke changed it (engine/world.cpp,
 // rebuild_front_surface) is what it would take from the whole surface: the body's and the
 // render's triangles, the vertex positions, the edge counts, and the number of vertices whose
@@ -218,10 +153,11 @@ void expect_front_kept_as_whole(const World& world, const Body& body, const std:
   EXPECT_EQ(flagged, off_crack) << when;
 }
 
-TEST(WorldCut, TheFrontSurfaceCutsTheBeamInTwoClosedPiecesThatFollowTheirOwnSide) {
+// A blade through the beam: two closed pieces, every vertex on its own side, and the free
+// piece falling as free fall predicts, with its surface.
+TEST(WorldCut, ABladeCutsTheBeamInTwoClosedPiecesAndTheFreeOneFallsWithItsSurface) {
   TempDir dir("incise_world_cut_front");
   Scene scene = beam_cut_scene(dir, 0.02);
-  scene.bodies[0].efg.cut_surface = "front";
   World world(scene, read_trajectory(dir.path / "cut.traj"));
   const Body& body = world.bodies()[0];
   ASSERT_TRUE(body.front_surface);
@@ -305,7 +241,6 @@ TEST(WorldCut, AFrameDrawsTheExposedCutFacesApartInTheirOwnColour) {
   // colour. At rest the cut faces are the section on each side of the cut: 2 x 0.02 x 0.02 m^2.
   TempDir dir("incise_world_cut_frame");
   Scene scene = beam_cut_scene(dir, 0.02);
-  scene.bodies[0].efg.cut_surface = "front";
   World world(scene, read_trajectory(dir.path / "cut.traj"));
   const Body& body = world.bodies()[0];
   render::Frame frame;
@@ -370,13 +305,12 @@ TEST(WorldCut, ABladeThatMissesCutsNothing) {
   EXPECT_EQ(world.cut_totals().events, 0);
 }
 
-// A shipped scene (assets/scenes/NAME.json) replayed whole (or its first `steps`), `surface`
-// its body's cut surface design; `at_event(world, body, step)` after every cut event, until a
-// fatal failure. Returns the number of events.
+// A shipped scene (assets/scenes/NAME.json) replayed whole (or its first `steps`),
+// `at_event(world, body, step)` after every cut event, until a fatal failure. Returns the
+// number of events.
 template <typename AtEvent>
-int replay_shipped_scene(const std::string& name, const std::string& surface, const AtEvent& at_event, long steps = -1) {
+int replay_shipped_scene(const std::string& name, const AtEvent& at_event, long steps = -1) {
   Scene scene = load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes" / (name + ".json"));
-  scene.bodies[0].efg.cut_surface = surface;
   World world(scene, read_trajectory(*scene.tool->trajectory));
   if (steps < 0) steps = std::lround(scene.solver.duration / scene.solver.dt);
   int events = 0;
@@ -393,9 +327,8 @@ TEST(WorldCut, TheFrontSurfaceKeptWhereTheStrokeChangedItIsTheWholeSurfacesAtEve
   // A curved blade turning as it advances (steps 41 to 99), its stroke carried through at its
   // end (step 100: the stroke's vertices become the base's); the retractors that follow cut
   // nothing. At every event what the world keeps is the whole surface's.
-  ASSERT_EQ(load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes/cut_twisting_blade.json").bodies[0].efg.cut_surface, "front");
   long wrong_side = -1;
-  const int events = replay_shipped_scene("cut_twisting_blade", "front", [&](const World& world, const Body& body, long k) {
+  const int events = replay_shipped_scene("cut_twisting_blade", [&](const World& world, const Body& body, long k) {
     expect_front_kept_as_whole(world, body, "step " + std::to_string(k));
     wrong_side = world.cut_totals().wrong_side;
   }, 110);
@@ -443,36 +376,12 @@ TEST(WorldCut, TheFrontSurfacesCutBesideTheVolumesGivesWhatItGivesInSequence) {
   EXPECT_EQ(std::get<6>(beside), std::get<6>(sequence));
 }
 
-TEST(WorldCut, TheMappingKeptAcrossTheShippedCutScenesIsAFreshOneAtEveryEvent) {
-  // The body's surface mapping is updated in place, only where the cut can have changed it
-  // (physics::remap_surface); after every cut event of these shipped scenes (a pinch, a
-  // falling body cut by a static blade, a blade cutting upwards) it must equal map_surface,
-  // and the watertightness and linked-across counts kept incrementally the full ones. The
-  // scenes ship with the front surface; this is the voxel design's check, so they take it.
-  for (const char* name : {"cut_twisting_blade", "cut_falling_cylinder", "cut_rising_blade"}) {
-    const int events = replay_shipped_scene(name, "voxel", [&](const World& world, const Body& body, long k) {
-      ASSERT_EQ(rows_unlike_a_fresh_mapping(body), 0) << name << ", step " << k;
-      // The body's and the render's triangles, patched with the range the rebuild wrote, are
-      // the surface's.
-      ASSERT_TRUE(body.surface == body.cut_surface->triangles()) << name << ", step " << k;
-      ASSERT_EQ(body.render_triangles.size(), 3 * body.surface.size()) << name << ", step " << k;
-      for (std::size_t t = 0; t < body.surface.size(); ++t)
-        for (int c = 0; c < 3; ++c)
-          ASSERT_EQ(body.render_triangles[3 * t + c], static_cast<std::uint32_t>(body.surface[t][c])) << name << ", step " << k;
-      // A triangle is drawn as cut face when its corners are all on the cut.
-      ASSERT_EQ(body.render_cut_face.size(), body.surface.size()) << name << ", step " << k;
-      for (std::size_t t = 0; t < body.surface.size(); ++t) {
-        const auto& on_cut = body.cut_surface->on_cut();
-        const bool all = on_cut[static_cast<std::size_t>(body.surface[t][0])] && on_cut[static_cast<std::size_t>(body.surface[t][1])] &&
-                         on_cut[static_cast<std::size_t>(body.surface[t][2])];
-        ASSERT_EQ(body.render_cut_face[t] != 0, all) << name << ", step " << k << ", triangle " << t;
-      }
-      const physics::SurfaceTopology full = physics::surface_topology(body.surface);
-      ASSERT_EQ(body.cut_surface->topology().boundary_edges, full.boundary_edges) << name << ", step " << k;
-      ASSERT_EQ(body.cut_surface->topology().nonmanifold_edges, full.nonmanifold_edges) << name << ", step " << k;
-      // The linked-across count kept around each cut (with cached link boxes) is the full one.
-      ASSERT_EQ(world.cut_totals().elements_linked_across,
-                physics::elements_linked_across(*body.efg, body.cut_surface->rest_cut())) << name << ", step " << k;
+TEST(WorldCut, TheFrontSurfaceKeptAcrossOtherShippedCutScenesIsTheWholeSurfacesAtEveryEvent) {
+  // A falling body cut by a static blade, and a blade cutting upwards: what the world keeps
+  // where each stroke changed the surface is the whole surface's after every event.
+  for (const char* name : {"cut_falling_cylinder", "cut_rising_blade"}) {
+    const int events = replay_shipped_scene(name, [&](const World& world, const Body& body, long k) {
+      expect_front_kept_as_whole(world, body, std::string(name) + ", step " + std::to_string(k));
     });
     EXPECT_GT(events, 5) << name;
   }
