@@ -168,7 +168,7 @@ int run(const RunArgs& args) {
 
   engine::SessionOptions options;
   options.clock = engine::SessionOptions::Clock::realtime;
-  options.loop.spin_ns = 300'000;  // MACHINE-NOTES: p99 period ~1.02 ms instead of ~1.2 ms
+  options.loop.spin_ns = 300'000;  // spins away the sleep's late wake-ups (physics-choices.md)
   const std::filesystem::path record_base = args.record.empty() ? "recording.traj" : args.record;
   int recordings = 0;
 

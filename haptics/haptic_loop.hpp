@@ -71,8 +71,9 @@ struct HapticLoopConfig {
   bool realtime_priority = true;
   int realtime_priority_level = 80;
   // Sleep until this long before each deadline, then spin on the clock up to it (0: sleep
-  // only). MACHINE-NOTES: 300-500 us takes the p99 period from ~1.2 ms to ~1.0 ms on this VM,
-  // at the price of that share of a core.
+  // only). A few hundred us spin away the sleep's late wake-ups, which otherwise stretch the
+  // p99 period well past 1 ms (docs/physics-choices.md, "Haptics"), at the price of that share
+  // of a core.
   std::int64_t spin_ns = 0;
   std::size_t ring_capacity = 4096;     // ticks physics may fall behind before samples are lost
   double velocity_cutoff_hz = 200;      // first-order low-pass on the device velocity

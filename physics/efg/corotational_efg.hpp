@@ -16,7 +16,7 @@
 //     grad u_e = sum_n (R_e^T x_n - X_n) (x) grad phi_n,   sigma = 2 mu eps + lambda tr(eps) I,
 //     f_n += -V_e R_e sigma grad phi_n,   K p likewise with R_e^T p_n and no rest term.
 //
-// Rotation (issue 7; thesis §7.1.1: thin slices move spontaneously or go unstable with shape
+// Rotation (thesis §7.1.1: thin slices move spontaneously or go unstable with shape
 // matching, fix proposed there: take the rotation from the deformation field). Only with R_e
 // the polar rotation of the very F_e the strain is taken from is R_e^T F_e symmetric, so that
 // each element's F_e (R_e sigma)^T is symmetric: its forces then exert no net torque and are
@@ -24,16 +24,9 @@
 // shape-matching fit they are neither wherever the fit and the MLS gradient differ. For a full
 // cube with a centred point and its 8 cell corners (equal weights) the two coincide exactly,
 // so the bulk is unchanged; they differ in partial cubes and in neighbourhoods re-selected by
-// cuts. Measured (tests/unit/test_efg_model.cpp EfgRotation, a slice cut off a block and bent
-// 0.5 rad): net torque / sum |x||f| 4.4e-6 (shape matching) -> 5.5e-17 (deformation gradient);
-// |dW/ds + f.d| / |dW/ds| 1.6e-4 -> 6.7e-10. `incise bench stability` thin-slice study (a
-// block cut by VolumeCutter, slices hanging under gravity, 3 s, E 10 kPa): energy gained over
-// the steps / energy change 1.35e-5 -> 6.5e-14 (100 kPa: 5.9e-8 -> 6.9e-13); no run of either
-// kept moving (late rms speeds below 4e-6 mm/s for both), so the spontaneous motion the thesis
-// reports is not reproduced at these sizes, only its cause. B1 (test_efg_cantilever.cpp) is
-// the same to the printed digits: static 5.8704 mm (rotations at rest are I either way),
-// dynamic 5.8665 mm with both (1645 vs 1653 CG iterations); every test_efg test passes with
-// either. Hence the default.
+// cuts. Hence the default: on a cut slice the net torque and the energy gained drop by eight
+// orders of magnitude or more (test EfgRotation, the stability bench's thin-slice study) while
+// B1 deflects the same to the printed digits (docs/physics-choices.md, "rotation").
 //
 // Lumped masses m_i = sum_e phi_i(x_e) rho V_e. A particle outside the body that only far
 // corners reach can get a negative mass (phi < 0 there); it is taken out of those
@@ -93,23 +86,13 @@ struct EfgSettings {
   // h = support_factor x the distance to the farthest neighbour (> 1, so that every neighbour
   // weighs). The thesis's constant is 3, on a "radius of the region of influence" it leaves
   // undefined (seed-004 §1.4). Read as 3 x the farthest corner (h = 7.8 a) the weights are
-  // nearly flat, the fit ignores the cells' bilinear modes and the model is far too soft:
-  // the square beam B1 comes out +29 % at 0.6k dofs, +11 % at 1.5k (accuracy bench, b1
-  // nb8_support3). A factor near 1 keeps the fit local. It was first set to 2/sqrt(3) = 1.1547
-  // (h = 3 a for a cube-centred point, whose farthest corner is 2.598 a away), the best of
-  // 1.05 to 3 on B1 alone. Measured since on all five cases of the accuracy bench
-  // (2026-12-01; error %, efg nb8 at about 1k / 2.4k / 10k dofs, the cut cases at 4.4k / 10.7k
-  // / 24k, against the converged tet10 references):
-  //   factor  bend               stretch            b1                 bend_cut           stretch_cut
-  //   1.08    3.12 / 0.51 / 0.44  0.31 / 0.20 / 0.13  0.17 / 0.18 / 0.08  2.12 / 0.21 / 0.35  7.47 / 3.60 / 1.98
-  //   1.1     3.18 / 0.57 / 0.45  0.31 / 0.20 / 0.13  0.01 / 0.11 / 0.05  2.20 / 0.25 / 0.32  7.87 / 3.87 / 2.17
-  //   1.12    3.27 / 0.57 / 0.47  0.31 / 0.19 / 0.13  0.04 / 0.12 / 0.06  2.22 / 0.27 / 0.31  8.10 / 4.05 / 2.29
-  //   1.1547  3.48 / 0.48 / 0.51  0.32 / 0.20 / 0.13  0.29 / 0.24 / 0.10  2.17 / 0.26 / 0.29  8.31 / 4.23 / 2.43
-  // (b1 at 0.6k / 1.5k / 5.5k dofs). 1.1 is B1's best, and at the thesis's size (about 10k
-  // dofs) every case is as accurate as with 1.1547 or better; the cut beam in stretching, the
-  // worst case, is the most sensitive (its cut neighbourhoods reach 3.5 a and more: a larger
-  // factor widens their support and softens the region by the cut). Below 1.05 the farthest
-  // corner's weight vanishes (w(1 / 1.05) = 3e-4) and B1 stiffens (1.02: +2.0 % at 0.6k dofs).
+  // nearly flat, the fit ignores the cells' bilinear modes and the model is far too soft (B1
+  // +29 % at 0.6k dofs). A factor near 1 keeps the fit local; below 1.05 the farthest corner's
+  // weight vanishes (w(1 / 1.05) = 3e-4) and B1 stiffens. 1.1 is B1's best, and at the
+  // thesis's size (about 10k dofs) every accuracy case is as accurate as with 2/sqrt(3) (h = 3 a
+  // at a cube's centre) or better; the cut beam in stretching, the worst case, is the most
+  // sensitive (its cut neighbourhoods reach 3.5 a and more: a larger factor widens their
+  // support and softens the region by the cut). docs/physics-choices.md has the table.
   // Stating h relative to the farthest neighbour keeps every neighbour weighing for
   // off-centre points and cut neighbourhoods.
   double support_factor = 1.1;
@@ -137,25 +120,19 @@ struct EfgSettings {
   // visible particles, until there are `neighbours` particles spanning 3 dimensions.
   std::vector<CutRectangle> cuts;
   // true: a hidden corner is replaced along the axis nearest the hiding cut's normal first, i.e.
-  // by the particle behind the element's own side of its cell. false (as first built): the
-  // nearest of the three axis candidates, which next to a crack front is often the particle
-  // on the cut plane below the front, a link around the tip that stiffens the cut beam
-  // (accuracy bench stretch_cut, which is dominated by the ligament's bending, is too stiff
-  // either way: -20 to -40 %, a few points less with this rule; see the issue 3 report).
+  // by the particle behind the element's own side of its cell. false: the nearest of the
+  // three axis candidates, which next to a crack front is often the particle on the cut plane
+  // below the front, a link around the tip that stiffens the cut beam (the accuracy bench's
+  // stretch_cut, a few points nearer the reference with this rule: docs/physics-choices.md).
   bool replace_along_cut_normal = true;
   // Particles on a cut's front edge (r = 0) are hidden from the integration points on the
   // cut's negative side that lie beside the cut farther than this from the front line.
-  // infinity (as first built: a link through the rim is not cut): every point within a cell
-  // of the front stays tied to it, so the crack is effectively up to 2a shorter and the cut
-  // beam too stiff. 0: the front particles reach those points only from the positive side and
-  // from beyond the front, so the field beside the cut opens right down to the front line.
-  // Accuracy bench (grid with a particle row on the front, error against the finest tet10
-  // reference at about 1.2k / 2.4k / 9.9k dofs; that reference is itself 0.5 % (bend_cut) and
-  // about 3 % (stretch_cut) short of its Richardson extrapolation):
-  //   infinity: bend_cut -8.9 / -3.5 / -3.1 %, stretch_cut -38 / -30 / -21 %
-  //   a:        bend_cut -7.1 / -1.8 / -1.8 %, stretch_cut -26 / -19 / -12 %
-  //   0:        bend_cut +3.7 / +4.9 / +1.9 %, stretch_cut +36 / +22 / +12 %
-  // 0 converges like O(a) and is the nearest to the extrapolated references at 10k dofs.
+  // infinity (a link through the rim is not cut): every point within a cell of the front
+  // stays tied to it, so the crack is effectively up to 2a shorter and the cut beam too stiff.
+  // 0: the front particles reach those points only from the positive side and from beyond the
+  // front, so the field beside the cut opens right down to the front line. On the accuracy
+  // bench's cut beams 0 converges like O(a) and is the nearest to the extrapolated references
+  // at 10k dofs (docs/physics-choices.md has the table).
   double front_hidden_beyond = 0;
   // The rotation of the corotation (file comment: "Rotation").
   EfgRotation rotation = EfgRotation::deformation_gradient;

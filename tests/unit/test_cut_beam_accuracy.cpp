@@ -62,8 +62,8 @@ TEST(CutBeamAccuracy, EfgNb8CutByTheCutterIsWithinTheThesisBoundsOfTheConforming
   EXPECT_LT(at_10k.dofs, 12000);
   EXPECT_LT(bend, 1.5);
   EXPECT_LT(error_pct(at_24k.bend_cut, reference_bend_cut), 1.5);
-  // stretch_cut is 3.9 % at 10.7k dofs (4.2 % with the support factor first chosen, 1.1547:
-  // corotational_efg.hpp) and converges: 2.2 % at 24k.
+  // stretch_cut is 3.9 % at 10.7k dofs (4.2 % with support_factor 1.1547, one reason for 1.1:
+  // docs/physics-choices.md) and converges: 2.2 % at 24k.
   EXPECT_LT(stretch_10k, 4.0);
   EXPECT_LT(stretch_24k, stretch_10k);
   // The cutter makes the neighbourhoods the geometry cut makes at build time.

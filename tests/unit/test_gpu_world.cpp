@@ -109,9 +109,9 @@ void cut_beam_on_both(const std::string& precision, double tolerance, double agr
   // The surface the user sees, too. Its vertices on the cut faces are placed at rest by the
   // cutter's piecewise mapping (VolumeCutter::to_rest, through the nearest integration point),
   // which jumps where two points are equally near; ties within a relative 1e-9 go to the lower
-  // index, so roundoff no longer flips them (before: 15 to 30 of 1556 vertices apart by about
-  // 3e-7 m; now none). Those apart by more than the agreement times the spacing are counted
-  // and must stay rare; every other vertex must agree.
+  // index, so that float roundoff does not flip them (a strict nearest put 15 to 30 of 1556
+  // vertices about 3e-7 m apart). Those apart by more than the agreement times the spacing are
+  // counted and must stay rare; every other vertex must agree.
   const Body& reference = cpu.bodies()[0];
   double surface_difference = 0;
   int placed_differently = 0;
