@@ -1251,7 +1251,7 @@ void World::cut_body(Body& body, StepStats& stats) {
   // the blade disengages or its front has left the body after cutting. It needs nothing the
   // volume's cut below makes, nor the volume anything it makes (the volume's agreement pass
   // reads the sweep at rest, front_rest_cut, filled here first), so with a helper thread
-  // (Body::executor's) the two run side by side.
+  // (Body::executor's side helper) the two run side by side.
   const auto cut_front = [&] {
     physics::FrontSurface& front = *body.front_surface;
     for (const auto& [blade_at_rest, starts_run] : moments) {
