@@ -313,11 +313,13 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
   if (spec.efg.support_factor) settings.support_factor = *spec.efg.support_factor;
   settings.samples_per_axis = spec.efg.samples_per_axis;
   settings.estimate_volumes = spec.efg.estimate_volumes;
-  settings.threads = spec.efg.threads;
+  body.executor = std::make_unique<ThreadPoolExecutor>(
+      spec.efg.threads, spec.cuttable && spec.efg.threads >= 2);
   std::unique_ptr<physics::CorotationalEfg> model;
   physics::Vector rest_vertices;
   try {
-    model = std::make_unique<physics::CorotationalEfg>(shape.inside, shape.lo, shape.hi, material, settings);
+    model = std::make_unique<physics::CorotationalEfg>(shape.inside, shape.lo, shape.hi, material, settings,
+                                                       body.executor.get());
     if (spec.cuttable) {
       // The thesis's explicit surface cut, starting from the same voxel boundary (snapped
       // onto the shape), its front's width w 1.5 cells (seed 004 §2.5: about the surface's
@@ -330,7 +332,6 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
       physics::fair_surface_onto_shape(vertices, initial.triangles, shape.inside, resolution);
       body.front_surface = std::make_unique<physics::FrontSurface>(std::move(vertices), initial.triangles, 1.5 * resolution);
       body.front_rest_cut = std::make_unique<physics::RestCut>(2 * resolution);
-      if (spec.efg.threads >= 2) body.front_side = std::make_unique<physics::SideRunner>();
       body.cutter = std::make_unique<physics::VolumeCutter>(*model, 1e-6, 0.5 * spec.resolution);
       body.embedding.emplace();
       std::vector<int> all(body.front_surface->vertices().size());
@@ -1139,7 +1140,7 @@ void World::cut_body(Body& body, StepStats& stats) {
   // the blade disengages or its front has left the body after cutting. It needs nothing the
   // volume's cut below makes, nor the volume anything it makes (the volume's agreement pass
   // reads the sweep at rest, front_rest_cut, filled here first), so with a helper thread
-  // (Body::front_side) the two run side by side.
+  // (Body::executor's side helper) the two run side by side.
   const auto cut_front = [&] {
     physics::FrontSurface& front = *body.front_surface;
     for (const auto& [blade_at_rest, starts_run] : moments) {
@@ -1204,12 +1205,7 @@ void World::cut_body(Body& body, StepStats& stats) {
       cut_front();
       ms_front = ms_since(start);
     };
-    if (body.front_side) {
-      body.front_side->run(volume_job, front_job);
-    } else {
-      front_job();
-      volume_job();
-    }
+    body.executor->run_beside(volume_job, front_job);
     const double wall = ms_since(fork);
     const double wait = std::max(0.0, wall - ms_volume);
     stats.ms_front_cut += ms_front;

@@ -8,6 +8,7 @@
 #pragma once
 
 #include "engine/scene.hpp"
+#include "engine/thread_pool.hpp"
 #include "engine/trajectory.hpp"
 #include "physics/core/model.hpp"
 #include "physics/core/implicit_euler.hpp"
@@ -19,7 +20,6 @@
 #include "physics/cut/front_mapping.hpp"
 #include "physics/cut/volume_cut.hpp"
 #include "physics/efg/corotational_efg.hpp"
-#include "physics/efg/worker_pool.hpp"
 #include "physics/fem/surface_snap.hpp"
 #include "render/frame.hpp"
 
@@ -75,10 +75,12 @@ struct Body {
   // agreement pass and the count of each vertex's constraint planes at its last mapping.
   std::unique_ptr<physics::FrontSurface> front_surface;
   std::unique_ptr<physics::RestCut> front_rest_cut;
-  // A helper thread when efg.threads >= 2: a cutting step's surface cut (FrontSurface::advance,
-  // the blade's samples at rest) runs on it beside the volume's CCD and re-selection, which
-  // need nothing from it (World::cut_body).
-  std::unique_ptr<physics::SideRunner> front_side;
+  // EFG bodies: the threads their model's loops run on (efg.threads of them, the physics
+  // thread among them; the model owns none), with a helper thread when a `front` body has
+  // efg.threads >= 2: a cutting step's surface cut (FrontSurface::advance, the blade's samples
+  // at rest) runs on it beside the volume's CCD and re-selection, which need nothing from it
+  // (World::cut_body). The model only calls it from its methods, never as it is destroyed.
+  std::unique_ptr<ThreadPoolExecutor> executor;
   std::vector<std::size_t> front_plane_counts;
   int front_stroke_folds = 0;  // folded_edges of the stroke's last report
   std::vector<std::uint8_t> front_wrong_side;  // per surface vertex: its point across a cut face when last tested

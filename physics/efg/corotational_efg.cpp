@@ -2,7 +2,6 @@
 
 #include "physics/efg/kernel.hpp"
 #include "physics/efg/mls.hpp"
-#include "physics/efg/worker_pool.hpp"
 #include "physics/fem/corotational_fem.hpp"
 
 #include <Eigen/Cholesky>
@@ -103,26 +102,23 @@ bool CutRectangle::blocks(const Vec3& from, const Vec3& to) const {
 
 CorotationalEfg::CorotationalEfg(const std::function<bool(const Vec3&)>& inside, Vec3 box_min,
                                  Vec3 box_max, const Material& material,
-                                 const EfgSettings& settings)
+                                 const EfgSettings& settings, Executor* executor)
     : material_(material), settings_(settings) {
+  set_executor(executor);
   build(inside, box_min, box_max);
 }
 
 CorotationalEfg::CorotationalEfg(Vec3 box_min, Vec3 box_max, const Material& material,
-                                 const EfgSettings& settings)
-    : CorotationalEfg([](const Vec3&) { return true; }, box_min, box_max, material, settings) {}
+                                 const EfgSettings& settings, Executor* executor)
+    : CorotationalEfg([](const Vec3&) { return true; }, box_min, box_max, material, settings,
+                      executor) {}
 
 CorotationalEfg::~CorotationalEfg() = default;
 CorotationalEfg::CorotationalEfg(CorotationalEfg&&) noexcept = default;
 CorotationalEfg& CorotationalEfg::operator=(CorotationalEfg&&) noexcept = default;
 
-int CorotationalEfg::thread_count() const { return pool_->thread_count(); }
-
-void CorotationalEfg::set_thread_count(int threads) {
-  if (threads < 1) fail("threads must be at least 1, got " + std::to_string(threads));
-  if (threads == pool_->thread_count()) return;
-  pool_ = std::make_unique<WorkerPool>(threads);
-  settings_.threads = threads;
+void CorotationalEfg::set_executor(Executor* executor) {
+  executor_ = executor ? executor : &serial_executor();
 }
 
 double CorotationalEfg::total_volume() const {
@@ -145,7 +141,6 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
   if (s.samples_per_axis < 1 || s.samples_per_axis > 64) {
     fail("samples_per_axis must be in [1, 64], got " + std::to_string(s.samples_per_axis));
   }
-  if (s.threads < 1) fail("threads must be at least 1, got " + std::to_string(s.threads));
   if (s.rotation != EfgRotation::shape_matching && s.rotation != EfgRotation::deformation_gradient) {
     fail("rotation must be shape_matching or deformation_gradient, got " +
          std::to_string(static_cast<int>(s.rotation)));
@@ -162,7 +157,6 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
   }
   lambda_ = lame_lambda(material_);
   mu_ = lame_mu(material_);
-  pool_ = std::make_unique<WorkerPool>(s.threads);
 
   // Grids: an even number of cubes per axis, so the particle grid (every other vertex)
   // covers them; the small shrink keeps an exact multiple of a from gaining a cube.
@@ -421,7 +415,7 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
   orientations_.assign(elements, Quaternion::Identity());
   element_energies_.assign(elements, 0.0);
 
-  pool_->run(elements, [this](int begin, int end) {
+  executor_->parallel_for(elements, [this](int begin, int end) {
     for (int e = begin; e < end; ++e) compute_element(e);
   }, 256);
 
@@ -506,7 +500,7 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
       row_lengths_[e] = kept;
       changed.push_back(e);
     }
-    pool_->run(static_cast<int>(changed.size()), [&](int begin, int end) {
+    executor_->parallel_for(static_cast<int>(changed.size()), [&](int begin, int end) {
       for (int c = begin; c < end; ++c) compute_element(changed[c]);
     });
   }
@@ -764,7 +758,7 @@ Quaternion CorotationalEfg::element_rotation(const Vector& x, int element,
 }
 
 void CorotationalEfg::update_rotations(const Vector& x) {
-  pool_->run(element_count(), [&](int begin, int end) {
+  executor_->parallel_for(element_count(), [&](int begin, int end) {
     for (int e = begin; e < end; ++e) {
       orientations_[e] = element_rotation(x, e, orientations_[e]);
       rotations_[e] = orientations_[e].toRotationMatrix();
@@ -778,7 +772,7 @@ void CorotationalEfg::accumulate(Vector& out, const ElementTerm& term) const {
   const Index size = 3 * static_cast<Index>(node_count());
   // Fixed partitions of the elements, each scattering into its own buffer in element order;
   // the buffers are then added in partition order. Neither depends on the thread count.
-  pool_->run(partition_count, [&](int begin, int end) {
+  executor_->parallel_for(partition_count, [&](int begin, int end) {
     for (int part = begin; part < end; ++part) {
       Vector& buffer = partition_buffers_[part];
       if (buffer.size() != size) buffer.resize(size);
@@ -788,7 +782,7 @@ void CorotationalEfg::accumulate(Vector& out, const ElementTerm& term) const {
       for (int e = first; e < last; ++e) term(e, buffer);
     }
   }, elements >= settings_.threaded_elements ? 1 : partition_count);
-  pool_->run(node_count(), [&](int begin, int end) {
+  executor_->parallel_for(node_count(), [&](int begin, int end) {
     for (Index i = 3 * static_cast<Index>(begin); i < 3 * static_cast<Index>(end); ++i) {
       double sum = partition_buffers_[0][i];
       for (int part = 1; part < partition_count; ++part) sum += partition_buffers_[part][i];
@@ -854,7 +848,7 @@ void CorotationalEfg::add_stiffness_diagonal(Vector& diagonal) const {
 }
 
 double CorotationalEfg::elastic_energy(const Vector& x) const {
-  pool_->run(element_count(), [&](int begin, int end) {
+  executor_->parallel_for(element_count(), [&](int begin, int end) {
     for (int e = begin; e < end; ++e) {
       const size_t base = static_cast<size_t>(e) * stride_;
       const Mat3 rotation = element_rotation(x, e, orientations_[e]).toRotationMatrix();

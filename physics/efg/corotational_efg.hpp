@@ -37,13 +37,15 @@
 // GPU backend can take the same arrays. Neighbourhoods stay editable (set_neighbourhood);
 // particles are never added.
 //
-// Element loops run on `threads` threads over 4 fixed partitions of the elements: each
-// partition scatters into its own buffer in element order, and the buffers are added in
-// partition order. The result is therefore bitwise the same for any thread count (more than 4
-// threads would idle). The const methods use internal scratch memory: one call at a time per
-// model.
+// Element loops run on the model's executor (physics/core/executor.hpp; the engine hands one
+// built on its threads, a model given none runs them on the calling thread): the scatters go
+// over 4 fixed partitions of the elements, each into its own buffer in element order, and the
+// buffers are added in partition order. The result is therefore bitwise the same for any
+// executor and thread count (more than 4 threads would idle in the scatters). The const
+// methods use internal scratch memory and the executor: one call at a time per model.
 #pragma once
 
+#include "physics/core/executor.hpp"
 #include "physics/core/model.hpp"
 #include "physics/fem/material.hpp"
 
@@ -59,8 +61,6 @@
 #include <vector>
 
 namespace incise::physics {
-
-class WorkerPool;
 
 // A zero-thickness planar cut: the open parallelogram corner + s edge_u + t edge_v, s, t in
 // (0, 1). A point exactly on its plane counts as lying on the side edge_u x edge_v points to;
@@ -108,10 +108,10 @@ struct EfgSettings {
   // centroid of the inside samples (true) the rule integrates linear fields exactly on the
   // part that is inside. Full cubes are unaffected.
   bool centroid_points = true;
-  int threads = 2;               // threads of the element loops (results do not depend on it)
-  // Models with fewer elements run their loops on the calling thread only: handing a
-  // sub-millisecond loop to another thread costs more than it saves, and far more when the
-  // cores are shared. The partitions, and so the results, are the same either way.
+  // Models with fewer elements run their loops on the calling thread only, whatever their
+  // executor: handing a sub-millisecond loop to another thread costs more than it saves, and
+  // far more when the cores are shared. The partitions, and so the results, are the same
+  // either way.
   int threaded_elements = 4096;
   int row_capacity = 0;          // stride of the rows; 0 = the longest row at build
   // Cuts made at build time (the visibility criterion). For each element, the cell corners
@@ -158,11 +158,13 @@ class CorotationalEfg final : public DeformableModel {
   // Throws std::invalid_argument on bad settings or material, if nothing is inside, if an
   // integration point has no valid neighbourhood, or if a particle's lumped mass is not
   // positive (the message names the element or the particle).
+  // The build's loops, and the element loops after it, run on `executor` (see set_executor).
   CorotationalEfg(const std::function<bool(const Vec3&)>& inside, Vec3 box_min, Vec3 box_max,
-                  const Material& material, const EfgSettings& settings);
+                  const Material& material, const EfgSettings& settings,
+                  Executor* executor = nullptr);
   // The box itself.
   CorotationalEfg(Vec3 box_min, Vec3 box_max, const Material& material,
-                  const EfgSettings& settings);
+                  const EfgSettings& settings, Executor* executor = nullptr);
   ~CorotationalEfg() override;
   CorotationalEfg(CorotationalEfg&&) noexcept;
   CorotationalEfg& operator=(CorotationalEfg&&) noexcept;
@@ -178,9 +180,10 @@ class CorotationalEfg final : public DeformableModel {
   // With rotations extracted from x itself, so it is invariant under rigid motions of x.
   double elastic_energy(const Vector& x) const override;
 
-  // Threads of the element loops (>= 1).
-  int thread_count() const;
-  void set_thread_count(int threads);
+  // Where the element loops run: the given executor, which must outlive its use here, or the
+  // calling thread (serial_executor) for nullptr. The model owns no thread.
+  void set_executor(Executor* executor);
+  Executor& executor() const { return *executor_; }
 
   // Topology. Rows: element * row_stride() + k for k < row_lengths()[element].
   int element_count() const { return static_cast<int>(volumes_.size()); }
@@ -294,7 +297,7 @@ class CorotationalEfg final : public DeformableModel {
   static constexpr int partition_count = 4;
   mutable std::array<Vector, partition_count> partition_buffers_;
   mutable std::vector<double> element_energies_;
-  std::unique_ptr<WorkerPool> pool_;
+  Executor* executor_ = &serial_executor();
 };
 
 }  // namespace incise::physics

@@ -388,7 +388,6 @@ Body make_efg_body(const std::string& case_name, const Material& material,
                    physics::EfgRotation rotation = physics::EfgSettings{}.rotation) {
   physics::EfgSettings settings;
   settings.spacing = efg_spacing;
-  settings.threads = 1;  // the sweep shares the machine; results do not depend on it
   settings.rotation = rotation;
   auto model = std::make_unique<CorotationalEfg>(case_min(case_name), case_max(case_name),
                                                  material, settings);

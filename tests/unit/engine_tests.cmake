@@ -1,3 +1,8 @@
+# The threads physics runs its loops on (engine/thread_pool.hpp); run under ThreadSanitizer.
+add_executable(test_thread_pool ${CMAKE_CURRENT_LIST_DIR}/test_thread_pool.cpp)
+target_link_libraries(test_thread_pool PRIVATE incise_thread_pool GTest::gtest_main)
+gtest_discover_tests(test_thread_pool DISCOVERY_TIMEOUT 60)
+
 add_executable(test_engine
   ${CMAKE_CURRENT_LIST_DIR}/test_scene.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_publication.cpp

@@ -40,7 +40,6 @@ Mesh ball_surface(int levels, double radius) {
 EfgSettings settings_with(double spacing) {
   EfgSettings settings;
   settings.spacing = spacing;
-  settings.threads = 1;
   return settings;
 }
 

@@ -70,7 +70,6 @@ CorotationalEfg ellipsoid_model(int neighbours) {
   EfgSettings settings;
   settings.spacing = 0.004;
   settings.neighbours = neighbours;
-  settings.threads = 2;
   settings.cuts.push_back({Vec3(0.001, -0.1, 0.0), Vec3(0, 0.2, 0), Vec3(0, 0, 0.1)});
   const Vec3 radii(0.03, 0.02, 0.015);
   const auto inside = [radii](const Vec3& p) { return p.cwiseQuotient(radii).squaredNorm() <= 1; };

@@ -1,5 +1,6 @@
 // The corotated EFG model as a DeformableModel: patch test, rotations, stiffness, mass,
 // thread independence, neighbourhood edits and the surface embedding.
+#include "engine/thread_pool.hpp"
 #include "physics/core/implicit_euler.hpp"
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/efg/efg_static.hpp"
@@ -9,10 +10,12 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 #include <vector>
 
@@ -21,30 +24,35 @@ namespace {
 
 const Material tissue{30e3, 0.45, 1050};
 
-EfgSettings settings_with(int neighbours, int threads = 2) {
+EfgSettings settings_with(int neighbours) {
   EfgSettings settings;
   settings.spacing = 0.005;
   settings.neighbours = neighbours;
-  settings.threads = threads;
   settings.threaded_elements = 0;  // small test bodies still use every thread
   return settings;
 }
 
+// The models below run on two threads unless told otherwise, as a World's do by default.
+Executor* two_threads() {
+  static engine::ThreadPoolExecutor executor(2, false);
+  return &executor;
+}
+
 // Box [0, 0.04] x [0, 0.03] x [0, 0.02] on an aligned grid: 8 x 6 x 4 full cubes, 5 x 4 x 3
 // particles, 6 of them interior.
-CorotationalEfg box_model(int neighbours, int threads = 2) {
+CorotationalEfg box_model(int neighbours, Executor* executor = two_threads()) {
   return CorotationalEfg(Vec3(0, 0, 0), Vec3(0.04, 0.03, 0.02), tissue,
-                         settings_with(neighbours, threads));
+                         settings_with(neighbours), executor);
 }
 
 // A rounded, irregular body (partial cubes everywhere on its surface).
-CorotationalEfg blob_model(int neighbours, int threads = 2) {
+CorotationalEfg blob_model(int neighbours, Executor* executor = two_threads()) {
   const auto inside = [](const Vec3& p) {
     const Vec3 q(p.x() / 0.035, p.y() / 0.025, p.z() / 0.02);
     return q.squaredNorm() + 0.3 * std::sin(40 * p.x()) * q.y() <= 1;
   };
   return CorotationalEfg(inside, Vec3(-0.04, -0.03, -0.025), Vec3(0.04, 0.03, 0.025), tissue,
-                         settings_with(neighbours, threads));
+                         settings_with(neighbours), executor);
 }
 
 Vector transform(const Vector& x, const Mat3& linear, const Vec3& translation = Vec3::Zero()) {
@@ -278,11 +286,14 @@ TEST_P(EfgModel, OneAndTwoThreadsGiveBitwiseIdenticalResults) {
     double energy = 0;
     std::vector<Mat3> rotations;
   };
-  // A fresh model per thread count: the build (shape functions, masses) is threaded too, and
-  // the rotations' warm starts must match.
+  // A fresh model per executor: the build (shape functions, masses) runs on it too, and the
+  // rotations' warm starts must match. threads 0: none given (serial_executor).
   const auto evaluate = [&](int threads) {
-    CorotationalEfg model = blob_model(GetParam(), threads);
-    EXPECT_EQ(model.thread_count(), threads);
+    std::optional<engine::ThreadPoolExecutor> pool;
+    if (threads > 0) pool.emplace(threads, false);
+    CorotationalEfg model = blob_model(GetParam(), pool ? &*pool : nullptr);
+    EXPECT_EQ(model.executor().thread_count(), std::max(threads, 1));
+    EXPECT_EQ(&model.executor(), pool ? static_cast<Executor*>(&*pool) : &serial_executor());
     const Vector x = transform(deform(model.rest_positions()), rotation_about(Vec3(1, 0, 1), 25));
     const Vector p = deform(model.rest_positions()) - model.rest_positions();
     Results results;
@@ -295,12 +306,12 @@ TEST_P(EfgModel, OneAndTwoThreadsGiveBitwiseIdenticalResults) {
     results.rotations = model.rotations();
     return results;
   };
-  const Results two = evaluate(2), one = evaluate(1), three = evaluate(3);
+  const Results two = evaluate(2), one = evaluate(1), three = evaluate(3), serial = evaluate(0);
   const auto same = [](const Vector& left, const Vector& right) {
     return left.size() == right.size() &&
            std::memcmp(left.data(), right.data(), sizeof(double) * left.size()) == 0;
   };
-  for (const Results* other : {&one, &three}) {
+  for (const Results* other : {&one, &three, &serial}) {
     EXPECT_TRUE(same(two.masses, other->masses));
     EXPECT_TRUE(same(two.forces, other->forces));
     EXPECT_TRUE(same(two.product, other->product));

@@ -39,7 +39,6 @@ struct Beam {
           EfgSettings s;
           s.spacing = 0.005;
           s.support_factor = 1.2;
-          s.threads = 1;
           return s;
         }()) {
     const int n = model.node_count();
@@ -174,7 +173,6 @@ TEST(GpuStep, AColouringOfTheBeamNeedsManyDispatches) {
   EfgSettings s;
   s.spacing = 0.0025;
   s.support_factor = 1.2;
-  s.threads = 1;
   const CorotationalEfg model(Vec3(0, -0.01, -0.01), Vec3(0.2, 0.01, 0.01), Material{10e6, 0.3, 1000}, s);
   std::vector<std::vector<int>> elements_of(static_cast<size_t>(model.node_count()));
   const auto row = [&](int e) {

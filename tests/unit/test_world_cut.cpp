@@ -338,14 +338,18 @@ TEST(WorldCut, TheFrontSurfaceKeptWhereTheStrokeChangedItIsTheWholeSurfacesAtEve
 
 TEST(WorldCut, TheFrontSurfacesCutBesideTheVolumesGivesWhatItGivesInSequence) {
   // With efg.threads >= 2 a cutting step runs the surface's cut (FrontSurface::advance) on a
-  // second thread beside the volume's CCD and re-selection; with 1 it runs before them, as
-  // it always did. Neither reads what the other writes, so the steps must agree bit for bit:
-  // the particles, the surface, the counts (and ThreadSanitizer, in CI, sees the overlap).
+  // second thread beside the volume's CCD and re-selection (and the element loops on two
+  // threads); with 1 it runs after them, on the physics thread (the engine's executor with one
+  // thread, as physics::serial_executor). Neither reads what the other writes, so the steps
+  // must agree bit for bit: the particles, the surface, the counts (and ThreadSanitizer, in
+  // CI, sees the overlap).
   const auto run = [](int threads, double& front_ms) {
     Scene scene = load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes/cut_twisting_blade.json");
     scene.bodies[0].efg.threads = threads;
     World world(scene, read_trajectory(*scene.tool->trajectory));
-    EXPECT_EQ(world.bodies()[0].front_side != nullptr, threads >= 2);
+    EXPECT_EQ(world.bodies()[0].executor->has_side_helper(), threads >= 2);
+    EXPECT_EQ(world.bodies()[0].executor->thread_count(), threads);
+    EXPECT_EQ(&world.bodies()[0].efg->executor(), world.bodies()[0].executor.get());
     front_ms = 0;
     int events = 0;
     for (int k = 0; k < 100; ++k) {
@@ -356,7 +360,7 @@ TEST(WorldCut, TheFrontSurfacesCutBesideTheVolumesGivesWhatItGivesInSequence) {
     const Body& body = world.bodies()[0];
     // Whether the helper or the caller ran each step's surface cut depends on the scheduler;
     // the results must not.
-    if (body.front_side) std::printf("surface cut on the helper thread in %llu steps\n", static_cast<unsigned long long>(body.front_side->taken_by_helper()));
+    if (body.executor->has_side_helper()) std::printf("surface cut on the helper thread in %llu steps\n", static_cast<unsigned long long>(body.executor->side_taken_by_helper()));
     return std::make_tuple(world.state_hash(), body.front_surface->vertices(), body.surface, events,
                            world.cut_totals().links_severed, world.cut_totals().front_problems, world.cut_totals().wrong_side);
   };

@@ -1,17 +1,21 @@
-// A fixed set of worker threads that split a loop into contiguous ranges, and a helper thread
-// that runs one job beside the caller's (std::thread only: the physics library takes no
-// OpenMP or TBB dependency).
+// The engine's threads for physics: a fixed set of worker threads that split a loop into
+// contiguous ranges (WorkerPool), a helper thread that runs one job beside the caller's
+// (SideRunner), and the physics::Executor built on them that the World hands its models
+// (physics owns no thread). std::thread only: no OpenMP or TBB dependency.
 #pragma once
+
+#include "physics/core/executor.hpp"
 
 #include <condition_variable>
 #include <cstdint>
 #include <exception>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <vector>
 
-namespace incise::physics {
+namespace incise::engine {
 
 class WorkerPool {
  public:
@@ -78,4 +82,26 @@ class SideRunner {
   std::thread thread_;        // last: started once the rest is set up
 };
 
-}  // namespace incise::physics
+// parallel_for on a WorkerPool of thread_count threads (the caller among them); run_beside on
+// a SideRunner's helper when made with one, else own() then side() on the calling thread.
+// The helper is a thread of its own, beside the pool's: the caller's own job may run
+// parallel_for while the helper runs the side job.
+class ThreadPoolExecutor final : public physics::Executor {
+ public:
+  ThreadPoolExecutor(int thread_count, bool side_helper);
+
+  int thread_count() const override { return pool_.thread_count(); }
+  void parallel_for(int count, const std::function<void(int begin, int end)>& task,
+                    int minimum_per_thread = 1) override;
+  void run_beside(const std::function<void()>& own, const std::function<void()>& side) override;
+
+  bool has_side_helper() const { return side_ != nullptr; }
+  // Runs so far whose side job the helper took (0 without a helper).
+  std::uint64_t side_taken_by_helper() const;
+
+ private:
+  WorkerPool pool_;
+  std::unique_ptr<SideRunner> side_;
+};
+
+}  // namespace incise::engine

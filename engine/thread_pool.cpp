@@ -1,10 +1,10 @@
-#include "physics/efg/worker_pool.hpp"
+#include "engine/thread_pool.hpp"
 
 #include <algorithm>
 #include <stdexcept>
 #include <string>
 
-namespace incise::physics {
+namespace incise::engine {
 
 WorkerPool::WorkerPool(int thread_count) {
   if (thread_count < 1) {
@@ -172,4 +172,25 @@ void SideRunner::work() {
   }
 }
 
-}  // namespace incise::physics
+ThreadPoolExecutor::ThreadPoolExecutor(int thread_count, bool side_helper)
+    : pool_(thread_count), side_(side_helper ? std::make_unique<SideRunner>() : nullptr) {}
+
+void ThreadPoolExecutor::parallel_for(int count, const std::function<void(int, int)>& task,
+                                      int minimum_per_thread) {
+  pool_.run(count, task, minimum_per_thread);
+}
+
+void ThreadPoolExecutor::run_beside(const std::function<void()>& own,
+                                    const std::function<void()>& side) {
+  if (side_) {
+    side_->run(own, side);
+  } else {
+    physics::serial_executor().run_beside(own, side);
+  }
+}
+
+std::uint64_t ThreadPoolExecutor::side_taken_by_helper() const {
+  return side_ ? side_->taken_by_helper() : 0;
+}
+
+}  // namespace incise::engine
