@@ -29,8 +29,8 @@
 // design) instead of, or beside, the scene's "front" (the thesis's explicit surface cut);
 // cut_surface column. With --backend gpu each gets a gpu row.
 // Timings are this machine's (2 shared cores): figures to read, never to assert.
-#include "tests/bench/performance.hpp"
-#include "tests/bench/repo_files.hpp"
+#include "bench/performance.hpp"
+#include "bench/repo_files.hpp"
 
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"

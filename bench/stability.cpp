@@ -59,7 +59,7 @@
 // explicit fem integrators 0 to 3 stable of 54; efg/implicit_euler 87 stable, 3
 // cg_not_converged (beam_gravity at nu 0.499); fast_blade and thin_slice: 18 of 18 stable
 // each, inside the target and beyond.
-#include "tests/bench/stability.hpp"
+#include "bench/stability.hpp"
 
 #include "physics/core/explicit_integrators.hpp"
 #include "physics/core/implicit_euler.hpp"

@@ -1,5 +1,5 @@
-#include "tests/bench/haptics.hpp"
-#include "tests/bench/repo_files.hpp"
+#include "bench/haptics.hpp"
+#include "bench/repo_files.hpp"
 
 #include "engine/haptic_session.hpp"
 #include "engine/scene.hpp"

@@ -63,7 +63,7 @@
 // of implicit Euler steps at dt = 1/60 from rest under the load (Rayleigh mass damping 2/s),
 // with the scene-like CG (tolerance 1e-6, Jacobi preconditioner, at most 2000 iterations);
 // cg_iterations is their mean iteration count.
-#include "tests/bench/accuracy.hpp"
+#include "bench/accuracy.hpp"
 
 #include "physics/core/implicit_euler.hpp"
 #include "physics/cut/volume_cut.hpp"
