@@ -473,6 +473,17 @@ double max_node_displacement(const Vector& positions, const Vector& rest) {
   return largest;
 }
 
+// The sweep's implicit Euler step (its damping and CG budget) at step `dt`: the runs and the
+// thin-slice study step alike.
+physics::ImplicitEulerSettings implicit_settings(double dt) {
+  physics::ImplicitEulerSettings settings;
+  settings.dt = dt;
+  settings.rayleigh_mass = rayleigh_mass;
+  settings.cg.tolerance = cg_tolerance;
+  settings.cg.max_iterations = cg_max_iterations;
+  return settings;
+}
+
 Run simulate(Body& body, const Integrator& integrator, double dt, double duration) {
   DeformableModel& model = *body.model;
   Run run;
@@ -523,13 +534,8 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
       capped = false;
       for (int sub = 0; sub < substeps && !failed; ++sub) {
         if (integrator.implicit) {
-          physics::ImplicitEulerSettings settings;
-          settings.dt = sub_dt;
-          settings.rayleigh_mass = rayleigh_mass;
-          settings.cg.tolerance = cg_tolerance;
-          settings.cg.max_iterations = cg_max_iterations;
           const physics::StepReport report = physics::implicit_euler_step(
-              model, state, body.fixed, body.external, {}, settings, &velocity_change);
+              model, state, body.fixed, body.external, {}, implicit_settings(sub_dt), &velocity_change);
           failed = report.nonfinite;
           capped = capped || (!report.nonfinite && !report.cg.converged);
           energy = report.elastic_energy + report.kinetic_energy;
@@ -627,13 +633,8 @@ SliceStudy study_thin_slice(physics::EfgRotation rotation, double youngs_modulus
   const double initial_energy = total_energy(state);
   double energy = initial_energy;
   for (int step = 0; step < steps; ++step) {
-    physics::ImplicitEulerSettings settings;
-    settings.dt = dt;
-    settings.rayleigh_mass = rayleigh_mass;
-    settings.cg.tolerance = cg_tolerance;
-    settings.cg.max_iterations = cg_max_iterations;
     const physics::StepReport report = physics::implicit_euler_step(
-        model, state, body.fixed, body.external, {}, settings, &velocity_change);
+        model, state, body.fixed, body.external, {}, implicit_settings(dt), &velocity_change);
     if (report.nonfinite) {
       study.finite = false;
       break;
