@@ -1,9 +1,9 @@
 // The `incise` command: replay (headless), check, run (window), trajectory tools.
 #include "app/commands.hpp"
-#include "tests/bench/accuracy.hpp"
-#include "tests/bench/haptics.hpp"
-#include "tests/bench/performance.hpp"
-#include "tests/bench/stability.hpp"
+#include "bench/accuracy.hpp"
+#include "bench/haptics.hpp"
+#include "bench/performance.hpp"
+#include "bench/stability.hpp"
 
 #include <CLI/CLI.hpp>
 

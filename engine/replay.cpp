@@ -1,5 +1,8 @@
 #include "engine/replay.hpp"
 
+#include "common/csv.hpp"
+#include "common/percentile.hpp"
+#include "common/progress_bar.hpp"
 #include "engine/publication.hpp"
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
@@ -14,6 +17,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iomanip>
+#include <iostream>
 #include <sstream>
 #include <thread>
 #include <unistd.h>
@@ -24,6 +28,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 using Json = nlohmann::json;
+using common::percentile;
 
 struct Snapshot {
   std::uint64_t step = 0;
@@ -31,27 +36,17 @@ struct Snapshot {
   render::Frame frame;
 };
 
-double percentile(std::vector<double> values, double q) {
-  if (values.empty()) return 0;
-  std::sort(values.begin(), values.end());
-  double rank = q * static_cast<double>(values.size() - 1);
-  auto lo = static_cast<std::size_t>(std::floor(rank));
-  auto hi = std::min(lo + 1, values.size() - 1);
-  return values[lo] + (rank - static_cast<double>(lo)) * (values[hi] - values[lo]);
-}
-
 std::string hex64(std::uint64_t v) {
   std::ostringstream out;
   out << "0x" << std::hex << std::setw(16) << std::setfill('0') << v;
   return out.str();
 }
 
-void draw_progress(long done, long total, double sim_time, double wall) {
-  const int width = 30;
-  int filled = total > 0 ? static_cast<int>(width * done / total) : width;
-  std::fprintf(stderr, "\r[%.*s%*s] %ld/%ld steps  t = %.3f s  %.1f s wall", filled,
-               "##############################", width - filled, "", done, total, sim_time, wall);
-  std::fflush(stderr);
+// The bar's text after the count: the simulated and the wall time.
+std::string progress_text(double sim_time, double wall) {
+  char text[96];
+  std::snprintf(text, sizeof text, "steps  t = %.3f s  %.1f s wall", sim_time, wall);
+  return text;
 }
 
 // The render thread: owns its GL context from creation to destruction.
@@ -295,19 +290,23 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     steps_done.store(-1, std::memory_order_release);
   });
   const bool tty = options.progress && isatty(STDERR_FILENO);
+  common::ProgressBar bar(std::cerr, steps);
   while (steps_done.load(std::memory_order_acquire) >= 0) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     long done = steps_done.load(std::memory_order_acquire);
-    if (tty && done >= 0)
-      draw_progress(done, steps, static_cast<double>(done) * scene.solver.dt,
-                    std::chrono::duration<double>(Clock::now() - wall_start).count());
+    if (tty && done >= 0) {
+      bar.set_done(done);
+      bar.draw(progress_text(static_cast<double>(done) * scene.solver.dt,
+                             std::chrono::duration<double>(Clock::now() - wall_start).count()));
+    }
   }
   physics.join();
   if (capture) capture->finish();
   const double wall = std::chrono::duration<double>(Clock::now() - wall_start).count();
   if (tty) {
-    draw_progress(static_cast<long>(stats.size()), steps, world.time(), wall);
-    std::fputc('\n', stderr);
+    bar.set_done(static_cast<long>(stats.size()));
+    bar.draw(progress_text(world.time(), wall));
+    bar.finish();
   }
 
   // Metrics.
@@ -493,19 +492,19 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
   }
   {
     // One row per step for plots and review: where time went and what the tool felt.
-    std::ofstream steps_csv(options.out_dir / "steps.csv");
-    steps_csv << "step,time_s,ms_total,ms_tool_input,ms_contact,ms_solve,ms_surface,cg_iterations,"
-                 "cg_residual,contacts,tool_force_x,tool_force_y,tool_force_z,elastic_energy_J,kinetic_energy_J,"
-                 "ms_ccd,ms_topology,links_severed,ms_rest_cut,ms_reselect,ms_surface_rebuild,ms_mapping,ms_checks,ms_front_cut,ms_front_wait\n";
+    common::CsvWriter steps_csv(
+        options.out_dir / "steps.csv",
+        {"step", "time_s", "ms_total", "ms_tool_input", "ms_contact", "ms_solve", "ms_surface", "cg_iterations",
+         "cg_residual", "contacts", "tool_force_x", "tool_force_y", "tool_force_z", "elastic_energy_J",
+         "kinetic_energy_J", "ms_ccd", "ms_topology", "links_severed", "ms_rest_cut", "ms_reselect",
+         "ms_surface_rebuild", "ms_mapping", "ms_checks", "ms_front_cut", "ms_front_wait"});
     for (std::size_t k = 0; k < stats.size(); ++k) {
       const auto& s = stats[k];
-      steps_csv << (k + 1) << ',' << static_cast<double>(k + 1) * scene.solver.dt << ',' << s.ms_total << ','
-                << s.ms_tool_input << ',' << s.ms_contact << ',' << s.ms_solve << ',' << s.ms_surface << ','
-                << s.cg_iterations << ',' << s.cg_residual << ',' << s.contacts << ',' << s.tool_force[0]
-                << ',' << s.tool_force[1] << ',' << s.tool_force[2] << ',' << s.elastic_energy << ','
-                << s.kinetic_energy << ',' << s.ms_ccd << ',' << s.ms_topology << ',' << s.links_severed << ','
-                << s.ms_rest_cut << ',' << s.ms_reselect << ',' << s.ms_surface_rebuild << ',' << s.ms_mapping << ','
-                << s.ms_checks << ',' << s.ms_front_cut << ',' << s.ms_front_wait << '\n';
+      steps_csv.row(k + 1, static_cast<double>(k + 1) * scene.solver.dt, s.ms_total, s.ms_tool_input, s.ms_contact,
+                    s.ms_solve, s.ms_surface, s.cg_iterations, s.cg_residual, s.contacts, s.tool_force[0],
+                    s.tool_force[1], s.tool_force[2], s.elastic_energy, s.kinetic_energy, s.ms_ccd, s.ms_topology,
+                    s.links_severed, s.ms_rest_cut, s.ms_reselect, s.ms_surface_rebuild, s.ms_mapping, s.ms_checks,
+                    s.ms_front_cut, s.ms_front_wait);
     }
   }
   std::ofstream out(options.out_dir / "metrics.json");

@@ -12,6 +12,8 @@
 // --period. poke: it moves from --center down (-z) by --radius and back, once per --period, with
 // the engage button held while below the centre. still: it stays at --center.
 // Exit status: 0 after --duration, 2 on a usage error, 1 on a socket error.
+#include "common/percentile.hpp"
+
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -247,13 +249,8 @@ int main(int argc, char** argv) {
   }
   close(fd);
 
-  double p50 = 0, p99 = 0;
-  if (!stats.round_trip_us.empty()) {
-    std::vector<double>& r = stats.round_trip_us;
-    std::sort(r.begin(), r.end());
-    p50 = r[r.size() / 2];
-    p99 = r[std::min(r.size() - 1, r.size() * 99 / 100)];
-  }
+  const double p50 = incise::common::percentile(stats.round_trip_us, 0.5);
+  const double p99 = incise::common::percentile(stats.round_trip_us, 0.99);
   std::printf("bridge: sent %ld poses (%ld send errors), received %ld forces (%ld with state lost, %ld bad), "
               "max |f| %.4f N, round trip p50 %.0f us p99 %.0f us\n",
               stats.sent, stats.send_errors, stats.received, stats.lost_packets, stats.bad, stats.max_force, p50, p99);

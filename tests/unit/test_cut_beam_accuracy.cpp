@@ -2,13 +2,13 @@
 // conforming 10-node-tet FEM, within the thesis's bounds (Magnoux Table 4.1: 0.8 % bend_cut,
 // 3.7 % stretch_cut at about 10k dofs; the issue asks 1.5 % and 4 %).
 //
-// The reference is the finest mesh of `incise bench accuracy` (tests/bench/accuracy.cpp): tet10
+// The reference is the finest mesh of `incise bench accuracy` (bench/accuracy.cpp): tet10
 // with quarter points on the crack front, 16 rows either side of it (708k dofs), whose change
 // from 12 rows is 0.017 % (bend_cut) and 0.098 % (stretch_cut); Richardson puts the latter
 // 0.18 % short of the limit. Solving it takes minutes, so its tips are written here, and the
 // first test re-solves the family's coarsest level and checks it against the value the same
 // run printed: the written reference is the one this code computes.
-#include "tests/bench/accuracy.hpp"
+#include "bench/accuracy.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "tests/bench/repo_files.hpp"
+#include "bench/repo_files.hpp"
 
 #include <stdexcept>
 #include <system_error>

@@ -29,9 +29,11 @@
 // design) instead of, or beside, the scene's "front" (the thesis's explicit surface cut);
 // cut_surface column. With --backend gpu each gets a gpu row.
 // Timings are this machine's (2 shared cores): figures to read, never to assert.
-#include "tests/bench/performance.hpp"
-#include "tests/bench/repo_files.hpp"
+#include "bench/performance.hpp"
+#include "bench/repo_files.hpp"
 
+#include "common/csv.hpp"
+#include "common/percentile.hpp"
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
@@ -50,12 +52,7 @@ namespace incise::bench {
 
 namespace {
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
+using common::median;
 
 struct Resolution {
   double spacing;   // a, m
@@ -76,15 +73,17 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
                                         {0.0028, 0.0006}};
     // From the press to the end of the stroke of default.traj (0.3 s .. 2.0 s): the cut face,
     // and with it whatever grows with the stroke, at its full size.
-    std::ofstream csv(out_dir / "performance.csv");
     if (backend != "cpu" && backend != "gpu")
       throw std::runtime_error("--backend: '" + backend + "' is not cpu or gpu");
     if (surface != "front")
       throw std::runtime_error("--surface: '" + surface + "': the front is the one cut surface (voxel was removed)");
     const std::vector<std::string> surfaces{"front"};
-    csv << "scene,backend,elements,triangles,ms_ccd,ms_topology,ms_solve,ms_surface,ms_total,"
-           "dofs,steps,ms_topology_max,cut_share_pct,cut_events,device,bytes_uploaded_per_cut_step,"
-           "bytes_full_upload,cut_surface,ms_cut,ms_mapping,ms_checks,ms_cut_first_quarter,ms_cut_last_quarter,ms_front_cut,ms_cut_cpu,ms_cut_cpu_last_quarter\n";
+    common::CsvWriter csv(out_dir / "performance.csv",
+                          {"scene", "backend", "elements", "triangles", "ms_ccd", "ms_topology", "ms_solve",
+                           "ms_surface", "ms_total", "dofs", "steps", "ms_topology_max", "cut_share_pct",
+                           "cut_events", "device", "bytes_uploaded_per_cut_step", "bytes_full_upload", "cut_surface",
+                           "ms_cut", "ms_mapping", "ms_checks", "ms_cut_first_quarter", "ms_cut_last_quarter",
+                           "ms_front_cut", "ms_cut_cpu", "ms_cut_cpu_last_quarter"});
     // --backend gpu: every size runs on the cpu and then on the gpu (single precision).
     std::vector<std::string> backends{"cpu"};
     if (backend == "gpu") backends.push_back("gpu");
@@ -134,12 +133,10 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
       const double cut_first = median(std::vector<double>(cut.begin(), cut.begin() + quarter));
       const double cut_last = median(std::vector<double>(cut.end() - quarter, cut.end()));
       const double cut_cpu_last = median(std::vector<double>(cut_cpu.end() - quarter, cut_cpu.end()));
-      csv << "default," << row_backend << ',' << body.elements << ',' << body.surface.size() << ',' << median(ccd) << ','
-          << median(topology) << ',' << median(solve) << ',' << median(surface) << ',' << median(total) << ','
-          << 3 * body.model->node_count() << ',' << ccd.size() << ',' << topology_max << ',' << share << ','
-          << events << ",\"" << device << "\"," << bytes_per_cut_step << ',' << full_upload << ',' << row_surface << ','
-          << median(cut) << ',' << median(mapping) << ',' << median(checks) << ',' << cut_first << ',' << cut_last << ','
-          << median(front_cut) << ',' << median(cut_cpu) << ',' << cut_cpu_last << '\n';
+      csv.row("default", row_backend, body.elements, body.surface.size(), median(ccd), median(topology), median(solve),
+              median(surface), median(total), 3 * body.model->node_count(), ccd.size(), topology_max, share, events,
+              "\"" + device + "\"", bytes_per_cut_step, full_upload, row_surface, median(cut), median(mapping),
+              median(checks), cut_first, cut_last, median(front_cut), median(cut_cpu), cut_cpu_last);
       csv.flush();
       progress << std::fixed << std::setprecision(2) << std::setw(8) << 1e3 * resolution.spacing << std::setw(8)
                << 1e3 * resolution.surface << std::setw(9) << body.elements << std::setw(10) << body.surface.size()

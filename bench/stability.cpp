@@ -59,7 +59,11 @@
 // explicit fem integrators 0 to 3 stable of 54; efg/implicit_euler 87 stable, 3
 // cg_not_converged (beam_gravity at nu 0.499); fast_blade and thin_slice: 18 of 18 stable
 // each, inside the target and beyond.
-#include "tests/bench/stability.hpp"
+#include "bench/stability.hpp"
+#include "bench/plot.hpp"
+
+#include "common/csv.hpp"
+#include "common/progress_bar.hpp"
 
 #include "physics/core/explicit_integrators.hpp"
 #include "physics/core/implicit_euler.hpp"
@@ -244,11 +248,8 @@ std::vector<ModelKind> model_kinds() {
   return {{"fem", fem}, {"efg", {{"implicit_euler", true}}}};
 }
 
-std::string format(double value, int precision = 6) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof buffer, "%.*g", precision, value);
-  return buffer;
-}
+// This report's figures: 6 significant digits unless a caller asks for others.
+std::string format(double value, int digits = 6) { return common::significant(value, digits); }
 
 // ---- Cases -------------------------------------------------------------------------------
 
@@ -471,6 +472,17 @@ double max_node_displacement(const Vector& positions, const Vector& rest) {
   return largest;
 }
 
+// The sweep's implicit Euler step (its damping and CG budget) at step `dt`: the runs and the
+// thin-slice study step alike.
+physics::ImplicitEulerSettings implicit_settings(double dt) {
+  physics::ImplicitEulerSettings settings;
+  settings.dt = dt;
+  settings.rayleigh_mass = rayleigh_mass;
+  settings.cg.tolerance = cg_tolerance;
+  settings.cg.max_iterations = cg_max_iterations;
+  return settings;
+}
+
 Run simulate(Body& body, const Integrator& integrator, double dt, double duration) {
   DeformableModel& model = *body.model;
   Run run;
@@ -521,13 +533,8 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
       capped = false;
       for (int sub = 0; sub < substeps && !failed; ++sub) {
         if (integrator.implicit) {
-          physics::ImplicitEulerSettings settings;
-          settings.dt = sub_dt;
-          settings.rayleigh_mass = rayleigh_mass;
-          settings.cg.tolerance = cg_tolerance;
-          settings.cg.max_iterations = cg_max_iterations;
           const physics::StepReport report = physics::implicit_euler_step(
-              model, state, body.fixed, body.external, {}, settings, &velocity_change);
+              model, state, body.fixed, body.external, {}, implicit_settings(sub_dt), &velocity_change);
           failed = report.nonfinite;
           capped = capped || (!report.nonfinite && !report.cg.converged);
           energy = report.elastic_energy + report.kinetic_energy;
@@ -625,13 +632,8 @@ SliceStudy study_thin_slice(physics::EfgRotation rotation, double youngs_modulus
   const double initial_energy = total_energy(state);
   double energy = initial_energy;
   for (int step = 0; step < steps; ++step) {
-    physics::ImplicitEulerSettings settings;
-    settings.dt = dt;
-    settings.rayleigh_mass = rayleigh_mass;
-    settings.cg.tolerance = cg_tolerance;
-    settings.cg.max_iterations = cg_max_iterations;
     const physics::StepReport report = physics::implicit_euler_step(
-        model, state, body.fixed, body.external, {}, settings, &velocity_change);
+        model, state, body.fixed, body.external, {}, implicit_settings(dt), &velocity_change);
     if (report.nonfinite) {
       study.finite = false;
       break;
@@ -694,41 +696,12 @@ std::string thin_slice_report(bool quick, std::ostream& progress) {
 
 // ---- Output ------------------------------------------------------------------------------
 
-class Progress {
- public:
-  Progress(std::ostream& stream, int total) : stream_(stream), total_(total) {}
-  void draw(const std::string& what) {
-    constexpr int width = 30;
-    const int filled = total_ > 0 ? width * done_ / total_ : width;
-    std::string line = "\r[" + std::string(static_cast<size_t>(filled), '#') +
-                       std::string(static_cast<size_t>(width - filled), '.') + "] " +
-                       std::to_string(done_) + "/" + std::to_string(total_) + " " + what;
-    if (line.size() < last_length_) line += std::string(last_length_ - line.size(), ' ');
-    last_length_ = line.size();
-    stream_ << line << std::flush;
-  }
-  void advance() { ++done_; }
-  void finish() {
-    stream_ << "\n";
-    last_length_ = 0;
-  }
-
- private:
-  std::ostream& stream_;
-  int total_;
-  int done_ = 0;
-  size_t last_length_ = 0;
-};
-
-std::string csv_header() {
-  return "model,integrator,case,E,nu,dt,outcome,max_energy_ratio,max_displacement,steps,guard_events";
-}
-
-std::string csv_row(const Run& run) {
-  return run.model + "," + run.integrator + "," + run.case_name + "," + format(run.youngs_modulus) +
-         "," + format(run.poisson_ratio) + "," + format(run.dt) + "," + outcome_name(run.outcome) +
-         "," + format(run.max_energy_ratio, 4) + "," + format(run.max_displacement, 4) + "," +
-         std::to_string(run.steps) + "," + std::to_string(run.guard_events);
+// One row of stability.csv, flushed: an interrupted sweep leaves whole rows to resume from.
+void write_row(common::CsvWriter& csv, const Run& run) {
+  csv.row(run.model, run.integrator, run.case_name, format(run.youngs_modulus), format(run.poisson_ratio),
+          format(run.dt), outcome_name(run.outcome), format(run.max_energy_ratio, 4), format(run.max_displacement, 4),
+          run.steps, run.guard_events);
+  csv.flush();
 }
 
 // The key of a run in the sweep: what identifies it, as the CSV writes it.
@@ -813,10 +786,9 @@ std::string gnuplot_text(const std::string& text) {
 // dt to the right, one block of dt columns per nu; each cell coloured by its outcome. The
 // panels are placed in pixels (multiplot margins and spacing), so that the three-line title,
 // the panel titles and the rotated dt labels never overlap whatever the sweep's size.
-void write_plot_script(const std::filesystem::path& path, const std::filesystem::path& png,
-                       bool quick, const Sweep& sweep, const std::vector<ModelKind>& kinds,
-                       const std::vector<Run>& runs) {
-  std::ofstream script(path);
+std::string plot_script(const std::string& png, bool quick, const Sweep& sweep, const std::vector<ModelKind>& kinds,
+                        const std::vector<Run>& runs) {
+  std::ostringstream script;
   const size_t block = sweep.time_steps.size() + 1;  // dt columns and a gap per nu
   const size_t columns = block * sweep.poisson_ratios.size() - 1;
   int rows = 0;
@@ -833,7 +805,7 @@ void write_plot_script(const std::filesystem::path& path, const std::filesystem:
 
   script << "# Written by incise bench stability: the outcome map of stability.csv.\n"
          << "set terminal pngcairo size " << width << "," << height << " font ',9'\n"
-         << "set output '" << png.filename().string() << "'\n"
+         << "set output '" << png << "'\n"
          << "unset key\nset tics scale 0\nset border 0\n"
          << "set xrange [-0.6:" << columns - 0.4 << "]\n"
          << "set yrange [-0.6:" << sweep.youngs_moduli.size() - 0.4 << "]\n";
@@ -900,24 +872,7 @@ void write_plot_script(const std::filesystem::path& path, const std::filesystem:
     }
   }
   script << "unset multiplot\n";
-}
-
-void draw_plot(const std::filesystem::path& out_dir, std::ostream& progress) {
-  const std::filesystem::path png = out_dir / "stability.png";
-  if (std::system("command -v gnuplot > /dev/null 2>&1") != 0) {
-    progress << "gnuplot is not installed: " << png.string()
-             << " not drawn (stability.csv and stability.gnuplot are written)\n";
-    return;
-  }
-  std::string quoted;
-  for (char c : out_dir.string()) {
-    if (c == '\'') quoted += "'\\''";
-    else quoted += c;
-  }
-  const std::string command = "cd '" + quoted + "' && gnuplot stability.gnuplot";
-  if (std::system(command.c_str()) != 0) {
-    progress << "gnuplot failed on " << (out_dir / "stability.gnuplot").string() << "\n";
-  }
+  return script.str();
 }
 
 std::string counts_table(const std::vector<ModelKind>& kinds, const std::vector<Run>& runs) {
@@ -999,12 +954,9 @@ int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::o
     const std::vector<ModelKind> kinds = model_kinds();
     const std::map<std::string, Run> previous =
         resume ? read_previous_runs(out_dir / "stability.csv", progress_stream) : std::map<std::string, Run>{};
-    std::ofstream csv(out_dir / "stability.csv");
-    if (!csv) {
-      progress_stream << "cannot write " << (out_dir / "stability.csv").string() << "\n";
-      return 1;
-    }
-    csv << csv_header() << "\n";
+    common::CsvWriter csv(out_dir / "stability.csv",
+                          {"model", "integrator", "case", "E", "nu", "dt", "outcome", "max_energy_ratio",
+                           "max_displacement", "steps", "guard_events"});
     if (resume) progress_stream << "resuming: " << previous.size() << " runs kept from the earlier sweep\n";
 
     int total = 0;
@@ -1018,7 +970,7 @@ int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::o
     progress_stream << "stability sweep" << (quick ? " (quick)" : "") << ": " << total << " runs\n"
                     << bounds_text(sweep);
     const auto start = std::chrono::steady_clock::now();
-    Progress progress(progress_stream, total);
+    common::ProgressBar progress(progress_stream, total);
     std::vector<Run> runs;
     std::vector<std::string> set_up_notes;
     for (const std::string& case_name : sweep.cases) {
@@ -1042,7 +994,7 @@ int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::o
                 for (double dt : sweep.time_steps) {
                   const Run& run = previous.at(run_key(kind.name, integrator.name, case_name, youngs_modulus,
                                                        poisson_ratio, dt));
-                  csv << csv_row(run) << "\n" << std::flush;
+                  write_row(csv, run);
                   runs.push_back(run);
                   progress.advance();
                 }
@@ -1068,7 +1020,7 @@ int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::o
                 const auto kept = previous.find(run_key(kind.name, integrator.name, case_name, youngs_modulus,
                                                         poisson_ratio, dt));
                 if (kept != previous.end()) {
-                  csv << csv_row(kept->second) << "\n" << std::flush;
+                  write_row(csv, kept->second);
                   runs.push_back(kept->second);
                   progress.advance();
                   continue;
@@ -1087,7 +1039,7 @@ int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::o
                 run.case_name = case_name;
                 run.youngs_modulus = youngs_modulus;
                 run.poisson_ratio = poisson_ratio;
-                csv << csv_row(run) << "\n" << std::flush;
+                write_row(csv, run);
                 runs.push_back(std::move(run));
                 progress.advance();
               }
@@ -1114,9 +1066,8 @@ int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::o
             << counts << "\nInverted elements at the end of the stable inverted_start runs:\n"
             << inverted_table(kinds, runs) << "\n" << slices;
 
-    write_plot_script(out_dir / "stability.gnuplot", out_dir / "stability.png", quick, sweep, kinds,
-                      runs);
-    draw_plot(out_dir, progress_stream);
+    draw_with_gnuplot(out_dir, "stability.gnuplot", plot_script("stability.png", quick, sweep, kinds, runs),
+                      "stability.png", progress_stream);
     progress_stream << "wrote " << (out_dir / "stability.csv").string() << "\n";
     return 0;
   } catch (const std::exception& error) {

@@ -63,7 +63,11 @@
 // of implicit Euler steps at dt = 1/60 from rest under the load (Rayleigh mass damping 2/s),
 // with the scene-like CG (tolerance 1e-6, Jacobi preconditioner, at most 2000 iterations);
 // cg_iterations is their mean iteration count.
-#include "tests/bench/accuracy.hpp"
+#include "bench/accuracy.hpp"
+#include "bench/plot.hpp"
+
+#include "common/csv.hpp"
+#include "common/progress_bar.hpp"
 
 #include "physics/core/implicit_euler.hpp"
 #include "physics/cut/volume_cut.hpp"
@@ -713,43 +717,8 @@ struct Reference {
   std::vector<Level> levels;
 };
 
-class Progress {
- public:
-  Progress(std::ostream& stream, int total) : stream_(stream), total_(total) {}
-  void step(const std::string& what) {
-    ++done_;
-    draw(what);
-  }
-  void draw(const std::string& what) {
-    constexpr int width = 30;
-    const int filled = total_ > 0 ? width * done_ / total_ : width;
-    std::string line = "\r[" + std::string(filled, '#') + std::string(width - filled, '.') + "] " +
-                       std::to_string(done_) + "/" + std::to_string(total_) + " " + what;
-    if (line.size() < last_length_) line += std::string(last_length_ - line.size(), ' ');
-    last_length_ = line.size();
-    stream_ << line << std::flush;
-  }
-  // A full line above the bar.
-  void note(const std::string& text) {
-    stream_ << "\r" << text;
-    if (text.size() + 1 < last_length_) stream_ << std::string(last_length_ - text.size() - 1, ' ');
-    stream_ << "\n";
-    last_length_ = 0;
-  }
-  void finish() { stream_ << "\n"; }
-
- private:
-  std::ostream& stream_;
-  int total_;
-  int done_ = 0;
-  size_t last_length_ = 0;
-};
-
-std::string format(double value, int precision = 4) {
-  std::ostringstream stream;
-  stream << std::setprecision(precision) << value;
-  return stream.str();
-}
+// This report's figures: 4 significant digits unless a caller asks for others.
+std::string format(double value, int digits = 4) { return common::significant(value, digits); }
 
 std::string json_vector(const Vec3& v) {
   std::ostringstream stream;
@@ -758,13 +727,11 @@ std::string json_vector(const Vec3& v) {
 }
 
 void write_csv(const std::filesystem::path& path, const std::vector<Row>& rows) {
-  std::ofstream csv(path);
-  csv << "case,model,variant,resolution,dofs,elements,ms_per_step,cg_iterations,error_pct\n";
+  common::CsvWriter csv(path, {"case", "model", "variant", "resolution", "dofs", "elements", "ms_per_step",
+                               "cg_iterations", "error_pct"});
   for (const Row& row : rows) {
-    csv << row.case_name << "," << row.model << "," << row.variant << "," << row.resolution << ","
-        << row.dofs << "," << row.elements << "," << std::fixed << std::setprecision(3)
-        << row.ms_per_step << "," << std::setprecision(1) << row.cg_iterations << ","
-        << std::setprecision(4) << row.error_pct << std::defaultfloat << "\n";
+    csv.row(row.case_name, row.model, row.variant, row.resolution, row.dofs, row.elements,
+            common::fixed(row.ms_per_step, 3), common::fixed(row.cg_iterations, 1), common::fixed(row.error_pct, 4));
   }
 }
 
@@ -794,9 +761,8 @@ void write_references(const std::filesystem::path& path, const std::vector<Case>
 }
 
 // gnuplot script with the data inline: one panel per case, one series per model and variant.
-void write_plot_script(const std::filesystem::path& path, const std::filesystem::path& png,
-                       const std::vector<Case>& cases, const std::vector<Row>& rows) {
-  std::ofstream script(path);
+std::string plot_script(const std::string& png, const std::vector<Case>& cases, const std::vector<Row>& rows) {
+  std::ostringstream script;
   std::vector<std::string> series;
   for (const Row& row : rows) {
     std::string key = row.model + " " + row.variant;
@@ -808,7 +774,7 @@ void write_plot_script(const std::filesystem::path& path, const std::filesystem:
   script << "# Written by incise bench accuracy: error against time per step, log-log.\n"
          << "set terminal pngcairo size 1500,950 font ',10'\n"
          << "set termoption noenhanced\n"
-         << "set output '" << png.filename().string() << "'\n"
+         << "set output '" << png << "'\n"
          << "set logscale xy\nset grid\nset key bottom left font ',8'\n"
          << "set xlabel 'ms per implicit Euler step (dt = 1/60, CG 1e-6)'\n"
          << "set ylabel 'tip error %'\n";
@@ -847,6 +813,7 @@ void write_plot_script(const std::filesystem::path& path, const std::filesystem:
     }
   }
   script << "unset multiplot\n";
+  return script.str();
 }
 
 }  // namespace
@@ -924,7 +891,7 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
                                 (hexagon ? hexagon_linear : square_linear).size() +
                                 efg_cells.size() * (efg_variants.size() + (body.cut ? cutter_variants.size() : 0)));
     }
-    Progress progress(progress_stream, total);
+    common::ProgressBar progress(progress_stream, total);
     progress.note(std::string("incise bench accuracy") + (quick ? " --quick" : "") + ": " +
                   std::to_string(cases.size()) + " cases, output in " + out_dir.string());
 
@@ -1187,20 +1154,8 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
       progress_stream << unconverged << " rows had a timed step whose CG stopped at its iteration "
                       << "limit (2000): their ms_per_step is a lower bound\n";
     }
-    const std::filesystem::path script = out_dir / "accuracy.gnuplot";
-    const std::filesystem::path png = out_dir / "accuracy.png";
-    write_plot_script(script, png, cases, rows);
-    if (std::system("command -v gnuplot > /dev/null 2>&1") != 0) {
-      progress_stream << "gnuplot is not installed: " << png.string() << " not written (the CSV and "
-                      << script.filename().string() << " are)\n";
-    } else {
-      std::string quoted;
-      for (char ch : std::filesystem::absolute(out_dir).string()) {
-        quoted += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-      }
-      const std::string command = "cd '" + quoted + "' && gnuplot accuracy.gnuplot";
-      if (std::system(command.c_str()) != 0) progress_stream << "gnuplot failed on " << script.string() << "\n";
-    }
+    draw_with_gnuplot(out_dir, "accuracy.gnuplot", plot_script("accuracy.png", cases, rows), "accuracy.png",
+                      progress_stream);
     const std::chrono::duration<double> elapsed = Clock::now() - bench_start;
     progress_stream << "wrote " << (out_dir / "accuracy.csv").string() << " (" << rows.size()
                     << " rows), references.json and accuracy.png in " << format(elapsed.count(), 3) << " s\n";
