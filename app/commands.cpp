@@ -97,14 +97,14 @@ int check(const std::string& scene_file) {
   std::printf("%s: ok (scene '%s')\n", scene_file.c_str(), scene.name.c_str());
   for (const auto& body : world.bodies()) {
     int fixed = 0;
-    for (auto f : body.fixed) fixed += f;
+    for (auto f : body.data.fixed) fixed += f;
     std::printf("  body %s: %d nodes, %zu elements, %d fixed nodes, %zu surface triangles\n",
-                body.name.c_str(), body.model->node_count(), body.elements, fixed, body.surface.size());
-    if (body.snap.boundary_nodes > 0)
+                body.model->name.c_str(), body.data.mechanics->node_count(), body.model->elements, fixed, body.data.surface.size());
+    if (body.model->snap.boundary_nodes > 0)
       std::printf("    surface snapping: %d boundary nodes, %d moved onto the surface, %d part way, %d left; "
                   "smallest element keeps %.0f %% of its volume\n",
-                  body.snap.boundary_nodes, body.snap.moved, body.snap.moved_partly, body.snap.left,
-                  100 * body.snap.min_volume_ratio);
+                  body.model->snap.boundary_nodes, body.model->snap.moved, body.model->snap.moved_partly, body.model->snap.left,
+                  100 * body.model->snap.min_volume_ratio);
   }
   if (world.tool().present) std::printf("  tool: %s, radius %.4g m\n", scene.tool->shape.c_str(), scene.tool->radius);
   return 0;

@@ -214,7 +214,7 @@ int run(const RunArgs& args) {
     try {
       begin(!args.record.empty());
       const auto& w0 = session->world();
-      for (const auto& body : w0.bodies()) triangles_at_start += body.surface.size();
+      for (const auto& body : w0.bodies()) triangles_at_start += body.data.surface.size();
       auto publish = [&](const engine::StepStats& stats, double rtf) {
         const engine::World& world = session->world();
         auto& s = latest.back();
@@ -225,7 +225,7 @@ int run(const RunArgs& args) {
         s.real_time_factor = rtf;
         s.cut_events = world.cut_totals().events;
         s.triangles = 0;
-        for (const auto& body : world.bodies()) s.triangles += body.surface.size();
+        for (const auto& body : world.bodies()) s.triangles += body.data.surface.size();
         s.recording = recording;
         s.recording_file = recording ? record_file.string() : std::string();
         s.session = session_count;

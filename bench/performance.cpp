@@ -133,13 +133,13 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
       const double cut_first = median(std::vector<double>(cut.begin(), cut.begin() + quarter));
       const double cut_last = median(std::vector<double>(cut.end() - quarter, cut.end()));
       const double cut_cpu_last = median(std::vector<double>(cut_cpu.end() - quarter, cut_cpu.end()));
-      csv.row("default", row_backend, body.elements, body.surface.size(), median(ccd), median(topology), median(solve),
-              median(surface), median(total), 3 * body.model->node_count(), ccd.size(), topology_max, share, events,
+      csv.row("default", row_backend, body.model->elements, body.data.surface.size(), median(ccd), median(topology), median(solve),
+              median(surface), median(total), 3 * body.data.mechanics->node_count(), ccd.size(), topology_max, share, events,
               "\"" + device + "\"", bytes_per_cut_step, full_upload, row_surface, median(cut), median(mapping),
               median(checks), cut_first, cut_last, median(front_cut), median(cut_cpu), cut_cpu_last);
       csv.flush();
       progress << std::fixed << std::setprecision(2) << std::setw(8) << 1e3 * resolution.spacing << std::setw(8)
-               << 1e3 * resolution.surface << std::setw(9) << body.elements << std::setw(10) << body.surface.size()
+               << 1e3 * resolution.surface << std::setw(9) << body.model->elements << std::setw(10) << body.data.surface.size()
                << std::setw(9) << median(ccd) << std::setw(10) << median(topology) << std::setw(9) << median(solve)
                << std::setw(9) << median(surface) << std::setw(9) << median(total) << std::setw(8)
                << std::setprecision(1) << share << "   (" << ccd.size() << " steps, " << events

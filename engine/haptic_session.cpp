@@ -95,10 +95,10 @@ haptics::ContactModel build_contact_model(const World& world, const ContactBuild
   for (std::size_t b = 0; b < bodies.size(); ++b) {
     const Body& body = bodies[b];
     const BodySpec& spec = scene.bodies[b];
-    const physics::Vector& x = body.embedding ? body.surface_positions : body.state.positions;
+    const physics::Vector& x = body.data.embedding ? body.data.surface_positions : body.data.state.positions;
     const double nu = spec.material.poisson_ratio;
     const double compliance = (1 - nu * nu) / (2 * spec.material.youngs_modulus * spec.resolution);
-    for (const auto& t : body.surface) {
+    for (const auto& t : body.data.surface) {
       const Vec3 a = x.segment<3>(3 * t[0]), c1 = x.segment<3>(3 * t[1]), c2 = x.segment<3>(3 * t[2]);
       // Cheap rejection first: most triangles are nowhere near the tool.
       const Vec3 tmin = a.cwiseMin(c1).cwiseMin(c2), tmax = a.cwiseMax(c1).cwiseMax(c2);
@@ -295,7 +295,7 @@ ForceJumps force_jumps(const std::vector<haptics::TickSample>& ticks, const std:
 nlohmann::json session_summary(const HapticSession& session) {
   const World& world = session.world();
   std::size_t triangles = 0;
-  for (const auto& body : world.bodies()) triangles += body.surface.size();
+  for (const auto& body : world.bodies()) triangles += body.data.surface.size();
   std::ostringstream hash;
   hash << "0x" << std::hex << std::setw(16) << std::setfill('0') << world.state_hash();
   nlohmann::json j = {{"scene", world.scene().name},

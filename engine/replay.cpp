@@ -244,7 +244,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
 
   World world(scene, std::move(trajectory));
   long dofs_initial = 0;  // counted before any step: cutting must never change it
-  for (const auto& body : world.bodies()) dofs_initial += 3L * body.model->node_count();
+  for (const auto& body : world.bodies()) dofs_initial += 3L * body.data.mechanics->node_count();
   const long steps = options.steps ? *options.steps
                                    : std::lround(scene.solver.duration / scene.solver.dt);
   const int capture_every = options.capture_every ? *options.capture_every : scene.render.capture_every;
@@ -335,9 +335,9 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
   std::size_t nodes = 0;
   Json bodies = Json::array();
   for (const auto& body : world.bodies()) {
-    const auto& x = body.state.positions;
-    const auto& rest = body.model->rest_positions();
-    const int n = body.model->node_count();
+    const auto& x = body.data.state.positions;
+    const auto& rest = body.data.mechanics->rest_positions();
+    const int n = body.data.mechanics->node_count();
     for (int i = 0; i < n; ++i) {
       for (int c = 0; c < 3; ++c) centroid[c] += x[3 * i + c];
       double d = (x.segment<3>(3 * i) - rest.segment<3>(3 * i)).norm();
@@ -346,40 +346,40 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     }
     nodes += static_cast<std::size_t>(n);
     int fixed = 0;
-    for (auto f : body.fixed) fixed += f;
+    for (auto f : body.data.fixed) fixed += f;
     // What the user sees moved: the surface vertices (nodes of a tetrahedral body; embedded
     // vertices of a meshless one, whose particles may lie outside the body).
     double surface_max = 0;
     std::size_t surface_vertices = 0;
-    if (body.embedding) {
+    if (body.data.embedding) {
       physics::Vector rest_vertices;
-      physics::CorotationalEfg::surface_positions(*body.embedding, rest, rest_vertices);
-      const auto indices = static_cast<std::size_t>(body.embedding->vertex_count());
+      physics::CorotationalEfg::surface_positions(*body.data.embedding, rest, rest_vertices);
+      const auto indices = static_cast<std::size_t>(body.data.embedding->vertex_count());
       surface_vertices = indices;
       for (std::size_t v = 0; v < indices; ++v) {
         const auto at = static_cast<Eigen::Index>(3 * v);
-        surface_max = std::max(surface_max, (body.surface_positions.segment<3>(at) - rest_vertices.segment<3>(at)).norm());
+        surface_max = std::max(surface_max, (body.data.surface_positions.segment<3>(at) - rest_vertices.segment<3>(at)).norm());
       }
     } else {
-      surface_vertices = body.surface_nodes.size();
-      for (int node : body.surface_nodes)
+      surface_vertices = body.model->surface_nodes.size();
+      for (int node : body.model->surface_nodes)
         surface_max = std::max(surface_max, (x.segment<3>(3 * node) - rest.segment<3>(3 * node)).norm());
     }
-    bodies.push_back({{"name", body.name},
-                      {"model", body.embedding ? "efg_corotated" : "fem_corotational_tet4"},
+    bodies.push_back({{"name", body.model->name},
+                      {"model", body.data.embedding ? "efg_corotated" : "fem_corotational_tet4"},
                       {"surface_vertices", surface_vertices},
                       {"surface_max_displacement", surface_max},
                       {"nodes", n},
                       {"dofs", 3 * n},
-                      {"elements", body.elements},
+                      {"elements", body.model->elements},
                       {"fixed_nodes", fixed},
-                      {"surface_triangles", body.surface.size()}});
+                      {"surface_triangles", body.data.surface.size()}});
   }
   for (auto& c : centroid) c /= static_cast<double>(std::max<std::size_t>(nodes, 1));
   mean_displacement /= static_cast<double>(std::max<std::size_t>(nodes, 1));
   const StepStats last = stats.empty() ? StepStats{} : stats.back();
   long dofs_final = 0;
-  for (const auto& body : world.bodies()) dofs_final += 3L * body.model->node_count();
+  for (const auto& body : world.bodies()) dofs_final += 3L * body.data.mechanics->node_count();
 
   Json metrics = {
       {"scene", scene.name},
@@ -405,6 +405,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
                             {"mean_displacement", mean_displacement},
                             {"max_displacement", max_displacement}}},
       {"state_hash", hex64(world.state_hash())},
+      {"motion_hash", hex64(world.motion_hash())},
       {"bodies", bodies},
       {"tool", {{"max_force_N", max_force}, {"max_contacts", contacts_max}}},
       {"dofs", {{"initial", dofs_initial}, {"final", dofs_final}}},
@@ -429,7 +430,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     result.ok = false;
   }
   bool cuttable = false;
-  for (const auto& body : world.bodies()) cuttable = cuttable || body.cutter != nullptr;
+  for (const auto& body : world.bodies()) cuttable = cuttable || body.cut != nullptr;
   if (cuttable) {
     // Cutting: events, what the CCD and the topology cost on the steps the blade was tested,
     // the surface after the last event (and the worst over every event), the mapping.
@@ -456,9 +457,9 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     long vertices = 0, triangles = 0;
     int boundary = 0, nonmanifold = 0;
     for (const auto& body : world.bodies()) {
-      vertices += static_cast<long>(body.surface_positions.size() / 3);
-      triangles += static_cast<long>(body.surface.size());
-      const physics::SurfaceTopology topology_now = physics::surface_topology(body.surface);
+      vertices += static_cast<long>(body.data.surface_positions.size() / 3);
+      triangles += static_cast<long>(body.data.surface.size());
+      const physics::SurfaceTopology topology_now = physics::surface_topology(body.data.surface);
       boundary += topology_now.boundary_edges;
       nonmanifold += topology_now.nonmanifold_edges;
     }

@@ -12,6 +12,10 @@ add_library(incise_cut STATIC
   ${CMAKE_CURRENT_LIST_DIR}/surface_topology.cpp
   ${CMAKE_CURRENT_LIST_DIR}/linked_across.cpp
   ${CMAKE_CURRENT_LIST_DIR}/voxel_boundary.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/cut_body.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/detect_cuts.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/apply_topology.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/remap_surface.cpp
   ${CMAKE_CURRENT_LIST_DIR}/front_surface.cpp
   ${CMAKE_CURRENT_LIST_DIR}/front_mapping.cpp
   ${CMAKE_CURRENT_LIST_DIR}/triangulate_2d.cpp

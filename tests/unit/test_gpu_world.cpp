@@ -61,11 +61,11 @@ Json beam_cut_json(const TempDir& dir, const std::string& backend, const std::st
 Scene parse(const Json& json, const TempDir& dir) { return parse_scene(json.dump(), dir.path / "scene.json"); }
 
 double mean_displacement(const Body& body) {
-  const auto& x = body.state.positions;
-  const auto& rest = body.model->rest_positions();
+  const auto& x = body.data.state.positions;
+  const auto& rest = body.data.mechanics->rest_positions();
   double sum = 0;
-  for (int i = 0; i < body.model->node_count(); ++i) sum += (x.segment<3>(3 * i) - rest.segment<3>(3 * i)).norm();
-  return sum / body.model->node_count();
+  for (int i = 0; i < body.data.mechanics->node_count(); ++i) sum += (x.segment<3>(3 * i) - rest.segment<3>(3 * i)).norm();
+  return sum / body.data.mechanics->node_count();
 }
 
 void cut_beam_on_both(const std::string& precision, double tolerance, double agreement) {
@@ -88,7 +88,7 @@ void cut_beam_on_both(const std::string& precision, double tolerance, double agr
     if (b.cut_event) {
       ++events;
       cut_bytes += b.gpu_row_bytes;
-      const physics::SurfaceTopology now = physics::surface_topology(body.surface);
+      const physics::SurfaceTopology now = physics::surface_topology(body.data.surface);
       EXPECT_TRUE(now.watertight()) << "step " << step << ": " << now.boundary_edges << " boundary, "
                                     << now.nonmanifold_edges << " non-manifold edges";
       // At most one full re-upload (without reallocations), usually less. Not much less here:
@@ -104,7 +104,7 @@ void cut_beam_on_both(const std::string& precision, double tolerance, double agr
   ASSERT_GT(events, 0);
   EXPECT_GT(cut_bytes, 0);
   EXPECT_EQ(cpu.cut_totals().links_severed, gpu.cut_totals().links_severed);
-  EXPECT_EQ(cpu.bodies()[0].surface.size(), body.surface.size());
+  EXPECT_EQ(cpu.bodies()[0].data.surface.size(), body.data.surface.size());
   const double mc = mean_displacement(cpu.bodies()[0]), mg = mean_displacement(body);
   // The surface the user sees, too. Its vertices on the cut faces are placed at rest by the
   // cutter's piecewise mapping (VolumeCutter::to_rest, through the nearest integration point),
@@ -115,23 +115,23 @@ void cut_beam_on_both(const std::string& precision, double tolerance, double agr
   const Body& reference = cpu.bodies()[0];
   double surface_difference = 0;
   int placed_differently = 0;
-  const auto& rest_cpu = reference.front_surface->vertices();
-  const auto& rest_gpu = body.front_surface->vertices();
+  const auto& rest_cpu = reference.cut->surface->vertices();
+  const auto& rest_gpu = body.cut->surface->vertices();
   ASSERT_EQ(rest_cpu.size(), rest_gpu.size());
-  for (int v = 0; v < body.embedding->vertex_count(); ++v) {
+  for (int v = 0; v < body.data.embedding->vertex_count(); ++v) {
     if ((rest_cpu[static_cast<std::size_t>(v)] - rest_gpu[static_cast<std::size_t>(v)]).norm() > agreement * 0.005) {
       ++placed_differently;
       continue;
     }
-    surface_difference = std::max(surface_difference, (reference.surface_positions.segment<3>(3 * v) -
-                                                       body.surface_positions.segment<3>(3 * v)).cwiseAbs().maxCoeff());
+    surface_difference = std::max(surface_difference, (reference.data.surface_positions.segment<3>(3 * v) -
+                                                       body.data.surface_positions.segment<3>(3 * v)).cwiseAbs().maxCoeff());
   }
   std::printf("[gpu %s] cut beam: %d cut events, %.0f row bytes per cut step (a full re-upload is %lld); mean "
               "displacement cpu %.9e gpu %.9e m, relative %.3e; surface vertices differ by %.3e m (%d of %d "
               "placed differently on the cut)\n",
               precision.c_str(), events, static_cast<double>(cut_bytes) / events, full, mc, mg,
-              std::abs(mg - mc) / mc, surface_difference, placed_differently, body.embedding->vertex_count());
-  EXPECT_LT(placed_differently, body.embedding->vertex_count() / 100);
+              std::abs(mg - mc) / mc, surface_difference, placed_differently, body.data.embedding->vertex_count());
+  EXPECT_LT(placed_differently, body.data.embedding->vertex_count() / 100);
   EXPECT_LT(surface_difference, 10 * agreement * mc);
   EXPECT_LT(std::abs(mg - mc) / mc, agreement);
 }
@@ -208,7 +208,7 @@ TEST(GpuWorld, TheFrontSurfaceCutsTheBeamOnTheGpuAsOnTheCpu) {
   World gpu(parse(gpu_json, dir), read_trajectory(dir.path / "cut.traj"));
   const Body& body = gpu.bodies()[0];
   ASSERT_TRUE(body.gpu);
-  ASSERT_TRUE(body.front_surface);
+  ASSERT_TRUE(body.cut->surface);
   int events = 0;
   for (int step = 0; step < 12; ++step) {
     const StepStats a = cpu.step();
@@ -217,18 +217,18 @@ TEST(GpuWorld, TheFrontSurfaceCutsTheBeamOnTheGpuAsOnTheCpu) {
     EXPECT_EQ(a.links_severed, b.links_severed) << "step " << step;
     if (!b.cut_event) continue;
     ++events;
-    EXPECT_TRUE(physics::surface_topology(body.surface).watertight()) << "step " << step;
-    EXPECT_EQ(cpu.bodies()[0].surface, body.surface) << "step " << step;
+    EXPECT_TRUE(physics::surface_topology(body.data.surface).watertight()) << "step " << step;
+    EXPECT_EQ(cpu.bodies()[0].data.surface, body.data.surface) << "step " << step;
   }
   ASSERT_GT(events, 0);
   EXPECT_EQ(gpu.cut_totals().front_problems, 0) << gpu.cut_totals().first_front_problem;
   EXPECT_EQ(gpu.cut_totals().wrong_side, 0);
   EXPECT_EQ(cpu.cut_totals().vertices_remapped, gpu.cut_totals().vertices_remapped);
   double difference = 0;
-  for (Eigen::Index i = 0; i < body.surface_positions.size(); ++i)
-    difference = std::max(difference, std::abs(body.surface_positions[i] - cpu.bodies()[0].surface_positions[i]));
+  for (Eigen::Index i = 0; i < body.data.surface_positions.size(); ++i)
+    difference = std::max(difference, std::abs(body.data.surface_positions[i] - cpu.bodies()[0].data.surface_positions[i]));
   const double mc = mean_displacement(cpu.bodies()[0]);
   std::printf("[gpu double] front cut beam: %d cut events, %zu triangles, surface vertices differ by %.3e m (mean displacement %.3e m)\n",
-              events, body.surface.size(), difference, mc);
+              events, body.data.surface.size(), difference, mc);
   EXPECT_LT(difference, 1e-8 * std::max(mc, 1e-6) + 1e-12);
 }

@@ -80,11 +80,11 @@ TEST(HapticSession, ARecordedSessionReplaysHeadlessToTheSameCut) {
   long events = 0;
   {
     HapticSession session(scene, device, options);
-    triangles_before = session.world().bodies()[0].surface.size();
+    triangles_before = session.world().bodies()[0].data.surface.size();
     for (int k = 0; k < steps; ++k) session.step();
     session.stop();
     hash = hex64(session.world().state_hash());
-    triangles = session.world().bodies()[0].surface.size();
+    triangles = session.world().bodies()[0].data.surface.size();
     events = session.world().cut_totals().events;
     EXPECT_EQ(read_trajectory(dir.path / "session.traj").samples.size(), session.samples_recorded());
   }

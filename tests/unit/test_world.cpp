@@ -92,10 +92,10 @@ TEST(World, FreeBodyFallsWithGravityExactly) {
   World world(scene, std::nullopt);
   for (int k = 0; k < 20; ++k) world.step();
   const auto& body = world.bodies()[0];
-  const auto& m = body.model->lumped_masses();
+  const auto& m = body.data.mechanics->lumped_masses();
   double momentum_z = 0, mass = 0;
-  for (int i = 0; i < body.model->node_count(); ++i) {
-    momentum_z += m[i] * body.state.velocities[3 * i + 2];
+  for (int i = 0; i < body.data.mechanics->node_count(); ++i) {
+    momentum_z += m[i] * body.data.state.velocities[3 * i + 2];
     mass += m[i];
   }
   EXPECT_NEAR(momentum_z / mass, -9.81 * 0.2, 1e-6);
@@ -111,10 +111,10 @@ TEST(World, ProbePushesTheTissueAndFeelsItBack) {
   for (int k = 0; k < 20; ++k) {
     auto stats = world.step();
     max_up_force = std::max(max_up_force, stats.tool_force[2]);
-    const auto& x = world.bodies()[0].state.positions;
+    const auto& x = world.bodies()[0].data.state.positions;
     // The top node under the probe's path moves down.
-    for (int i = 0; i < world.bodies()[0].model->node_count(); ++i) {
-      const auto& rest = world.bodies()[0].model->rest_positions();
+    for (int i = 0; i < world.bodies()[0].data.mechanics->node_count(); ++i) {
+      const auto& rest = world.bodies()[0].data.mechanics->rest_positions();
       if (std::abs(rest[3 * i] - 0.03) < 1e-9 && std::abs(rest[3 * i + 1]) < 1e-9 &&
           std::abs(rest[3 * i + 2] - 0.02) < 1e-9)
         deepest_top = std::min(deepest_top, x[3 * i + 2]);
@@ -202,17 +202,17 @@ TEST(World, EfgBeamSettlesAtTheCantileverDeflectionAndStaysThere) {
   Scene scene = parse_scene(efg_beam_scene().dump(), dir.path / "scene.json");
   World world(scene, std::nullopt);
   const Body& body = world.bodies()[0];
-  ASSERT_TRUE(body.embedding.has_value());
+  ASSERT_TRUE(body.data.embedding.has_value());
   // Mean z displacement of the tip face's surface vertices (x = L), against the converged
   // 10-node tetrahedra of B1 (5.888 mm, tests/unit/test_fem_cantilever.cpp; beam theory 5.947).
   const auto tip_deflection = [&] {
     physics::Vector rest;
-    physics::CorotationalEfg::surface_positions(*body.embedding, body.model->rest_positions(), rest);
+    physics::CorotationalEfg::surface_positions(*body.data.embedding, body.data.mechanics->rest_positions(), rest);
     double sum = 0;
     int count = 0;
-    for (int v = 0; v < body.embedding->vertex_count(); ++v) {
+    for (int v = 0; v < body.data.embedding->vertex_count(); ++v) {
       if (std::abs(rest[3 * v] - 0.2) > 1e-9) continue;
-      sum += body.surface_positions[3 * v + 2] - rest[3 * v + 2];
+      sum += body.data.surface_positions[3 * v + 2] - rest[3 * v + 2];
       ++count;
     }
     EXPECT_GT(count, 8);
@@ -225,9 +225,9 @@ TEST(World, EfgBeamSettlesAtTheCantileverDeflectionAndStaysThere) {
   for (int k = 0; k < 10; ++k) world.step();
   EXPECT_NEAR(tip_deflection(), settled, 0.002 * settled);
   // The clamped face does not move.
-  for (int i = 0; i < body.model->node_count(); ++i)
-    if (body.fixed[i]) {
-      EXPECT_EQ(body.state.positions.segment<3>(3 * i), body.model->rest_positions().segment<3>(3 * i));
+  for (int i = 0; i < body.data.mechanics->node_count(); ++i)
+    if (body.data.fixed[i]) {
+      EXPECT_EQ(body.data.state.positions.segment<3>(3 * i), body.data.mechanics->rest_positions().segment<3>(3 * i));
     }
 }
 
@@ -245,9 +245,9 @@ TEST(World, ProbePushesAnEfgBodyThroughItsEmbeddedSurface) {
   int under = -1;
   {
     physics::Vector rest;
-    physics::CorotationalEfg::surface_positions(*body.embedding, body.model->rest_positions(), rest);
+    physics::CorotationalEfg::surface_positions(*body.data.embedding, body.data.mechanics->rest_positions(), rest);
     double best = 1;
-    for (int v = 0; v < body.embedding->vertex_count(); ++v) {
+    for (int v = 0; v < body.data.embedding->vertex_count(); ++v) {
       const double d = (rest.segment<3>(3 * v) - physics::Vec3(0.03, 0, 0.02)).norm();
       if (d < best) best = d, under = v;
     }
@@ -257,7 +257,7 @@ TEST(World, ProbePushesAnEfgBodyThroughItsEmbeddedSurface) {
   for (int k = 0; k < 20; ++k) {
     auto stats = world.step();
     max_up_force = std::max(max_up_force, stats.tool_force[2]);
-    deepest = std::min(deepest, body.surface_positions[3 * under + 2]);
+    deepest = std::min(deepest, body.data.surface_positions[3 * under + 2]);
   }
   EXPECT_LT(deepest, 0.02 - 0.001);  // the seen surface is pressed at least 1 mm
   EXPECT_GT(max_up_force, 0.0);      // and pushes the tool back

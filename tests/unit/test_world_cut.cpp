@@ -69,28 +69,28 @@ struct Fall {
   double fallen, expected, seconds;
 };
 Fall free_piece_fall(World& world, const Body& body, const std::vector<int>& piece, double dt) {
-  const auto& masses = body.model->lumped_masses();
-  std::vector<std::uint8_t> free_particle(static_cast<std::size_t>(body.model->node_count()), 0);
+  const auto& masses = body.data.mechanics->lumped_masses();
+  std::vector<std::uint8_t> free_particle(static_cast<std::size_t>(body.data.mechanics->node_count()), 0);
   int tip = 0;  // the element farthest along the beam is on the free piece
-  for (int e = 0; e < body.efg->element_count(); ++e)
-    if (body.efg->element_centres()[e].x() > body.efg->element_centres()[tip].x()) tip = e;
-  for (int e = 0; e < body.efg->element_count(); ++e) {
+  for (int e = 0; e < body.data.efg->element_count(); ++e)
+    if (body.data.efg->element_centres()[e].x() > body.data.efg->element_centres()[tip].x()) tip = e;
+  for (int e = 0; e < body.data.efg->element_count(); ++e) {
     if (piece[e] != piece[tip]) continue;
-    EXPECT_GT(body.efg->element_centres()[e].x(), 0.0512) << "element " << e << " on the wrong piece";
-    const std::size_t base = static_cast<std::size_t>(e) * body.efg->row_stride();
-    for (int k = 0; k < body.efg->row_lengths()[e]; ++k) free_particle[body.efg->neighbours()[base + k]] = 1;
+    EXPECT_GT(body.data.efg->element_centres()[e].x(), 0.0512) << "element " << e << " on the wrong piece";
+    const std::size_t base = static_cast<std::size_t>(e) * body.data.efg->row_stride();
+    for (int k = 0; k < body.data.efg->row_lengths()[e]; ++k) free_particle[body.data.efg->neighbours()[base + k]] = 1;
   }
   const auto centre = [&](const physics::Vector& v) {
     double weighted = 0, total = 0;
-    for (int i = 0; i < body.model->node_count(); ++i)
+    for (int i = 0; i < body.data.mechanics->node_count(); ++i)
       if (free_particle[i]) weighted += masses[i] * v[3 * i + 2], total += masses[i];
     return weighted / total;
   };
-  const double z0 = centre(body.state.positions), v0 = centre(body.state.velocities);
+  const double z0 = centre(body.data.state.positions), v0 = centre(body.data.state.velocities);
   const int fall_steps = 40;
   for (int k = 0; k < fall_steps; ++k) world.step();
   const double t = fall_steps * dt;
-  return {z0 - centre(body.state.positions), -v0 * t + 0.5 * 9.81 * t * t, t};
+  return {z0 - centre(body.data.state.positions), -v0 * t + 0.5 * 9.81 * t * t, t};
 }
 
 }  // namespace
@@ -101,36 +101,36 @@ Fall free_piece_fall(World& world, const Body& body, const std::vector<int>& pie
 // point lies across a cut face (the worst so far is at least the current whole count, which
 // is 0 on every shipped scene).
 void expect_front_kept_as_whole(const World& world, const Body& body, const std::string& when) {
-  const physics::FrontSurface& front = *body.front_surface;
-  ASSERT_TRUE(body.surface == front.triangles()) << when;
-  ASSERT_EQ(body.render_triangles.size(), 3 * body.surface.size()) << when;
-  for (std::size_t t = 0; t < body.surface.size(); ++t)
-    for (int c = 0; c < 3; ++c) ASSERT_EQ(body.render_triangles[3 * t + c], static_cast<std::uint32_t>(body.surface[t][c])) << when;
+  const physics::FrontSurface& front = *body.cut->surface;
+  ASSERT_TRUE(body.data.surface == front.triangles()) << when;
+  ASSERT_EQ(body.data.render_triangles.size(), 3 * body.data.surface.size()) << when;
+  for (std::size_t t = 0; t < body.data.surface.size(); ++t)
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(body.data.render_triangles[3 * t + c], static_cast<std::uint32_t>(body.data.surface[t][c])) << when;
   // The cut-face flags the frame is drawn with are the surface's.
-  ASSERT_TRUE(body.render_cut_face == front.on_cut_face()) << when;
+  ASSERT_TRUE(body.data.render_cut_face == front.on_cut_face()) << when;
   physics::Vector whole;
-  physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, whole);
-  ASSERT_EQ(whole.size(), body.surface_positions.size()) << when;
-  EXPECT_LE((whole - body.surface_positions).cwiseAbs().maxCoeff(), 1e-15) << when;
+  physics::CorotationalEfg::surface_positions(*body.data.embedding, body.data.state.positions, whole);
+  ASSERT_EQ(whole.size(), body.data.surface_positions.size()) << when;
+  EXPECT_LE((whole - body.data.surface_positions).cwiseAbs().maxCoeff(), 1e-15) << when;
   // The planes each vertex was mapped with (the third trigger compares against them).
-  ASSERT_EQ(body.front_plane_counts.size(), front.vertex_planes().size()) << when;
+  ASSERT_EQ(body.cut->mapping.plane_counts.size(), front.vertex_planes().size()) << when;
   for (std::size_t v = 0; v < front.vertex_planes().size(); ++v)
-    ASSERT_EQ(body.front_plane_counts[v], front.vertex_planes()[v].size()) << when << ", vertex " << v;
-  const physics::SurfaceTopology full = physics::surface_topology(body.surface);
-  EXPECT_EQ(body.front_topology.boundary_edges, full.boundary_edges) << when;
-  EXPECT_EQ(body.front_topology.nonmanifold_edges, full.nonmanifold_edges) << when;
+    ASSERT_EQ(body.cut->mapping.plane_counts[v], front.vertex_planes()[v].size()) << when << ", vertex " << v;
+  const physics::SurfaceTopology full = physics::surface_topology(body.data.surface);
+  EXPECT_EQ(body.cut->topology.boundary_edges, full.boundary_edges) << when;
+  EXPECT_EQ(body.cut->topology.nonmanifold_edges, full.nonmanifold_edges) << when;
   // The linked-across count kept around each cut (the elements found by their centres) is the
   // full one.
-  EXPECT_EQ(world.cut_totals().elements_linked_across, physics::elements_linked_across(*body.efg, *body.front_rest_cut)) << when;
+  EXPECT_EQ(world.cut_totals().elements_linked_across, physics::elements_linked_across(*body.data.efg, *body.cut->rest_cut)) << when;
   std::set<std::array<double, 9>> seen;
   std::vector<std::array<physics::Vec3, 3>> faces;
   std::vector<std::uint8_t> on_face(front.vertices().size(), 0);
-  for (std::size_t t = 0; t < body.surface.size(); ++t) {
+  for (std::size_t t = 0; t < body.data.surface.size(); ++t) {
     if (!front.on_cut_face()[t]) continue;
     std::array<physics::Vec3, 3> corners;
     for (int c = 0; c < 3; ++c) {
-      corners[static_cast<std::size_t>(c)] = front.vertices()[static_cast<std::size_t>(body.surface[t][static_cast<std::size_t>(c)])];
-      on_face[static_cast<std::size_t>(body.surface[t][static_cast<std::size_t>(c)])] = 1;
+      corners[static_cast<std::size_t>(c)] = front.vertices()[static_cast<std::size_t>(body.data.surface[t][static_cast<std::size_t>(c)])];
+      on_face[static_cast<std::size_t>(body.data.surface[t][static_cast<std::size_t>(c)])] = 1;
     }
     std::sort(corners.begin(), corners.end(), [](const physics::Vec3& l, const physics::Vec3& r) {
       return std::lexicographical_compare(l.data(), l.data() + 3, r.data(), r.data() + 3);
@@ -140,16 +140,16 @@ void expect_front_kept_as_whole(const World& world, const Body& body, const std:
     if (seen.insert(key).second) faces.push_back(corners);
   }
   std::vector<int> across;
-  const physics::CutFaceIndex index(*body.efg, faces);
-  physics::count_wrong_side(*body.efg, front.vertices(), body.surface, *body.embedding, index, 0.1 * front.front_width() / 1.5, {}, &across,
+  const physics::CutFaceIndex index(*body.data.efg, faces);
+  physics::count_wrong_side(*body.data.efg, front.vertices(), body.data.surface, *body.data.embedding, index, 0.1 * front.front_width() / 1.5, {}, &across,
                             on_face);
   std::vector<int> off_crack;
   for (const int v : across)
     if (front.crack_front()[static_cast<std::size_t>(v)] == 0) off_crack.push_back(v);
   EXPECT_GE(world.cut_totals().wrong_side, static_cast<long>(off_crack.size())) << when;
   std::vector<int> flagged;
-  for (std::size_t v = 0; v < body.front_wrong_side.size(); ++v)
-    if (body.front_wrong_side[v] != 0 && front.crack_front()[v] == 0) flagged.push_back(static_cast<int>(v));
+  for (std::size_t v = 0; v < body.cut->mapping.wrong_side.size(); ++v)
+    if (body.cut->mapping.wrong_side[v] != 0 && front.crack_front()[v] == 0) flagged.push_back(static_cast<int>(v));
   EXPECT_EQ(flagged, off_crack) << when;
 }
 
@@ -160,32 +160,32 @@ TEST(WorldCut, ABladeCutsTheBeamInTwoClosedPiecesAndTheFreeOneFallsWithItsSurfac
   Scene scene = beam_cut_scene(dir, 0.02);
   World world(scene, read_trajectory(dir.path / "cut.traj"));
   const Body& body = world.bodies()[0];
-  ASSERT_TRUE(body.front_surface);
-  const int dofs = 3 * body.model->node_count();
-  const std::size_t triangles_before = body.surface.size();
+  ASSERT_TRUE(body.cut->surface);
+  const int dofs = 3 * body.data.mechanics->node_count();
+  const std::size_t triangles_before = body.data.surface.size();
   int events = 0;
   for (int step = 0; step < 12; ++step) {
     if (!world.step().cut_event) continue;
     ++events;
-    const physics::SurfaceTopology now = physics::surface_topology(body.surface);
+    const physics::SurfaceTopology now = physics::surface_topology(body.data.surface);
     EXPECT_TRUE(now.watertight()) << "step " << step << ": " << now.boundary_edges << " boundary, "
                                   << now.nonmanifold_edges << " non-manifold edges";
-    EXPECT_EQ(3 * body.model->node_count(), dofs);
-    ASSERT_EQ(body.embedding->vertex_count(), static_cast<int>(body.front_surface->vertices().size())) << "step " << step;
+    EXPECT_EQ(3 * body.data.mechanics->node_count(), dofs);
+    ASSERT_EQ(body.data.embedding->vertex_count(), static_cast<int>(body.cut->surface->vertices().size())) << "step " << step;
     expect_front_kept_as_whole(world, body, "step " + std::to_string(step));
     // The counts the world keeps where the surface changed are the whole surface's.
-    EXPECT_EQ(body.front_topology.boundary_edges, now.boundary_edges) << "step " << step;
-    EXPECT_EQ(body.front_topology.nonmanifold_edges, now.nonmanifold_edges) << "step " << step;
+    EXPECT_EQ(body.cut->topology.boundary_edges, now.boundary_edges) << "step " << step;
+    EXPECT_EQ(body.cut->topology.nonmanifold_edges, now.nonmanifold_edges) << "step " << step;
     // No vertex across a cut from its point, counted over the whole surface (the world keeps
     // the rows of the stroke's vertices behind the front and tests only where it changed).
     {
-      const physics::FrontSurface& front = *body.front_surface;
+      const physics::FrontSurface& front = *body.cut->surface;
       std::set<std::array<double, 9>> seen;
       std::vector<std::array<physics::Vec3, 3>> faces;
-      for (std::size_t t = 0; t < body.surface.size(); ++t) {
+      for (std::size_t t = 0; t < body.data.surface.size(); ++t) {
         if (!front.on_cut_face()[t]) continue;
         std::array<physics::Vec3, 3> corners;
-        for (int c = 0; c < 3; ++c) corners[static_cast<std::size_t>(c)] = front.vertices()[static_cast<std::size_t>(body.surface[t][static_cast<std::size_t>(c)])];
+        for (int c = 0; c < 3; ++c) corners[static_cast<std::size_t>(c)] = front.vertices()[static_cast<std::size_t>(body.data.surface[t][static_cast<std::size_t>(c)])];
         std::sort(corners.begin(), corners.end(), [](const physics::Vec3& l, const physics::Vec3& r) {
           return std::lexicographical_compare(l.data(), l.data() + 3, r.data(), r.data() + 3);
         });
@@ -194,45 +194,45 @@ TEST(WorldCut, ABladeCutsTheBeamInTwoClosedPiecesAndTheFreeOneFallsWithItsSurfac
         if (seen.insert(key).second) faces.push_back(corners);
       }
       std::vector<std::uint8_t> on_face(front.vertices().size(), 0);
-      for (std::size_t t = 0; t < body.surface.size(); ++t)
+      for (std::size_t t = 0; t < body.data.surface.size(); ++t)
         if (front.on_cut_face()[t])
-          for (const int v : body.surface[t]) on_face[static_cast<std::size_t>(v)] = 1;
+          for (const int v : body.data.surface[t]) on_face[static_cast<std::size_t>(v)] = 1;
       std::vector<int> across;
-      const physics::CutFaceIndex index(*body.efg, faces);
-      physics::count_wrong_side(*body.efg, front.vertices(), body.surface, *body.embedding, index, 0.1 * front.front_width() / 1.5, {}, &across,
+      const physics::CutFaceIndex index(*body.data.efg, faces);
+      physics::count_wrong_side(*body.data.efg, front.vertices(), body.data.surface, *body.data.embedding, index, 0.1 * front.front_width() / 1.5, {}, &across,
                                 on_face);
       const long wrong = std::count_if(across.begin(), across.end(), [&](int v) { return front.crack_front()[static_cast<std::size_t>(v)] == 0; });
       EXPECT_EQ(wrong, 0) << "step " << step;
     }
-    ASSERT_TRUE(body.surface_positions.allFinite()) << "step " << step;
+    ASSERT_TRUE(body.data.surface_positions.allFinite()) << "step " << step;
   }
   EXPECT_GT(events, 0);
   EXPECT_EQ(world.cut_totals().front_problems, 0) << world.cut_totals().first_front_problem;
   std::vector<int> piece;
-  ASSERT_EQ(body.cutter->pieces(piece), 2);
-  EXPECT_GT(body.surface.size(), triangles_before);
+  ASSERT_EQ(body.cut->cutter->pieces(piece), 2);
+  EXPECT_GT(body.data.surface.size(), triangles_before);
   EXPECT_EQ(world.cut_totals().wrong_side, 0);  // the worst over the events
   EXPECT_EQ(world.cut_totals().elements_linked_across, 0);
   // The surface's vertices beyond the cut (at rest) fall with the free piece; those before it
   // stay with the clamped one.
-  const auto& rest = body.front_surface->vertices();
-  const physics::Vector before = body.surface_positions;
+  const auto& rest = body.cut->surface->vertices();
+  const physics::Vector before = body.data.surface_positions;
   const auto [fallen, expected, t] = free_piece_fall(world, body, piece, scene.solver.dt);
   EXPECT_NEAR(fallen, expected, 0.03 * expected);
   double free_drop = 0, clamped_drop = 0;
   int free_count = 0, clamped_count = 0;
   for (std::size_t v = 0; v < rest.size(); ++v) {
-    const double drop = before[3 * static_cast<Eigen::Index>(v) + 2] - body.surface_positions[3 * static_cast<Eigen::Index>(v) + 2];
+    const double drop = before[3 * static_cast<Eigen::Index>(v) + 2] - body.data.surface_positions[3 * static_cast<Eigen::Index>(v) + 2];
     if (rest[v].x() > 0.06) free_drop += drop, ++free_count;
     if (rest[v].x() < 0.04) clamped_drop += drop, ++clamped_count;
   }
   free_drop /= free_count;
   clamped_drop /= clamped_count;
   std::printf("engine front cut: %d events, %zu -> %zu triangles; free surface fell %.5f m (piece %.5f), clamped one %.5f m\n",
-              events, triangles_before, body.surface.size(), free_drop, fallen, clamped_drop);
+              events, triangles_before, body.data.surface.size(), free_drop, fallen, clamped_drop);
   EXPECT_NEAR(free_drop, fallen, 0.1 * fallen);
   EXPECT_LT(std::abs(clamped_drop), 0.1 * fallen);
-  EXPECT_TRUE(physics::surface_topology(body.surface).watertight());
+  EXPECT_TRUE(physics::surface_topology(body.data.surface).watertight());
 }
 
 TEST(WorldCut, AFrameDrawsTheExposedCutFacesApartInTheirOwnColour) {
@@ -246,7 +246,7 @@ TEST(WorldCut, AFrameDrawsTheExposedCutFacesApartInTheirOwnColour) {
   render::Frame frame;
   world.fill_frame(frame, 64, 48);
   ASSERT_EQ(frame.meshes.size(), 1u);
-  EXPECT_EQ(frame.meshes[0].triangles, body.render_triangles);
+  EXPECT_EQ(frame.meshes[0].triangles, body.data.render_triangles);
   for (int step = 0; step < 12; ++step) world.step();
   ASSERT_EQ(world.cut_totals().front_problems, 0) << world.cut_totals().first_front_problem;
   world.fill_frame(frame, 64, 48);
@@ -255,16 +255,16 @@ TEST(WorldCut, AFrameDrawsTheExposedCutFacesApartInTheirOwnColour) {
   const render::SurfaceMesh& cut = frame.meshes[1];
   EXPECT_NE(skin.color, cut.color);
   EXPECT_EQ(cut.positions, skin.positions);
-  ASSERT_EQ(skin.triangles.size() + cut.triangles.size(), body.render_triangles.size());
-  const physics::FrontSurface& front = *body.front_surface;
+  ASSERT_EQ(skin.triangles.size() + cut.triangles.size(), body.data.render_triangles.size());
+  const physics::FrontSurface& front = *body.cut->surface;
   std::vector<std::uint32_t> expect_skin, expect_cut;
   double cut_area = 0;
-  for (std::size_t t = 0; t < body.surface.size(); ++t) {
+  for (std::size_t t = 0; t < body.data.surface.size(); ++t) {
     auto& to = front.on_cut_face()[t] ? expect_cut : expect_skin;
-    for (int c = 0; c < 3; ++c) to.push_back(static_cast<std::uint32_t>(body.surface[t][static_cast<std::size_t>(c)]));
+    for (int c = 0; c < 3; ++c) to.push_back(static_cast<std::uint32_t>(body.data.surface[t][static_cast<std::size_t>(c)]));
     if (!front.on_cut_face()[t]) continue;
     const auto& x = front.vertices();
-    const auto& tri = body.surface[t];
+    const auto& tri = body.data.surface[t];
     cut_area += 0.5 * (x[static_cast<std::size_t>(tri[1])] - x[static_cast<std::size_t>(tri[0])])
                           .cross(x[static_cast<std::size_t>(tri[2])] - x[static_cast<std::size_t>(tri[0])])
                           .norm();
@@ -299,9 +299,9 @@ TEST(WorldCut, ABladeThatMissesCutsNothing) {
   TempDir dir("incise_world_cut_miss");
   Scene scene = beam_cut_scene(dir, 0.02, 0.15);  // beyond the beam's end
   World world(scene, read_trajectory(dir.path / "cut.traj"));
-  const std::size_t triangles = world.bodies()[0].surface.size();
+  const std::size_t triangles = world.bodies()[0].data.surface.size();
   for (int k = 0; k < 12; ++k) EXPECT_FALSE(world.step().cut_event);
-  EXPECT_EQ(world.bodies()[0].surface.size(), triangles);
+  EXPECT_EQ(world.bodies()[0].data.surface.size(), triangles);
   EXPECT_EQ(world.cut_totals().events, 0);
 }
 
@@ -349,7 +349,7 @@ TEST(WorldCut, TheFrontSurfacesCutBesideTheVolumesGivesWhatItGivesInSequence) {
     World world(scene, read_trajectory(*scene.tool->trajectory));
     EXPECT_EQ(world.bodies()[0].executor->has_side_helper(), threads >= 2);
     EXPECT_EQ(world.bodies()[0].executor->thread_count(), threads);
-    EXPECT_EQ(&world.bodies()[0].efg->executor(), world.bodies()[0].executor.get());
+    EXPECT_EQ(&world.bodies()[0].data.efg->executor(), world.bodies()[0].executor.get());
     front_ms = 0;
     int events = 0;
     for (int k = 0; k < 100; ++k) {
@@ -361,7 +361,7 @@ TEST(WorldCut, TheFrontSurfacesCutBesideTheVolumesGivesWhatItGivesInSequence) {
     // Whether the helper or the caller ran each step's surface cut depends on the scheduler;
     // the results must not.
     if (body.executor->has_side_helper()) std::printf("surface cut on the helper thread in %llu steps\n", static_cast<unsigned long long>(body.executor->side_taken_by_helper()));
-    return std::make_tuple(world.state_hash(), body.front_surface->vertices(), body.surface, events,
+    return std::make_tuple(world.state_hash(), body.cut->surface->vertices(), body.data.surface, events,
                            world.cut_totals().links_severed, world.cut_totals().front_problems, world.cut_totals().wrong_side);
   };
   double beside_ms = 0, sequence_ms = 0;

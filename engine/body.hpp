@@ -1,0 +1,32 @@
+// The engine's body: physics' model and data (physics/core/body.hpp, physics/cut/cut_body.hpp)
+// and what the engine adds to run it.
+#pragma once
+
+#include "engine/thread_pool.hpp"
+#include "physics/core/body.hpp"
+#include "physics/cut/cut_body.hpp"
+
+#include <memory>
+
+namespace incise::physics::gpu {
+class EfgStep;  // physics/gpu/efg_step.hpp
+}
+
+namespace incise::engine {
+
+// A body: its read-only model and its data (physics/core/body.hpp), and for a cuttable body
+// the same split of its cut (physics/cut/cut_body.hpp). The engine adds what runs it: the
+// threads its model's loops use and, with solver.backend "gpu", its step on the GPU.
+struct Body {
+  std::shared_ptr<const physics::BodyModel> model;
+  physics::BodyData data;
+  std::shared_ptr<const physics::CutModel> cut_model;  // cuttable bodies only
+  std::unique_ptr<physics::CutData> cut;
+  // EFG bodies: efg.threads threads for their model's loops (the physics thread among them),
+  // with a side thread for a cuttable body with efg.threads >= 2, on which a cutting step's
+  // surface cut runs beside the volume's (apply_topology). The model owns none.
+  std::unique_ptr<ThreadPoolExecutor> executor;
+  std::shared_ptr<physics::gpu::EfgStep> gpu;  // solver.backend "gpu": its step, surface and rows
+};
+
+}  // namespace incise::engine

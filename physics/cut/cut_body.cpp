@@ -1,0 +1,37 @@
+#include "physics/cut/cut_body.hpp"
+
+#include <numeric>
+
+namespace incise::physics {
+
+CutData make_cut_data(const BodyModel& model, BodyData& body, const CutModel& cut_model, std::vector<Vec3> vertices,
+                      std::vector<std::array<int, 3>> triangles) {
+  CutData cut;
+  CorotationalEfg& efg = *body.efg;
+  cut.surface = std::make_unique<FrontSurface>(std::move(vertices), std::move(triangles), cut_model.front_width());
+  // The rest cut binned at twice the surface cell: its triangles are about that size.
+  cut.rest_cut = std::make_unique<RestCut>(2 * cut_model.surface_cell);
+  cut.cutter = std::make_unique<VolumeCutter>(efg, 1e-6, 0.5 * cut_model.spacing);
+  body.embedding.emplace();
+  std::vector<int> all(cut.surface->vertices().size());
+  std::iota(all.begin(), all.end(), 0);
+  FrontMappingReport mapping;
+  map_front_surface(efg, cut.surface->vertices(), cut.surface->triangles(), cut.surface->vertex_planes(), all,
+                    *body.embedding, mapping);
+  cut.mapping.plane_counts.assign(all.size(), 0);
+  cut.mapping.mapped_base = cut.surface->base_vertex_count();
+  cut.mapping.identity.first = cut.mapping.mapped_base;
+  cut.topology = surface_topology(cut.surface->triangles());
+  // The linked-across check's link boxes taken now rather than at the first cut, whose step
+  // they would slow.
+  update_elements_linked_across(efg, *cut.rest_cut, cut.linked.linked, model.rest_lo, model.rest_hi, nullptr,
+                                &cut.linked.link_boxes, &cut.linked.seen, &cut.linked.index);
+  body.surface = cut.surface->triangles();
+  body.render_triangles.clear();
+  for (const auto& t : body.surface)
+    for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(v));
+  body.render_cut_face = cut.surface->on_cut_face();
+  return cut;
+}
+
+}  // namespace incise::physics

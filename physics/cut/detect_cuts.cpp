@@ -1,0 +1,132 @@
+#include "physics/cut/detect_cuts.hpp"
+
+#include "physics/core/stopwatch.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace incise::physics {
+
+namespace {
+
+// Whether the sweep's box meets the body's, grown by `margin`. The body's box is its
+// particles': they lie at the corners of the particle cells that hold the integration points,
+// around the surface (which is mapped from them), and are far fewer than a fine surface's
+// vertices.
+bool sweep_near_body(const BladeSweep& sweep, const Vector& particles, double margin) {
+  Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+  for (const auto& pose : sweep.poses)
+    for (const auto& p : pose) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  Vec3 body_lo = Vec3::Constant(1e300), body_hi = Vec3::Constant(-1e300);
+  for (Eigen::Index p = 0; p < particles.size() / 3; ++p) {
+    body_lo = body_lo.cwiseMin(particles.segment<3>(3 * p));
+    body_hi = body_hi.cwiseMax(particles.segment<3>(3 * p));
+  }
+  for (int axis = 0; axis < 3; ++axis)
+    if (lo[axis] > body_hi[axis] + margin || hi[axis] < body_lo[axis] - margin) return false;
+  return true;
+}
+
+}  // namespace
+
+std::optional<RestSweep> detect_cuts(const CutModel& cut_model, CutData& cut, const BodyData& body,
+                                     const BladeSweep& sweep, CutStepReport& report) {
+  const auto& active = sweep.active;
+  if (std::find(active.begin(), active.end(), 1) == active.end()) return std::nullopt;
+  if (!sweep_near_body(sweep, body.state.positions, 2 * cut_model.spacing)) return std::nullopt;
+  report.tested = true;
+  const Stopwatch watch;
+  // The sweep in the rest configuration (seed 004 §2.3: topology edits are done at rest).
+  // The edge is resampled every a / 2 and each point mapped through the body's local
+  // deformation at its moment; moments are taken so that the blade moves at most about a / 2
+  // relative to the body between two of them, and consecutive moments span quads, two
+  // triangles each.
+  const double a = cut_model.spacing;
+  RestSweep out;
+  std::vector<RestTriangle>& triangles = out.triangles;
+  auto& moments = out.moments;
+  {
+    const auto& edge0 = sweep.poses.front();
+    std::vector<int> pieces;
+    for (std::size_t i = 0; i + 1 < edge0.size(); ++i)
+      pieces.push_back(std::max(1, static_cast<int>(std::ceil((edge0[i + 1] - edge0[i]).norm() / (0.5 * a)))));
+    // A front surface's strokes need the same points at every sample: the resampling is
+    // fixed the first time (the count could flip where a segment is a multiple of a / 2).
+    if (cut.blade_pieces.size() != pieces.size()) cut.blade_pieces = pieces;
+    pieces = cut.blade_pieces;
+    const auto resample = [&](const std::vector<Vec3>& edge) {
+      std::vector<Vec3> points;
+      for (std::size_t i = 0; i + 1 < edge.size(); ++i)
+        for (int k = 0; k < pieces[i]; ++k) points.push_back(edge[i] + (static_cast<double>(k) / pieces[i]) * (edge[i + 1] - edge[i]));
+      points.push_back(edge.back());
+      return points;
+    };
+    // Moments of the step at which the sweep is mapped: every sample's, and more wherever
+    // the blade or the body moved more than a / 2 between two of them (a static blade in a
+    // falling body sweeps the body all the same).
+    double body_motion = 0;
+    for (Eigen::Index p = 0; p < body.state.positions.size() / 3; ++p)
+      body_motion = std::max(body_motion, (body.state.positions.segment<3>(3 * p) - cut.previous_positions.segment<3>(3 * p)).norm());
+    Vector at_fraction;
+    const auto map_at = [&](std::size_t j, double f, std::vector<Vec3>& rest, std::vector<double>& distance) {
+      // The blade between samples j and j + 1, at the step's fraction f.
+      const double f0 = sweep.fractions[j], f1 = sweep.fractions[j + 1];
+      const double s = f1 > f0 ? std::clamp((f - f0) / (f1 - f0), 0.0, 1.0) : 0.0;
+      std::vector<Vec3> edge(sweep.poses[j].size());
+      for (std::size_t i = 0; i < edge.size(); ++i) edge[i] = sweep.poses[j][i] + s * (sweep.poses[j + 1][i] - sweep.poses[j][i]);
+      at_fraction = cut.previous_positions + f * (body.state.positions - cut.previous_positions);
+      cut.cutter->to_rest(at_fraction, resample(edge), rest, &distance);
+    };
+    const auto moved = [&](std::size_t j) {
+      double most = 0;
+      for (std::size_t i = 0; i < sweep.poses[j].size(); ++i)
+        most = std::max(most, (sweep.poses[j + 1][i] - sweep.poses[j][i]).norm());
+      return most;
+    };
+    std::vector<Vec3> rest_a, rest_b;
+    std::vector<double> far_a, far_b;
+    bool open = false;  // rest_a holds the sweep's last mapped moment
+    for (std::size_t j = 0; j + 1 < sweep.poses.size(); ++j) {
+      if (!active[j]) {
+        open = false;
+        continue;
+      }
+      const double f0 = sweep.fractions[j], f1 = sweep.fractions[j + 1];
+      if (!open) {
+        map_at(j, f0, rest_a, far_a);
+        open = true;
+        // A stroke going on from the last step: this pose is its last sample already (the
+        // same blade in the same body, only mapped to rest again after the step's topology
+        // change, which moves it a little and would make the sheet waver); not sampled again.
+        if (j > 0 || !cut.engaged) moments.emplace_back(rest_a, true);
+      }
+      const double relative = moved(j) + body_motion * (f1 - f0);
+      const int pieces_in_time = std::max(1, static_cast<int>(std::ceil(relative / (0.5 * a))));
+      // Consecutive samples that moved little are merged: only map where needed.
+      const bool stretch_ends = j + 2 >= sweep.poses.size() || !active[j + 1];
+      if (pieces_in_time == 1 && !stretch_ends && relative < 0.25 * a) {
+        // Accumulate nothing now: the next interval's quad starts from rest_a, whose moment is
+        // earlier; its relative motion is bounded by the same test there.
+        continue;
+      }
+      for (int piece = 1; piece <= pieces_in_time; ++piece) {
+        map_at(j, f0 + (f1 - f0) * piece / pieces_in_time, rest_b, far_b);
+        moments.emplace_back(rest_b, false);
+        for (std::size_t i = 0; i + 1 < rest_a.size(); ++i) {
+          // Outside the body (every corner beyond 2a of the integration points) the mapping
+          // only extrapolates: such quads are left out.
+          if (std::min({far_a[i], far_a[i + 1], far_b[i], far_b[i + 1]}) > 2 * a) continue;
+          triangles.push_back({rest_a[i], rest_a[i + 1], rest_b[i + 1]});
+          triangles.push_back({rest_a[i], rest_b[i + 1], rest_b[i]});
+        }
+        rest_a.swap(rest_b);
+        far_a.swap(far_b);
+      }
+    }
+  }
+  report.ms_rest_cut += watch.ms();
+  report.ms_topology += watch.ms();
+  return out;
+}
+
+}  // namespace incise::physics
