@@ -121,15 +121,6 @@ struct OneRing {
   }
 };
 
-std::array<long long, 3> cube_of(const CorotationalEfg& model, const Vec3& point) {
-  std::array<long long, 3> cube{};
-  for (int axis = 0; axis < 3; ++axis) {
-    const double coordinate = (point[axis] - model.grid_origin()[axis]) / model.spacing();
-    cube[axis] = static_cast<long long>(std::floor(std::clamp(coordinate, -1e9, 1e9)));
-  }
-  return cube;
-}
-
 bool share_a_particle(const CorotationalEfg& model, int e, int f) {
   const int stride = model.row_stride();
   const int* a = model.neighbours().data() + static_cast<size_t>(e) * stride;
@@ -188,7 +179,7 @@ class Mapper {
   // criterion 1). Sets `relaxed` if no candidate met all three criteria.
   int choose(int v, std::span<const int> neighbour_elements, bool& relaxed) {
     const Vec3& vertex = vertices_[static_cast<size_t>(v)];
-    const auto cube = cube_of(model_, vertex);
+    const GridCell cube = bins_.grid.cells.unclamped_cell_of(vertex);  // the lattice's: first is 0
     const double a = model_.spacing();
     candidates_.clear();
     size_t checked = 0;
@@ -205,14 +196,11 @@ class Mapper {
     }
     slack = std::max(slack, 0.0);
     for (long long r = 0; r <= front_mapping_reach_rings; ++r) {
-      for (long long dz = -r; dz <= r; ++dz)
-        for (long long dy = -r; dy <= r; ++dy) {
-          const bool on_shell = std::abs(dz) == r || std::abs(dy) == r;
-          for (long long dx = -r; dx <= r; dx += on_shell ? 1 : std::max<long long>(2 * r, 1)) {
-            const int e = bins_.at(cube[0] + dx, cube[1] + dy, cube[2] + dz);
-            if (e >= 0) candidates_.emplace_back((model_.element_centres()[static_cast<size_t>(e)] - vertex).squaredNorm(), e);
-          }
-        }
+      // The ring's candidates are sorted (distance, then index): the shell's visit order does
+      // not matter.
+      bins_.grid.visit_shell(cube, r, [&](int e) {
+        candidates_.emplace_back((model_.element_centres()[static_cast<size_t>(e)] - vertex).squaredNorm(), e);
+      });
       std::sort(candidates_.begin() + static_cast<std::ptrdiff_t>(checked), candidates_.end());
       const double bound = static_cast<double>(r) * a + slack;
       for (; checked < candidates_.size(); ++checked) {
@@ -370,15 +358,16 @@ void ElementCubes::update(const CorotationalEfg& from) {
   model = &from;
   deactivated = from.deactivated_elements();
   const auto& cubes = from.element_grid_coordinates();
-  counts = {0, 0, 0};
+  GridCells frame;
+  frame.origin = from.grid_origin();
+  frame.cell = from.spacing();
   for (const auto& c : cubes)
-    for (int axis = 0; axis < 3; ++axis) counts[axis] = std::max<long long>(counts[axis], c[axis] + 1);
-  element_of_cube.assign(static_cast<size_t>(counts[0] * counts[1] * counts[2]), -1);
-  for (int e = 0; e < from.element_count(); ++e) {
-    if (!from.element_active(e)) continue;
+    for (int axis = 0; axis < 3; ++axis) frame.count[axis] = std::max<long long>(frame.count[axis], c[axis] + 1);
+  grid.build(frame, from.element_count(), [&](int e, GridCell& first, GridCell& last) {
     const auto& c = cubes[static_cast<size_t>(e)];
-    element_of_cube[static_cast<size_t>(c[0] + counts[0] * (c[1] + counts[1] * c[2]))] = e;
-  }
+    first = last = {c[0], c[1], c[2]};
+    return from.element_active(e);
+  });
 }
 
 void fit_rows(SurfaceEmbedding& embedding, int vertices, int stride) {
@@ -512,72 +501,33 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
   }
 }
 
-CutFaceIndex::CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<Vec3, 3>> faces)
-    : faces_(std::move(faces)), cell_size_(model.spacing()), origin_(model.grid_origin()) {
-  // The faces' boxes, and the box of those to bin; the cells grow until the grid over it is
-  // small enough (a cut's faces span a few hundred cells of side a).
-  std::vector<int> to_bin;
-  std::vector<std::array<long long, 6>> cells_of;  // per face to bin: its cells' range (cells of side a)
+CutFaceIndex::CutFaceIndex(const CorotationalEfg& model, std::vector<std::array<Vec3, 3>> faces) : faces_(std::move(faces)) {
+  // The faces' boxes, and the box of those to bin (faces over more than large_cells cells of
+  // side a are kept apart); the cells grow until the grid over it is small enough (a cut's
+  // faces span a few hundred cells of side a).
+  GridCells lattice;
+  lattice.origin = model.grid_origin();
+  lattice.cell = model.spacing();
   Vec3 lo_all = Vec3::Constant(1e300), hi_all = Vec3::Constant(-1e300);
   boxes_.reserve(faces_.size());
+  std::vector<std::uint8_t> large(faces_.size(), 0);
   for (size_t t = 0; t < faces_.size(); ++t) {
     const auto& tri = faces_[t];
     const Vec3 lo = tri[0].cwiseMin(tri[1]).cwiseMin(tri[2]), hi = tri[0].cwiseMax(tri[1]).cwiseMax(tri[2]);
     boxes_.push_back({lo, hi});
-    const auto l = cell(lo), h = cell(hi);
-    if ((h[0] - l[0] + 1) * (h[1] - l[1] + 1) * (h[2] - l[2] + 1) > large_cells) {
-      large_.push_back(static_cast<int>(t));
-      continue;
-    }
-    to_bin.push_back(static_cast<int>(t));
-    cells_of.push_back({l[0], l[1], l[2], h[0], h[1], h[2]});
-    lo_all = lo_all.cwiseMin(lo), hi_all = hi_all.cwiseMax(hi);
+    GridCells own = lattice;
+    own.cover(lo, hi);
+    large[t] = static_cast<double>(own.count[0]) * static_cast<double>(own.count[1]) * static_cast<double>(own.count[2]) >
+               static_cast<double>(large_cells);
+    if (!large[t]) lo_all = lo_all.cwiseMin(lo), hi_all = hi_all.cwiseMax(hi);
   }
-  seen_.assign(faces_.size(), 0);
-  if (to_bin.empty()) return;
-  const double binned_cell = cell_size_;
-  for (;;) {
-    const auto l = cell(lo_all), h = cell(hi_all);
-    long long cells = 1;
-    for (int axis = 0; axis < 3; ++axis) cells *= h[static_cast<size_t>(axis)] - l[static_cast<size_t>(axis)] + 1;
-    if (cells <= most_cells) {
-      first_ = l;
-      for (int axis = 0; axis < 3; ++axis) count_[static_cast<size_t>(axis)] = h[static_cast<size_t>(axis)] - l[static_cast<size_t>(axis)] + 1;
-      break;
-    }
-    cell_size_ *= 2;
-  }
-  // Counted, then filled (compressed rows, faces increasing within a cell).
-  start_.assign(static_cast<size_t>(count_[0] * count_[1] * count_[2] + 1), 0);
-  // Each face's cells as found above while the grid's cells are those (else found again).
-  const bool same_cells = cell_size_ == binned_cell;
-  const auto for_cells = [&](size_t k_face, const auto& visit) {
-    const int t = to_bin[k_face];
-    std::array<long long, 3> l{}, h{};
-    if (same_cells) {
-      const auto& range = cells_of[k_face];
-      l = {range[0], range[1], range[2]};
-      h = {range[3], range[4], range[5]};
-    } else {
-      l = cell(boxes_[static_cast<size_t>(t)][0]), h = cell(boxes_[static_cast<size_t>(t)][1]);
-    }
-    for (long long k = l[2]; k <= h[2]; ++k)
-      for (long long j = l[1]; j <= h[1]; ++j)
-        for (long long i = l[0]; i <= h[0]; ++i)
-          visit(static_cast<size_t>((i - first_[0]) + count_[0] * ((j - first_[1]) + count_[1] * (k - first_[2]))));
-  };
-  for (size_t k = 0; k < to_bin.size(); ++k) for_cells(k, [&](size_t c) { ++start_[c + 1]; });
-  for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
-  binned_.resize(static_cast<size_t>(start_.back()));
-  std::vector<int> fill(start_.begin(), start_.end() - 1);
-  for (size_t k = 0; k < to_bin.size(); ++k) for_cells(k, [&](size_t c) { binned_[static_cast<size_t>(fill[c]++)] = to_bin[k]; });
-}
-
-std::array<long long, 3> CutFaceIndex::cell(const Vec3& p) const {
-  std::array<long long, 3> c{};
-  for (int axis = 0; axis < 3; ++axis)
-    c[static_cast<size_t>(axis)] = static_cast<long long>(std::floor(std::clamp((p[axis] - origin_[axis]) / cell_size_, -1e6, 1e6)));
-  return c;
+  const bool any_binned = std::find(large.begin(), large.end(), 0) != large.end();
+  const GridCells frame = any_binned ? GridCells::fit(lattice.origin, lo_all, hi_all, lattice.cell, most_cells) : GridCells{};
+  grid_.build(frame, static_cast<int>(faces_.size()), [&](int t, GridCell& from, GridCell& to) {
+    if (large[static_cast<size_t>(t)]) return 2;  // tested against every segment
+    frame.range(boxes_[static_cast<size_t>(t)][0], boxes_[static_cast<size_t>(t)][1], from, to);
+    return 1;
+  });
 }
 
 int CutFaceIndex::crossings(const Vec3& p, const Vec3& q, double skip_near_p) const {
@@ -585,38 +535,11 @@ int CutFaceIndex::crossings(const Vec3& p, const Vec3& q, double skip_near_p) co
   // A face crossed holds the crossing point, which lies in the segment's box: faces whose box
   // misses it (by more than roundoff) are not tested.
   const Vec3 lo = p.cwiseMin(q).array() - box_slack, hi = p.cwiseMax(q).array() + box_slack;
-  const auto test = [&](int t) {
+  grid_.visit_box_once(p.cwiseMin(q), p.cwiseMax(q), [&](int t) {
     const auto& box = boxes_[static_cast<size_t>(t)];
-    if ((box[0].array() > hi.array()).any() || (box[1].array() < lo.array()).any()) return 0;
-    return segment_crosses_triangle(p, q, faces_[static_cast<size_t>(t)], skip_near_p) ? 1 : 0;
-  };
-  for (const int t : large_) count += test(t);
-  if (start_.empty()) return count;
-  // The segment's cells within the grid (each face's box lies in it).
-  std::array<long long, 3> l = cell(p.cwiseMin(q)), h = cell(p.cwiseMax(q));
-  for (int axis = 0; axis < 3; ++axis) {
-    const auto a = static_cast<size_t>(axis);
-    l[a] = std::max(l[a], first_[a]);
-    h[a] = std::min(h[a], first_[a] + count_[a] - 1);
-    if (l[a] > h[a]) return count;
-  }
-  // Each face once per query (it may be binned in several of the cells): stamped.
-  if (++query_ == 0) {
-    std::fill(seen_.begin(), seen_.end(), 0);
-    query_ = 1;
-  }
-  for (long long k = l[2]; k <= h[2]; ++k)
-    for (long long j = l[1]; j <= h[1]; ++j)
-      for (long long i = l[0]; i <= h[0]; ++i) {
-        const auto c = static_cast<size_t>((i - first_[0]) + count_[0] * ((j - first_[1]) + count_[1] * (k - first_[2])));
-        for (int e = start_[c]; e < start_[c + 1]; ++e) {
-          const int t = binned_[static_cast<size_t>(e)];
-          unsigned& stamp = seen_[static_cast<size_t>(t)];
-          if (stamp == query_) continue;
-          stamp = query_;
-          count += test(t);
-        }
-      }
+    if ((box[0].array() > hi.array()).any() || (box[1].array() < lo.array()).any()) return;
+    if (segment_crosses_triangle(p, q, faces_[static_cast<size_t>(t)], skip_near_p)) ++count;
+  });
   return count;
 }
 

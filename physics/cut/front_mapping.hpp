@@ -8,6 +8,7 @@
 #pragma once
 
 #include "physics/cut/front_surface.hpp"
+#include "physics/cut/uniform_grid.hpp"
 #include "physics/efg/corotational_efg.hpp"
 
 #include <array>
@@ -78,13 +79,8 @@ using TrianglesAround = std::function<void(int vertex, std::vector<int>& triangl
 struct ElementCubes {
   const CorotationalEfg* model = nullptr;
   int deactivated = -1;
-  std::array<long long, 3> counts{0, 0, 0};
-  std::vector<int> element_of_cube;  // -1: no active element
+  UniformGrid grid;  // cells: the model's integration cubes; items: the active elements
   void update(const CorotationalEfg& from);
-  int at(long long i, long long j, long long k) const {
-    if (i < 0 || j < 0 || k < 0 || i >= counts[0] || j >= counts[1] || k >= counts[2]) return -1;
-    return element_of_cube[static_cast<size_t>(i + counts[0] * (j + counts[1] * k))];
-  }
 };
 void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& vertices,
                        const std::vector<std::array<int, 3>>& triangles,
@@ -104,21 +100,13 @@ class CutFaceIndex {
 
  private:
   static constexpr long long large_cells = 4096;  // faces over more cells are tested against every segment
-  static constexpr long long most_cells = 1 << 22;  // the grid's cells double in size until it has no more
-  std::array<long long, 3> cell(const Vec3& p) const;
+  static constexpr double most_cells = 1 << 22;  // the grid's cells double in size until it has no more
   static constexpr double box_slack = 1e-9;  // m: far beyond roundoff at body scale
   std::vector<std::array<Vec3, 3>> faces_;
   std::vector<std::array<Vec3, 2>> boxes_;  // per face
-  double cell_size_;
-  Vec3 origin_;
-  // A dense grid over the binned faces' box (cells of cell_size_ from origin_, the first at
-  // first_): per cell, its faces in binned_[start_[c], start_[c + 1]).
-  std::array<long long, 3> first_{0, 0, 0}, count_{0, 0, 0};
-  std::vector<int> start_;
-  std::vector<int> binned_;
-  std::vector<int> large_;
-  mutable std::vector<unsigned> seen_;  // per face: the query that last tested it
-  mutable unsigned query_ = 0;
+  // Cells of side a on the model's integration lattice (coarser for a cut spread wide), over
+  // the box of the faces binned.
+  UniformGrid grid_;
 };
 
 // A fourth criterion for map_front_surface, the one wrong_side measures: the segment from the

@@ -2,6 +2,7 @@
 
 #include "physics/core/mix.hpp"
 #include "physics/cut/triangulate_2d.hpp"
+#include "physics/cut/uniform_grid.hpp"
 
 #include <Eigen/Geometry>
 
@@ -190,89 +191,43 @@ EdgeTable edge_table(const std::vector<std::array<int, 3>>& triangles) {
   return table;
 }
 
-// Items with boxes binned in a uniform grid (compressed rows), for box queries; each item is
-// visited once per query.
+// Items with boxes binned in a uniform grid, for box queries; each item is visited once per
+// query, at the first of its cells the grid's order meets (the crossings are numbered in that
+// order: the frame below is part of the result).
 class BoxBins {
  public:
   void build(const std::vector<std::array<Vec3, 2>>& boxes, double cell) {
     boxes_ = boxes;
     lo_ = boxes.front()[0];
-    Vec3& hi = hi_;
-    hi = boxes.front()[1];
-    for (const auto& box : boxes) {
-      lo_ = lo_.cwiseMin(box[0]);
-      hi = hi.cwiseMax(box[1]);
-    }
-    cell_ = cell;
+    hi_ = boxes.front()[1];
+    for (const auto& box : boxes) lo_ = lo_.cwiseMin(box[0]), hi_ = hi_.cwiseMax(box[1]);
     // At most about 2^22 cells: the cell grows for large extents.
+    GridCells frame;
+    frame.origin = lo_;
+    frame.cell = cell;
     for (;;) {
-      for (int d = 0; d < 3; ++d) count_[static_cast<size_t>(d)] = std::max(1, static_cast<int>(std::ceil((hi[d] - lo_[d]) / cell_)) + 1);
-      if (static_cast<double>(count_[0]) * count_[1] * count_[2] <= 4.2e6) break;
-      cell_ *= 1.5;
+      for (int d = 0; d < 3; ++d) frame.count[static_cast<size_t>(d)] = std::max(1LL, static_cast<long long>(std::ceil((hi_[d] - lo_[d]) / frame.cell)) + 1);
+      if (static_cast<double>(frame.total()) <= 4.2e6) break;
+      frame.cell *= 1.5;
     }
-    start_.assign(static_cast<size_t>(count_[0]) * count_[1] * count_[2] + 1, 0);
-    for (int pass = 0; pass < 2; ++pass) {
-      std::vector<int> fill;
-      if (pass == 1) {
-        for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
-        items_.assign(static_cast<size_t>(start_.back()), 0);
-        fill.assign(start_.begin(), start_.end() - 1);
-      }
-      for (size_t b = 0; b < boxes.size(); ++b) {
-        const auto first = cell_of(boxes[b][0]), last = cell_of(boxes[b][1]);
-        for (int k = first[2]; k <= last[2]; ++k)
-          for (int j = first[1]; j <= last[1]; ++j)
-            for (int i = first[0]; i <= last[0]; ++i) {
-              const size_t c = index(i, j, k);
-              if (pass == 0)
-                ++start_[c + 1];
-              else
-                items_[static_cast<size_t>(fill[c]++)] = static_cast<int>(b);
-            }
-      }
-    }
-    stamp_.assign(boxes.size(), 0);
-    query_ = 0;
+    grid_.build_boxes(frame, boxes);
   }
   // The diagonal of the box around every item.
   double extent() const { return (hi_ - lo_).norm(); }
   template <typename Visit>
   void near(const Vec3& lo, const Vec3& hi, const Visit& visit) const {
     if (boxes_.empty()) return;
-    ++query_;
-    const auto first = cell_of(lo), last = cell_of(hi);
-    for (int k = first[2]; k <= last[2]; ++k)
-      for (int j = first[1]; j <= last[1]; ++j)
-        for (int i = first[0]; i <= last[0]; ++i) {
-          const size_t c = index(i, j, k);
-          for (int n = start_[c]; n < start_[c + 1]; ++n) {
-            const int b = items_[static_cast<size_t>(n)];
-            if (stamp_[static_cast<size_t>(b)] == query_) continue;
-            stamp_[static_cast<size_t>(b)] = query_;
-            const auto& box = boxes_[static_cast<size_t>(b)];
-            if ((lo.array() > box[1].array()).any() || (hi.array() < box[0].array()).any()) continue;
-            visit(b);
-          }
-        }
+    grid_.visit_box_once(lo, hi, [&](int b) {
+      const auto& box = boxes_[static_cast<size_t>(b)];
+      if ((lo.array() > box[1].array()).any() || (hi.array() < box[0].array()).any()) return;
+      visit(b);
+    });
   }
 
  private:
-  std::array<int, 3> cell_of(const Vec3& p) const {
-    std::array<int, 3> c{};
-    for (int d = 0; d < 3; ++d)
-      c[static_cast<size_t>(d)] = std::clamp(static_cast<int>(std::floor((p[d] - lo_[d]) / cell_)), 0, count_[static_cast<size_t>(d)] - 1);
-    return c;
-  }
-  size_t index(int i, int j, int k) const {
-    return static_cast<size_t>(i) + static_cast<size_t>(count_[0]) * (static_cast<size_t>(j) + static_cast<size_t>(count_[1]) * static_cast<size_t>(k));
-  }
   std::vector<std::array<Vec3, 2>> boxes_;
   Vec3 lo_ = Vec3::Zero(), hi_ = Vec3::Zero();
-  double cell_ = 1;
-  std::array<int, 3> count_{1, 1, 1};
-  std::vector<int> start_, items_;
-  mutable std::vector<int> stamp_;
-  mutable int query_ = 0;
+  UniformGrid grid_;
 };
 
 // A base edge the stroke's sheet crosses: a pair of coincident vertices, one per side.
@@ -1351,29 +1306,20 @@ void FrontSurface::recompute(FrontCutReport& report) {
   // The boundary's edges binned in cells of side w over the (s, t) rectangle (the cells below
   // the lowest one a point of row r_first falls in are never looked at: left empty).
   const int columns = std::max(1, static_cast<int>(std::ceil(extent.x() / w))), rows = std::max(1, static_cast<int>(std::ceil(extent.y() / w)));
-  // Compressed rows: per cell its edges, increasing (counted, then filled).
-  const size_t cell_count = static_cast<size_t>(columns) * static_cast<size_t>(rows);
-  std::vector<int> cell_start(cell_count + 1, 0), cell_edges;
-  const auto cell_range = [&](double lo, double hi, int count) {
-    return std::pair{std::clamp(static_cast<int>(std::floor(lo / w)), 0, count - 1), std::clamp(static_cast<int>(std::floor(hi / w)), 0, count - 1)};
-  };
-  const int lowest_cell_row = cell_range(r_first * row, r_first * row, rows).first;
-  const auto for_cells_of_edge = [&](size_t e, const auto& visit) {
-    const Vec2& a = region.points[static_cast<size_t>(region.boundary[e][0])];
-    const Vec2& b = region.points[static_cast<size_t>(region.boundary[e][1])];
-    const auto [c0, c1] = cell_range(std::min(a.x(), b.x()) - gap, std::max(a.x(), b.x()) + gap, columns);
-    const auto [r0, r1] = cell_range(std::min(a.y(), b.y()) - gap, std::max(a.y(), b.y()) + gap, rows);
-    for (int r = std::max(r0, lowest_cell_row); r <= r1; ++r)
-      for (int c = c0; c <= c1; ++c) visit(static_cast<size_t>(r) * static_cast<size_t>(columns) + static_cast<size_t>(c));
-  };
-  for (size_t e = 0; e < region.boundary.size(); ++e) for_cells_of_edge(e, [&](size_t cell) { ++cell_start[cell + 1]; });
-  for (size_t cell = 0; cell < cell_count; ++cell) cell_start[cell + 1] += cell_start[cell];
-  cell_edges.resize(static_cast<size_t>(cell_start[cell_count]));
-  {
-    std::vector<int> fill(cell_start.begin(), cell_start.end() - 1);
-    for (size_t e = 0; e < region.boundary.size(); ++e)
-      for_cells_of_edge(e, [&](size_t cell) { cell_edges[static_cast<size_t>(fill[cell]++)] = static_cast<int>(e); });
-  }
+  // One layer of cells, (s, t) as (x, y).
+  GridCells frame;
+  frame.cell = w;
+  frame.count = {columns, rows, 1};
+  const int lowest_cell_row = static_cast<int>(frame.cell_of(1, r_first * row));
+  UniformGrid boundary_cells;
+  boundary_cells.build(frame, static_cast<int>(region.boundary.size()), [&](int e, GridCell& from, GridCell& to) {
+    const Vec2& a = region.points[static_cast<size_t>(region.boundary[static_cast<size_t>(e)][0])];
+    const Vec2& b = region.points[static_cast<size_t>(region.boundary[static_cast<size_t>(e)][1])];
+    frame.range(Vec3(std::min(a.x(), b.x()) - gap, std::min(a.y(), b.y()) - gap, 0),
+                Vec3(std::max(a.x(), b.x()) + gap, std::max(a.y(), b.y()) + gap, 0), from, to);
+    from[1] = std::max<long long>(from[1], lowest_cell_row);
+    return true;
+  });
   // Per lattice row, where the boundary crosses it (s, and +1 going up in t, -1 going down;
   // each edge taken half-open, from its lower end): a point is inside the region when the
   // crossings on its right wind round it (the region is on the edges' left). The points
@@ -1417,17 +1363,10 @@ void FrontSurface::recompute(FrontCutReport& report) {
       for (; passed < crossings.size() && crossings[passed].first <= p.x(); ++passed) winding -= crossings[passed].second;
       if (p.x() <= 0 || winding <= 0) continue;
       bool near = false;
-      const auto [cc, unused_c] = cell_range(p.x(), p.x(), columns);
-      const auto [rr, unused_r] = cell_range(p.y(), p.y(), rows);
-      const size_t cell = static_cast<size_t>(rr) * static_cast<size_t>(columns) + static_cast<size_t>(cc);
-      for (int k = cell_start[cell]; k < cell_start[cell + 1]; ++k) {
-        const int e = cell_edges[static_cast<size_t>(k)];
+      boundary_cells.visit_cells(frame.cell_of(Vec3(p.x(), p.y(), 0)), frame.cell_of(Vec3(p.x(), p.y(), 0)), [&](int e) {
         const auto& edge = region.boundary[static_cast<size_t>(e)];
-        if (distance_to_segment(p, region.points[static_cast<size_t>(edge[0])], region.points[static_cast<size_t>(edge[1])]) < gap) {
-          near = true;
-          break;
-        }
-      }
+        near = near || distance_to_segment(p, region.points[static_cast<size_t>(edge[0])], region.points[static_cast<size_t>(edge[1])]) < gap;
+      });
       if (near) continue;
       // Moved off the lattice by a thousandth of w, the same way at every sample (a hash of
       // its row and column): six lattice neighbours lie on one circle around each point, and

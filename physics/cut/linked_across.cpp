@@ -53,7 +53,7 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
     for (int e = 0; e < elements; ++e) (*boxes)[e] = link_box(e);
   }
   // The index stands for the cached boxes: built again after they were all taken again.
-  if (index && (!cached || cut.size() == 0)) index->centres.items.clear();
+  if (index && (!cached || cut.size() == 0)) index->centres.clear();
   if (cut.size() == 0) {  // nothing to be linked across (the boxes are kept up to date all the same)
     if (cached)
       for (int e = 0; e < elements; ++e)
@@ -79,11 +79,11 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
     return std::max((centre - box[0]).maxCoeff(), (box[1] - centre).maxCoeff());
   };
   bool indexed = index && cached && !all;
-  if (indexed && index->centres.items.empty()) {
+  if (indexed && index->centres.empty()) {
     index->reach = 0;
     for (int e = 0; e < elements; ++e) index->reach = std::max(index->reach, extent(e));
     index->deactivated = -1;
-    indexed = index->centres.build(model.element_centres(), model.spacing());  // else the plain pass below
+    indexed = bin_points(index->centres, model.element_centres(), model.spacing());  // else the plain pass below
   }
   if (indexed) {
     // The same elements from the index: those changed (their boxes taken again, the reach
@@ -102,16 +102,14 @@ int update_elements_linked_across(const CorotationalEfg& model, const RestCut& c
       }
     const size_t changed_count = to_test.size();
     // The bins holding every centre within the reach of [lo, hi] (with room for rounding).
-    const double margin = index->reach * (1 + 1e-9) + 1e-12 * index->centres.cell;
-    const PointBins& bins = index->centres;
-    bins.visit_box(lo - Vec3::Constant(margin), hi + Vec3::Constant(margin), [&](int s) {
-      const int e = bins.items[static_cast<size_t>(s)];
+    const double margin = index->reach * (1 + 1e-9) + 1e-12 * index->centres.cells.cell;
+    index->centres.visit_box(lo - Vec3::Constant(margin), hi + Vec3::Constant(margin), [&](int e) {
       if (!(*changed)[e] && model.element_active(e) && in_box((*boxes)[e])) to_test.push_back(e);
     });
     std::sort(to_test.begin() + static_cast<std::ptrdiff_t>(changed_count), to_test.end());
     std::inplace_merge(to_test.begin(), to_test.begin() + static_cast<std::ptrdiff_t>(changed_count), to_test.end());
   } else {
-    if (index) index->centres.items.clear();  // the boxes may change without it
+    if (index) index->centres.clear();  // the boxes may change without it
     for (int e = 0; e < elements; ++e) {
       if (!model.element_active(e)) {
         linked[e] = 0;

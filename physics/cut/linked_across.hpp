@@ -3,7 +3,7 @@
 // cut event for the metrics (cut.elements_linked_across), kept up to date where the cut grew.
 #pragma once
 
-#include "physics/cut/point_bins.hpp"
+#include "physics/cut/uniform_grid.hpp"
 #include "physics/cut/rest_cut.hpp"
 #include "physics/efg/corotational_efg.hpp"
 
@@ -32,7 +32,7 @@ int elements_linked_across(const CorotationalEfg& model, const RestCut& cut);
 // largest reach of a cached link box from its centre, instead of looking at every element's
 // box: the same elements, the same flags.
 struct LinkedAcrossIndex {
-  PointBins centres;     // the elements' centres; no items: to be built
+  UniformGrid centres;   // the elements' centres; empty: to be built
   double reach = 0;      // per axis, over the cached boxes (kept as they change: only grows)
   int deactivated = -1;  // the model's deactivated elements when their flags were last cleared
 };

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -49,97 +51,75 @@ std::optional<double> segment_crosses_triangle(const Vec3& p, const Vec3& q, con
   return along;
 }
 
-const std::vector<int>* RestCut::bin(long long i, long long j, long long k) const {
-  i -= bins_lo_[0], j -= bins_lo_[1], k -= bins_lo_[2];
-  if (i < 0 || j < 0 || k < 0 || i >= bins_count_[0] || j >= bins_count_[1] || k >= bins_count_[2]) return nullptr;
-  return &bins_[static_cast<size_t>(i + bins_count_[0] * (j + bins_count_[1] * k))];
-}
-
-std::vector<int>* RestCut::bin(long long i, long long j, long long k) {
-  return const_cast<std::vector<int>*>(std::as_const(*this).bin(i, j, k));
-}
-
-void RestCut::cover(const std::array<long long, 3>& first, const std::array<long long, 3>& last) {
-  bool inside = !bins_.empty();
+bool RestCut::apart(int t) const {
+  GridCells lattice;
+  lattice.cell = cell_;
   for (int axis = 0; axis < 3; ++axis)
-    inside = inside && first[axis] >= bins_lo_[axis] && last[axis] < bins_lo_[axis] + bins_count_[axis];
-  if (inside) return;
-  // Grow to the union, with as much again as margin on each side that grew (amortised).
-  std::array<long long, 3> lo{}, count{};
-  for (int axis = 0; axis < 3; ++axis) {
-    long long new_lo = first[axis], new_hi = last[axis];
-    if (!bins_.empty()) {
-      new_lo = std::min(new_lo, bins_lo_[axis]);
-      new_hi = std::max(new_hi, bins_lo_[axis] + bins_count_[axis] - 1);
-    }
-    const long long margin = (new_hi - new_lo + 1) / 2 + 1;
-    if (bins_.empty() || new_lo < bins_lo_[axis]) new_lo -= margin;
-    if (bins_.empty() || new_hi >= bins_lo_[axis] + bins_count_[axis]) new_hi += margin;
-    lo[axis] = new_lo;
-    count[axis] = new_hi - new_lo + 1;
+    if (!(lattice.lattice(axis, boxes_[static_cast<size_t>(t)][1][axis]) - lattice.lattice(axis, boxes_[static_cast<size_t>(t)][0][axis]) <= 256))
+      return true;
+  return false;
+}
+
+void RestCut::bin() const {
+  // The box of the triangles binned, with half its extent again on each side (and a cell):
+  // a cut growing from there is added to the grid as it grows, not binned again.
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (int t = 0; t < size(); ++t)
+    if (!apart(t)) lo = lo.cwiseMin(boxes_[static_cast<size_t>(t)][0]), hi = hi.cwiseMax(boxes_[static_cast<size_t>(t)][1]);
+  GridCells frame;
+  if (lo[0] <= hi[0]) {
+    const Vec3 margin = 0.5 * (hi - lo) + Vec3::Constant(cell_);
+    frame = GridCells::fit(Vec3::Zero(), lo - margin, hi + margin, cell_, 1 << 22);
   }
-  std::vector<std::vector<int>> grown(static_cast<size_t>(count[0] * count[1] * count[2]));
-  for (long long k = 0; k < bins_count_[2]; ++k)
-    for (long long j = 0; j < bins_count_[1]; ++j)
-      for (long long i = 0; i < bins_count_[0]; ++i) {
-        auto& from = bins_[static_cast<size_t>(i + bins_count_[0] * (j + bins_count_[1] * k))];
-        if (from.empty()) continue;
-        const long long gi = i + bins_lo_[0] - lo[0], gj = j + bins_lo_[1] - lo[1], gk = k + bins_lo_[2] - lo[2];
-        grown[static_cast<size_t>(gi + count[0] * (gj + count[1] * gk))] = std::move(from);
-      }
-  bins_ = std::move(grown);
-  bins_lo_ = lo;
-  bins_count_ = count;
+  grid_.build(frame, size(), [&](int t, GridCell& first, GridCell& last) {
+    if (apart(t)) return 2;
+    frame.range(boxes_[static_cast<size_t>(t)][0], boxes_[static_cast<size_t>(t)][1], first, last);
+    return 1;
+  });
+  binned_ = size();
 }
 
 template <typename Visit>
 void RestCut::for_each_near(const Vec3& lo, const Vec3& hi, double reach, const Visit& visit) const {
-  if (triangles_.empty()) return;
-  ++query_;
-  std::array<long long, 3> first{}, last{};
-  for (int axis = 0; axis < 3; ++axis) {
-    // Only the bins that exist: clamped to the covered range (none outside it holds anything).
-    first[axis] = std::max(bins_lo_[axis], static_cast<long long>(std::floor((lo[axis] - reach) / cell_)));
-    last[axis] = std::min(bins_lo_[axis] + bins_count_[axis] - 1,
-                          static_cast<long long>(std::floor((hi[axis] + reach) / cell_)));
-    if (last[axis] < first[axis]) return;
-  }
+  // Nothing near a query that misses the box of every triangle (most links are far from the cut).
+  if (triangles_.empty() || !boxes_overlap(lo, hi, bounds_[0], bounds_[1], reach)) return;
+  if (binned_ != size()) bin();
+  const GridCells& cells = grid_.cells;
   // A query box much larger than the cut: scan the triangles instead of the cells.
-  const double cells = static_cast<double>(last[0] - first[0] + 1) * (last[1] - first[1] + 1) * (last[2] - first[2] + 1);
-  if (cells > 4.0 * static_cast<double>(triangles_.size())) {
-    for (size_t t = 0; t < triangles_.size(); ++t)
-      if (boxes_overlap(lo, hi, boxes_[t][0], boxes_[t][1], reach) && visit(static_cast<int>(t))) return;
+  GridCell first{}, last{};
+  cells.range(lo - Vec3::Constant(reach), hi + Vec3::Constant(reach), first, last);
+  const double count = static_cast<double>(last[0] - first[0] + 1) * static_cast<double>(last[1] - first[1] + 1) *
+                       static_cast<double>(last[2] - first[2] + 1);
+  // Every triangle whose box meets the query's grown by reach (the answers below are the same
+  // whatever the order: any crossing, the nearest with ties to the lower index, any near).
+  bool done = false;
+  const auto test = [&](int t) {
+    if (!done && boxes_overlap(lo, hi, boxes_[static_cast<size_t>(t)][0], boxes_[static_cast<size_t>(t)][1], reach)) done = visit(t);
+  };
+  if (cells.total() == 0 || count > 4.0 * static_cast<double>(triangles_.size())) {
+    for (int t = 0; t < size() && !done; ++t) test(t);
     return;
   }
-  for (long long k = first[2]; k <= last[2]; ++k)
-    for (long long j = first[1]; j <= last[1]; ++j)
-      for (long long i = first[0]; i <= last[0]; ++i) {
-        for (int t : *bin(i, j, k)) {
-          if (stamp_[t] == query_) continue;
-          stamp_[t] = query_;
-          if (boxes_overlap(lo, hi, boxes_[t][0], boxes_[t][1], reach) && visit(t)) return;
-        }
-      }
+  grid_.visit_box_once(lo - Vec3::Constant(reach), hi + Vec3::Constant(reach), test);
 }
 
 void RestCut::add(const RestTriangle& triangle) {
-  const int index = static_cast<int>(triangles_.size());
+  const int t = size();
   triangles_.push_back(triangle);
-  const auto box = box_of(triangle);
-  boxes_.push_back(box);
-  stamp_.push_back(0);
-  std::array<long long, 3> first{}, last{};
-  for (int axis = 0; axis < 3; ++axis) {
-    first[axis] = static_cast<long long>(std::floor(box[0][axis] / cell_));
-    last[axis] = static_cast<long long>(std::floor(box[1][axis] / cell_));
-    // A huge triangle (a blade far larger than the body) is clipped to a bounded bin range;
-    // the triangle still gets its box test, so nothing is lost but speed.
-    last[axis] = std::min(last[axis], first[axis] + 256);
+  boxes_.push_back(box_of(triangle));
+  bounds_ = t == 0 ? boxes_.back() : std::array<Vec3, 2>{bounds_[0].cwiseMin(boxes_.back()[0]), bounds_[1].cwiseMax(boxes_.back()[1])};
+  if (binned_ != t || grid_.added() > grid_.slots() / 4 + 64) return;  // binned again at the next query
+  // Into the grid as it is, when its cells lie in it.
+  if (apart(t)) {
+    grid_.add(t, {}, {}, true);
+    binned_ = size();
+    return;
   }
-  cover(first, last);
-  for (long long k = first[2]; k <= last[2]; ++k)
-    for (long long j = first[1]; j <= last[1]; ++j)
-      for (long long i = first[0]; i <= last[0]; ++i) bin(i, j, k)->push_back(index);
+  const GridCells& cells = grid_.cells;
+  const GridCell first = cells.unclamped_cell_of(boxes_.back()[0]), last = cells.unclamped_cell_of(boxes_.back()[1]);
+  if (cells.total() == 0 || !cells.inside(first[0], first[1], first[2]) || !cells.inside(last[0], last[1], last[2])) return;
+  grid_.add(t, first, last);
+  binned_ = size();
 }
 
 bool RestCut::crosses(const Vec3& p, const Vec3& q, int from) const {

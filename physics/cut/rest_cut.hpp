@@ -4,6 +4,7 @@
 #pragma once
 
 #include "physics/core/model.hpp"
+#include "physics/cut/uniform_grid.hpp"
 
 #include <array>
 #include <optional>
@@ -41,19 +42,20 @@ class RestCut {
   template <typename Visit>
   void for_each_near(const Vec3& lo, const Vec3& hi, double reach, const Visit& visit) const;
 
-  // The bin range covering every triangle's box, grown (by doubling, re-binning) as the cut
-  // grows; bins are a dense array over it, so a query costs array reads, not hash lookups.
-  std::vector<int>* bin(long long i, long long j, long long k);
-  const std::vector<int>* bin(long long i, long long j, long long k) const;
-  void cover(const std::array<long long, 3>& first, const std::array<long long, 3>& last);
-
   double cell_;
   std::vector<RestTriangle> triangles_;
   std::vector<std::array<Vec3, 2>> boxes_;
-  std::array<long long, 3> bins_lo_{0, 0, 0}, bins_count_{0, 0, 0};
-  std::vector<std::vector<int>> bins_;  // grid cell -> triangles overlapping it
-  mutable std::vector<int> stamp_;                         // per triangle: last query that saw it
-  mutable int query_ = 0;
+  std::array<Vec3, 2> bounds_{Vec3::Zero(), Vec3::Zero()};  // the box of every triangle
+  // The triangles binned in cells of side cell_ (on the lattice from the origin, coarser for a
+  // cut spread wide) over their box with a margin; a triangle added later goes into the grid
+  // as it is when it lies in it, else (or once many were added so) the grid is binned again
+  // at the next query (a cut event adds its triangles, then asks many questions). A triangle
+  // over more than 256 cells along an axis (a blade far larger than the body) is kept apart,
+  // tested by every query. Queries are thus not safe to run concurrently.
+  bool apart(int triangle) const;
+  void bin() const;
+  mutable UniformGrid grid_;
+  mutable int binned_ = 0;  // the triangles in grid_
 };
 
 }  // namespace incise::physics

@@ -1,7 +1,7 @@
 #include "physics/cut/volume_cut.hpp"
 
 #include "physics/cut/continuous_collision.hpp"
-#include "physics/cut/point_bins.hpp"
+#include "physics/cut/uniform_grid.hpp"
 #include "physics/efg/mls.hpp"
 
 #include <Eigen/LU>
@@ -53,7 +53,7 @@ std::array<Vec3, 2> swept_box(const Vec3& a0, const Vec3& b0, const Vec3& a1, co
 // reach): a box that meets a region has its centre in the region grown by the reach, so the
 // bins over that grown region hold every box that can meet it (and some that cannot).
 struct BoxIndex {
-  PointBins bins;
+  UniformGrid bins;
   double reach = 0;
   double slack = 0;  // room for the rounding of the centres and of the grown region
 
@@ -68,14 +68,14 @@ struct BoxIndex {
       scale = std::max({scale, boxes[i][0].cwiseAbs().maxCoeff(), boxes[i][1].cwiseAbs().maxCoeff()});
     }
     slack = 1e-9 * (reach + spacing + scale);
-    return std::isfinite(reach) && bins.build(centres, spacing);
+    return std::isfinite(reach) && bin_points(bins, centres, spacing);
   }
   // Calls visit(i) once for every box i that can meet [lo - grow, hi + grow] (a superset;
   // every box when a bound is NaN).
   template <class Visit>
   void query(const Vec3& lo, const Vec3& hi, double grow, Visit&& visit) const {
     const double r = reach + grow + slack;
-    bins.visit_box(lo - Vec3::Constant(r), hi + Vec3::Constant(r), [&](int s) { visit(bins.items[static_cast<size_t>(s)]); });
+    bins.visit_box(lo - Vec3::Constant(r), hi + Vec3::Constant(r), visit);
   }
 };
 
@@ -161,7 +161,9 @@ struct VolumeCutter::StepPoints {
 
 struct VolumeCutter::RestSearch {
   bool valid = false;
-  PointBins bins;               // of the integration points at the last rebuild
+  UniformGrid bins;             // of the integration points at the last rebuild
+  std::vector<Vec3> binned;     // per element, its point at the last rebuild
+  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();  // their box
   Vector particles;             // the particle positions they were formed from
   double shape_sum = 0;         // max over elements of sum_k |phi_k|, at the last rebuild
   LooseSet loose;               // re-selected since the rebuild: tested apart
@@ -808,14 +810,20 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
       for (int k = 0; k < model_.row_lengths()[e]; ++k) sum += std::abs(model_.shape_values()[base + k]);
       search.shape_sum = std::max(search.shape_sum, sum);
     }
-    search.valid = search.bins.build(points, model_.spacing());
+    search.valid = bin_points(search.bins, points, model_.spacing());
+    if (search.valid) {
+      search.lo = search.hi = points[0];
+      for (const Vec3& p : points) search.lo = search.lo.cwiseMin(p), search.hi = search.hi.cwiseMax(p);
+    }
+    search.binned = std::move(points);
     search.particles = particles;
     search.loose.reset(elements);
     ++search.rebuilds;
     drift = 1e-9 * model_.spacing();
   }
   const bool binned = search.valid && finite;
-  const PointBins& bins = search.bins;
+  const UniformGrid& bins = search.bins;
+  const GridCells& cells = bins.cells;
   std::vector<std::pair<int, double>> candidates;  // element, squared distance
   int hint = -1;  // the previous point's choice: its distance bounds this point's nearest
   for (size_t w = 0; w < world.size(); ++w) {
@@ -842,18 +850,18 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
       // of a polyline come in order), else beyond q's distance to the points' box.
       // The previous choice is a point within its distance of q: no box larger than that is
       // needed (a box of a cell or more would look at up to 64 bins).
-      double reach = bins.cell;
+      double reach = cells.cell;
       if (hint >= 0) {
         reach = 1.001 * (point_of(hint) - q).norm() + 1e-12;
       } else {
-        const Vec3 outside = (bins.lo - q).cwiseMax(q - bins.hi).cwiseMax(Vec3::Zero());
-        reach = std::max(reach, std::max(0.0, outside.norm() - drift) + bins.cell);
+        const Vec3 outside = (search.lo - q).cwiseMax(q - search.hi).cwiseMax(Vec3::Zero());
+        reach = std::max(reach, std::max(0.0, outside.norm() - drift) + cells.cell);
       }
       for (int attempt = 0; attempt < 64 && !found; ++attempt) {
-        const auto first = bins.coordinates(q - Vec3::Constant(reach + drift));
-        const auto last = bins.coordinates(q + Vec3::Constant(reach + drift));
-        const bool everything = first[0] == 0 && first[1] == 0 && first[2] == 0 && last[0] == bins.count[0] - 1 &&
-                                last[1] == bins.count[1] - 1 && last[2] == bins.count[2] - 1;
+        GridCell first{}, last{};
+        cells.range(q - Vec3::Constant(reach + drift), q + Vec3::Constant(reach + drift), first, last);
+        const bool everything = first[0] == 0 && first[1] == 0 && first[2] == 0 && last[0] == cells.count[0] - 1 &&
+                                last[1] == cells.count[1] - 1 && last[2] == cells.count[2] - 1;
         candidates.clear();
         double least = std::numeric_limits<double>::infinity();
         const auto consider = [&](int e) {
@@ -866,10 +874,9 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
         // below), and is passed over without being formed; all are taken when the box holds
         // every bin. (The box is a cube around that ball.)
         const double ball = (reach + drift) * (reach + drift) * (1 + 1e-9);
-        bins.visit_box(q - Vec3::Constant(reach + drift), q + Vec3::Constant(reach + drift), [&](int s) {
-          const int e = bins.items[static_cast<size_t>(s)];
+        bins.visit_cells(first, last, [&](int e) {
           if (search.loose.loose[e]) return;
-          if (!everything && (bins.item_points[static_cast<size_t>(s)] - q).squaredNorm() > ball) return;
+          if (!everything && (search.binned[static_cast<size_t>(e)] - q).squaredNorm() > ball) return;
           consider(e);
         });
         // The loose ones are where they are now: only those within reach of q (per axis) can be

@@ -121,7 +121,7 @@ TEST(LinkedAcross, KeptUpToDateEqualsTheFullCount) {
                                                       &boxes_indexed, &seen_indexed, &index);
     EXPECT_EQ(indexed, full) << "strip " << strip;
     EXPECT_EQ(linked_indexed, linked) << "strip " << strip;
-    EXPECT_EQ(index.centres.items.size(), strip == 0 ? 0u : static_cast<size_t>(model.element_count())) << "strip " << strip << ": built after the first";
+    EXPECT_EQ(index.centres.slots(), strip == 0 ? 0u : static_cast<size_t>(model.element_count())) << "strip " << strip << ": built after the first";
     // Called only every other strip with that strip's box (the triangles of the strip between
     // are outside it: the count can miss them), the per-element `seen` must still give
     // exactly what testing the whole cut gives.
