@@ -124,7 +124,6 @@ int main(int argc, char** argv) {
   performance_cmd->add_option("--backend", performance_backend, "gpu: also run every size on the GPU backend")
       ->check(CLI::IsMember({"cpu", "gpu"}))
       ->capture_default_str();
-  const std::string performance_surface = "front";
 
   incise::bench::HapticsBenchOptions haptics_bench;
   std::string haptics_scene;
@@ -155,7 +154,7 @@ int main(int argc, char** argv) {
     if (*synth_cmd) return incise::app::trajectory_synth(synth);
     if (*accuracy_cmd) return incise::bench::run_accuracy_bench(accuracy_quick, accuracy_out, std::cerr);
     if (*stability_cmd) return incise::bench::run_stability_bench(stability_quick, stability_out, std::cerr, stability_resume);
-    if (*performance_cmd) return incise::bench::run_performance_bench(performance_quick, performance_out, std::cerr, performance_backend, performance_surface);
+    if (*performance_cmd) return incise::bench::run_performance_bench(performance_quick, performance_out, std::cerr, performance_backend);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "incise: %s\n", e.what());
     return 1;

@@ -25,9 +25,8 @@
 // that wait plus ms_front_cut), with its last quarter's median: the figure on one core.
 // The full run's rows go up to the issue's benchmark size: a = 2.8 mm (20248 elements) with
 // s = 1.4 mm and s = 0.6 mm (about 230k triangles; the issue asks for surfaces up to 200k).
-// --surface voxel or both: the same rows with the lobe's efg.cut_surface "voxel" (the voxel
-// design) instead of, or beside, the scene's "front" (the thesis's explicit surface cut);
-// cut_surface column. With --backend gpu each gets a gpu row.
+// The cut_surface column names the surface design, "front" (the one design since the voxel
+// surface was removed). With --backend gpu each row gets a gpu row.
 // Timings are this machine's (2 shared cores): figures to read, never to assert.
 #include "bench/performance.hpp"
 #include "bench/repo_files.hpp"
@@ -62,7 +61,7 @@ struct Resolution {
 }  // namespace
 
 int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress,
-                          const std::string& backend, const std::string& surface) {
+                          const std::string& backend) {
   try {
     std::filesystem::create_directories(out_dir);
     const std::filesystem::path scene_file = find_repo_file("assets/scenes/default.json", "performance");
@@ -75,9 +74,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
     // and with it whatever grows with the stroke, at its full size.
     if (backend != "cpu" && backend != "gpu")
       throw std::runtime_error("--backend: '" + backend + "' is not cpu or gpu");
-    if (surface != "front")
-      throw std::runtime_error("--surface: '" + surface + "': the front is the one cut surface (voxel was removed)");
-    const std::vector<std::string> surfaces{"front"};
+    const std::string row_surface = "front";
     common::CsvWriter csv(out_dir / "performance.csv",
                           {"scene", "backend", "elements", "triangles", "ms_ccd", "ms_topology", "ms_solve",
                            "ms_surface", "ms_total", "dofs", "steps", "ms_topology_max", "cut_share_pct",
@@ -92,7 +89,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
     progress << std::setw(8) << "a mm" << std::setw(8) << "s mm" << std::setw(9) << "elements" << std::setw(10)
              << "triangles" << std::setw(9) << "ccd" << std::setw(10) << "topology" << std::setw(9) << "solve"
              << std::setw(9) << "surface" << std::setw(9) << "total" << std::setw(8) << "cut %" << "   (ms, medians)\n";
-    for (const Resolution& resolution : rows) for (const std::string& row_surface : surfaces) for (const std::string& row_backend : backends) {
+    for (const Resolution& resolution : rows) for (const std::string& row_backend : backends) {
       engine::Scene scene = base;
       scene.solver.backend = row_backend;
       scene.bodies[0].resolution = resolution.spacing;

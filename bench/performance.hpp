@@ -1,4 +1,4 @@
-// The cutting performance report (issue 4): `incise bench performance [--quick] --out DIR`.
+// The cutting performance report: `incise bench performance [--quick] --out DIR`.
 #pragma once
 
 #include <filesystem>
@@ -15,10 +15,8 @@ namespace incise::bench {
 // bytes_full_upload (the last three: "cpu", 0, 0 on the cpu). Progress and a table go to `progress`.
 // Returns 0 on success, 1 on failure (with a message on `progress`).
 // backend "gpu": each size also runs on the GPU backend (rows with backend=gpu, the device
-// and the bytes uploaded per cut step). The last column, cut_surface, is the body's
-// efg.cut_surface: `surface` "voxel" (the scene's), "front", or "both" (each size with voxel,
-// then with front; front rows run on the cpu only).
+// and the bytes uploaded per cut step). The cut_surface column is "front", the one design.
 int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress,
-                          const std::string& backend = "cpu", const std::string& surface = "voxel");
+                          const std::string& backend = "cpu");
 
 }  // namespace incise::bench
