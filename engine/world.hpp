@@ -13,14 +13,8 @@
 #include "engine/body.hpp"
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
-#include "physics/core/model.hpp"
-#include "physics/core/implicit_euler.hpp"
-#include "physics/cut/linked_across.hpp"
-#include "physics/cut/rest_cut.hpp"
-#include "physics/cut/surface_topology.hpp"
-#include "physics/cut/voxel_boundary.hpp"
-#include "physics/cut/front_mapping.hpp"
-#include "physics/efg/corotational_efg.hpp"
+#include "physics/core/body.hpp"
+#include "physics/cut/cut_body.hpp"
 #include "render/frame.hpp"
 
 #include <array>
@@ -38,7 +32,6 @@ namespace incise::engine {
 class NonFiniteError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
-
 
 // Where time went in one step, and what the solver said.
 struct StepStats {
