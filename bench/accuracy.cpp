@@ -13,22 +13,20 @@
 //   the links the blade touches (continuous collision) and re-selects the broken
 //   neighbourhoods (each severed corner replaced by its mirror through the nearest kept one,
 //   then by graph distance), which gives the geometry cut's neighbourhoods exactly: the two
-//   variants' errors agree to 0.01 %. (By graph distance alone the tie between the particle
-//   behind the kept face and those beside or below it made irregular neighbourhoods:
-//   stretch_cut 7.4 % against 4.3 %.) Where the cut lies, relative to the grids: the cut
-//   cases use an odd number of particle cells along the beam, so x = 0.1 is a plane of
-//   integration-cube faces, midway between the particle layers at 0.1 +- a and the
-//   integration points at 0.1 +- a/2; the blade runs on it, no grid point within a/2. (With
-//   an even count, as first built, a particle layer lies on the plane and belongs to one side,
-//   the other side's crack face being a spacing away from its particles: at about 10k dofs
-//   bend_cut 2.3 % and stretch_cut 14.4 % against 0.91 % and 8.6 % with the odd count, before
-//   the mirror rule and the finer references; 0.28 % and 4.3 % now.) The blade's edge
-//   stops at z = 1e-3 a, just above the particle row on the crack front z = 0 (see the grid
-//   alignment below): the links from the integration points above the front to the front
-//   particles across the plane cross it a/3 above z = 0 and are cut, those from the points
-//   below it are not, and the row's own links along x, which a blade ending exactly on z = 0
-//   would touch at t = 1, stay (the front is shared by both sides, as the reference's front
-//   nodes are).
+//   variants' errors agree to 0.01 %. (By graph distance alone the tie between the particle behind
+//   the kept face and those beside or below it makes irregular neighbourhoods and a cut beam much
+//   farther off: docs/physics-choices.md, "Cutting".) Where the cut lies, relative to the grids:
+//   the cut cases use an odd number of particle cells along the beam, so x = 0.1 is a plane of
+//   integration-cube faces, midway between the particle layers at 0.1 +- a and the integration
+//   points at 0.1 +- a/2; the blade runs on it, no grid point within a/2. (With an even count a
+//   particle layer lies on the plane and belongs to one side, the other side's crack face being a
+//   spacing away from its particles: the cut beams' errors grow severalfold;
+//   docs/physics-choices.md, "Accuracy references".) The blade's edge stops at z = 1e-3 a, just
+//   above the particle row on the crack front z = 0 (see the grid alignment below): the links from
+//   the integration points above the front to the front particles across the plane cross it a/3
+//   above z = 0 and are cut, those from the points below it are not, and the row's own links along
+//   x, which a blade ending exactly on z = 0 would touch at t = 1, stay (the front is shared by
+//   both sides, as the reference's front nodes are).
 // - EFG with the geometry cut (suffix `_geomcut`), for comparison: integration-point-to-particle
 //   links that cross the cut rectangle are removed at build time and the neighbourhood
 //   re-selected on the element's own side (EfgSettings::cuts);
@@ -44,13 +42,14 @@
 // midside nodes of the edges leaving it at a quarter of the edge, isoparametric tets), which
 // carry its 1 / sqrt r strain, on sections of graded rows (hexagon_row_section) with x layers
 // matched to them near the crack (crack_layers): the tip still converges at about h^1.5, so
-// the quick run goes to 12 rows (404k dofs), the full run to 16 (708k).
+// the quick run goes to 12 rows, the full run to 16 (docs/physics-choices.md, "Accuracy
+// references", has the mesh study and the solve sizes and times).
 //
 // Rows: efg nb8 (8 cell corners with the model's defaults: h = 1.1 x the farthest corner, 8^3 volume samples,
 // partial-cube points at the inside centroid; corotational_efg.hpp says why), nb4, novolume
 // (nb8 with every touched cube counted whole), nb8_support3 (h = 3 x the farthest corner, the
 // literal reading of the thesis's constant) and nb8_thesis (that support, cube-centre points
-// and 4^3 samples: the model as first built), each `_geomcut` for the cut cases, plus
+// and 4^3 samples: the thesis's literal model), each `_geomcut` for the cut cases, plus
 // nb8_cutter, nb4_cutter and novolume_cutter; for the cut cases the EFG grid's z extent is
 // widened so that a particle row lies on the crack front (the cutter needs it as much as the
 // geometry cut: with the front mid-cell, between particle rows at z = +-a, nb8_cutter's
@@ -226,8 +225,8 @@ double triangle_area(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const E
 // across the hexagon's width there (|y| <= R - |z| / sqrt 3), neighbouring rows joined by two
 // triangles per interval. Unlike the lattice, the resolution across the crack front (z) is
 // independent of the one along it (y): the crack's field varies along y only near the
-// section's corners, so y needs few intervals (stretch_cut at nz = 2: ny 4 -> 8 changes the
-// tip by 0.30 %, 8 -> 16 by 0.07 %), while the reference needs many rows (see crack_layers).
+// section's corners, so y needs few intervals while the reference needs many rows (see
+// crack_layers; the mesh study: docs/physics-choices.md, "Accuracy references").
 Section hexagon_row_section(int ny, int nz, double power) {
   const double h = hexagon_half_height();
   Section section;
@@ -249,8 +248,8 @@ Section hexagon_row_section(int ny, int nz, double power) {
 // The cut references' layers along x: within H of the crack plane, the section's rows mirrored
 // (x = cut_x +- z_j), so the elements around the crack front are as long in x as in z; beyond,
 // layers twice the size of the outermost graded one, graded towards the clamp with `power`
-// and uniform towards the tip (their count barely matters: stretch_cut at nz = 3 moves by
-// 0.12 % between twice and half that size, while nz = 3 -> 4 moves it by 0.85 %).
+// and uniform towards the tip (their count barely matters against the rows': the mesh study
+// in docs/physics-choices.md, "Accuracy references").
 std::vector<double> crack_layers(int nz, double power) {
   const double h = hexagon_half_height();
   std::vector<double> offsets;  // from the crack plane, 0 .. H
@@ -523,11 +522,12 @@ std::vector<Vector> solve_static_loads(const SparseMatrix& stiffness, const std:
   }
   SparseMatrix reduced(free_count, free_count);
   reduced.setFromTriplets(triplets.begin(), triplets.end());
-  // CHOLMOD's supernodal Cholesky (dense BLAS on supernodes): the references' 97k-dof mesh
-  // factors in 4.4 s against 117 s for SimplicialLDLT, which stays as the fallback for a
-  // matrix that is not positive definite, and is used under ThreadSanitizer: CHOLMOD's OpenMP
-  // threads and OpenBLAS's synchronise in code TSan does not see (libgomp, spin waits), which
-  // it reports as races (test_cut_beam_accuracy's solves are small enough for either).
+  // CHOLMOD's supernodal Cholesky (dense BLAS on supernodes): on the references many times
+  // faster than SimplicialLDLT (docs/physics-choices.md, "Accuracy references"), which stays
+  // as the fallback for a matrix that is not positive definite, and is used under
+  // ThreadSanitizer: CHOLMOD's OpenMP threads and OpenBLAS's synchronise in code TSan does not
+  // see (libgomp, spin waits), which it reports as races (test_cut_beam_accuracy's solves are
+  // small enough for either).
 #if defined(__SANITIZE_THREAD__)
   constexpr bool use_cholmod = false;
 #else
@@ -833,8 +833,8 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
     const Levels square_levels = quick ? Levels{{2, 10}, {3, 15}, {4, 20}}
                                        : Levels{{2, 10}, {4, 20}, {6, 30}, {8, 40}};
     // The cut cases (rows either side of the crack front, layers from crack_layers): their
-    // tip converges at about h^1.5 even with quarter points, so they need finer meshes (at 12
-    // rows 404k dofs, 44 s with CHOLMOD).
+    // tip converges at about h^1.5 even with quarter points, so they need finer meshes (sizes
+    // and solve times: docs/physics-choices.md, "Accuracy references").
     const Levels crack_levels = quick ? Levels{{2, 0}, {3, 0}, {6, 0}, {9, 0}, {12, 0}}
                                       : Levels{{2, 0}, {3, 0}, {4, 0}, {6, 0}, {8, 0}, {12, 0}, {16, 0}};
     // Linear tets (the real-time baseline), uniform, about 1k, 3k and 10k dofs (more in full).

@@ -30,9 +30,9 @@
 // 100 kPa and 1 MPa, nu 0.45, and prints for each slice the rms particle speed and the
 // centroid drift over the last second and the sag, and the energy the run gained (sum of the
 // per-step rises of elastic + kinetic + gravitational energy) over its net change: a damped
-// conservative model never gains any. Quick run, E 10 kPa: shape matching 1.35e-5, deformation
-// gradient 6.5e-14 (100 kPa: 5.9e-8 and 6.9e-13); late speeds below 4e-6 mm/s for both, sags
-// 3.455 / 3.452 mm (top) and 7.177 / 7.161 mm (bottom). See corotational_efg.hpp, "Rotation".
+// conservative model never gains any. What it shows and why the corotation takes its rotation
+// from the deformation gradient: docs/physics-choices.md, "`rotation` = deformation_gradient"
+// (corotational_efg.hpp, "Rotation").
 //
 // Models: `fem`, CorotationalTetFem (beam 10 x 2 x 2 cells, cube 4 x 4 x 4 cells, 6 tets per
 // cell) with implicit Euler and the five explicit integrators; `efg`, CorotationalEfg (grid
@@ -54,11 +54,7 @@
 //   most of the sweep's time);
 // - stable otherwise.
 // Runs are T = 1 s (beam) or 0.5 s (cubes) of simulated time; 0.25 s in quick mode.
-// Quick sweep (3 E x 3 nu x 2 dt; 414 runs and the study in about 160 s on the 2 shared cores):
-// fem/implicit_euler 49 stable, 5 cg_not_converged (all beam_gravity at nu 0.499); the five
-// explicit fem integrators 0 to 3 stable of 54; efg/implicit_euler 87 stable, 3
-// cg_not_converged (beam_gravity at nu 0.499); fast_blade and thin_slice: 18 of 18 stable
-// each, inside the target and beyond.
+// Quick sweep: 3 E x 3 nu x 2 dt, 414 runs. The sweeps' outcomes: docs/status.md, "Benchmarks".
 #include "bench/stability.hpp"
 #include "bench/plot.hpp"
 
