@@ -1,8 +1,9 @@
-// solve: one implicit Euler step per body (CPU or GPU), with its guards: the non-finite retry
-// with halved dt, CG non-convergence and the energy watchdog, each counted and logged.
+// solve: the external forces (gravity, the scene's loads at the step's end) and one guarded
+// implicit Euler step per body on its backend (physics/core/guarded_step.hpp), whose guards
+// are counted and logged here.
 #include "engine/world.hpp"
 
-#include "physics/core/contact.hpp"
+#include "physics/core/guarded_step.hpp"
 #include "physics/gpu/efg_step.hpp"
 
 #include <algorithm>
@@ -35,77 +36,31 @@ void World::solve_body(Body& body, const std::vector<physics::NodalSpring>& spri
       for (int c = 0; c < 3; ++c) external[3 * i + c] += share * force[c];
     }
   }
-  const physics::Vector positions_before = body.data.state.positions;
   if (body.cut) body.cut->previous_positions = body.data.state.positions;
-  // Non-finite guard: a step that produces a non-finite value leaves the state untouched
-  // and is retried as 2, 4, ... sub-steps (dt halved each time) before giving up.
-  for (int attempt = 0; attempt <= scene_.solver.max_retries; ++attempt) {
-    int substeps = 1 << attempt;
-    physics::ImplicitEulerSettings settings = body.model->integrator;
-    settings.dt = body.model->integrator.dt / substeps;
-    physics::State saved = body.data.state;
-    physics::Vector saved_velocity_change = body.data.velocity_change;
-    bool failed = false;
-    physics::StepReport report;
-    for (int s = 0; s < substeps && !failed; ++s) {
-      report = body.gpu ? body.gpu->step(*body.data.efg, body.data.state, body.data.fixed, external, springs, settings,
-                                         &body.data.velocity_change)
-                        : physics::implicit_euler_step(*body.data.mechanics, body.data.state, body.data.fixed, external, springs,
-                                                       settings, &body.data.velocity_change);
-      stats.cg_iterations += report.cg.iterations;
-      stats.cg_residual = std::max(stats.cg_residual, report.cg.relative_residual);
-      if (!report.cg.converged && !report.nonfinite) {
-        stats.cg_converged = false;
-        guard_counts_.cg_not_converged++;
-        log_guard(body.model->name, "cg_not_converged",
-                  "relative residual " + std::to_string(report.cg.relative_residual) + " after " +
-                      std::to_string(report.cg.iterations) + " iterations (tolerance " +
-                      std::to_string(settings.cg.tolerance) + ")");
-      }
-      failed = report.nonfinite;
-    }
-    if (!failed) {
-      stats.elastic_energy += report.elastic_energy;
-      stats.kinetic_energy += report.kinetic_energy;
-      // Energy watchdog: implicit Euler dissipates, so the energy may grow only by the work
-      // of the external and contact forces over the step. A clear excess is the signature
-      // of an instability (or of a step far outside the linearisation) and is reported.
-      double work = external.dot(body.data.state.positions - positions_before);
-      for (const auto& spring : springs) {
-        const physics::Vec3 moved = body.data.state.positions.segment<3>(3 * spring.node) -
-                                    positions_before.segment<3>(3 * spring.node);
-        work += spring.force.dot(moved);
-        // The contact force the implicit step applied is the linearised one at the end of
-        // the step, f - K dx: that is what the tissue pushes the tool with, not the larger
-        // penetration force at the start of the step.
-        const physics::Vec3 applied = spring.force - spring.stiffness * moved;
-        for (int i = 0; i < 3; ++i) stats.tool_force[i] -= applied[i];
-      }
-      const double energy = report.elastic_energy + report.kinetic_energy;
-      const double excess = energy - body.data.last_energy - std::max(work, 0.0);
-      if (excess > 0.5 * body.data.last_energy + 1e-9) {
-        stats.energy_growth_events++;
-        guard_counts_.energy_growth++;
-        log_guard(body.model->name, "energy_growth",
-                  "energy " + std::to_string(body.data.last_energy) + " -> " + std::to_string(energy) +
-                      " J with " + std::to_string(work) + " J of external work");
-      }
-      body.data.last_energy = energy;
-      if (attempt > 0)
-        log_guard(body.model->name, "nonfinite_retry",
-                  "recovered with " + std::to_string(substeps) + " sub-steps of " +
-                      std::to_string(settings.dt) + " s");
-      return;
-    }
-    body.data.state = std::move(saved);
-    body.data.velocity_change = std::move(saved_velocity_change);
-    stats.nonfinite_events++;
-    guard_counts_.nonfinite_retries++;
-  }
-  log_guard(body.model->name, "nonfinite_retry", "gave up after " + std::to_string(scene_.solver.max_retries) + " halvings");
-  throw NonFiniteError("step " + std::to_string(steps_ + 1) + " (t = " + std::to_string(end_time) +
-                       " s), body '" + body.model->name + "': non-finite values after " +
-                       std::to_string(scene_.solver.max_retries) + " retries with halved dt");
+  const physics::StepFunction step = [&](physics::State& state, const physics::ImplicitEulerSettings& settings,
+                                         physics::Vector* velocity_change) {
+    return body.gpu ? body.gpu->step(*body.data.efg, state, body.data.fixed, external, springs, settings, velocity_change)
+                    : physics::implicit_euler_step(*body.data.mechanics, state, body.data.fixed, external, springs,
+                                                   settings, velocity_change);
+  };
+  const physics::GuardedStepReport report =
+      physics::guarded_step(*body.model, body.data, external, springs, scene_.solver.max_retries, step);
+  stats.cg_iterations += report.cg_iterations;
+  stats.cg_residual = std::max(stats.cg_residual, report.cg_residual);
+  stats.cg_converged = stats.cg_converged && report.cg_converged;
+  stats.nonfinite_events += report.nonfinite_retries;
+  stats.energy_growth_events += report.energy_growth;
+  stats.elastic_energy += report.elastic_energy;
+  stats.kinetic_energy += report.kinetic_energy;
+  for (int i = 0; i < 3; ++i) stats.tool_force[i] += report.tool_force[i];
+  guard_counts_.cg_not_converged += report.cg_not_converged;
+  guard_counts_.energy_growth += report.energy_growth;
+  guard_counts_.nonfinite_retries += report.nonfinite_retries;
+  for (const auto& event : report.events) log_guard(body.model->name, event.kind, event.detail);
+  if (!report.ok)
+    throw NonFiniteError("step " + std::to_string(steps_ + 1) + " (t = " + std::to_string(end_time) +
+                         " s), body '" + body.model->name + "': non-finite values after " +
+                         std::to_string(scene_.solver.max_retries) + " retries with halved dt");
 }
 
 }  // namespace incise::engine
