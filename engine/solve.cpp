@@ -24,7 +24,7 @@ std::array<double, 3> load_force_at(const LoadSpec& load, double time) {
           a.force[2] + s * (b.force[2] - a.force[2])};
 }
 
-void World::solve_body(Body& body, const std::vector<physics::NodalSpring>& springs,
+void World::solve(Body& body, const std::vector<physics::NodalSpring>& springs,
                        double end_time, StepStats& stats) {
   physics::Vector external = body.data.gravity;
   for (std::size_t k = 0; k < body.model->load_nodes.size(); ++k) {

@@ -103,6 +103,41 @@ void World::log_guard(const std::string& body, const std::string& kind, const st
   guard_events_.push_back({steps_ + 1, static_cast<double>(steps_ + 1) * scene_.solver.dt, body, kind, detail});
 }
 
+
+physics::BladeSweep World::blade_sweep() const {
+  return {tool_.blade_poses, tool_.blade_fractions, tool_.blade_active};
+}
+
+std::optional<physics::RestSweep> World::detect_cuts(Body& body, physics::CutStepReport& report) {
+  return physics::detect_cuts(*body.cut_model, *body.cut, body.data, blade_sweep(), report);
+}
+
+void World::apply_topology(Body& body, const std::optional<physics::RestSweep>& sweep, physics::CutStepReport& report) {
+  physics::CutContext context{*body.model, body.data, *body.cut_model, *body.cut, cut_totals_, report,
+                              body.gpu != nullptr, static_cast<long>(steps_ + 1)};
+  physics::apply_topology(context, blade_sweep(), sweep,
+                          body.executor ? static_cast<physics::Executor&>(*body.executor) : physics::serial_executor());
+}
+
+namespace {
+
+void add_cut_report(const physics::CutStepReport& report, StepStats& stats) {
+  stats.cut_tested = stats.cut_tested || report.tested;
+  stats.cut_event = stats.cut_event || report.event;
+  stats.ms_ccd += report.ms_ccd;
+  stats.ms_topology += report.ms_topology;
+  stats.ms_rest_cut += report.ms_rest_cut;
+  stats.ms_reselect += report.ms_reselect;
+  stats.ms_surface_rebuild += report.ms_surface_rebuild;
+  stats.ms_mapping += report.ms_mapping;
+  stats.ms_checks += report.ms_checks;
+  stats.ms_front_cut += report.ms_front_cut;
+  stats.ms_front_wait += report.ms_front_wait;
+  stats.links_severed += report.links_severed;
+}
+
+}  // namespace
+
 StepStats World::step() {
   StepStats stats;
   const auto gpu_bytes = [this](bool rows) {
@@ -117,15 +152,19 @@ StepStats World::step() {
   const double end_time = static_cast<double>(steps_ + 1) * scene_.solver.dt;
   take_tool_input(end_time);
   stats.ms_tool_input = ms_since(phase);
-  // detect_cuts -> apply_topology (cuttable bodies and a blade only).
-  for (auto& body : bodies_)
-    if (body.cut && blade()) cut(body, stats);
+  for (auto& body : bodies_) {
+    if (!body.cut || !blade()) continue;  // a body is cut by a blade only
+    physics::CutStepReport cut;
+    const auto sweep = detect_cuts(body, cut);
+    apply_topology(body, sweep, cut);
+    add_cut_report(cut, stats);
+  }
   std::vector<std::vector<physics::NodalSpring>> springs(bodies_.size());
   phase = Clock::now();
   for (std::size_t b = 0; b < bodies_.size(); ++b) springs[b] = contact(bodies_[b], stats);
   stats.ms_contact = ms_since(phase);
   phase = Clock::now();
-  for (std::size_t b = 0; b < bodies_.size(); ++b) solve_body(bodies_[b], springs[b], end_time, stats);
+  for (std::size_t b = 0; b < bodies_.size(); ++b) solve(bodies_[b], springs[b], end_time, stats);
   stats.ms_solve = ms_since(phase);
   phase = Clock::now();
   for (auto& body : bodies_) update_surface(body);
@@ -136,28 +175,6 @@ StepStats World::step() {
   stats.gpu_bytes = gpu_bytes(false) - gpu_bytes_before;
   stats.gpu_row_bytes = gpu_bytes(true) - gpu_row_bytes_before;
   return stats;
-}
-
-void World::cut(Body& body, StepStats& stats) {
-  physics::CutStepReport report;
-  physics::CutContext context{*body.model, body.data, *body.cut_model, *body.cut, cut_totals_, report,
-                              body.gpu != nullptr, static_cast<long>(steps_ + 1)};
-  const physics::BladeSweep sweep{tool_.blade_poses, tool_.blade_fractions, tool_.blade_active};
-  const auto rest_sweep = physics::detect_cuts(*body.cut_model, *body.cut, body.data, sweep, report);
-  physics::apply_topology(context, sweep, rest_sweep,
-                          body.executor ? static_cast<physics::Executor&>(*body.executor) : physics::serial_executor());
-  stats.cut_tested = stats.cut_tested || report.tested;
-  stats.cut_event = stats.cut_event || report.event;
-  stats.ms_ccd += report.ms_ccd;
-  stats.ms_topology += report.ms_topology;
-  stats.ms_rest_cut += report.ms_rest_cut;
-  stats.ms_reselect += report.ms_reselect;
-  stats.ms_surface_rebuild += report.ms_surface_rebuild;
-  stats.ms_mapping += report.ms_mapping;
-  stats.ms_checks += report.ms_checks;
-  stats.ms_front_cut += report.ms_front_cut;
-  stats.ms_front_wait += report.ms_front_wait;
-  stats.links_severed += report.links_severed;
 }
 
 namespace {

@@ -15,6 +15,7 @@
 #include "engine/trajectory.hpp"
 #include "physics/core/body.hpp"
 #include "physics/cut/cut_body.hpp"
+#include "physics/cut/detect_cuts.hpp"
 #include "render/frame.hpp"
 
 #include <array>
@@ -151,9 +152,11 @@ class World {
   void update_surface(Body& body) const;
   // solver.backend "gpu": the body's GPU step (throws naming the field when it cannot be).
   void make_gpu_backend(Body& body, std::size_t index) const;
-  // detect_cuts -> apply_topology for one cuttable body (physics/cut/), its counts into stats.
-  void cut(Body& body, StepStats& stats);
-  void solve_body(Body& body, const std::vector<physics::NodalSpring>& springs, double end_time,
+  // The cut stages of one cuttable body (physics/cut/detect_cuts.hpp, apply_topology.hpp).
+  physics::BladeSweep blade_sweep() const;
+  std::optional<physics::RestSweep> detect_cuts(Body& body, physics::CutStepReport& report);
+  void apply_topology(Body& body, const std::optional<physics::RestSweep>& sweep, physics::CutStepReport& report);
+  void solve(Body& body, const std::vector<physics::NodalSpring>& springs, double end_time,
                   StepStats& stats);
 
   Scene scene_;
