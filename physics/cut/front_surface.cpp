@@ -330,6 +330,162 @@ FaceChange boundary_change(const FaceCache& cache, const PlanarRegion& region, c
   return change;
 }
 
+// triangulate_face's steps on a valid cache (see there): which of the last triangles to keep,
+// the rest's region bounded by them, and (in triangulate_face) the two put together.
+struct FaceReuse {
+  FaceReuse(const PlanarRegion& region, const FaceCache& cache, const FaceChange& change)
+      : region(region), cache(cache), change(change) {}
+
+  bool choose_kept(double slack);
+  int triangle_with(int a, int b) const;
+  bool kept_edge(int a, int b) const;
+  std::vector<std::array<int, 2>> rest_boundary();
+  void gather_rest(const std::vector<std::array<int, 2>>& boundary);
+
+  const PlanarRegion& region;
+  const FaceCache& cache;
+  const FaceChange& change;
+  // The last triangles listed around each of their corners (compressed rows), and per last
+  // triangle whether it is kept; the kept ones (new numbering) and the others.
+  std::vector<int> around_start, around;
+  std::vector<std::uint8_t> is_kept;
+  std::vector<std::array<int, 3>> kept;
+  std::vector<int> not_kept;
+  std::vector<int> old_of_new;  // per new point: its last index, or -1
+  PlanarRegion rest;            // what is triangulated again
+  std::vector<int> from_rest;   // per point of rest: its index in region
+};
+
+// The kept triangles: all corners still there, the circumcircle below t_change. The last
+// triangles are also listed around each of their corners (compressed rows), to find the
+// rest's boundary from the triangles not kept, which lie near the front. False when none is
+// kept.
+bool FaceReuse::choose_kept(double slack) {
+  const auto& old_points = cache.region.points;
+  const std::vector<int>& to_new = change.to_new;
+  const double t_change = change.t_change;
+  const auto& old_triangles = cache.triangles;
+  const size_t old_count = old_points.size();
+  around_start.assign(old_count + 1, 0);
+  around.assign(3 * old_triangles.size(), 0);
+  is_kept.assign(old_triangles.size(), 0);
+  for (size_t t = 0; t < old_triangles.size(); ++t) {
+    const auto& tri = old_triangles[t];
+    for (const int p : tri) ++around_start[static_cast<size_t>(p) + 1];
+    const std::array<int, 3> now{to_new[static_cast<size_t>(tri[0])], to_new[static_cast<size_t>(tri[1])], to_new[static_cast<size_t>(tri[2])]};
+    const bool keep_it = [&] {
+      if (now[0] < 0 || now[1] < 0 || now[2] < 0) return false;
+      const Vec2& a = old_points[static_cast<size_t>(tri[0])];
+      const Vec2 b = old_points[static_cast<size_t>(tri[1])] - a, c = old_points[static_cast<size_t>(tri[2])] - a;
+      const double d = 2 * (b.x() * c.y() - b.y() * c.x());
+      if (!(std::abs(d) > 0)) return false;
+      const Vec2 centre((c.y() * b.squaredNorm() - b.y() * c.squaredNorm()) / d, (b.x() * c.squaredNorm() - c.x() * b.squaredNorm()) / d);
+      return a.y() + centre.y() + centre.norm() < t_change - slack;
+    }();
+    if (keep_it) {
+      is_kept[t] = 1;
+      kept.push_back(now);
+    } else {
+      not_kept.push_back(static_cast<int>(t));
+    }
+  }
+  if (kept.empty()) return false;
+  for (size_t p = 0; p < old_count; ++p) around_start[p + 1] += around_start[p];
+  std::vector<int> fill(around_start.begin(), around_start.end() - 1);
+  for (size_t t = 0; t < old_triangles.size(); ++t)
+    for (const int p : old_triangles[t]) around[static_cast<size_t>(fill[static_cast<size_t>(p)]++)] = static_cast<int>(t);
+  return true;
+}
+
+// The last triangle with the directed edge a -> b (last numbering), or -1.
+int FaceReuse::triangle_with(int a, int b) const {
+  for (int k = around_start[static_cast<size_t>(a)]; k < around_start[static_cast<size_t>(a) + 1]; ++k) {
+    const int t = around[static_cast<size_t>(k)];
+    const auto& tri = cache.triangles[static_cast<size_t>(t)];
+    for (size_t c = 0; c < 3; ++c)
+      if (tri[c] == a && tri[(c + 1) % 3] == b) return t;
+  }
+  return -1;
+}
+
+bool FaceReuse::kept_edge(int a, int b) const {
+  const int t = a >= 0 && b >= 0 ? triangle_with(a, b) : -1;
+  return t >= 0 && is_kept[static_cast<size_t>(t)] != 0;
+}
+
+// The rest's boundary: the region's edges no kept triangle has, and the kept triangles'
+// edges that neither another kept triangle nor the region's boundary has, turned round.
+// Such a kept edge is the twin of an edge of a triangle not kept or, with no twin, an edge
+// of the last region's boundary (the triangulation covers the region exactly: every other
+// edge has two triangles).
+std::vector<std::array<int, 2>> FaceReuse::rest_boundary() {
+  const std::vector<int>& to_new = change.to_new;
+  const std::vector<std::array<int, 2>>& new_boundary = change.sorted_boundary;
+  const auto& old_triangles = cache.triangles;
+  old_of_new.assign(region.points.size(), -1);
+  for (size_t o = 0; o < cache.region.points.size(); ++o)
+    if (to_new[o] >= 0) old_of_new[static_cast<size_t>(to_new[o])] = static_cast<int>(o);
+  std::vector<std::array<int, 2>> boundary;
+  for (const auto& e : region.boundary)
+    if (!kept_edge(old_of_new[static_cast<size_t>(e[0])], old_of_new[static_cast<size_t>(e[1])])) boundary.push_back(e);
+  const size_t from_region = boundary.size();
+  const auto turn_round = [&](int a, int b) {  // the kept edge a -> b (last numbering)
+    const int from = to_new[static_cast<size_t>(a)], to = to_new[static_cast<size_t>(b)];
+    if (!std::binary_search(new_boundary.begin(), new_boundary.end(), std::array<int, 2>{from, to})) boundary.push_back({to, from});
+  };
+  for (const int t : not_kept) {
+    const auto& tri = old_triangles[static_cast<size_t>(t)];
+    for (size_t c = 0; c < 3; ++c)
+      if (kept_edge(tri[(c + 1) % 3], tri[c])) turn_round(tri[(c + 1) % 3], tri[c]);
+  }
+  for (const auto& e : cache.region.boundary)
+    if (kept_edge(e[0], e[1]) && triangle_with(e[1], e[0]) < 0) turn_round(e[0], e[1]);
+  // Those in the order of the kept edges they turn round (the points' numbering in
+  // gather_rest, and with it the triangulation's ties, follow it).
+  std::sort(boundary.begin() + static_cast<std::ptrdiff_t>(from_region), boundary.end(),
+            [](const std::array<int, 2>& l, const std::array<int, 2>& r) { return std::tie(l[1], l[0]) < std::tie(r[1], r[0]); });
+  return boundary;
+}
+
+// The rest's points: the ends of its boundary, and those no kept triangle uses within its
+// boundary's box (a point outside the box is outside the rest, and the triangulation ignores
+// it), by increasing index: the new points, and the last ones with no kept triangle around
+// them (the corners of triangles not kept, and those with none).
+void FaceReuse::gather_rest(const std::vector<std::array<int, 2>>& boundary) {
+  const auto& points = region.points;
+  const std::vector<int>& to_new = change.to_new;
+  const size_t point_count = points.size(), old_count = cache.region.points.size();
+  std::vector<int> rest_index(point_count, -1);
+  const auto take = [&](int p) {
+    if (rest_index[static_cast<size_t>(p)] < 0) {
+      rest_index[static_cast<size_t>(p)] = static_cast<int>(rest.points.size());
+      rest.points.push_back(points[static_cast<size_t>(p)]);
+      from_rest.push_back(p);
+    }
+    return rest_index[static_cast<size_t>(p)];
+  };
+  for (const auto& e : boundary) rest.boundary.push_back({take(e[0]), take(e[1])});
+  std::vector<int> free_points;
+  for (size_t p = 0; p < point_count; ++p)
+    if (old_of_new[p] < 0) free_points.push_back(static_cast<int>(p));
+  const auto unused = [&](int o) {
+    for (int k = around_start[static_cast<size_t>(o)]; k < around_start[static_cast<size_t>(o) + 1]; ++k)
+      if (is_kept[static_cast<size_t>(around[static_cast<size_t>(k)])]) return false;
+    return true;
+  };
+  for (const int t : not_kept)
+    for (const int o : cache.triangles[static_cast<size_t>(t)])
+      if (to_new[static_cast<size_t>(o)] >= 0 && unused(o)) free_points.push_back(to_new[static_cast<size_t>(o)]);
+  for (size_t o = 0; o < old_count; ++o)
+    if (around_start[o] == around_start[o + 1] && to_new[o] >= 0) free_points.push_back(to_new[o]);
+  std::sort(free_points.begin(), free_points.end());
+  free_points.erase(std::unique(free_points.begin(), free_points.end()), free_points.end());
+  Eigen::AlignedBox2d box;
+  for (const Vec2& p : rest.points) box.extend(p);
+  for (const int p : free_points)
+    if (box.contains(points[static_cast<size_t>(p)])) take(p);
+}
+
 // triangulate_region(region), keeping what the last sample's triangulation (`cache`) has well
 // behind the front. Between two samples the region changes only at and above some t (the
 // lowest t of a point added or gone, or of an end of a boundary edge added or gone: the
@@ -355,133 +511,21 @@ std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, Fac
   };
   const auto whole = [&] { return keep(triangulate_region(region)); };
   if (!cache.valid || !change) return whole();
-  const auto& old_points = cache.region.points;
-  const auto& points = region.points;
-  const std::vector<int>& to_new = change->to_new;
-  const double t_change = change->t_change;
-  const std::vector<std::array<int, 2>>& new_boundary = change->sorted_boundary;
-  // The kept triangles: all corners still there, the circumcircle below t_change. The last
-  // triangles are also listed around each of their corners (compressed rows), to find the
-  // rest's boundary from the triangles not kept, which lie near the front.
-  const auto& old_triangles = cache.triangles;
-  const size_t old_count = old_points.size();
-  std::vector<int> around_start(old_count + 1, 0), around(3 * old_triangles.size());
-  std::vector<std::uint8_t> is_kept(old_triangles.size(), 0);
-  std::vector<std::array<int, 3>> kept;
-  std::vector<int> not_kept;
-  for (size_t t = 0; t < old_triangles.size(); ++t) {
-    const auto& tri = old_triangles[t];
-    for (const int p : tri) ++around_start[static_cast<size_t>(p) + 1];
-    const std::array<int, 3> now{to_new[static_cast<size_t>(tri[0])], to_new[static_cast<size_t>(tri[1])], to_new[static_cast<size_t>(tri[2])]};
-    const bool keep_it = [&] {
-      if (now[0] < 0 || now[1] < 0 || now[2] < 0) return false;
-      const Vec2& a = old_points[static_cast<size_t>(tri[0])];
-      const Vec2 b = old_points[static_cast<size_t>(tri[1])] - a, c = old_points[static_cast<size_t>(tri[2])] - a;
-      const double d = 2 * (b.x() * c.y() - b.y() * c.x());
-      if (!(std::abs(d) > 0)) return false;
-      const Vec2 centre((c.y() * b.squaredNorm() - b.y() * c.squaredNorm()) / d, (b.x() * c.squaredNorm() - c.x() * b.squaredNorm()) / d);
-      return a.y() + centre.y() + centre.norm() < t_change - slack;
-    }();
-    if (keep_it) {
-      is_kept[t] = 1;
-      kept.push_back(now);
-    } else {
-      not_kept.push_back(static_cast<int>(t));
-    }
-  }
-  if (kept.empty()) return whole();
+  FaceReuse reuse(region, cache, *change);
+  if (!reuse.choose_kept(slack)) return whole();
+  const std::vector<std::array<int, 3>>& kept = reuse.kept;
   kept_count = static_cast<int>(kept.size());
-  for (size_t p = 0; p < old_count; ++p) around_start[p + 1] += around_start[p];
-  {
-    std::vector<int> fill(around_start.begin(), around_start.end() - 1);
-    for (size_t t = 0; t < old_triangles.size(); ++t)
-      for (const int p : old_triangles[t]) around[static_cast<size_t>(fill[static_cast<size_t>(p)]++)] = static_cast<int>(t);
-  }
-  // The last triangle with the directed edge a -> b (last numbering), or -1.
-  const auto triangle_with = [&](int a, int b) {
-    for (int k = around_start[static_cast<size_t>(a)]; k < around_start[static_cast<size_t>(a) + 1]; ++k) {
-      const int t = around[static_cast<size_t>(k)];
-      const auto& tri = old_triangles[static_cast<size_t>(t)];
-      for (size_t c = 0; c < 3; ++c)
-        if (tri[c] == a && tri[(c + 1) % 3] == b) return t;
-    }
-    return -1;
-  };
-  const auto kept_edge = [&](int a, int b) {
-    const int t = a >= 0 && b >= 0 ? triangle_with(a, b) : -1;
-    return t >= 0 && is_kept[static_cast<size_t>(t)] != 0;
-  };
-  const size_t point_count = points.size();
-  std::vector<int> old_of_new(point_count, -1);
-  for (size_t o = 0; o < old_count; ++o)
-    if (to_new[o] >= 0) old_of_new[static_cast<size_t>(to_new[o])] = static_cast<int>(o);
-  // The rest's boundary: the region's edges no kept triangle has, and the kept triangles'
-  // edges that neither another kept triangle nor the region's boundary has, turned round.
-  // Such a kept edge is the twin of an edge of a triangle not kept or, with no twin, an edge
-  // of the last region's boundary (the triangulation covers the region exactly: every
-  // other edge has two triangles).
-  PlanarRegion rest;
-  std::vector<int> rest_index(point_count, -1), from_rest;
-  std::vector<std::array<int, 2>> rest_boundary;
-  for (const auto& e : region.boundary)
-    if (!kept_edge(old_of_new[static_cast<size_t>(e[0])], old_of_new[static_cast<size_t>(e[1])])) rest_boundary.push_back(e);
-  const size_t from_region = rest_boundary.size();
-  const auto turn_round = [&](int a, int b) {  // the kept edge a -> b (last numbering)
-    const int from = to_new[static_cast<size_t>(a)], to = to_new[static_cast<size_t>(b)];
-    if (!std::binary_search(new_boundary.begin(), new_boundary.end(), std::array<int, 2>{from, to})) rest_boundary.push_back({to, from});
-  };
-  for (const int t : not_kept) {
-    const auto& tri = old_triangles[static_cast<size_t>(t)];
-    for (size_t c = 0; c < 3; ++c)
-      if (kept_edge(tri[(c + 1) % 3], tri[c])) turn_round(tri[(c + 1) % 3], tri[c]);
-  }
-  for (const auto& e : cache.region.boundary)
-    if (kept_edge(e[0], e[1]) && triangle_with(e[1], e[0]) < 0) turn_round(e[0], e[1]);
-  // Those in the order of the kept edges they turn round (the points' numbering below, and
-  // with it the triangulation's ties, follow it).
-  std::sort(rest_boundary.begin() + static_cast<std::ptrdiff_t>(from_region), rest_boundary.end(),
-            [](const std::array<int, 2>& l, const std::array<int, 2>& r) { return std::tie(l[1], l[0]) < std::tie(r[1], r[0]); });
-  // The rest's points: the ends of its boundary, and those no kept triangle uses within its
-  // boundary's box (a point outside the box is outside the rest, and the triangulation
-  // ignores it), by increasing index: the new points, and the last ones with no kept
-  // triangle around them (the corners of triangles not kept, and those with none).
-  const auto take = [&](int p) {
-    if (rest_index[static_cast<size_t>(p)] < 0) {
-      rest_index[static_cast<size_t>(p)] = static_cast<int>(rest.points.size());
-      rest.points.push_back(points[static_cast<size_t>(p)]);
-      from_rest.push_back(p);
-    }
-    return rest_index[static_cast<size_t>(p)];
-  };
-  for (const auto& e : rest_boundary) rest.boundary.push_back({take(e[0]), take(e[1])});
-  std::vector<int> free_points;
-  for (size_t p = 0; p < point_count; ++p)
-    if (old_of_new[p] < 0) free_points.push_back(static_cast<int>(p));
-  const auto unused = [&](int o) {
-    for (int k = around_start[static_cast<size_t>(o)]; k < around_start[static_cast<size_t>(o) + 1]; ++k)
-      if (is_kept[static_cast<size_t>(around[static_cast<size_t>(k)])]) return false;
-    return true;
-  };
-  for (const int t : not_kept)
-    for (const int o : old_triangles[static_cast<size_t>(t)])
-      if (to_new[static_cast<size_t>(o)] >= 0 && unused(o)) free_points.push_back(to_new[static_cast<size_t>(o)]);
-  for (size_t o = 0; o < old_count; ++o)
-    if (around_start[o] == around_start[o + 1] && to_new[o] >= 0) free_points.push_back(to_new[o]);
-  std::sort(free_points.begin(), free_points.end());
-  free_points.erase(std::unique(free_points.begin(), free_points.end()), free_points.end());
-  Eigen::AlignedBox2d box;
-  for (const Vec2& p : rest.points) box.extend(p);
-  for (const int p : free_points)
-    if (box.contains(points[static_cast<size_t>(p)])) take(p);
+  reuse.gather_rest(reuse.rest_boundary());
   std::vector<std::array<int, 3>> face = kept;
-  if (!rest.boundary.empty()) {
+  if (!reuse.rest.boundary.empty()) {
     std::vector<std::array<int, 3>> rest_face;
     try {
-      rest_face = triangulate_region(rest);
+      rest_face = triangulate_region(reuse.rest);
     } catch (const std::invalid_argument&) {
       kept_count = 0;
       return whole();
     }
+    const std::vector<int>& from_rest = reuse.from_rest;
     for (const auto& tri : rest_face)
       face.push_back({from_rest[static_cast<size_t>(tri[0])], from_rest[static_cast<size_t>(tri[1])], from_rest[static_cast<size_t>(tri[2])]});
   }
