@@ -709,8 +709,8 @@ FrontSurface::FrontSurface(std::vector<Vec3> vertices, std::vector<std::array<in
 
 void FrontSurface::show_base() {
   // With room for a stroke's vertices and triangles: the first sample would otherwise move the
-  // whole surface to a larger block (at 232k triangles two 2.8 MB copies into fresh pages,
-  // 2.5 ms, on the stroke's first cutting step).
+  // whole surface to a larger block (a copy of every vertex and triangle into fresh memory,
+  // within the stroke's first cutting step).
   const auto with_room = [](auto& to, const auto& from) {
     const std::size_t room = from.size() + from.size() / 4 + 256;
     if (to.capacity() < room) {
