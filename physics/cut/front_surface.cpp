@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <initializer_list>
 #include <limits>
 #include <numbers>
 #include <set>
@@ -329,6 +330,162 @@ FaceChange boundary_change(const FaceCache& cache, const PlanarRegion& region, c
   return change;
 }
 
+// triangulate_face's steps on a valid cache (see there): which of the last triangles to keep,
+// the rest's region bounded by them, and (in triangulate_face) the two put together.
+struct FaceReuse {
+  FaceReuse(const PlanarRegion& region, const FaceCache& cache, const FaceChange& change)
+      : region(region), cache(cache), change(change) {}
+
+  bool choose_kept(double slack);
+  int triangle_with(int a, int b) const;
+  bool kept_edge(int a, int b) const;
+  std::vector<std::array<int, 2>> rest_boundary();
+  void gather_rest(const std::vector<std::array<int, 2>>& boundary);
+
+  const PlanarRegion& region;
+  const FaceCache& cache;
+  const FaceChange& change;
+  // The last triangles listed around each of their corners (compressed rows), and per last
+  // triangle whether it is kept; the kept ones (new numbering) and the others.
+  std::vector<int> around_start, around;
+  std::vector<std::uint8_t> is_kept;
+  std::vector<std::array<int, 3>> kept;
+  std::vector<int> not_kept;
+  std::vector<int> old_of_new;  // per new point: its last index, or -1
+  PlanarRegion rest;            // what is triangulated again
+  std::vector<int> from_rest;   // per point of rest: its index in region
+};
+
+// The kept triangles: all corners still there, the circumcircle below t_change. The last
+// triangles are also listed around each of their corners (compressed rows), to find the
+// rest's boundary from the triangles not kept, which lie near the front. False when none is
+// kept.
+bool FaceReuse::choose_kept(double slack) {
+  const auto& old_points = cache.region.points;
+  const std::vector<int>& to_new = change.to_new;
+  const double t_change = change.t_change;
+  const auto& old_triangles = cache.triangles;
+  const size_t old_count = old_points.size();
+  around_start.assign(old_count + 1, 0);
+  around.assign(3 * old_triangles.size(), 0);
+  is_kept.assign(old_triangles.size(), 0);
+  for (size_t t = 0; t < old_triangles.size(); ++t) {
+    const auto& tri = old_triangles[t];
+    for (const int p : tri) ++around_start[static_cast<size_t>(p) + 1];
+    const std::array<int, 3> now{to_new[static_cast<size_t>(tri[0])], to_new[static_cast<size_t>(tri[1])], to_new[static_cast<size_t>(tri[2])]};
+    const bool keep_it = [&] {
+      if (now[0] < 0 || now[1] < 0 || now[2] < 0) return false;
+      const Vec2& a = old_points[static_cast<size_t>(tri[0])];
+      const Vec2 b = old_points[static_cast<size_t>(tri[1])] - a, c = old_points[static_cast<size_t>(tri[2])] - a;
+      const double d = 2 * (b.x() * c.y() - b.y() * c.x());
+      if (!(std::abs(d) > 0)) return false;
+      const Vec2 centre((c.y() * b.squaredNorm() - b.y() * c.squaredNorm()) / d, (b.x() * c.squaredNorm() - c.x() * b.squaredNorm()) / d);
+      return a.y() + centre.y() + centre.norm() < t_change - slack;
+    }();
+    if (keep_it) {
+      is_kept[t] = 1;
+      kept.push_back(now);
+    } else {
+      not_kept.push_back(static_cast<int>(t));
+    }
+  }
+  if (kept.empty()) return false;
+  for (size_t p = 0; p < old_count; ++p) around_start[p + 1] += around_start[p];
+  std::vector<int> fill(around_start.begin(), around_start.end() - 1);
+  for (size_t t = 0; t < old_triangles.size(); ++t)
+    for (const int p : old_triangles[t]) around[static_cast<size_t>(fill[static_cast<size_t>(p)]++)] = static_cast<int>(t);
+  return true;
+}
+
+// The last triangle with the directed edge a -> b (last numbering), or -1.
+int FaceReuse::triangle_with(int a, int b) const {
+  for (int k = around_start[static_cast<size_t>(a)]; k < around_start[static_cast<size_t>(a) + 1]; ++k) {
+    const int t = around[static_cast<size_t>(k)];
+    const auto& tri = cache.triangles[static_cast<size_t>(t)];
+    for (size_t c = 0; c < 3; ++c)
+      if (tri[c] == a && tri[(c + 1) % 3] == b) return t;
+  }
+  return -1;
+}
+
+bool FaceReuse::kept_edge(int a, int b) const {
+  const int t = a >= 0 && b >= 0 ? triangle_with(a, b) : -1;
+  return t >= 0 && is_kept[static_cast<size_t>(t)] != 0;
+}
+
+// The rest's boundary: the region's edges no kept triangle has, and the kept triangles'
+// edges that neither another kept triangle nor the region's boundary has, turned round.
+// Such a kept edge is the twin of an edge of a triangle not kept or, with no twin, an edge
+// of the last region's boundary (the triangulation covers the region exactly: every other
+// edge has two triangles).
+std::vector<std::array<int, 2>> FaceReuse::rest_boundary() {
+  const std::vector<int>& to_new = change.to_new;
+  const std::vector<std::array<int, 2>>& new_boundary = change.sorted_boundary;
+  const auto& old_triangles = cache.triangles;
+  old_of_new.assign(region.points.size(), -1);
+  for (size_t o = 0; o < cache.region.points.size(); ++o)
+    if (to_new[o] >= 0) old_of_new[static_cast<size_t>(to_new[o])] = static_cast<int>(o);
+  std::vector<std::array<int, 2>> boundary;
+  for (const auto& e : region.boundary)
+    if (!kept_edge(old_of_new[static_cast<size_t>(e[0])], old_of_new[static_cast<size_t>(e[1])])) boundary.push_back(e);
+  const size_t from_region = boundary.size();
+  const auto turn_round = [&](int a, int b) {  // the kept edge a -> b (last numbering)
+    const int from = to_new[static_cast<size_t>(a)], to = to_new[static_cast<size_t>(b)];
+    if (!std::binary_search(new_boundary.begin(), new_boundary.end(), std::array<int, 2>{from, to})) boundary.push_back({to, from});
+  };
+  for (const int t : not_kept) {
+    const auto& tri = old_triangles[static_cast<size_t>(t)];
+    for (size_t c = 0; c < 3; ++c)
+      if (kept_edge(tri[(c + 1) % 3], tri[c])) turn_round(tri[(c + 1) % 3], tri[c]);
+  }
+  for (const auto& e : cache.region.boundary)
+    if (kept_edge(e[0], e[1]) && triangle_with(e[1], e[0]) < 0) turn_round(e[0], e[1]);
+  // Those in the order of the kept edges they turn round (the points' numbering in
+  // gather_rest, and with it the triangulation's ties, follow it).
+  std::sort(boundary.begin() + static_cast<std::ptrdiff_t>(from_region), boundary.end(),
+            [](const std::array<int, 2>& l, const std::array<int, 2>& r) { return std::tie(l[1], l[0]) < std::tie(r[1], r[0]); });
+  return boundary;
+}
+
+// The rest's points: the ends of its boundary, and those no kept triangle uses within its
+// boundary's box (a point outside the box is outside the rest, and the triangulation ignores
+// it), by increasing index: the new points, and the last ones with no kept triangle around
+// them (the corners of triangles not kept, and those with none).
+void FaceReuse::gather_rest(const std::vector<std::array<int, 2>>& boundary) {
+  const auto& points = region.points;
+  const std::vector<int>& to_new = change.to_new;
+  const size_t point_count = points.size(), old_count = cache.region.points.size();
+  std::vector<int> rest_index(point_count, -1);
+  const auto take = [&](int p) {
+    if (rest_index[static_cast<size_t>(p)] < 0) {
+      rest_index[static_cast<size_t>(p)] = static_cast<int>(rest.points.size());
+      rest.points.push_back(points[static_cast<size_t>(p)]);
+      from_rest.push_back(p);
+    }
+    return rest_index[static_cast<size_t>(p)];
+  };
+  for (const auto& e : boundary) rest.boundary.push_back({take(e[0]), take(e[1])});
+  std::vector<int> free_points;
+  for (size_t p = 0; p < point_count; ++p)
+    if (old_of_new[p] < 0) free_points.push_back(static_cast<int>(p));
+  const auto unused = [&](int o) {
+    for (int k = around_start[static_cast<size_t>(o)]; k < around_start[static_cast<size_t>(o) + 1]; ++k)
+      if (is_kept[static_cast<size_t>(around[static_cast<size_t>(k)])]) return false;
+    return true;
+  };
+  for (const int t : not_kept)
+    for (const int o : cache.triangles[static_cast<size_t>(t)])
+      if (to_new[static_cast<size_t>(o)] >= 0 && unused(o)) free_points.push_back(to_new[static_cast<size_t>(o)]);
+  for (size_t o = 0; o < old_count; ++o)
+    if (around_start[o] == around_start[o + 1] && to_new[o] >= 0) free_points.push_back(to_new[o]);
+  std::sort(free_points.begin(), free_points.end());
+  free_points.erase(std::unique(free_points.begin(), free_points.end()), free_points.end());
+  Eigen::AlignedBox2d box;
+  for (const Vec2& p : rest.points) box.extend(p);
+  for (const int p : free_points)
+    if (box.contains(points[static_cast<size_t>(p)])) take(p);
+}
+
 // triangulate_region(region), keeping what the last sample's triangulation (`cache`) has well
 // behind the front. Between two samples the region changes only at and above some t (the
 // lowest t of a point added or gone, or of an end of a boundary edge added or gone: the
@@ -354,133 +511,21 @@ std::vector<std::array<int, 3>> triangulate_face(const PlanarRegion& region, Fac
   };
   const auto whole = [&] { return keep(triangulate_region(region)); };
   if (!cache.valid || !change) return whole();
-  const auto& old_points = cache.region.points;
-  const auto& points = region.points;
-  const std::vector<int>& to_new = change->to_new;
-  const double t_change = change->t_change;
-  const std::vector<std::array<int, 2>>& new_boundary = change->sorted_boundary;
-  // The kept triangles: all corners still there, the circumcircle below t_change. The last
-  // triangles are also listed around each of their corners (compressed rows), to find the
-  // rest's boundary from the triangles not kept, which lie near the front.
-  const auto& old_triangles = cache.triangles;
-  const size_t old_count = old_points.size();
-  std::vector<int> around_start(old_count + 1, 0), around(3 * old_triangles.size());
-  std::vector<std::uint8_t> is_kept(old_triangles.size(), 0);
-  std::vector<std::array<int, 3>> kept;
-  std::vector<int> not_kept;
-  for (size_t t = 0; t < old_triangles.size(); ++t) {
-    const auto& tri = old_triangles[t];
-    for (const int p : tri) ++around_start[static_cast<size_t>(p) + 1];
-    const std::array<int, 3> now{to_new[static_cast<size_t>(tri[0])], to_new[static_cast<size_t>(tri[1])], to_new[static_cast<size_t>(tri[2])]};
-    const bool keep_it = [&] {
-      if (now[0] < 0 || now[1] < 0 || now[2] < 0) return false;
-      const Vec2& a = old_points[static_cast<size_t>(tri[0])];
-      const Vec2 b = old_points[static_cast<size_t>(tri[1])] - a, c = old_points[static_cast<size_t>(tri[2])] - a;
-      const double d = 2 * (b.x() * c.y() - b.y() * c.x());
-      if (!(std::abs(d) > 0)) return false;
-      const Vec2 centre((c.y() * b.squaredNorm() - b.y() * c.squaredNorm()) / d, (b.x() * c.squaredNorm() - c.x() * b.squaredNorm()) / d);
-      return a.y() + centre.y() + centre.norm() < t_change - slack;
-    }();
-    if (keep_it) {
-      is_kept[t] = 1;
-      kept.push_back(now);
-    } else {
-      not_kept.push_back(static_cast<int>(t));
-    }
-  }
-  if (kept.empty()) return whole();
+  FaceReuse reuse(region, cache, *change);
+  if (!reuse.choose_kept(slack)) return whole();
+  const std::vector<std::array<int, 3>>& kept = reuse.kept;
   kept_count = static_cast<int>(kept.size());
-  for (size_t p = 0; p < old_count; ++p) around_start[p + 1] += around_start[p];
-  {
-    std::vector<int> fill(around_start.begin(), around_start.end() - 1);
-    for (size_t t = 0; t < old_triangles.size(); ++t)
-      for (const int p : old_triangles[t]) around[static_cast<size_t>(fill[static_cast<size_t>(p)]++)] = static_cast<int>(t);
-  }
-  // The last triangle with the directed edge a -> b (last numbering), or -1.
-  const auto triangle_with = [&](int a, int b) {
-    for (int k = around_start[static_cast<size_t>(a)]; k < around_start[static_cast<size_t>(a) + 1]; ++k) {
-      const int t = around[static_cast<size_t>(k)];
-      const auto& tri = old_triangles[static_cast<size_t>(t)];
-      for (size_t c = 0; c < 3; ++c)
-        if (tri[c] == a && tri[(c + 1) % 3] == b) return t;
-    }
-    return -1;
-  };
-  const auto kept_edge = [&](int a, int b) {
-    const int t = a >= 0 && b >= 0 ? triangle_with(a, b) : -1;
-    return t >= 0 && is_kept[static_cast<size_t>(t)] != 0;
-  };
-  const size_t point_count = points.size();
-  std::vector<int> old_of_new(point_count, -1);
-  for (size_t o = 0; o < old_count; ++o)
-    if (to_new[o] >= 0) old_of_new[static_cast<size_t>(to_new[o])] = static_cast<int>(o);
-  // The rest's boundary: the region's edges no kept triangle has, and the kept triangles'
-  // edges that neither another kept triangle nor the region's boundary has, turned round.
-  // Such a kept edge is the twin of an edge of a triangle not kept or, with no twin, an edge
-  // of the last region's boundary (the triangulation covers the region exactly: every
-  // other edge has two triangles).
-  PlanarRegion rest;
-  std::vector<int> rest_index(point_count, -1), from_rest;
-  std::vector<std::array<int, 2>> rest_boundary;
-  for (const auto& e : region.boundary)
-    if (!kept_edge(old_of_new[static_cast<size_t>(e[0])], old_of_new[static_cast<size_t>(e[1])])) rest_boundary.push_back(e);
-  const size_t from_region = rest_boundary.size();
-  const auto turn_round = [&](int a, int b) {  // the kept edge a -> b (last numbering)
-    const int from = to_new[static_cast<size_t>(a)], to = to_new[static_cast<size_t>(b)];
-    if (!std::binary_search(new_boundary.begin(), new_boundary.end(), std::array<int, 2>{from, to})) rest_boundary.push_back({to, from});
-  };
-  for (const int t : not_kept) {
-    const auto& tri = old_triangles[static_cast<size_t>(t)];
-    for (size_t c = 0; c < 3; ++c)
-      if (kept_edge(tri[(c + 1) % 3], tri[c])) turn_round(tri[(c + 1) % 3], tri[c]);
-  }
-  for (const auto& e : cache.region.boundary)
-    if (kept_edge(e[0], e[1]) && triangle_with(e[1], e[0]) < 0) turn_round(e[0], e[1]);
-  // Those in the order of the kept edges they turn round (the points' numbering below, and
-  // with it the triangulation's ties, follow it).
-  std::sort(rest_boundary.begin() + static_cast<std::ptrdiff_t>(from_region), rest_boundary.end(),
-            [](const std::array<int, 2>& l, const std::array<int, 2>& r) { return std::tie(l[1], l[0]) < std::tie(r[1], r[0]); });
-  // The rest's points: the ends of its boundary, and those no kept triangle uses within its
-  // boundary's box (a point outside the box is outside the rest, and the triangulation
-  // ignores it), by increasing index: the new points, and the last ones with no kept
-  // triangle around them (the corners of triangles not kept, and those with none).
-  const auto take = [&](int p) {
-    if (rest_index[static_cast<size_t>(p)] < 0) {
-      rest_index[static_cast<size_t>(p)] = static_cast<int>(rest.points.size());
-      rest.points.push_back(points[static_cast<size_t>(p)]);
-      from_rest.push_back(p);
-    }
-    return rest_index[static_cast<size_t>(p)];
-  };
-  for (const auto& e : rest_boundary) rest.boundary.push_back({take(e[0]), take(e[1])});
-  std::vector<int> free_points;
-  for (size_t p = 0; p < point_count; ++p)
-    if (old_of_new[p] < 0) free_points.push_back(static_cast<int>(p));
-  const auto unused = [&](int o) {
-    for (int k = around_start[static_cast<size_t>(o)]; k < around_start[static_cast<size_t>(o) + 1]; ++k)
-      if (is_kept[static_cast<size_t>(around[static_cast<size_t>(k)])]) return false;
-    return true;
-  };
-  for (const int t : not_kept)
-    for (const int o : old_triangles[static_cast<size_t>(t)])
-      if (to_new[static_cast<size_t>(o)] >= 0 && unused(o)) free_points.push_back(to_new[static_cast<size_t>(o)]);
-  for (size_t o = 0; o < old_count; ++o)
-    if (around_start[o] == around_start[o + 1] && to_new[o] >= 0) free_points.push_back(to_new[o]);
-  std::sort(free_points.begin(), free_points.end());
-  free_points.erase(std::unique(free_points.begin(), free_points.end()), free_points.end());
-  Eigen::AlignedBox2d box;
-  for (const Vec2& p : rest.points) box.extend(p);
-  for (const int p : free_points)
-    if (box.contains(points[static_cast<size_t>(p)])) take(p);
+  reuse.gather_rest(reuse.rest_boundary());
   std::vector<std::array<int, 3>> face = kept;
-  if (!rest.boundary.empty()) {
+  if (!reuse.rest.boundary.empty()) {
     std::vector<std::array<int, 3>> rest_face;
     try {
-      rest_face = triangulate_region(rest);
+      rest_face = triangulate_region(reuse.rest);
     } catch (const std::invalid_argument&) {
       kept_count = 0;
       return whole();
     }
+    const std::vector<int>& from_rest = reuse.from_rest;
     for (const auto& tri : rest_face)
       face.push_back({from_rest[static_cast<size_t>(tri[0])], from_rest[static_cast<size_t>(tri[1])], from_rest[static_cast<size_t>(tri[2])]});
   }
@@ -832,56 +877,218 @@ void FrontSurface::drop_stroke() {
   stroke_.reset();
 }
 
+// recompute's stages (the header's comment describes them), one method each, called in this
+// order; what a stage makes for a later one is a member. One lives for one call of recompute.
+struct FrontSurface::Recompute {
+  // A base triangle the outline crosses.
+  struct Tip {
+    int triangle;
+    double position;  // segment index + fraction along the outline
+    Vec3 point;
+    Vec2 st;
+    bool entering;
+    int vertex = -1;
+  };
+  // A segment of the sheet's outline, between two point ids, and the base triangles it crosses.
+  struct BoundarySegment {
+    int from, to;
+    const std::vector<OutlineHit>* hits;
+  };
+  // A touched triangle's cut ends: crossings in its edges' order, then tips in the outline's.
+  // An end is a crossing (>= 0: index into cuts) or a tip (< 0: -1 - index into tips). Two
+  // are handled; the count is kept whole for the report.
+  struct Ends {
+    int count = 0;
+    std::array<int, 4> at{};
+    void add(int end) {
+      if (count < 4) at[static_cast<size_t>(count)] = end;
+      ++count;
+    }
+  };
+
+  Recompute(FrontSurface& s, FrontCutReport& r);
+
+  // The stages. Those returning bool return false where recompute stops (the surface then
+  // the base's when the report has a problem).
+  void cross_base_edges();
+  void trace_outline();
+  bool place_tips();
+  void add_cut_vertices();
+  void gather_chord_ends();
+  bool split_triangles();
+  bool trace_inside_outline();
+  void match_last_face();
+  void bin_boundary();
+  void lay_lattice();
+  bool triangulate_cut_face();
+  void split_shared_inner_edges();
+  void lift_inner_points();
+  void emit_triangles();
+  void attach_planes();
+
+  // What the stages share.
+  static Stroke& stroke_of(FrontSurface& s);
+  void problem(const std::string& what) { report.problems.push_back(what); }
+  Vec2 st_of(int point, int sample) const {
+    return Vec2(surface.blade_s_[static_cast<size_t>(point)], surface.sample_t_[static_cast<size_t>(sample)]);
+  }
+  Vec2 st_of_id(int id) const {
+    const int local = id - points.base_count();
+    return st_of(local % point_count, local / point_count);
+  }
+  std::array<Vec3, 2> box_of(std::initializer_list<int> ids) const;
+  std::vector<OutlineHit> hits_of(int x, int y) const;
+  bool first_sample_inside() const;
+  int add_point(const Vec2& st, int minus, int plus);
+  int point_of_end(int end);
+  int copy_on_side_of(int cut_index, int base_vertex) const;
+  void emit(int a, int b, int c);
+  void split_at_chord(int t);
+  void split_at_tip(int t, const std::array<int, 2>& ends);
+  bool split_at_slit(int t, const std::array<int, 2>& ends);
+  std::pair<Vec2, Vec3> outline_point(double position) const;
+  void add_outline_run(int from_point, double from, double to, int to_point);
+  static double distance_to_segment(const Vec2& p, const Vec2& a, const Vec2& b);
+  Vec3 sheet_point(const Vec2& st) const;
+  Vec3 lift(int p);
+
+  FrontSurface& surface;
+  FrontCutReport& report;
+  const int point_count, sample_count;
+  const int segments, intervals;
+  const PointTable points;
+  Stroke& stroke;
+  std::vector<EdgeCut>& cuts;  // the stroke's; their output vertices are set at every call
+  const std::vector<int>& edge_cut;
+  const EdgeTable& edges;
+  const double w;  // the front's width
+  FaceCache& cache;  // the last sample's cut face, then this one's (with reuse_face_)
+
+  // trace_outline: the sheet's outline, and the hits of the front (its other hits are the stroke's).
+  std::vector<std::vector<OutlineHit>> front_hits;
+  std::vector<BoundarySegment> outline;
+  // place_tips: in order along the outline; with none, whether the outline is in the body.
+  std::vector<Tip> tips;
+  bool outline_inside = false;
+  // add_cut_vertices, trace_inside_outline: the output vertices where the two sides meet.
+  std::vector<int> front_vertices;
+  // gather_chord_ends: base triangles with a cut end, increasing, and their ends.
+  std::vector<int> touched;
+  std::vector<Ends> ends_of;
+
+  // The cut face's boundary in (s, t): directed edges, the face on their left.
+  PlanarRegion region;
+  std::vector<int> region_vertex;  // per region point: output vertex for the minus side (-1: lattice, filled in lift_inner_points)
+  std::vector<int> region_vertex_plus;
+  std::vector<int> cut_point, tip_point;  // per crossing and tip: its region point, or -1
+  std::vector<int> slit_points;  // region points of the slits' middle pairs
+  std::vector<std::array<int, 3>> split;  // the base triangles' replacements
+  std::vector<std::array<int, 3>> split_ranges;  // per replaced base triangle: {slot, first, end} in split
+  std::vector<std::uint8_t> split_on_face;  // per replacement: its base triangle was a cut face
+  std::uint8_t splitting_face = 0;
+
+  // The lattice (match_last_face, bin_boundary, lay_lattice): its row spacing, its gap to the
+  // boundary, the (s, t) rectangle; the cut face as triangulate_face will keep it (next),
+  // what changed since the last sample's (change), the first row made again (r_first), the
+  // boundary's edges binned and where they cross each row.
+  double row = 0, gap = 0;
+  Vec2 extent = Vec2::Zero();
+  FaceCache next;
+  bool incremental = false;
+  FaceChange change;
+  double t_boundary = 0;
+  int old_rows = 0, r_first = 1;
+  GridCells frame;
+  UniformGrid boundary_cells;
+  std::vector<std::vector<std::pair<double, int>>> row_crossings;
+
+  // triangulate_cut_face: the face, triangles of region points.
+  std::vector<std::array<int, 3>> face;
+  // lift_inner_points: lattice points below fixed_below are lifted once; the region points
+  // with a vertex of each side's own, and the face's normal at each region point.
+  double fixed_below = 0;
+  std::vector<int> inner_points;
+  std::vector<Vec3> face_normal;
+};
+
+FrontSurface::Recompute::Recompute(FrontSurface& s, FrontCutReport& r)
+    : surface(s),
+      report(r),
+      point_count(static_cast<int>(s.samples_.front().size())),
+      sample_count(static_cast<int>(s.samples_.size())),
+      segments(point_count - 1),
+      intervals(sample_count - 1),
+      points{&s.base_vertices_, &s.samples_, point_count},
+      stroke(stroke_of(s)),
+      cuts(stroke.cuts),
+      edge_cut(stroke.edge_cut),
+      edges(s.base_->edges),
+      w(s.front_width_),
+      cache(stroke.face) {}
+
+// The stroke's state, made at its first call (with a dropped stroke's per-edge index).
+FrontSurface::Stroke& FrontSurface::Recompute::stroke_of(FrontSurface& s) {
+  if (!s.stroke_) {
+    s.stroke_ = std::make_unique<Stroke>();
+    if (s.spare_edge_cut_.size() == s.base_->edges.ends.size())
+      s.stroke_->edge_cut = std::move(s.spare_edge_cut_);  // all -1 (drop_stroke)
+    else
+      s.stroke_->edge_cut.assign(s.base_->edges.ends.size(), -1);
+    s.spare_edge_cut_.clear();
+  }
+  return *s.stroke_;
+}
+
+std::array<Vec3, 2> FrontSurface::Recompute::box_of(std::initializer_list<int> ids) const {
+  std::array<Vec3, 2> box{points[*ids.begin()], points[*ids.begin()]};
+  for (const int id : ids) {
+    box[0] = box[0].cwiseMin(points[id]);
+    box[1] = box[1].cwiseMax(points[id]);
+  }
+  return box;
+}
+
 void FrontSurface::recompute(FrontCutReport& report) {
   restore_base();
   if (samples_.size() < 2) return;
-  const int point_count = static_cast<int>(samples_.front().size());
-  const int sample_count = static_cast<int>(samples_.size());
-  const int segments = point_count - 1, intervals = sample_count - 1;
-  PointTable points{&base_vertices_, &samples_, point_count};
-  const auto problem = [&](const std::string& what) { report.problems.push_back(what); };
+  Recompute stages(*this, report);
+  stages.cross_base_edges();
+  stages.trace_outline();
+  if (!stages.place_tips()) return;
+  stages.add_cut_vertices();
+  stages.gather_chord_ends();
+  if (!stages.split_triangles()) return;
+  if (!stages.trace_inside_outline()) return;
+  stages.match_last_face();
+  stages.bin_boundary();
+  stages.lay_lattice();
+  if (!stages.triangulate_cut_face()) return;
+  stages.split_shared_inner_edges();
+  stages.lift_inner_points();
+  stages.emit_triangles();
+  stages.attach_planes();
+}
 
-  if (!stroke_) {
-    stroke_ = std::make_unique<Stroke>();
-    if (spare_edge_cut_.size() == base_->edges.ends.size())
-      stroke_->edge_cut = std::move(spare_edge_cut_);  // all -1 (drop_stroke)
-    else
-      stroke_->edge_cut.assign(base_->edges.ends.size(), -1);
-    spare_edge_cut_.clear();
-  }
-  Stroke& stroke = *stroke_;
-  const auto st_of = [&](int point, int sample) { return Vec2(blade_s_[static_cast<size_t>(point)], sample_t_[static_cast<size_t>(sample)]); };
-  const auto st_of_id = [&](int id) {
-    const int local = id - points.base_count();
-    return st_of(local % point_count, local / point_count);
-  };
-  const auto box_of = [&](std::initializer_list<int> ids) {
-    std::array<Vec3, 2> box{points[*ids.begin()], points[*ids.begin()]};
-    for (const int id : ids) {
-      box[0] = box[0].cwiseMin(points[id]);
-      box[1] = box[1].cwiseMax(points[id]);
-    }
-    return box;
-  };
-
-  // Crossings: base edges through the sheet, searched once per sample interval, when it is
-  // added (the sheet behind the front does not change). Per cell (segment i, interval j) two
-  // triangles, (P00, P10, P11) and (P00, P11, P01), counter-clockwise in (s, t).
+// Crossings: base edges through the sheet, searched once per sample interval, when it is
+// added (the sheet behind the front does not change). Per cell (segment i, interval j) two
+// triangles, (P00, P10, P11) and (P00, P11, P01), counter-clockwise in (s, t).
+void FrontSurface::Recompute::cross_base_edges() {
+  const Base& base = *surface.base_;
   for (int j = stroke.intervals_searched; j < intervals; ++j)
     for (int i = 0; i < segments; ++i) {
       const int p00 = points.sheet_id(i, j), p10 = points.sheet_id(i + 1, j), p01 = points.sheet_id(i, j + 1),
                 p11 = points.sheet_id(i + 1, j + 1);
       for (const std::array<int, 3>& id : {std::array<int, 3>{p00, p10, p11}, std::array<int, 3>{p00, p11, p01}}) {
         const auto box = box_of({id[0], id[1], id[2]});
-        base_->edge_bins.near(box[0], box[1], [&](int e) {
-          const int a = base_->edges.ends[static_cast<size_t>(e)][0], b = base_->edges.ends[static_cast<size_t>(e)][1];
+        base.edge_bins.near(box[0], box[1], [&](int e) {
+          const int a = base.edges.ends[static_cast<size_t>(e)][0], b = base.edges.ends[static_cast<size_t>(e)][1];
           const auto hit = segment_crosses(points, a, b, id[0], id[1], id[2]);
           if (!hit) return;
           if (const int earlier = stroke.edge_cut[static_cast<size_t>(e)]; earlier >= 0) {
             const EdgeCut& first = stroke.cuts[static_cast<size_t>(earlier)];
             const Vec2 st = hit->weights[0] * st_of_id(id[0]) + hit->weights[1] * st_of_id(id[1]) + hit->weights[2] * st_of_id(id[2]);
             const Vec3 point = points[a] + hit->along * (points[b] - points[a]);
-            if (first.lower_on_plus == (hit->p_sign < 0) || (st - first.st).norm() > front_width_ + 2 * (point - first.point).norm()) {
+            if (first.lower_on_plus == (hit->p_sign < 0) || (st - first.st).norm() > w + 2 * (point - first.point).norm()) {
               // Crossed again the same way, or by a part of the sheet far from the first
               // crossing's (farther on the sheet than in space: the sweep turning back across
               // its own cut), which this stage does not cut.
@@ -889,9 +1096,10 @@ void FrontSurface::recompute(FrontCutReport& report) {
               return;
             }
             // Crossed again the other way, by a nearby part of the sheet: the sheet at rest
-            // folds back over the edge (where the blade's mapping to rest wavers). Both ends are on one side again and the edge is not cut; what the two
-            // crossings cut out of the sheet between them is a sliver as wide as the fold, and
-            // the triangles around it keep an even count of cut ends.
+            // folds back over the edge (where the blade's mapping to rest wavers). Both ends
+            // are on one side again and the edge is not cut; what the two crossings cut out of
+            // the sheet between them is a sliver as wide as the fold, and the triangles around
+            // it keep an even count of cut ends.
             stroke.cuts.erase(stroke.cuts.begin() + earlier);
             stroke.cut_edges.erase(stroke.cut_edges.begin() + earlier);
             stroke.edge_cut[static_cast<size_t>(e)] = -1;
@@ -916,41 +1124,36 @@ void FrontSurface::recompute(FrontCutReport& report) {
   stroke.intervals_searched = intervals;
   report.problems = stroke.problems;
   report.folded_edges = stroke.folded_edges;
-  std::vector<EdgeCut>& cuts = stroke.cuts;  // their output vertices are set below, at every call
-  const std::vector<int>& edge_cut = stroke.edge_cut;
-  const EdgeTable& edges = base_->edges;
   report.crossings = static_cast<int>(cuts.size());
+}
 
-  // The sheet's outline, counter-clockwise in (s, t): the first sample, the far end's path,
-  // the last sample (the front) backwards, the near end's path backwards. Its segments
-  // other than the front's are fixed, their hits kept.
-  const auto hits_of = [&](int x, int y) {
-    std::vector<OutlineHit> here;
-    const auto box = box_of({x, y});
-    base_->triangle_bins.near(box[0], box[1], [&](int t) {
-      const auto& tri = base_triangles_[static_cast<size_t>(t)];
-      const auto hit = segment_crosses(points, x, y, tri[0], tri[1], tri[2]);
-      // x on the side opposite the outward normal is inside: the outline leaves the body.
-      if (hit) here.push_back({t, hit->along, points[x] + hit->along * (points[y] - points[x]), hit->p_sign < 0});
-    });
-    std::sort(here.begin(), here.end(), [](const OutlineHit& l, const OutlineHit& r) {
-      return l.along < r.along || (l.along == r.along && l.triangle < r.triangle);
-    });
-    return here;
-  };
+// The base triangles the segment x -> y (point ids) crosses, in order along it.
+std::vector<OutlineHit> FrontSurface::Recompute::hits_of(int x, int y) const {
+  std::vector<OutlineHit> here;
+  const auto box = box_of({x, y});
+  surface.base_->triangle_bins.near(box[0], box[1], [&](int t) {
+    const auto& tri = surface.base_triangles_[static_cast<size_t>(t)];
+    const auto hit = segment_crosses(points, x, y, tri[0], tri[1], tri[2]);
+    // x on the side opposite the outward normal is inside: the outline leaves the body.
+    if (hit) here.push_back({t, hit->along, points[x] + hit->along * (points[y] - points[x]), hit->p_sign < 0});
+  });
+  std::sort(here.begin(), here.end(), [](const OutlineHit& l, const OutlineHit& r) {
+    return l.along < r.along || (l.along == r.along && l.triangle < r.triangle);
+  });
+  return here;
+}
+
+// The sheet's outline, counter-clockwise in (s, t): the first sample, the far end's path,
+// the last sample (the front) backwards, the near end's path backwards. Its segments other
+// than the front's are fixed, their hits kept.
+void FrontSurface::Recompute::trace_outline() {
   if (stroke.first_sample.empty())
     for (int i = 0; i < segments; ++i) stroke.first_sample.push_back(hits_of(points.sheet_id(i, 0), points.sheet_id(i + 1, 0)));
   for (int j = static_cast<int>(stroke.far_end.size()); j < intervals; ++j) {
     stroke.far_end.push_back(hits_of(points.sheet_id(segments, j), points.sheet_id(segments, j + 1)));
     stroke.near_end.push_back(hits_of(points.sheet_id(0, j + 1), points.sheet_id(0, j)));
   }
-  struct BoundarySegment {
-    int from, to;
-    const std::vector<OutlineHit>* hits;
-  };
-  std::vector<std::vector<OutlineHit>> front_hits;
-  front_hits.reserve(static_cast<size_t>(segments));
-  std::vector<BoundarySegment> outline;
+  front_hits.reserve(static_cast<size_t>(segments));  // outline points into it
   for (int i = 0; i < segments; ++i)
     outline.push_back({points.sheet_id(i, 0), points.sheet_id(i + 1, 0), &stroke.first_sample[static_cast<size_t>(i)]});
   for (int j = 0; j < intervals; ++j)
@@ -961,17 +1164,11 @@ void FrontSurface::recompute(FrontCutReport& report) {
   }
   for (int j = intervals; j > 0; --j)
     outline.push_back({points.sheet_id(0, j), points.sheet_id(0, j - 1), &stroke.near_end[static_cast<size_t>(j - 1)]});
+}
 
-  // Tips: base triangles the outline crosses, in order along it.
-  struct Tip {
-    int triangle;
-    double position;  // segment index + fraction along the outline
-    Vec3 point;
-    Vec2 st;
-    bool entering;
-    int vertex = -1;
-  };
-  std::vector<Tip> tips;
+// Tips: base triangles the outline crosses, in order along it. Whether the front is in the
+// body follows from them; with none, a ray says whether the outline is all inside.
+bool FrontSurface::Recompute::place_tips() {
   for (size_t o = 0; o < outline.size(); ++o) {
     const int x = outline[o].from, y = outline[o].to;
     for (const OutlineHit& hit : *outline[o].hits)
@@ -998,109 +1195,104 @@ void FrontSurface::recompute(FrontCutReport& report) {
       break;
     }
   // With no tip the outline is all inside or all outside: a ray from its first point says which.
-  bool outline_inside = false;
   if (tips.empty()) {
+    const BoxBins& triangle_bins = surface.base_->triangle_bins;
     const Vec3 p = points[outline.front().from];
-    const Vec3 far = p + 4 * (base_->triangle_bins.extent() + 1e-9) * Vec3(1, 0.0123, 0.0371).normalized();
+    const Vec3 far = p + 4 * (triangle_bins.extent() + 1e-9) * Vec3(1, 0.0123, 0.0371).normalized();
     int crossings = 0;
-    base_->triangle_bins.near(p.cwiseMin(far), p.cwiseMax(far), [&](int t) {
-      const auto& tri = base_triangles_[static_cast<size_t>(t)];
+    triangle_bins.near(p.cwiseMin(far), p.cwiseMax(far), [&](int t) {
+      const auto& tri = surface.base_triangles_[static_cast<size_t>(t)];
       crossings += ray_crosses(p, far, points[tri[0]], points[tri[1]], points[tri[2]]);
     });
     outline_inside = crossings % 2 == 1;
   }
-  // Inside parts of the first sample: the stroke began in the body (see the header).
-  const auto first_sample_inside = [&]() {
-    if (tips.empty()) return outline_inside;
-    // The outline starts on the first sample, inside if the first tip leaves the body.
-    if (!tips.front().entering) return true;
-    for (const Tip& tip : tips)
-      if (tip.entering && tip.position < segments) return true;
-    return false;
-  };
   if (first_sample_inside()) problem("the stroke began with the blade inside the body");
   if (!report.ok()) {
-    restore_base();
-    return;
+    surface.restore_base();
+    return false;
   }
+  return true;
+}
 
-  // The output's vertices: base, then a pair per crossing, then a vertex per tip.
-  std::vector<int> front_vertices;  // where the two sides meet
+// Inside parts of the first sample: the stroke began in the body (see the header).
+bool FrontSurface::Recompute::first_sample_inside() const {
+  if (tips.empty()) return outline_inside;
+  // The outline starts on the first sample, inside if the first tip leaves the body.
+  if (!tips.front().entering) return true;
+  for (const Tip& tip : tips)
+    if (tip.entering && tip.position < segments) return true;
+  return false;
+}
+
+// The output's vertices: base, then a pair per crossing, then a vertex per tip.
+void FrontSurface::Recompute::add_cut_vertices() {
+  std::vector<Vec3>& vertices = surface.vertices_;
   for (EdgeCut& cut : cuts) {
-    cut.copy_lower = static_cast<int>(vertices_.size());
-    vertices_.push_back(cut.point);
-    cut.copy_higher = static_cast<int>(vertices_.size());
-    vertices_.push_back(cut.point);
+    cut.copy_lower = static_cast<int>(vertices.size());
+    vertices.push_back(cut.point);
+    cut.copy_higher = static_cast<int>(vertices.size());
+    vertices.push_back(cut.point);
   }
   for (Tip& tip : tips) {
-    tip.vertex = static_cast<int>(vertices_.size());
+    tip.vertex = static_cast<int>(vertices.size());
     front_vertices.push_back(tip.vertex);
-    vertices_.push_back(tip.point);
+    vertices.push_back(tip.point);
   }
+}
 
-  // Chords: the two cut ends of every base triangle the sheet crosses. An end is a crossing
-  // (>= 0: index into cuts) or a tip (< 0: -1 - index into tips).
-  std::vector<int> touched;  // base triangles with a cut end, increasing
+// Chords: the two cut ends of every base triangle the sheet crosses.
+void FrontSurface::Recompute::gather_chord_ends() {
   for (size_t c = 0; c < stroke.cut_edges.size(); ++c)
     for (const int t : edges.triangles[static_cast<size_t>(stroke.cut_edges[c])]) touched.push_back(t);
   for (const Tip& tip : tips) touched.push_back(tip.triangle);
   std::sort(touched.begin(), touched.end());
   touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
-  // Per touched triangle (same order), its ends: crossings in its edges' order, then tips in
-  // the outline's. Two are handled; the count is kept whole for the report.
-  struct Ends {
-    int count = 0;
-    std::array<int, 4> at{};
-    void add(int end) {
-      if (count < 4) at[static_cast<size_t>(count)] = end;
-      ++count;
-    }
-  };
-  std::vector<Ends> ends_of(touched.size());
+  ends_of.resize(touched.size());
   for (size_t i = 0; i < touched.size(); ++i)
     for (int k = 0; k < 3; ++k)
       if (const int c = edge_cut[static_cast<size_t>(edges.of_triangle[static_cast<size_t>(touched[i])][static_cast<size_t>(k)])]; c >= 0) ends_of[i].add(c);
   for (size_t k = 0; k < tips.size(); ++k)
     ends_of[static_cast<size_t>(std::lower_bound(touched.begin(), touched.end(), tips[k].triangle) - touched.begin())].add(-1 - static_cast<int>(k));
+}
 
-  // The cut face's boundary in (s, t): directed edges, the face on their left.
-  PlanarRegion region;
-  std::vector<int> region_vertex;  // per region point: output vertex for the minus side (-1: lattice, filled below)
-  std::vector<int> region_vertex_plus;
-  std::vector<int> cut_point(cuts.size(), -1), tip_point(tips.size(), -1);
-  const auto add_point = [&](const Vec2& st, int minus, int plus) {
-    region.points.push_back(st);
-    region_vertex.push_back(minus);
-    region_vertex_plus.push_back(plus);
-    return static_cast<int>(region.points.size()) - 1;
-  };
-  const auto point_of_end = [&](int end) {
-    if (end >= 0) {
-      if (cut_point[static_cast<size_t>(end)] < 0) {
-        const EdgeCut& cut = cuts[static_cast<size_t>(end)];
-        const int minus = cut.lower_on_plus ? cut.copy_higher : cut.copy_lower;
-        const int plus = cut.lower_on_plus ? cut.copy_lower : cut.copy_higher;
-        cut_point[static_cast<size_t>(end)] = add_point(cut.st, minus, plus);
-      }
-      return cut_point[static_cast<size_t>(end)];
+int FrontSurface::Recompute::add_point(const Vec2& st, int minus, int plus) {
+  region.points.push_back(st);
+  region_vertex.push_back(minus);
+  region_vertex_plus.push_back(plus);
+  return static_cast<int>(region.points.size()) - 1;
+}
+
+// The region point of a cut end (see Ends), added at its first use.
+int FrontSurface::Recompute::point_of_end(int end) {
+  if (end >= 0) {
+    if (cut_point[static_cast<size_t>(end)] < 0) {
+      const EdgeCut& cut = cuts[static_cast<size_t>(end)];
+      const int minus = cut.lower_on_plus ? cut.copy_higher : cut.copy_lower;
+      const int plus = cut.lower_on_plus ? cut.copy_lower : cut.copy_higher;
+      cut_point[static_cast<size_t>(end)] = add_point(cut.st, minus, plus);
     }
-    const size_t k = static_cast<size_t>(-1 - end);
-    if (tip_point[k] < 0) tip_point[k] = add_point(tips[k].st, tips[k].vertex, tips[k].vertex);
-    return tip_point[k];
-  };
-  const auto copy_on_side_of = [&](int cut_index, int base_vertex) {
-    const EdgeCut& cut = cuts[static_cast<size_t>(cut_index)];
-    return base_vertex == cut.lower ? cut.copy_lower : cut.copy_higher;
-  };
-  std::vector<int> slit_points;  // region points of the slits' middle pairs
-  std::vector<std::array<int, 3>> split;  // the base triangles' replacements
-  std::vector<std::array<int, 3>> split_ranges;  // per replaced base triangle: {slot, first, end} in split
-  std::vector<std::uint8_t> split_on_face;  // per replacement: its base triangle was a cut face
-  std::uint8_t splitting_face = 0;
-  const auto emit = [&](int a, int b, int c) {
-    split.push_back({a, b, c});
-    split_on_face.push_back(splitting_face);
-  };
+    return cut_point[static_cast<size_t>(end)];
+  }
+  const size_t k = static_cast<size_t>(-1 - end);
+  if (tip_point[k] < 0) tip_point[k] = add_point(tips[k].st, tips[k].vertex, tips[k].vertex);
+  return tip_point[k];
+}
+
+int FrontSurface::Recompute::copy_on_side_of(int cut_index, int base_vertex) const {
+  const EdgeCut& cut = cuts[static_cast<size_t>(cut_index)];
+  return base_vertex == cut.lower ? cut.copy_lower : cut.copy_higher;
+}
+
+void FrontSurface::Recompute::emit(int a, int b, int c) {
+  split.push_back({a, b, c});
+  split_on_face.push_back(splitting_face);
+}
+
+// Each touched triangle split along its chord (three, four or five ways, by its ends), the
+// chord added to the cut face's boundary.
+bool FrontSurface::Recompute::split_triangles() {
+  cut_point.assign(cuts.size(), -1);
+  tip_point.assign(tips.size(), -1);
   for (size_t touched_index = 0; touched_index < touched.size(); ++touched_index) {
     const int t = touched[touched_index];
     const Ends& ends_here = ends_of[touched_index];
@@ -1111,207 +1303,230 @@ void FrontSurface::recompute(FrontCutReport& report) {
     }
     const std::array<int, 2> ends{ends_here.at[0], ends_here.at[1]};
     const int split_first = static_cast<int>(split.size());
-    splitting_face = base_cut_face_[static_cast<size_t>(t)];
+    splitting_face = surface.base_cut_face_[static_cast<size_t>(t)];
     ++report.split_triangles;
-    const auto& tri = base_triangles_[static_cast<size_t>(t)];
     const int crossings = (ends[0] >= 0) + (ends[1] >= 0);
-    if (crossings == 2) {
-      // Rotate so that the crossings are on (a, b) and (b, c): b is alone on its side.
-      int k0 = -1;
-      for (int k = 0; k < 3; ++k)
-        if (edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>(k)])] >= 0 &&
-            edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>((k + 1) % 3)])] >= 0)
-          k0 = k;
-      const int a = tri[static_cast<size_t>(k0)], b = tri[static_cast<size_t>((k0 + 1) % 3)], c = tri[static_cast<size_t>((k0 + 2) % 3)];
-      const int p = edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>(k0)])];
-      const int q = edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>((k0 + 1) % 3)])];
-      const int pb = copy_on_side_of(p, b), qb = copy_on_side_of(q, b), pa = copy_on_side_of(p, a), qc = copy_on_side_of(q, c);
-      emit(pb, b, qb);
-      // The quad (a, p, q, c) is convex (a corner cut off a triangle): its shorter diagonal.
-      if ((vertices_[static_cast<size_t>(a)] - vertices_[static_cast<size_t>(qc)]).norm() <=
-          (vertices_[static_cast<size_t>(pa)] - vertices_[static_cast<size_t>(c)]).norm()) {
-        emit(a, pa, qc);
-        emit(a, qc, c);
-      } else {
-        emit(a, pa, c);
-        emit(pa, qc, c);
-      }
-      // b on the normal side of the sheet: the body (inside, left of the chord in (s, t)) is
-      // reached from q to p.
-      const bool b_plus = cuts[static_cast<size_t>(p)].lower_on_plus == (b == std::min(a, b));
-      const int from = point_of_end(b_plus ? q : p), to = point_of_end(b_plus ? p : q);
-      region.boundary.push_back({from, to});
-      split_ranges.push_back({t, split_first, static_cast<int>(split.size())});
-    } else if (crossings == 1) {
-      const int cut_index = ends[0] >= 0 ? ends[0] : ends[1];
-      const int tip_end = ends[0] >= 0 ? ends[1] : ends[0];
-      const Tip& tip = tips[static_cast<size_t>(-1 - tip_end)];
-      int k0 = -1;
-      for (int k = 0; k < 3; ++k)
-        if (edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>(k)])] == cut_index) k0 = k;
-      const int a = tri[static_cast<size_t>(k0)], b = tri[static_cast<size_t>((k0 + 1) % 3)], c = tri[static_cast<size_t>((k0 + 2) % 3)];
-      emit(a, copy_on_side_of(cut_index, a), tip.vertex);
-      emit(copy_on_side_of(cut_index, b), b, tip.vertex);
-      emit(b, c, tip.vertex);
-      emit(c, a, tip.vertex);
-      // Where the outline goes into the body, the face's boundary comes along the chord to the
-      // tip and goes on along the outline.
-      const int cut_end = point_of_end(cut_index), tip_end_point = point_of_end(tip_end);
-      if (tip.entering)
-        region.boundary.push_back({cut_end, tip_end_point});
-      else
-        region.boundary.push_back({tip_end_point, cut_end});
-      split_ranges.push_back({t, split_first, static_cast<int>(split.size())});
-    } else {
-      // A slit between two tips, with a pair of vertices at its middle (so that its two lips
-      // are different edges): seven triangles around it (see the header).
-      const int i1 = -1 - ends[0], i2 = -1 - ends[1];
-      if (tips[static_cast<size_t>(i1)].entering == tips[static_cast<size_t>(i2)].entering) {
-        problem("base triangle " + std::to_string(t) + " holds two tips going the same way");
-        continue;
-      }
-      const int enter = tips[static_cast<size_t>(i1)].entering ? i1 : i2, leave = enter == i1 ? i2 : i1;
-      const Tip& t1 = tips[static_cast<size_t>(leave)];
-      const Tip& t2 = tips[static_cast<size_t>(enter)];
-      const Vec3 n = (vertices_[static_cast<size_t>(tri[1])] - vertices_[static_cast<size_t>(tri[0])])
-                         .cross(vertices_[static_cast<size_t>(tri[2])] - vertices_[static_cast<size_t>(tri[0])]);
-      const Vec3 direction = t2.point - t1.point;
-      std::array<bool, 3> left{};
-      for (int k = 0; k < 3; ++k)
-        left[static_cast<size_t>(k)] = n.dot(direction.cross(vertices_[static_cast<size_t>(tri[static_cast<size_t>(k)])] - t1.point)) >= 0;
-      int lone = 0;
-      for (int k = 0; k < 3; ++k)
-        if (left[static_cast<size_t>(k)] != left[static_cast<size_t>((k + 1) % 3)] && left[static_cast<size_t>(k)] != left[static_cast<size_t>((k + 2) % 3)])
-          lone = k;
-      const int v0 = tri[static_cast<size_t>(lone)], va = tri[static_cast<size_t>((lone + 1) % 3)], vb = tri[static_cast<size_t>((lone + 2) % 3)];
-      // v1 is the one further ahead along t1 -> t2, v2 the other.
-      const bool a_ahead = direction.dot(vertices_[static_cast<size_t>(va)]) >= direction.dot(vertices_[static_cast<size_t>(vb)]);
-      const int v1 = a_ahead ? va : vb, v2 = a_ahead ? vb : va;
-      const int middle_a = static_cast<int>(vertices_.size()), middle_b = middle_a + 1;
-      vertices_.push_back(0.5 * (t1.point + t2.point));
-      vertices_.push_back(0.5 * (t1.point + t2.point));
-      const size_t first = split.size();
-      ear_clip({v0, v1, t2.vertex}, n, vertices_, split);
-      ear_clip({v2, v0, t1.vertex}, n, vertices_, split);
-      std::vector<int> lip_v0{v0, t1.vertex, middle_a, t2.vertex};
-      ear_clip(lip_v0, n, vertices_, split);
-      ear_clip({t2.vertex, v1, v2, t1.vertex, middle_b}, n, vertices_, split);
-      split_on_face.resize(split.size(), splitting_face);
-      // The face on the sheet's minus side runs leave -> middle -> enter, so the lip of the
-      // minus side runs enter -> middle -> leave (ear_clip orients the polygon about n).
-      const bool a_is_minus = oriented_about(lip_v0, n, vertices_) ? false : true;
-      const int middle_minus = a_is_minus ? middle_a : middle_b, middle_plus = a_is_minus ? middle_b : middle_a;
-      (void)first;
-      const int middle_point = add_point(0.5 * (t1.st + t2.st), middle_minus, middle_plus);
-      slit_points.push_back(middle_point);
-      region.boundary.push_back({point_of_end(-1 - leave), middle_point});
-      region.boundary.push_back({middle_point, point_of_end(-1 - enter)});
-      split_ranges.push_back({t, split_first, static_cast<int>(split.size())});
-    }
+    if (crossings == 2)
+      split_at_chord(t);
+    else if (crossings == 1)
+      split_at_tip(t, ends);
+    else if (!split_at_slit(t, ends))
+      continue;
+    split_ranges.push_back({t, split_first, static_cast<int>(split.size())});
   }
   if (!report.ok()) {
-    restore_base();
-    return;
+    surface.restore_base();
+    return false;
   }
+  return true;
+}
 
-  // The outline's inside parts: from each tip where it enters to the next tip, with points at
-  // most w apart (the transient front).
-  const double w = front_width_;
-  std::vector<Vec3> front_rest;  // rest positions of the outline points, per region point
-  const auto outline_point = [&](double position) {
-    const int o = std::min(static_cast<int>(position), static_cast<int>(outline.size()) - 1);
-    const double f = position - o;
-    const int x = outline[static_cast<size_t>(o)].from, y = outline[static_cast<size_t>(o)].to;
-    return std::pair<Vec2, Vec3>{st_of_id(x) + f * (st_of_id(y) - st_of_id(x)), points[x] + f * (points[y] - points[x])};
-  };
-  const auto add_outline_run = [&](int from_point, double from, double to, int to_point) {
-    // Corners of the outline between the two positions, then subdivisions of each piece.
-    std::vector<double> stops{from};
-    for (double corner = std::floor(from) + 1; corner < to; corner += 1) stops.push_back(corner);
-    stops.push_back(to);
-    int previous = from_point;
-    for (size_t k = 0; k + 1 < stops.size(); ++k) {
-      const auto [st0, x0] = outline_point(stops[k]);
-      const auto [st1, x1] = outline_point(stops[k + 1]);
-      const int pieces = std::max(1, static_cast<int>(std::ceil((st1 - st0).norm() / w)));
-      for (int m = 1; m <= pieces; ++m) {
-        int next;
-        if (k + 2 == stops.size() && m == pieces) {
-          next = to_point;
-        } else {
-          const double f = static_cast<double>(m) / pieces;
-          const Vec3 x = x0 + f * (x1 - x0);
-          next = add_point(st0 + f * (st1 - st0), static_cast<int>(vertices_.size()), static_cast<int>(vertices_.size()));
-          front_vertices.push_back(static_cast<int>(vertices_.size()));
-          vertices_.push_back(x);
-          ++report.front_vertices;
-        }
-        region.boundary.push_back({previous, next});
-        previous = next;
+// Two crossings: three triangles.
+void FrontSurface::Recompute::split_at_chord(int t) {
+  const std::vector<Vec3>& vertices = surface.vertices_;
+  const auto& tri = surface.base_triangles_[static_cast<size_t>(t)];
+  // Rotate so that the crossings are on (a, b) and (b, c): b is alone on its side.
+  int k0 = -1;
+  for (int k = 0; k < 3; ++k)
+    if (edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>(k)])] >= 0 &&
+        edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>((k + 1) % 3)])] >= 0)
+      k0 = k;
+  const int a = tri[static_cast<size_t>(k0)], b = tri[static_cast<size_t>((k0 + 1) % 3)], c = tri[static_cast<size_t>((k0 + 2) % 3)];
+  const int p = edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>(k0)])];
+  const int q = edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>((k0 + 1) % 3)])];
+  const int pb = copy_on_side_of(p, b), qb = copy_on_side_of(q, b), pa = copy_on_side_of(p, a), qc = copy_on_side_of(q, c);
+  emit(pb, b, qb);
+  // The quad (a, p, q, c) is convex (a corner cut off a triangle): its shorter diagonal.
+  if ((vertices[static_cast<size_t>(a)] - vertices[static_cast<size_t>(qc)]).norm() <=
+      (vertices[static_cast<size_t>(pa)] - vertices[static_cast<size_t>(c)]).norm()) {
+    emit(a, pa, qc);
+    emit(a, qc, c);
+  } else {
+    emit(a, pa, c);
+    emit(pa, qc, c);
+  }
+  // b on the normal side of the sheet: the body (inside, left of the chord in (s, t)) is
+  // reached from q to p.
+  const bool b_plus = cuts[static_cast<size_t>(p)].lower_on_plus == (b == std::min(a, b));
+  const int from = point_of_end(b_plus ? q : p), to = point_of_end(b_plus ? p : q);
+  region.boundary.push_back({from, to});
+}
+
+// A crossing and a tip: four triangles around the tip.
+void FrontSurface::Recompute::split_at_tip(int t, const std::array<int, 2>& ends) {
+  const auto& tri = surface.base_triangles_[static_cast<size_t>(t)];
+  const int cut_index = ends[0] >= 0 ? ends[0] : ends[1];
+  const int tip_end = ends[0] >= 0 ? ends[1] : ends[0];
+  const Tip& tip = tips[static_cast<size_t>(-1 - tip_end)];
+  int k0 = -1;
+  for (int k = 0; k < 3; ++k)
+    if (edge_cut[static_cast<size_t>(edges.of_triangle[t][static_cast<size_t>(k)])] == cut_index) k0 = k;
+  const int a = tri[static_cast<size_t>(k0)], b = tri[static_cast<size_t>((k0 + 1) % 3)], c = tri[static_cast<size_t>((k0 + 2) % 3)];
+  emit(a, copy_on_side_of(cut_index, a), tip.vertex);
+  emit(copy_on_side_of(cut_index, b), b, tip.vertex);
+  emit(b, c, tip.vertex);
+  emit(c, a, tip.vertex);
+  // Where the outline goes into the body, the face's boundary comes along the chord to the
+  // tip and goes on along the outline.
+  const int cut_end = point_of_end(cut_index), tip_end_point = point_of_end(tip_end);
+  if (tip.entering)
+    region.boundary.push_back({cut_end, tip_end_point});
+  else
+    region.boundary.push_back({tip_end_point, cut_end});
+}
+
+// Two tips: a slit between them, with a pair of vertices at its middle (so that its two lips
+// are different edges), and seven triangles around it (see the header). False, with a
+// problem, when the two tips go the same way.
+bool FrontSurface::Recompute::split_at_slit(int t, const std::array<int, 2>& ends) {
+  std::vector<Vec3>& vertices = surface.vertices_;
+  const auto& tri = surface.base_triangles_[static_cast<size_t>(t)];
+  const int i1 = -1 - ends[0], i2 = -1 - ends[1];
+  if (tips[static_cast<size_t>(i1)].entering == tips[static_cast<size_t>(i2)].entering) {
+    problem("base triangle " + std::to_string(t) + " holds two tips going the same way");
+    return false;
+  }
+  const int enter = tips[static_cast<size_t>(i1)].entering ? i1 : i2, leave = enter == i1 ? i2 : i1;
+  const Tip& t1 = tips[static_cast<size_t>(leave)];
+  const Tip& t2 = tips[static_cast<size_t>(enter)];
+  const Vec3 n = (vertices[static_cast<size_t>(tri[1])] - vertices[static_cast<size_t>(tri[0])])
+                     .cross(vertices[static_cast<size_t>(tri[2])] - vertices[static_cast<size_t>(tri[0])]);
+  const Vec3 direction = t2.point - t1.point;
+  std::array<bool, 3> left{};
+  for (int k = 0; k < 3; ++k)
+    left[static_cast<size_t>(k)] = n.dot(direction.cross(vertices[static_cast<size_t>(tri[static_cast<size_t>(k)])] - t1.point)) >= 0;
+  int lone = 0;
+  for (int k = 0; k < 3; ++k)
+    if (left[static_cast<size_t>(k)] != left[static_cast<size_t>((k + 1) % 3)] && left[static_cast<size_t>(k)] != left[static_cast<size_t>((k + 2) % 3)])
+      lone = k;
+  const int v0 = tri[static_cast<size_t>(lone)], va = tri[static_cast<size_t>((lone + 1) % 3)], vb = tri[static_cast<size_t>((lone + 2) % 3)];
+  // v1 is the one further ahead along t1 -> t2, v2 the other.
+  const bool a_ahead = direction.dot(vertices[static_cast<size_t>(va)]) >= direction.dot(vertices[static_cast<size_t>(vb)]);
+  const int v1 = a_ahead ? va : vb, v2 = a_ahead ? vb : va;
+  const int middle_a = static_cast<int>(vertices.size()), middle_b = middle_a + 1;
+  vertices.push_back(0.5 * (t1.point + t2.point));
+  vertices.push_back(0.5 * (t1.point + t2.point));
+  ear_clip({v0, v1, t2.vertex}, n, vertices, split);
+  ear_clip({v2, v0, t1.vertex}, n, vertices, split);
+  std::vector<int> lip_v0{v0, t1.vertex, middle_a, t2.vertex};
+  ear_clip(lip_v0, n, vertices, split);
+  ear_clip({t2.vertex, v1, v2, t1.vertex, middle_b}, n, vertices, split);
+  split_on_face.resize(split.size(), splitting_face);
+  // The face on the sheet's minus side runs leave -> middle -> enter, so the lip of the
+  // minus side runs enter -> middle -> leave (ear_clip orients the polygon about n).
+  const bool a_is_minus = !oriented_about(lip_v0, n, vertices);
+  const int middle_minus = a_is_minus ? middle_a : middle_b, middle_plus = a_is_minus ? middle_b : middle_a;
+  const int middle_point = add_point(0.5 * (t1.st + t2.st), middle_minus, middle_plus);
+  slit_points.push_back(middle_point);
+  region.boundary.push_back({point_of_end(-1 - leave), middle_point});
+  region.boundary.push_back({middle_point, point_of_end(-1 - enter)});
+  return true;
+}
+
+// The outline's point at `position` (segment index + fraction), in (s, t) and at rest.
+std::pair<Vec2, Vec3> FrontSurface::Recompute::outline_point(double position) const {
+  const int o = std::min(static_cast<int>(position), static_cast<int>(outline.size()) - 1);
+  const double f = position - o;
+  const int x = outline[static_cast<size_t>(o)].from, y = outline[static_cast<size_t>(o)].to;
+  return std::pair<Vec2, Vec3>{st_of_id(x) + f * (st_of_id(y) - st_of_id(x)), points[x] + f * (points[y] - points[x])};
+}
+
+// The outline from `from` to `to` (positions) as boundary edges, from region point
+// from_point to to_point: corners of the outline between the two positions, then
+// subdivisions of each piece, each a transient vertex of its own.
+void FrontSurface::Recompute::add_outline_run(int from_point, double from, double to, int to_point) {
+  std::vector<Vec3>& vertices = surface.vertices_;
+  std::vector<double> stops{from};
+  for (double corner = std::floor(from) + 1; corner < to; corner += 1) stops.push_back(corner);
+  stops.push_back(to);
+  int previous = from_point;
+  for (size_t k = 0; k + 1 < stops.size(); ++k) {
+    const auto [st0, x0] = outline_point(stops[k]);
+    const auto [st1, x1] = outline_point(stops[k + 1]);
+    const int pieces = std::max(1, static_cast<int>(std::ceil((st1 - st0).norm() / w)));
+    for (int m = 1; m <= pieces; ++m) {
+      int next_point;
+      if (k + 2 == stops.size() && m == pieces) {
+        next_point = to_point;
+      } else {
+        const double f = static_cast<double>(m) / pieces;
+        const Vec3 x = x0 + f * (x1 - x0);
+        next_point = add_point(st0 + f * (st1 - st0), static_cast<int>(vertices.size()), static_cast<int>(vertices.size()));
+        front_vertices.push_back(static_cast<int>(vertices.size()));
+        vertices.push_back(x);
+        ++report.front_vertices;
       }
+      region.boundary.push_back({previous, next_point});
+      previous = next_point;
     }
-  };
+  }
+}
+
+// The outline's inside parts: from each tip where it enters to the next tip, with points at
+// most w apart (the transient front). False where there is no cut face (no boundary) or a
+// problem.
+bool FrontSurface::Recompute::trace_inside_outline() {
   const double perimeter = static_cast<double>(outline.size());
   for (size_t k = 0; k < tips.size(); ++k) {
     if (!tips[k].entering) continue;
-    const size_t next = (k + 1) % tips.size();
-    double to = tips[next].position;
+    const size_t after = (k + 1) % tips.size();
+    double to = tips[after].position;
     if (to <= tips[k].position) to += perimeter;
     // Positions past the perimeter wrap to its start.
     if (to > perimeter) {
       problem("the cut face's outline wraps past the first sample");
       break;
     }
-    add_outline_run(point_of_end(-1 - static_cast<int>(k)), tips[k].position, to, point_of_end(-1 - static_cast<int>(next)));
+    add_outline_run(point_of_end(-1 - static_cast<int>(k)), tips[k].position, to, point_of_end(-1 - static_cast<int>(after)));
   }
   if (tips.empty() && outline_inside) problem("the blade is inside the body for the whole stroke");
-  if (!report.ok() || region.boundary.empty()) {
-    if (!report.ok()) {
-      restore_base();
-    }
-    return;
+  if (!report.ok()) {
+    surface.restore_base();
+    return false;
   }
+  return !region.boundary.empty();
+}
 
-  // Fixed vertices: a triangular lattice of spacing w in (s, t), kept away from the boundary.
-  const double row = w * std::sqrt(3.0) / 2;
-  const double gap = 0.45 * w;
-  const Vec2 extent(blade_s_.back(), sample_t_.back());
-  // What changed since the last sample's region (FaceCache), for triangulate_face: the
-  // boundary's points matched by their exact (s, t) and its edges compared. The boundary
-  // changes only at and above t_boundary; a lattice row lower than that by more than the
-  // gap (and the jitter, below) sees the same boundary edges near it and across it, so it
-  // comes out as it was: it is taken from the last sample's instead of being made again.
+// Fixed vertices: a triangular lattice of spacing w in (s, t), kept away from the boundary.
+// First what changed since the last sample's region (FaceCache), for triangulate_face: the
+// boundary's points matched by their exact (s, t) and its edges compared. The boundary
+// changes only at and above t_boundary; a lattice row lower than that by more than the gap
+// (and the jitter, in lay_lattice) sees the same boundary edges near it and across it, so it
+// comes out as it was: it is taken from the last sample's instead of being made again.
+void FrontSurface::Recompute::match_last_face() {
+  row = w * std::sqrt(3.0) / 2;
+  gap = 0.45 * w;
+  extent = Vec2(surface.blade_s_.back(), surface.sample_t_.back());
   const size_t boundary_points = region.points.size();
-  FaceCache next;
   next.lattice_begin = static_cast<int>(boundary_points);
   next.sorted = sorted_points(region.points, boundary_points);
-  FaceCache& cache = stroke.face;
-  const bool incremental = reuse_face_ && cache.valid;
-  FaceChange change;
+  incremental = surface.reuse_face_ && cache.valid;
   if (incremental) change = boundary_change(cache, region, next.sorted);
-  const double t_boundary = change.t_change;  // infinite when not incremental
-  const auto distance_to_segment = [](const Vec2& p, const Vec2& a, const Vec2& b) {
-    const Vec2 d = b - a;
-    const double length_squared = d.squaredNorm();
-    const double f = length_squared > 0 ? std::clamp((p - a).dot(d) / length_squared, 0.0, 1.0) : 0.0;
-    return (p - (a + f * d)).norm();
-  };
-  // Rows taken whole from the last sample's lattice: below t_boundary by the gap and the
-  // jitter (a thousandth of w) with room. The rows made again are those from r_first on: only
-  // they look at the boundary's edges (binned below) and at where it crosses them.
-  const int old_rows = incremental ? static_cast<int>(cache.row_start.size()) - 1 : 0;
+  t_boundary = change.t_change;  // infinite when not incremental
+}
+
+double FrontSurface::Recompute::distance_to_segment(const Vec2& p, const Vec2& a, const Vec2& b) {
+  const Vec2 d = b - a;
+  const double length_squared = d.squaredNorm();
+  const double f = length_squared > 0 ? std::clamp((p - a).dot(d) / length_squared, 0.0, 1.0) : 0.0;
+  return (p - (a + f * d)).norm();
+}
+
+// Rows taken whole from the last sample's lattice: below t_boundary by the gap and the jitter
+// (a thousandth of w) with room. The rows made again are those from r_first on: only they
+// look at the boundary's edges (binned here) and at where it crosses them.
+void FrontSurface::Recompute::bin_boundary() {
+  old_rows = incremental ? static_cast<int>(cache.row_start.size()) - 1 : 0;
   const auto row_taken = [&](int r) { return r < old_rows && r * row + gap + 2e-3 * w < t_boundary; };
-  int r_first = 1;
+  r_first = 1;
   while (row_taken(r_first)) ++r_first;
   // The boundary's edges binned in cells of side w over the (s, t) rectangle (the cells below
   // the lowest one a point of row r_first falls in are never looked at: left empty).
   const int columns = std::max(1, static_cast<int>(std::ceil(extent.x() / w))), rows = std::max(1, static_cast<int>(std::ceil(extent.y() / w)));
   // One layer of cells, (s, t) as (x, y).
-  GridCells frame;
   frame.cell = w;
   frame.count = {columns, rows, 1};
   const int lowest_cell_row = static_cast<int>(frame.cell_of(1, r_first * row));
-  UniformGrid boundary_cells;
   boundary_cells.build(frame, static_cast<int>(region.boundary.size()), [&](int e, GridCell& from, GridCell& to) {
     const Vec2& a = region.points[static_cast<size_t>(region.boundary[static_cast<size_t>(e)][0])];
     const Vec2& b = region.points[static_cast<size_t>(region.boundary[static_cast<size_t>(e)][1])];
@@ -1324,7 +1539,7 @@ void FrontSurface::recompute(FrontCutReport& report) {
   // each edge taken half-open, from its lower end): a point is inside the region when the
   // crossings on its right wind round it (the region is on the edges' left). The points
   // outside (where the blade's sheet is outside the body) would only be triangulated away.
-  std::vector<std::vector<std::pair<double, int>>> row_crossings(static_cast<size_t>(std::floor(extent.y() / row)) + 2);
+  row_crossings.resize(static_cast<size_t>(std::floor(extent.y() / row)) + 2);
   for (const auto& edge : region.boundary) {
     const Vec2& a = region.points[static_cast<size_t>(edge[0])];
     const Vec2& b = region.points[static_cast<size_t>(edge[1])];
@@ -1337,6 +1552,13 @@ void FrontSurface::recompute(FrontCutReport& report) {
       row_crossings[static_cast<size_t>(r)].emplace_back(low.x() + f * (high.x() - low.x()), a.y() < b.y() ? 1 : -1);
     }
   }
+}
+
+// The lattice's points, row by row: rows below r_first copied from the last sample's, the
+// others made inside the region and away from its boundary, each matched with the last
+// sample's point of its row and column (change.to_new; change.t_change lowered where one is
+// added or gone).
+void FrontSurface::Recompute::lay_lattice() {
   next.row_start.assign(2, 0);  // rows 0 (empty) and, below, 1, 2, ...
   for (int r = 1; r * row < extent.y(); ++r) {
     const int old_first = r < old_rows ? cache.row_start[static_cast<size_t>(r)] : 0;
@@ -1403,167 +1625,192 @@ void FrontSurface::recompute(FrontCutReport& report) {
   if (const int new_rows = static_cast<int>(next.row_start.size()) - 1; incremental && new_rows < old_rows)
     for (int k = cache.row_start[static_cast<size_t>(new_rows)]; k < static_cast<int>(cache.column.size()); ++k)
       change.t_change = std::min(change.t_change, cache.region.points[static_cast<size_t>(cache.lattice_begin + k)].y());
+}
 
-  std::vector<std::array<int, 3>> face;
+// The cut face: the region triangulated (constrained Delaunay), keeping the last sample's
+// triangles well behind the front with reuse_face_.
+bool FrontSurface::Recompute::triangulate_cut_face() {
   try {
-    if (reuse_face_) {
+    if (surface.reuse_face_) {
       face = triangulate_face(region, cache, incremental ? &change : nullptr, std::move(next), 1e-6 * w, report.face_triangles_kept);
     } else {
       face = triangulate_region(region);
     }
   } catch (const std::invalid_argument& error) {
     problem(std::string("the cut face could not be triangulated: ") + error.what());
-    restore_base();
-    return;
+    surface.restore_base();
+    return false;
   }
-  // Where the blade still is, both sides' faces share the vertices (the crack closes there).
-  // An inner edge of the face joining two of them would be shared by four triangles: split
-  // it at its middle, with a vertex of each side's own.
-  {
-    const auto shared = [&](int p) {
-      return region_vertex[static_cast<size_t>(p)] >= 0 && region_vertex[static_cast<size_t>(p)] == region_vertex_plus[static_cast<size_t>(p)];
-    };
-    std::set<std::pair<int, int>> outline_edges;  // the outline's, between two shared vertices
-    for (const auto& e : region.boundary)
-      if (shared(e[0]) && shared(e[1])) outline_edges.insert({std::min(e[0], e[1]), std::max(e[0], e[1])});
-    // Passes over the face's edges (sorted, not a map); a triangle split in a pass waits for
-    // the next, so a triangle with two such edges is split twice.
-    for (bool again = true; again;) {
-      again = false;
-      std::vector<std::array<int, 4>> uses;  // (lower, higher, triangle, corner before the edge)
-      uses.reserve(3 * face.size());
-      for (size_t f = 0; f < face.size(); ++f)
-        for (int k = 0; k < 3; ++k) {
-          const int u = face[f][static_cast<size_t>(k)], v = face[f][static_cast<size_t>((k + 1) % 3)];
-          if (shared(u) && shared(v)) uses.push_back({std::min(u, v), std::max(u, v), static_cast<int>(f), k});
-        }
-      std::sort(uses.begin(), uses.end());
-      std::vector<std::uint8_t> split_now(face.size(), 0);
-      for (size_t n = 0; n + 1 < uses.size(); ++n) {
-        const auto& x = uses[n];
-        const auto& y = uses[n + 1];
-        if (x[0] != y[0] || x[1] != y[1] || outline_edges.count({x[0], x[1]})) continue;
-        if (split_now[static_cast<size_t>(x[2])] || split_now[static_cast<size_t>(y[2])]) {
-          again = true;
-          continue;
-        }
-        const int middle = add_point(0.5 * (region.points[static_cast<size_t>(x[0])] + region.points[static_cast<size_t>(x[1])]), -1, -1);
-        for (const auto& use : {x, y}) {
-          const size_t f = static_cast<size_t>(use[2]);
-          const std::array<int, 3> old = face[f];
-          const int k = use[3];
-          const int u = old[static_cast<size_t>(k)], v = old[static_cast<size_t>((k + 1) % 3)], opposite = old[static_cast<size_t>((k + 2) % 3)];
-          split_now[f] = 1;
-          face[f] = {u, middle, opposite};
-          face.push_back({middle, v, opposite});
-        }
-        split_now.resize(face.size(), 1);
-        ++n;
+  return true;
+}
+
+// Where the blade still is, both sides' faces share the vertices (the crack closes there).
+// An inner edge of the face joining two of them would be shared by four triangles: split
+// it at its middle, with a vertex of each side's own.
+void FrontSurface::Recompute::split_shared_inner_edges() {
+  const auto shared = [&](int p) {
+    return region_vertex[static_cast<size_t>(p)] >= 0 && region_vertex[static_cast<size_t>(p)] == region_vertex_plus[static_cast<size_t>(p)];
+  };
+  std::set<std::pair<int, int>> outline_edges;  // the outline's, between two shared vertices
+  for (const auto& e : region.boundary)
+    if (shared(e[0]) && shared(e[1])) outline_edges.insert({std::min(e[0], e[1]), std::max(e[0], e[1])});
+  // Passes over the face's edges (sorted, not a map); a triangle split in a pass waits for
+  // the next, so a triangle with two such edges is split twice.
+  for (bool again = true; again;) {
+    again = false;
+    std::vector<std::array<int, 4>> uses;  // (lower, higher, triangle, corner before the edge)
+    uses.reserve(3 * face.size());
+    for (size_t f = 0; f < face.size(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        const int u = face[f][static_cast<size_t>(k)], v = face[f][static_cast<size_t>((k + 1) % 3)];
+        if (shared(u) && shared(v)) uses.push_back({std::min(u, v), std::max(u, v), static_cast<int>(f), k});
       }
+    std::sort(uses.begin(), uses.end());
+    std::vector<std::uint8_t> split_now(face.size(), 0);
+    for (size_t n = 0; n + 1 < uses.size(); ++n) {
+      const auto& x = uses[n];
+      const auto& y = uses[n + 1];
+      if (x[0] != y[0] || x[1] != y[1] || outline_edges.count({x[0], x[1]})) continue;
+      if (split_now[static_cast<size_t>(x[2])] || split_now[static_cast<size_t>(y[2])]) {
+        again = true;
+        continue;
+      }
+      const int middle = add_point(0.5 * (region.points[static_cast<size_t>(x[0])] + region.points[static_cast<size_t>(x[1])]), -1, -1);
+      for (const auto& use : {x, y}) {
+        const size_t f = static_cast<size_t>(use[2]);
+        const std::array<int, 3> old = face[f];
+        const int k = use[3];
+        const int u = old[static_cast<size_t>(k)], v = old[static_cast<size_t>((k + 1) % 3)], opposite = old[static_cast<size_t>((k + 2) % 3)];
+        split_now[f] = 1;
+        face[f] = {u, middle, opposite};
+        face.push_back({middle, v, opposite});
+      }
+      split_now.resize(face.size(), 1);
+      ++n;
     }
   }
-  // Lift the lattice points the face uses onto the sheet.
-  const auto sheet_point = [&](const Vec2& st) {
-    const int i = std::clamp(static_cast<int>(std::upper_bound(blade_s_.begin(), blade_s_.end(), st.x()) - blade_s_.begin()) - 1, 0, segments - 1);
-    const int j = std::clamp(static_cast<int>(std::upper_bound(sample_t_.begin(), sample_t_.end(), st.y()) - sample_t_.begin()) - 1, 0, intervals - 1);
-    const double alpha = (st.x() - blade_s_[static_cast<size_t>(i)]) / (blade_s_[static_cast<size_t>(i + 1)] - blade_s_[static_cast<size_t>(i)]);
-    const double beta = (st.y() - sample_t_[static_cast<size_t>(j)]) / (sample_t_[static_cast<size_t>(j + 1)] - sample_t_[static_cast<size_t>(j)]);
-    const Vec3& p00 = samples_[static_cast<size_t>(j)][static_cast<size_t>(i)];
-    const Vec3& p10 = samples_[static_cast<size_t>(j)][static_cast<size_t>(i + 1)];
-    const Vec3& p01 = samples_[static_cast<size_t>(j + 1)][static_cast<size_t>(i)];
-    const Vec3& p11 = samples_[static_cast<size_t>(j + 1)][static_cast<size_t>(i + 1)];
-    if (alpha >= beta) return Vec3(p00 + alpha * (p10 - p00) + beta * (p11 - p10));
-    return Vec3(p00 + beta * (p01 - p00) + alpha * (p11 - p01));
-  };
-  // A lattice point in a cell of the sheet between two samples before the last is where the
-  // last sample put it (FaceCache::lifted: the cell's samples no longer change).
+}
+
+// A point of the (s, t) rectangle on the sheet: in its cell's triangle.
+Vec3 FrontSurface::Recompute::sheet_point(const Vec2& st) const {
+  const std::vector<double>& blade_s = surface.blade_s_;
+  const std::vector<double>& sample_t = surface.sample_t_;
+  const std::vector<std::vector<Vec3>>& samples = surface.samples_;
+  const int i = std::clamp(static_cast<int>(std::upper_bound(blade_s.begin(), blade_s.end(), st.x()) - blade_s.begin()) - 1, 0, segments - 1);
+  const int j = std::clamp(static_cast<int>(std::upper_bound(sample_t.begin(), sample_t.end(), st.y()) - sample_t.begin()) - 1, 0, intervals - 1);
+  const double alpha = (st.x() - blade_s[static_cast<size_t>(i)]) / (blade_s[static_cast<size_t>(i + 1)] - blade_s[static_cast<size_t>(i)]);
+  const double beta = (st.y() - sample_t[static_cast<size_t>(j)]) / (sample_t[static_cast<size_t>(j + 1)] - sample_t[static_cast<size_t>(j)]);
+  const Vec3& p00 = samples[static_cast<size_t>(j)][static_cast<size_t>(i)];
+  const Vec3& p10 = samples[static_cast<size_t>(j)][static_cast<size_t>(i + 1)];
+  const Vec3& p01 = samples[static_cast<size_t>(j + 1)][static_cast<size_t>(i)];
+  const Vec3& p11 = samples[static_cast<size_t>(j + 1)][static_cast<size_t>(i + 1)];
+  if (alpha >= beta) return Vec3(p00 + alpha * (p10 - p00) + beta * (p11 - p10));
+  return Vec3(p00 + beta * (p01 - p00) + alpha * (p11 - p01));
+}
+
+// Region point p on the sheet. A lattice point in a cell of the sheet between two samples
+// before the last is where the last sample put it (FaceCache::lifted: the cell's samples no
+// longer change).
+Vec3 FrontSurface::Recompute::lift(int p) {
   FaceCache& lattice = stroke.face;  // this sample's, with reuse_face_
-  const double fixed_below = intervals >= 2 ? sample_t_[static_cast<size_t>(intervals - 1)] : -std::numeric_limits<double>::infinity();
-  const auto lift = [&](int p) {
-    const Vec2& st = region.points[static_cast<size_t>(p)];
-    const size_t k = static_cast<size_t>(p - lattice.lattice_begin);
-    if (!reuse_face_ || p < lattice.lattice_begin || k >= lattice.column.size()) return sheet_point(st);
-    if (lattice.lifted_final[k]) return lattice.lifted[k];
-    const Vec3 x = sheet_point(st);
-    if (st.y() < fixed_below) {
-      lattice.lifted[k] = x;
-      lattice.lifted_final[k] = 1;
-    }
-    return x;
-  };
-  std::vector<int> inner_points;
+  const Vec2& st = region.points[static_cast<size_t>(p)];
+  const size_t k = static_cast<size_t>(p - lattice.lattice_begin);
+  if (!surface.reuse_face_ || p < lattice.lattice_begin || k >= lattice.column.size()) return sheet_point(st);
+  if (lattice.lifted_final[k]) return lattice.lifted[k];
+  const Vec3 x = sheet_point(st);
+  if (st.y() < fixed_below) {
+    lattice.lifted[k] = x;
+    lattice.lifted_final[k] = 1;
+  }
+  return x;
+}
+
+// Lift the lattice points the face uses onto the sheet, and take the face's normal at each
+// region point.
+void FrontSurface::Recompute::lift_inner_points() {
+  std::vector<Vec3>& vertices = surface.vertices_;
+  fixed_below = intervals >= 2 ? surface.sample_t_[static_cast<size_t>(intervals - 1)] : -std::numeric_limits<double>::infinity();
   for (const auto& triangle : face)
     for (const int p : triangle)
       if (region_vertex[static_cast<size_t>(p)] < 0) {
         // Each side's face has its own inner vertices: the two separate as the cut opens.
         const Vec3 x = lift(p);
-        region_vertex[static_cast<size_t>(p)] = static_cast<int>(vertices_.size());
-        vertices_.push_back(x);
-        region_vertex_plus[static_cast<size_t>(p)] = static_cast<int>(vertices_.size());
-        vertices_.push_back(x);
+        region_vertex[static_cast<size_t>(p)] = static_cast<int>(vertices.size());
+        vertices.push_back(x);
+        region_vertex_plus[static_cast<size_t>(p)] = static_cast<int>(vertices.size());
+        vertices.push_back(x);
         inner_points.push_back(p);
         ++report.lattice_vertices;
       }
   // Their planes: the face's own normal there (the lifted triangles' around the point, as the
   // minus side's face is oriented), so that criterion 3 and the surface agree even where the
   // sheet at rest folds a little between two samples.
-  std::vector<Vec3> face_normal(region.points.size(), Vec3::Zero());
+  face_normal.assign(region.points.size(), Vec3::Zero());
   for (const auto& triangle : face) {
-    const Vec3& a = vertices_[static_cast<size_t>(region_vertex[static_cast<size_t>(triangle[0])])];
-    const Vec3& b = vertices_[static_cast<size_t>(region_vertex[static_cast<size_t>(triangle[1])])];
-    const Vec3& c = vertices_[static_cast<size_t>(region_vertex[static_cast<size_t>(triangle[2])])];
+    const Vec3& a = vertices[static_cast<size_t>(region_vertex[static_cast<size_t>(triangle[0])])];
+    const Vec3& b = vertices[static_cast<size_t>(region_vertex[static_cast<size_t>(triangle[1])])];
+    const Vec3& c = vertices[static_cast<size_t>(region_vertex[static_cast<size_t>(triangle[2])])];
     const Vec3 n = (b - a).cross(c - a);
     for (const int p : triangle) face_normal[static_cast<size_t>(p)] += n;
   }
   // The slits' middle pairs too: on the face's rim, each on one side (not the crack front).
-  // (Their planes are attached below, after the cut edges'.)
+  // (Their planes are attached in attach_planes, after the cut edges'.)
   inner_points.insert(inner_points.end(), slit_points.begin(), slit_points.end());
+}
 
-  // The output is the base's (restore_base); each split's first triangle takes its base
-  // triangle's slot, the others follow the base's triangles.
+// The output's triangles: the base's (restore_base); each split's first triangle takes its
+// base triangle's slot, the others follow the base's triangles; then the two cut faces.
+void FrontSurface::Recompute::emit_triangles() {
+  std::vector<std::array<int, 3>>& triangles = surface.triangles_;
+  std::vector<std::uint8_t>& cut_face = surface.cut_face_;
   for (const auto& [slot, first, end] : split_ranges) {
-    triangles_[static_cast<size_t>(slot)] = split[static_cast<size_t>(first)];
-    cut_face_[static_cast<size_t>(slot)] = split_on_face[static_cast<size_t>(first)];
-    replaced_slots_.push_back(slot);
+    triangles[static_cast<size_t>(slot)] = split[static_cast<size_t>(first)];
+    cut_face[static_cast<size_t>(slot)] = split_on_face[static_cast<size_t>(first)];
+    surface.replaced_slots_.push_back(slot);
     for (int k = first + 1; k < end; ++k) {
-      triangles_.push_back(split[static_cast<size_t>(k)]);
-      cut_face_.push_back(split_on_face[static_cast<size_t>(k)]);
+      triangles.push_back(split[static_cast<size_t>(k)]);
+      cut_face.push_back(split_on_face[static_cast<size_t>(k)]);
     }
   }
   // The body on the sheet's minus side sees the face with the sheet's normal; the plus side
   // the other way round.
   for (const auto& triangle : face)
-    triangles_.push_back({region_vertex[static_cast<size_t>(triangle[0])], region_vertex[static_cast<size_t>(triangle[1])],
-                          region_vertex[static_cast<size_t>(triangle[2])]});
+    triangles.push_back({region_vertex[static_cast<size_t>(triangle[0])], region_vertex[static_cast<size_t>(triangle[1])],
+                         region_vertex[static_cast<size_t>(triangle[2])]});
   for (const auto& triangle : face)
-    triangles_.push_back({region_vertex_plus[static_cast<size_t>(triangle[0])], region_vertex_plus[static_cast<size_t>(triangle[2])],
-                          region_vertex_plus[static_cast<size_t>(triangle[1])]});
+    triangles.push_back({region_vertex_plus[static_cast<size_t>(triangle[0])], region_vertex_plus[static_cast<size_t>(triangle[2])],
+                         region_vertex_plus[static_cast<size_t>(triangle[1])]});
   report.cut_face_triangles = static_cast<int>(face.size());
-  cut_face_.resize(triangles_.size(), 1);
+  cut_face.resize(triangles.size(), 1);
+}
 
-  // Constraint planes (seed 004 §2.6, criterion 3): each end of a cut edge and its copy of the
-  // pair face across the sheet; so do the cut faces' inner vertices, each on its side.
-  vertex_planes_.set_singles(vertices_.size() - base_vertices_.size());
-  crack_front_.resize(vertices_.size(), 0);  // the base's flags, then the stroke's vertices'
-  for (const int v : front_vertices) crack_front_[static_cast<size_t>(v)] = 1;
+// Constraint planes (seed 004 §2.6, criterion 3): each end of a cut edge and its copy of the
+// pair face across the sheet; so do the cut faces' inner vertices, each on its side.
+void FrontSurface::Recompute::attach_planes() {
+  const std::vector<Vec3>& vertices = surface.vertices_;
+  VertexPlanes& planes = surface.vertex_planes_;
+  std::vector<int>& planed_base = surface.planed_base_;
+  planes.set_singles(vertices.size() - surface.base_vertices_.size());
+  surface.crack_front_.resize(vertices.size(), 0);  // the base's flags, then the stroke's vertices'
+  for (const int v : front_vertices) surface.crack_front_[static_cast<size_t>(v)] = 1;
   for (const EdgeCut& cut : cuts) {
     const ConstraintPlane lower{cut.point, cut.lower_on_plus ? Vec3(-cut.normal) : cut.normal};
     const ConstraintPlane higher{cut.point, -lower.normal};
-    vertex_planes_.add(static_cast<size_t>(cut.lower), lower);
-    vertex_planes_.add(static_cast<size_t>(cut.higher), higher);
-    planed_base_.push_back(cut.lower);
-    planed_base_.push_back(cut.higher);
-    vertex_planes_.add(static_cast<size_t>(cut.copy_lower), lower);
-    vertex_planes_.add(static_cast<size_t>(cut.copy_higher), higher);
+    planes.add(static_cast<size_t>(cut.lower), lower);
+    planes.add(static_cast<size_t>(cut.higher), higher);
+    planed_base.push_back(cut.lower);
+    planed_base.push_back(cut.higher);
+    planes.add(static_cast<size_t>(cut.copy_lower), lower);
+    planes.add(static_cast<size_t>(cut.copy_higher), higher);
   }
   for (const int p : inner_points) {
-    const Vec3& x = vertices_[static_cast<size_t>(region_vertex[static_cast<size_t>(p)])];
+    const Vec3& x = vertices[static_cast<size_t>(region_vertex[static_cast<size_t>(p)])];
     const Vec3 normal = face_normal[static_cast<size_t>(p)].normalized();
-    vertex_planes_.add(static_cast<size_t>(region_vertex[static_cast<size_t>(p)]), {x, normal});
-    vertex_planes_.add(static_cast<size_t>(region_vertex_plus[static_cast<size_t>(p)]), {x, -normal});
+    planes.add(static_cast<size_t>(region_vertex[static_cast<size_t>(p)]), {x, normal});
+    planes.add(static_cast<size_t>(region_vertex_plus[static_cast<size_t>(p)]), {x, -normal});
   }
-  std::sort(planed_base_.begin(), planed_base_.end());
-  planed_base_.erase(std::unique(planed_base_.begin(), planed_base_.end()), planed_base_.end());
+  std::sort(planed_base.begin(), planed_base.end());
+  planed_base.erase(std::unique(planed_base.begin(), planed_base.end()), planed_base.end());
 }
 
 }  // namespace incise::physics

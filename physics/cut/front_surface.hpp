@@ -205,6 +205,7 @@ class FrontSurface {
  private:
   struct Base;    // the base mesh's edges, and its edges and triangles binned
   struct Stroke;  // what the stroke's fixed part crossed, kept between calls
+  struct Recompute;  // recompute's stages, and what they share within one call
   void index_base();
   void show_base();     // the surface is the base's (copied whole: after a new base)
   void restore_base();  // the same from an output of the base's (undoing only what a stroke changed)
