@@ -226,51 +226,78 @@ Json gpu_json(const World& world, const std::vector<StepStats>& stats) {
           {"row_bytes_per_cut_step", cut_steps > 0 ? static_cast<double>(cut_step_row_bytes) / cut_steps : 0.0}};
 }
 
-}  // namespace
-
-ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
+// The trajectory the replay runs on (--trajectory, else the scene tool's; none without
+// either) and its summary for metrics.json `trajectory` (null without one).
+std::optional<Trajectory> load_trajectory(const Scene& scene, const ReplayOptions& options, Json& summary) {
   std::optional<Trajectory> trajectory;
   std::optional<std::filesystem::path> trajectory_file = options.trajectory;
   if (!trajectory_file && scene.tool) trajectory_file = scene.tool->trajectory;
   if (trajectory_file) trajectory = read_trajectory(*trajectory_file);
-  Json trajectory_json = nullptr;
+  summary = nullptr;
   if (trajectory) {
-    trajectory_json = {{"file", trajectory_file->string()},
-                       {"samples", trajectory->samples.size()},
-                       {"chunks", trajectory->report.chunks_read},
-                       {"complete", trajectory->report.complete},
-                       {"problem", trajectory->report.problem}};
+    summary = {{"file", trajectory_file->string()},
+               {"samples", trajectory->samples.size()},
+               {"chunks", trajectory->report.chunks_read},
+               {"complete", trajectory->report.complete},
+               {"problem", trajectory->report.problem}};
   }
+  return trajectory;
+}
 
-  World world(scene, std::move(trajectory));
-  long dofs_initial = 0;  // counted before any step: cutting must never change it
-  for (const auto& body : world.bodies()) dofs_initial += 3L * body.data.mechanics->node_count();
-  const long steps = options.steps ? *options.steps
-                                   : std::lround(scene.solver.duration / scene.solver.dt);
-  const int capture_every = options.capture_every ? *options.capture_every : scene.render.capture_every;
-  const int width = options.size ? options.size->first : scene.render.width;
-  const int height = options.size ? options.size->second : scene.render.height;
+long count_dofs(const World& world) {
+  long dofs = 0;
+  for (const auto& body : world.bodies()) dofs += 3L * body.data.mechanics->node_count();
+  return dofs;
+}
 
-  std::filesystem::create_directories(options.out_dir);
-  const auto frames_dir = options.out_dir / "frames";
-  std::unique_ptr<Capture> capture;
-  if (capture_every > 0) {
-    std::filesystem::create_directories(frames_dir);
-    for (const auto& entry : std::filesystem::directory_iterator(frames_dir))
-      if (entry.path().extension() == ".png") std::filesystem::remove(entry.path());
-    capture = std::make_unique<Capture>(frames_dir, width, height);
-  }
+// What the replay does: the options where given, the scene's settings otherwise.
+struct RunPlan {
+  long steps = 0;
+  int capture_every = 0;
+  int width = 0, height = 0;
+  std::filesystem::path frames_dir;
+};
 
-  std::vector<StepStats> stats;
-  stats.reserve(static_cast<std::size_t>(std::max(0L, steps)));
+RunPlan plan_run(const Scene& scene, const ReplayOptions& options) {
+  RunPlan plan;
+  plan.steps = options.steps ? *options.steps : std::lround(scene.solver.duration / scene.solver.dt);
+  plan.capture_every = options.capture_every ? *options.capture_every : scene.render.capture_every;
+  plan.width = options.size ? options.size->first : scene.render.width;
+  plan.height = options.size ? options.size->second : scene.render.height;
+  plan.frames_dir = options.out_dir / "frames";
+  return plan;
+}
+
+// The render thread, on a frames folder cleared of an earlier run's PNGs; none when the
+// replay takes no frames.
+std::unique_ptr<Capture> start_capture(const RunPlan& plan) {
+  if (plan.capture_every <= 0) return nullptr;
+  std::filesystem::create_directories(plan.frames_dir);
+  for (const auto& entry : std::filesystem::directory_iterator(plan.frames_dir))
+    if (entry.path().extension() == ".png") std::filesystem::remove(entry.path());
+  return std::make_unique<Capture>(plan.frames_dir, plan.width, plan.height);
+}
+
+struct RunOutcome {
+  std::vector<StepStats> stats;  // one per step taken
+  std::string error;             // why the physics thread stopped early; empty when it did not
+  double wall = 0;               // s, from the first step to the last frame written
+};
+
+// Steps the world on a physics thread, handing every capture_every-th state (and the
+// initial one) to the render thread, while this thread draws the progress bar.
+RunOutcome run_steps(World& world, const Scene& scene, const ReplayOptions& options, const RunPlan& plan,
+                     Capture* capture) {
+  RunOutcome run;
+  auto& stats = run.stats;
+  stats.reserve(static_cast<std::size_t>(std::max(0L, plan.steps)));
   std::atomic<long> steps_done{0};
-  std::string error;
   auto publish = [&](std::uint64_t step) {
     if (!capture) return;
     if (Snapshot* s = capture->begin()) {
       s->step = step;
       s->time = world.time();
-      world.fill_frame(s->frame, width, height);
+      world.fill_frame(s->frame, plan.width, plan.height);
       capture->end();
     }
   };
@@ -279,18 +306,18 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
   std::thread physics([&] {
     try {
       publish(0);
-      for (long k = 1; k <= steps; ++k) {
+      for (long k = 1; k <= plan.steps; ++k) {
         stats.push_back(world.step());
-        if (capture_every > 0 && k % capture_every == 0) publish(static_cast<std::uint64_t>(k));
+        if (plan.capture_every > 0 && k % plan.capture_every == 0) publish(static_cast<std::uint64_t>(k));
         steps_done.store(k, std::memory_order_release);
       }
     } catch (const std::exception& e) {
-      error = e.what();
+      run.error = e.what();
     }
     steps_done.store(-1, std::memory_order_release);
   });
   const bool tty = options.progress && isatty(STDERR_FILENO);
-  common::ProgressBar bar(std::cerr, steps);
+  common::ProgressBar bar(std::cerr, plan.steps);
   while (steps_done.load(std::memory_order_acquire) >= 0) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     long done = steps_done.load(std::memory_order_acquire);
@@ -302,36 +329,76 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
   }
   physics.join();
   if (capture) capture->finish();
-  const double wall = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  run.wall = std::chrono::duration<double>(Clock::now() - wall_start).count();
   if (tty) {
     bar.set_done(static_cast<long>(stats.size()));
-    bar.draw(progress_text(world.time(), wall));
+    bar.draw(progress_text(world.time(), run.wall));
     bar.finish();
   }
+  return run;
+}
 
-  // Metrics.
+// The steps' timings, solver iterations and tool figures, gathered for their summaries.
+struct StepTotals {
   std::vector<double> total, tool_input, cut_phase, contact, solve, surface;
   double cg_sum = 0, cg_residual_max = 0, max_force = 0;
   int cg_max = 0, nonfinite = 0, not_converged = 0, contacts_max = 0;
+};
+
+StepTotals gather_steps(const std::vector<StepStats>& stats) {
+  StepTotals t;
   for (const auto& s : stats) {
-    total.push_back(s.ms_total);
-    tool_input.push_back(s.ms_tool_input);
-    cut_phase.push_back(s.ms_ccd + s.ms_topology);
-    contact.push_back(s.ms_contact);
-    solve.push_back(s.ms_solve);
-    surface.push_back(s.ms_surface);
-    cg_sum += s.cg_iterations;
-    cg_max = std::max(cg_max, s.cg_iterations);
-    cg_residual_max = std::max(cg_residual_max, s.cg_residual);
-    nonfinite += s.nonfinite_events;
-    not_converged += s.cg_converged ? 0 : 1;
-    contacts_max = std::max(contacts_max, s.contacts);
-    max_force = std::max(max_force, std::sqrt(s.tool_force[0] * s.tool_force[0] +
-                                              s.tool_force[1] * s.tool_force[1] +
-                                              s.tool_force[2] * s.tool_force[2]));
+    t.total.push_back(s.ms_total);
+    t.tool_input.push_back(s.ms_tool_input);
+    t.cut_phase.push_back(s.ms_ccd + s.ms_topology);
+    t.contact.push_back(s.ms_contact);
+    t.solve.push_back(s.ms_solve);
+    t.surface.push_back(s.ms_surface);
+    t.cg_sum += s.cg_iterations;
+    t.cg_max = std::max(t.cg_max, s.cg_iterations);
+    t.cg_residual_max = std::max(t.cg_residual_max, s.cg_residual);
+    t.nonfinite += s.nonfinite_events;
+    t.not_converged += s.cg_converged ? 0 : 1;
+    t.contacts_max = std::max(t.contacts_max, s.contacts);
+    t.max_force = std::max(t.max_force, std::sqrt(s.tool_force[0] * s.tool_force[0] +
+                                                  s.tool_force[1] * s.tool_force[1] +
+                                                  s.tool_force[2] * s.tool_force[2]));
   }
+  return t;
+}
+
+// What the user sees moved: the surface vertices (nodes of a tetrahedral body; embedded
+// vertices of a meshless one, whose particles may lie outside the body). Returns the largest
+// displacement from rest; `vertices` receives their count.
+double surface_max_displacement(const Body& body, std::size_t& vertices) {
+  const auto& x = body.data.state.positions;
+  const auto& rest = body.data.mechanics->rest_positions();
+  double surface_max = 0;
+  if (body.data.embedding) {
+    physics::Vector rest_vertices;
+    physics::CorotationalEfg::surface_positions(*body.data.embedding, rest, rest_vertices);
+    const auto indices = static_cast<std::size_t>(body.data.embedding->vertex_count());
+    vertices = indices;
+    for (std::size_t v = 0; v < indices; ++v) {
+      const auto at = static_cast<Eigen::Index>(3 * v);
+      surface_max = std::max(surface_max, (body.data.surface_positions.segment<3>(at) - rest_vertices.segment<3>(at)).norm());
+    }
+  } else {
+    vertices = body.model->surface_nodes.size();
+    for (int node : body.model->surface_nodes)
+      surface_max = std::max(surface_max, (x.segment<3>(3 * node) - rest.segment<3>(3 * node)).norm());
+  }
+  return surface_max;
+}
+
+// metrics.json `positions_digest`: over every node of every body, in body order.
+struct PositionsDigest {
   std::array<double, 3> centroid{};
   double mean_displacement = 0, max_displacement = 0;
+};
+
+// metrics.json `bodies`; `digest` receives the positions digest, summed in the same pass.
+Json bodies_json(const World& world, PositionsDigest& digest) {
   std::size_t nodes = 0;
   Json bodies = Json::array();
   for (const auto& body : world.bodies()) {
@@ -339,32 +406,16 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     const auto& rest = body.data.mechanics->rest_positions();
     const int n = body.data.mechanics->node_count();
     for (int i = 0; i < n; ++i) {
-      for (int c = 0; c < 3; ++c) centroid[c] += x[3 * i + c];
+      for (int c = 0; c < 3; ++c) digest.centroid[c] += x[3 * i + c];
       double d = (x.segment<3>(3 * i) - rest.segment<3>(3 * i)).norm();
-      mean_displacement += d;
-      max_displacement = std::max(max_displacement, d);
+      digest.mean_displacement += d;
+      digest.max_displacement = std::max(digest.max_displacement, d);
     }
     nodes += static_cast<std::size_t>(n);
     int fixed = 0;
     for (auto f : body.data.fixed) fixed += f;
-    // What the user sees moved: the surface vertices (nodes of a tetrahedral body; embedded
-    // vertices of a meshless one, whose particles may lie outside the body).
-    double surface_max = 0;
     std::size_t surface_vertices = 0;
-    if (body.data.embedding) {
-      physics::Vector rest_vertices;
-      physics::CorotationalEfg::surface_positions(*body.data.embedding, rest, rest_vertices);
-      const auto indices = static_cast<std::size_t>(body.data.embedding->vertex_count());
-      surface_vertices = indices;
-      for (std::size_t v = 0; v < indices; ++v) {
-        const auto at = static_cast<Eigen::Index>(3 * v);
-        surface_max = std::max(surface_max, (body.data.surface_positions.segment<3>(at) - rest_vertices.segment<3>(at)).norm());
-      }
-    } else {
-      surface_vertices = body.model->surface_nodes.size();
-      for (int node : body.model->surface_nodes)
-        surface_max = std::max(surface_max, (x.segment<3>(3 * node) - rest.segment<3>(3 * node)).norm());
-    }
+    const double surface_max = surface_max_displacement(body, surface_vertices);
     bodies.push_back({{"name", body.model->name},
                       {"model", body.data.embedding ? "efg_corotated" : "fem_corotational_tet4"},
                       {"surface_vertices", surface_vertices},
@@ -375,142 +426,196 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
                       {"fixed_nodes", fixed},
                       {"surface_triangles", body.data.surface.size()}});
   }
-  for (auto& c : centroid) c /= static_cast<double>(std::max<std::size_t>(nodes, 1));
-  mean_displacement /= static_cast<double>(std::max<std::size_t>(nodes, 1));
-  const StepStats last = stats.empty() ? StepStats{} : stats.back();
-  long dofs_final = 0;
-  for (const auto& body : world.bodies()) dofs_final += 3L * body.data.mechanics->node_count();
+  for (auto& c : digest.centroid) c /= static_cast<double>(std::max<std::size_t>(nodes, 1));
+  digest.mean_displacement /= static_cast<double>(std::max<std::size_t>(nodes, 1));
+  return bodies;
+}
 
-  Json metrics = {
+// metrics.json before the optional sections: the run, its timings, the solver, the state.
+Json run_metrics(const Scene& scene, const World& world, const RunOutcome& run, const RunPlan& plan,
+                 long dofs_initial, const Json& trajectory_json) {
+  const auto& stats = run.stats;
+  const StepTotals t = gather_steps(stats);
+  PositionsDigest digest;
+  const Json bodies = bodies_json(world, digest);
+  const StepStats last = stats.empty() ? StepStats{} : stats.back();
+  const long dofs_final = count_dofs(world);
+  return {
       {"scene", scene.name},
       {"scene_file", scene.file.string()},
       {"backend", backend_json(world)},
       {"steps", stats.size()},
-      {"steps_requested", steps},
+      {"steps_requested", plan.steps},
       {"dt_s", scene.solver.dt},
       {"sim_time_s", world.time()},
-      {"wall_time_s", wall},
-      {"ms_per_step", {{"median", percentile(total, 0.5)}, {"p95", percentile(total, 0.95)},
-                       {"max", total.empty() ? 0 : *std::max_element(total.begin(), total.end())}}},
-      {"phases_ms", {{"tool_input", percentile(tool_input, 0.5)}, {"cut", percentile(cut_phase, 0.5)}, {"contact", percentile(contact, 0.5)},
-                     {"solve", percentile(solve, 0.5)}, {"surface", percentile(surface, 0.5)}}},
-      {"cg_iterations", {{"mean", stats.empty() ? 0.0 : cg_sum / static_cast<double>(stats.size())},
-                         {"max", cg_max}}},
-      {"cg_residual_max", cg_residual_max},
-      {"cg_not_converged_steps", not_converged},
-      {"nonfinite_events", nonfinite},
+      {"wall_time_s", run.wall},
+      {"ms_per_step", {{"median", percentile(t.total, 0.5)}, {"p95", percentile(t.total, 0.95)},
+                       {"max", t.total.empty() ? 0 : *std::max_element(t.total.begin(), t.total.end())}}},
+      {"phases_ms", {{"tool_input", percentile(t.tool_input, 0.5)}, {"cut", percentile(t.cut_phase, 0.5)}, {"contact", percentile(t.contact, 0.5)},
+                     {"solve", percentile(t.solve, 0.5)}, {"surface", percentile(t.surface, 0.5)}}},
+      {"cg_iterations", {{"mean", stats.empty() ? 0.0 : t.cg_sum / static_cast<double>(stats.size())},
+                         {"max", t.cg_max}}},
+      {"cg_residual_max", t.cg_residual_max},
+      {"cg_not_converged_steps", t.not_converged},
+      {"nonfinite_events", t.nonfinite},
       {"guards", guards_json(world)},
       {"energy_J", {{"elastic", last.elastic_energy}, {"kinetic", last.kinetic_energy}}},
-      {"positions_digest", {{"centroid", centroid},
-                            {"mean_displacement", mean_displacement},
-                            {"max_displacement", max_displacement}}},
+      {"positions_digest", {{"centroid", digest.centroid},
+                            {"mean_displacement", digest.mean_displacement},
+                            {"max_displacement", digest.max_displacement}}},
       {"state_hash", hex64(world.state_hash())},
       {"motion_hash", hex64(world.motion_hash())},
       {"bodies", bodies},
-      {"tool", {{"max_force_N", max_force}, {"max_contacts", contacts_max}}},
+      {"tool", {{"max_force_N", t.max_force}, {"max_contacts", t.contacts_max}}},
       {"dofs", {{"initial", dofs_initial}, {"final", dofs_final}}},
       {"trajectory", trajectory_json},
   };
-  if (scene.solver.backend == "gpu") metrics["gpu"] = gpu_json(world, stats);
-  if (capture) {
-    metrics["frames"] = {{"count", capture->frames()},
-                         {"every_steps", capture_every},
-                         {"dir", frames_dir.string()},
-                         {"size", {width, height}},
-                         {"renderer", capture->renderer()},
-                         {"ms_render_median", capture->ms_render_median()}};
-    if (capture->failed()) {
-      metrics["frames"]["error"] = capture->error();
-      if (error.empty()) error = "off-screen capture failed: " + capture->error();
-    }
+}
+
+// metrics.json `frames`; a capture failure becomes the run's error unless it already has one.
+void add_frames_metrics(Json& metrics, const Capture& capture, const RunPlan& plan, std::string& error) {
+  metrics["frames"] = {{"count", capture.frames()},
+                       {"every_steps", plan.capture_every},
+                       {"dir", plan.frames_dir.string()},
+                       {"size", {plan.width, plan.height}},
+                       {"renderer", capture.renderer()},
+                       {"ms_render_median", capture.ms_render_median()}};
+  if (capture.failed()) {
+    metrics["frames"]["error"] = capture.error();
+    if (error.empty()) error = "off-screen capture failed: " + capture.error();
   }
-  ReplayResult result;
-  if (!error.empty()) {
-    metrics["error"] = error;
-    result.ok = false;
-  }
+}
+
+bool any_cuttable(const World& world) {
   bool cuttable = false;
   for (const auto& body : world.bodies()) cuttable = cuttable || body.cut != nullptr;
-  if (cuttable) {
-    // Cutting: events, what the CCD and the topology cost on the steps the blade was tested,
-    // the surface after the last event (and the worst over every event), the mapping.
-    std::vector<double> ccd, topology;
-    for (const auto& st : stats)
-      if (st.cut_tested) ccd.push_back(st.ms_ccd), topology.push_back(st.ms_topology);
-    const auto max_of = [](const std::vector<double>& v) { return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end()); };
-    const CutTotals& totals = world.cut_totals();
-    metrics["cut"] = {{"events", totals.events},
-                      {"steps_tested", ccd.size()},
-                      {"links_severed", totals.links_severed},
-                      {"links_severed_at_rest", totals.links_severed_at_rest},
-                      {"elements_reselected", totals.elements_reselected},
-                      {"isolated_elements", totals.isolated_elements},
-                      {"nonlocal_reselections", totals.nonlocal_reselections},
-                      {"reselection_failures", totals.reselection_failures},
-                      {"orphaned_particles", totals.orphaned_particles},
-                      {"positive_mass_elements", totals.positive_mass_elements},
-                      {"deactivated_elements", totals.deactivated_elements},
-                      {"masses_floored", totals.masses_floored},
-                      {"elements_linked_across", totals.elements_linked_across},
-                      {"ms_ccd", {{"median", percentile(ccd, 0.5)}, {"max", max_of(ccd)}}},
-                      {"ms_topology", {{"median", percentile(topology, 0.5)}, {"max", max_of(topology)}}}};
-    long vertices = 0, triangles = 0;
-    int boundary = 0, nonmanifold = 0;
-    for (const auto& body : world.bodies()) {
-      vertices += static_cast<long>(body.data.surface_positions.size() / 3);
-      triangles += static_cast<long>(body.data.surface.size());
-      const physics::SurfaceTopology topology_now = physics::surface_topology(body.data.surface);
-      boundary += topology_now.boundary_edges;
-      nonmanifold += topology_now.nonmanifold_edges;
-    }
-    metrics["surface"] = {{"vertices", vertices},
-                          {"triangles", triangles},
-                          {"boundary_edges", boundary},
-                          {"nonmanifold_edges", nonmanifold},
-                          {"watertight", boundary == 0 && nonmanifold == 0},
-                          {"worst_boundary_edges", totals.worst_boundary_edges},
-                          {"worst_nonmanifold_edges", totals.worst_nonmanifold_edges},
-                          {"watertight_after_every_event", totals.worst_boundary_edges == 0 && totals.worst_nonmanifold_edges == 0},
-                          {"front_problems", totals.front_problems},
-                          {"first_front_problem", totals.first_front_problem},
-                          {"front_folded_edges", totals.front_folded_edges},
-                          {"front_strokes_carried_through", totals.front_strokes_carried_through}};
-    metrics["mapping"] = {{"vertices_remapped", totals.vertices_remapped},
-                          {"relaxed_fallbacks", totals.relaxed_fallbacks},
-                          {"wrong_side", totals.wrong_side}};
+  return cuttable;
+}
+
+// metrics.json `cut`: the events, and what the CCD and the topology cost on the steps the
+// blade was tested.
+Json cut_json(const CutTotals& totals, const std::vector<StepStats>& stats) {
+  std::vector<double> ccd, topology;
+  for (const auto& st : stats)
+    if (st.cut_tested) ccd.push_back(st.ms_ccd), topology.push_back(st.ms_topology);
+  const auto max_of = [](const std::vector<double>& v) { return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end()); };
+  return {{"events", totals.events},
+          {"steps_tested", ccd.size()},
+          {"links_severed", totals.links_severed},
+          {"links_severed_at_rest", totals.links_severed_at_rest},
+          {"elements_reselected", totals.elements_reselected},
+          {"isolated_elements", totals.isolated_elements},
+          {"nonlocal_reselections", totals.nonlocal_reselections},
+          {"reselection_failures", totals.reselection_failures},
+          {"orphaned_particles", totals.orphaned_particles},
+          {"positive_mass_elements", totals.positive_mass_elements},
+          {"deactivated_elements", totals.deactivated_elements},
+          {"masses_floored", totals.masses_floored},
+          {"elements_linked_across", totals.elements_linked_across},
+          {"ms_ccd", {{"median", percentile(ccd, 0.5)}, {"max", max_of(ccd)}}},
+          {"ms_topology", {{"median", percentile(topology, 0.5)}, {"max", max_of(topology)}}}};
+}
+
+// metrics.json `surface`: the surface after the last event, and the worst over every event.
+Json surface_json(const World& world, const CutTotals& totals) {
+  long vertices = 0, triangles = 0;
+  int boundary = 0, nonmanifold = 0;
+  for (const auto& body : world.bodies()) {
+    vertices += static_cast<long>(body.data.surface_positions.size() / 3);
+    triangles += static_cast<long>(body.data.surface.size());
+    const physics::SurfaceTopology topology_now = physics::surface_topology(body.data.surface);
+    boundary += topology_now.boundary_edges;
+    nonmanifold += topology_now.nonmanifold_edges;
   }
-  // The scene's expectations, against every metric above (the cut's too).
-  if (!scene.expect.empty()) {
-    Json expect = Json::array();
-    for (const auto& r : check_expectations(scene, metrics)) {
-      Json item = {{"metric", r.metric}, {"passed", r.passed}};
-      item["value"] = r.value ? Json(*r.value) : Json(nullptr);
-      if (r.min) item["min"] = *r.min;
-      if (r.max) item["max"] = *r.max;
-      expect.push_back(item);
-    }
-    metrics["expect"] = expect;
+  return {{"vertices", vertices},
+          {"triangles", triangles},
+          {"boundary_edges", boundary},
+          {"nonmanifold_edges", nonmanifold},
+          {"watertight", boundary == 0 && nonmanifold == 0},
+          {"worst_boundary_edges", totals.worst_boundary_edges},
+          {"worst_nonmanifold_edges", totals.worst_nonmanifold_edges},
+          {"watertight_after_every_event", totals.worst_boundary_edges == 0 && totals.worst_nonmanifold_edges == 0},
+          {"front_problems", totals.front_problems},
+          {"first_front_problem", totals.first_front_problem},
+          {"front_folded_edges", totals.front_folded_edges},
+          {"front_strokes_carried_through", totals.front_strokes_carried_through}};
+}
+
+// metrics.json `mapping`: how the surface vertices were carried to the cut volume.
+Json mapping_json(const CutTotals& totals) {
+  return {{"vertices_remapped", totals.vertices_remapped},
+          {"relaxed_fallbacks", totals.relaxed_fallbacks},
+          {"wrong_side", totals.wrong_side}};
+}
+
+// metrics.json `expect`: the scene's expectations, against every metric already there.
+Json expect_json(const Scene& scene, const Json& metrics) {
+  Json expect = Json::array();
+  for (const auto& r : check_expectations(scene, metrics)) {
+    Json item = {{"metric", r.metric}, {"passed", r.passed}};
+    item["value"] = r.value ? Json(*r.value) : Json(nullptr);
+    if (r.min) item["min"] = *r.min;
+    if (r.max) item["max"] = *r.max;
+    expect.push_back(item);
   }
-  {
-    // One row per step for plots and review: where time went and what the tool felt.
-    common::CsvWriter steps_csv(
-        options.out_dir / "steps.csv",
-        {"step", "time_s", "ms_total", "ms_tool_input", "ms_contact", "ms_solve", "ms_surface", "cg_iterations",
-         "cg_residual", "contacts", "tool_force_x", "tool_force_y", "tool_force_z", "elastic_energy_J",
-         "kinetic_energy_J", "ms_ccd", "ms_topology", "links_severed", "ms_rest_cut", "ms_reselect",
-         "ms_surface_rebuild", "ms_mapping", "ms_checks", "ms_front_cut", "ms_front_wait"});
-    for (std::size_t k = 0; k < stats.size(); ++k) {
-      const auto& s = stats[k];
-      steps_csv.row(k + 1, static_cast<double>(k + 1) * scene.solver.dt, s.ms_total, s.ms_tool_input, s.ms_contact,
-                    s.ms_solve, s.ms_surface, s.cg_iterations, s.cg_residual, s.contacts, s.tool_force[0],
-                    s.tool_force[1], s.tool_force[2], s.elastic_energy, s.kinetic_energy, s.ms_ccd, s.ms_topology,
-                    s.links_severed, s.ms_rest_cut, s.ms_reselect, s.ms_surface_rebuild, s.ms_mapping, s.ms_checks,
-                    s.ms_front_cut, s.ms_front_wait);
-    }
+  return expect;
+}
+
+// steps.csv, one row per step for plots and review: where time went and what the tool felt.
+void write_steps_csv(const std::filesystem::path& file, const std::vector<StepStats>& stats, double dt) {
+  common::CsvWriter steps_csv(
+      file,
+      {"step", "time_s", "ms_total", "ms_tool_input", "ms_contact", "ms_solve", "ms_surface", "cg_iterations",
+       "cg_residual", "contacts", "tool_force_x", "tool_force_y", "tool_force_z", "elastic_energy_J",
+       "kinetic_energy_J", "ms_ccd", "ms_topology", "links_severed", "ms_rest_cut", "ms_reselect",
+       "ms_surface_rebuild", "ms_mapping", "ms_checks", "ms_front_cut", "ms_front_wait"});
+  for (std::size_t k = 0; k < stats.size(); ++k) {
+    const auto& s = stats[k];
+    steps_csv.row(k + 1, static_cast<double>(k + 1) * dt, s.ms_total, s.ms_tool_input, s.ms_contact,
+                  s.ms_solve, s.ms_surface, s.cg_iterations, s.cg_residual, s.contacts, s.tool_force[0],
+                  s.tool_force[1], s.tool_force[2], s.elastic_energy, s.kinetic_energy, s.ms_ccd, s.ms_topology,
+                  s.links_severed, s.ms_rest_cut, s.ms_reselect, s.ms_surface_rebuild, s.ms_mapping, s.ms_checks,
+                  s.ms_front_cut, s.ms_front_wait);
   }
-  std::ofstream out(options.out_dir / "metrics.json");
+}
+
+void write_metrics_json(const std::filesystem::path& file, const Json& metrics) {
+  std::ofstream out(file);
   out << metrics.dump(2) << "\n";
-  if (!out) throw std::runtime_error((options.out_dir / "metrics.json").string() + ": cannot write");
+  if (!out) throw std::runtime_error(file.string() + ": cannot write");
+}
+
+}  // namespace
+
+ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
+  Json trajectory_json;
+  std::optional<Trajectory> trajectory = load_trajectory(scene, options, trajectory_json);
+  World world(scene, std::move(trajectory));
+  const long dofs_initial = count_dofs(world);  // before any step: cutting must never change it
+  const RunPlan plan = plan_run(scene, options);
+
+  std::filesystem::create_directories(options.out_dir);
+  std::unique_ptr<Capture> capture = start_capture(plan);
+  RunOutcome run = run_steps(world, scene, options, plan, capture.get());
+
+  Json metrics = run_metrics(scene, world, run, plan, dofs_initial, trajectory_json);
+  if (scene.solver.backend == "gpu") metrics["gpu"] = gpu_json(world, run.stats);
+  if (capture) add_frames_metrics(metrics, *capture, plan, run.error);
+  ReplayResult result;
+  if (!run.error.empty()) {
+    metrics["error"] = run.error;
+    result.ok = false;
+  }
+  if (any_cuttable(world)) {
+    const CutTotals& totals = world.cut_totals();
+    metrics["cut"] = cut_json(totals, run.stats);
+    metrics["surface"] = surface_json(world, totals);
+    metrics["mapping"] = mapping_json(totals);
+  }
+  // After every other metric: an expectation may name any of them (the cut's too).
+  if (!scene.expect.empty()) metrics["expect"] = expect_json(scene, metrics);
+  write_steps_csv(options.out_dir / "steps.csv", run.stats, scene.solver.dt);
+  write_metrics_json(options.out_dir / "metrics.json", metrics);
   result.metrics = std::move(metrics);
   return result;
 }

@@ -278,6 +278,174 @@ BodySpec read_body(const Json& node, const std::string& path, const std::filesys
   return b;
 }
 
+// `bodies`: a non-empty array of bodies (read_body), no name used twice.
+void read_bodies(Reader& r, const Json& bodies, const std::filesystem::path& file, std::vector<BodySpec>& out,
+                 std::vector<std::string>& errors) {
+  if (!bodies.is_array() || bodies.empty()) {
+    r.error("bodies", "must be a non-empty array");
+    return;
+  }
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < bodies.size(); ++i) {
+    std::string path = "bodies[" + std::to_string(i) + "]";
+    out.push_back(read_body(bodies[i], path, file, errors));
+    const auto& n = out.back().name;
+    if (!n.empty() && !names.insert(n).second) r.error(path + ".name", "'" + n + "' is used twice");
+  }
+}
+
+// `tool.edge`: a blade's cutting edge, 2 to 64 distinct consecutive points in the tool's frame.
+void read_edge(Reader& tr, const Json& edge, bool blade, std::vector<Point>& out) {
+  if (!blade) {
+    tr.error("tool.edge", "only a blade has a cutting edge");
+    return;
+  }
+  if (!edge.is_array() || edge.size() < 2 || edge.size() > 64) {
+    tr.error("tool.edge", "must be an array of 2 to 64 points [x, y, z] (the cutting edge in the tool's frame)");
+    return;
+  }
+  for (std::size_t i = 0; i < edge.size(); ++i) {
+    const Json& point = edge[i];
+    const std::string where = "tool.edge[" + std::to_string(i) + "]";
+    bool ok = point.is_array() && point.size() == 3;
+    for (std::size_t c = 0; ok && c < 3; ++c)
+      ok = point[c].is_number() && std::isfinite(point[c].get<double>()) && std::abs(point[c].get<double>()) <= 1;
+    if (!ok) {
+      tr.error(where, "must be an array of 3 finite numbers within [-1, 1] m");
+      continue;
+    }
+    out.push_back({point[0].get<double>(), point[1].get<double>(), point[2].get<double>()});
+  }
+  for (std::size_t i = 1; i < out.size(); ++i) {
+    double length = 0;
+    for (int c = 0; c < 3; ++c) length += (out[i][c] - out[i - 1][c]) * (out[i][c] - out[i - 1][c]);
+    if (!(length > 1e-12)) tr.error("tool.edge[" + std::to_string(i) + "]", "repeats the point before it");
+  }
+}
+
+ToolSpec read_tool(const Json& tool, const std::filesystem::path& file, std::vector<std::string>& errors) {
+  Reader tr(tool, "tool", errors);
+  ToolSpec t;
+  t.shape = tr.text("shape", true, "sphere", {"sphere", "capsule", "blade"});
+  const bool blade = t.shape == "blade";
+  t.radius = tr.number("radius", !blade, blade ? 0.0005 : 0.005, 0, 1, true);
+  t.length = tr.number("length", t.shape == "capsule", 0, 0, 10);
+  t.stiffness = tr.number("stiffness", false, 500, 0, 1e9, true);
+  if (const Json* edge = tr.get("edge", blade)) read_edge(tr, *edge, blade, t.edge);
+  // Optional: a replay needs one (or --trajectory); a live session's device drives the tool.
+  if (const Json* traj = tr.get("trajectory", false)) {
+    if (!traj->is_string()) {
+      tr.error("tool.trajectory", "must be a file path (string)");
+    } else {
+      t.trajectory = resolve(file, traj->get<std::string>());
+      if (!std::filesystem::exists(*t.trajectory))
+        tr.error("tool.trajectory", "file '" + t.trajectory->string() + "' does not exist");
+    }
+  }
+  return t;
+}
+
+void read_solver(const Json& solver, SolverSpec& s, std::vector<std::string>& errors) {
+  Reader sr(solver, "solver", errors);
+  s.dt = sr.number("dt", true, 0.01, 0, 0.1, true);
+  s.tolerance = sr.number("tolerance", false, 1e-6, 0, 1, true, true);
+  s.max_iterations = sr.integer("max_iterations", false, 200, 1, 100000);
+  s.backend = sr.text("backend", false, "cpu", {"cpu", "gpu"});
+  s.precision = sr.text("precision", false, "single", {"single", "double"});
+  s.batch_rows = sr.integer("batch_rows", false, 256, 1, 1000000);
+  s.gravity = sr.point("gravity", false, {0, 0, -9.81}, -1e4, 1e4);
+  s.duration = sr.number("duration", true, 1, 0, 1e5, true);
+  s.max_retries = sr.integer("max_retries", false, 3, 0, 20);
+  s.start = sr.text("start", false, "rest", {"rest", "settled"});
+}
+
+// One load: a body named in `bodies`, a region, and force events at increasing times.
+LoadSpec read_load(const Json& node, const std::string& path, const std::vector<BodySpec>& bodies,
+                   std::vector<std::string>& errors) {
+  Reader lr(node, path, errors);
+  LoadSpec l;
+  l.body = lr.text("body", true, "");
+  bool known = false;
+  for (const auto& b : bodies) known = known || b.name == l.body;
+  if (lr.has("body") && !l.body.empty() && !known)
+    lr.error(path + ".body", "no body is named '" + l.body + "'");
+  if (const Json* region = lr.get("region", true)) l.region = read_box(*region, path + ".region", errors);
+  if (const Json* events = lr.get("events", true)) {
+    if (!events->is_array() || events->empty()) {
+      lr.error(path + ".events", "must be a non-empty array of {\"t\": s, \"force\": [N, N, N]}");
+    } else {
+      for (std::size_t k = 0; k < events->size(); ++k) {
+        std::string epath = path + ".events[" + std::to_string(k) + "]";
+        Reader er((*events)[k], epath, errors);
+        LoadEvent e;
+        e.time = er.number("t", true, 0, 0, 1e6);
+        e.force = er.point("force", true, {}, -1e6, 1e6);
+        if (!l.events.empty() && !(e.time > l.events.back().time))
+          er.error(epath + ".t", "times must increase (" + number_text(e.time) +
+                                     " follows " + number_text(l.events.back().time) + ")");
+        l.events.push_back(e);
+      }
+    }
+  }
+  return l;
+}
+
+void read_loads(Reader& r, const Json& loads, const std::vector<BodySpec>& bodies, std::vector<LoadSpec>& out,
+                std::vector<std::string>& errors) {
+  if (!loads.is_array()) {
+    r.error("loads", "must be an array");
+    return;
+  }
+  for (std::size_t i = 0; i < loads.size(); ++i)
+    out.push_back(read_load(loads[i], "loads[" + std::to_string(i) + "]", bodies, errors));
+}
+
+void read_render(const Json& render, RenderSpec& s, std::vector<std::string>& errors) {
+  Reader rr(render, "render", errors);
+  s.capture_every = rr.integer("capture_every", false, 0, 0, 1000000);
+  if (const Json* size = rr.get("size", false)) {
+    if (!size->is_array() || size->size() != 2 || !(*size)[0].is_number_integer() ||
+        !(*size)[1].is_number_integer() || (*size)[0].get<long long>() < 16 ||
+        (*size)[1].get<long long>() < 16 || (*size)[0].get<long long>() > 8192 ||
+        (*size)[1].get<long long>() > 8192) {
+      rr.error("render.size", "must be [width, height], integers in [16, 8192]");
+    } else {
+      s.width = (*size)[0].get<int>();
+      s.height = (*size)[1].get<int>();
+    }
+  }
+  if (const Json* cam = rr.get("camera", false)) {
+    Reader cr(*cam, "render.camera", errors);
+    CameraSpec c;
+    c.eye = cr.point("eye", true, {});
+    c.target = cr.point("target", true, {});
+    c.fov_deg = cr.number("fov_deg", false, 40, 1, 170);
+    if (c.eye == c.target) cr.error("render.camera.eye", "must differ from target");
+    s.camera = c;
+  }
+  s.floor = rr.boolean("floor", true);
+  s.floor_z = rr.number("floor_z", false, 0, -1e6, 1e6);
+}
+
+// `expect`: per metric path, a min, a max or both.
+void read_expect(Reader& r, const Json& expect, std::vector<Expectation>& out, std::vector<std::string>& errors) {
+  if (!expect.is_object()) {
+    r.error("expect", "must be an object {\"metric.path\": {\"min\": x, \"max\": y}}");
+    return;
+  }
+  for (const auto& [key, value] : expect.items()) {
+    std::string path = "expect." + key;
+    Reader er(value, path, errors);
+    Expectation e;
+    e.metric = key;
+    if (er.has("min")) e.min = er.number("min", true, 0, -1e300, 1e300);
+    if (er.has("max")) e.max = er.number("max", true, 0, -1e300, 1e300);
+    if (value.is_object() && !e.min && !e.max) er.error(path, "needs 'min' or 'max'");
+    if (e.min && e.max && *e.min > *e.max) er.error(path, "min is greater than max");
+    out.push_back(e);
+  }
+}
+
 }  // namespace
 
 SceneError::SceneError(const std::string& file, std::vector<std::string> errors)
@@ -302,166 +470,16 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
   Scene scene;
   scene.file = file;
   {
+    // Its unknown keys are reported when it goes out of scope, after every section's errors.
     Reader r(root, "", errors);
     scene.name = r.text("name", true, "");
     scene.description = r.text("description", false, "");
-
-    if (const Json* bodies = r.get("bodies", true)) {
-      if (!bodies->is_array() || bodies->empty()) {
-        r.error("bodies", "must be a non-empty array");
-      } else {
-        std::set<std::string> names;
-        for (std::size_t i = 0; i < bodies->size(); ++i) {
-          std::string path = "bodies[" + std::to_string(i) + "]";
-          scene.bodies.push_back(read_body((*bodies)[i], path, file, errors));
-          const auto& n = scene.bodies.back().name;
-          if (!n.empty() && !names.insert(n).second) r.error(path + ".name", "'" + n + "' is used twice");
-        }
-      }
-    }
-
-    if (const Json* tool = r.get("tool", false)) {
-      Reader tr(*tool, "tool", errors);
-      ToolSpec t;
-      t.shape = tr.text("shape", true, "sphere", {"sphere", "capsule", "blade"});
-      const bool blade = t.shape == "blade";
-      t.radius = tr.number("radius", !blade, blade ? 0.0005 : 0.005, 0, 1, true);
-      t.length = tr.number("length", t.shape == "capsule", 0, 0, 10);
-      t.stiffness = tr.number("stiffness", false, 500, 0, 1e9, true);
-      if (const Json* edge = tr.get("edge", blade)) {
-        if (!blade) {
-          tr.error("tool.edge", "only a blade has a cutting edge");
-        } else if (!edge->is_array() || edge->size() < 2 || edge->size() > 64) {
-          tr.error("tool.edge", "must be an array of 2 to 64 points [x, y, z] (the cutting edge in the tool's frame)");
-        } else {
-          for (std::size_t i = 0; i < edge->size(); ++i) {
-            const Json& point = (*edge)[i];
-            const std::string where = "tool.edge[" + std::to_string(i) + "]";
-            bool ok = point.is_array() && point.size() == 3;
-            for (std::size_t c = 0; ok && c < 3; ++c)
-              ok = point[c].is_number() && std::isfinite(point[c].get<double>()) && std::abs(point[c].get<double>()) <= 1;
-            if (!ok) {
-              tr.error(where, "must be an array of 3 finite numbers within [-1, 1] m");
-              continue;
-            }
-            t.edge.push_back({point[0].get<double>(), point[1].get<double>(), point[2].get<double>()});
-          }
-          for (std::size_t i = 1; i < t.edge.size(); ++i) {
-            double length = 0;
-            for (int c = 0; c < 3; ++c) length += (t.edge[i][c] - t.edge[i - 1][c]) * (t.edge[i][c] - t.edge[i - 1][c]);
-            if (!(length > 1e-12)) tr.error("tool.edge[" + std::to_string(i) + "]", "repeats the point before it");
-          }
-        }
-      }
-      // Optional: a replay needs one (or --trajectory); a live session's device drives the tool.
-      if (const Json* traj = tr.get("trajectory", false)) {
-        if (!traj->is_string()) {
-          tr.error("tool.trajectory", "must be a file path (string)");
-        } else {
-          t.trajectory = resolve(file, traj->get<std::string>());
-          if (!std::filesystem::exists(*t.trajectory))
-            tr.error("tool.trajectory", "file '" + t.trajectory->string() + "' does not exist");
-        }
-      }
-      scene.tool = t;
-    }
-
-    if (const Json* solver = r.get("solver", true)) {
-      Reader sr(*solver, "solver", errors);
-      auto& s = scene.solver;
-      s.dt = sr.number("dt", true, 0.01, 0, 0.1, true);
-      s.tolerance = sr.number("tolerance", false, 1e-6, 0, 1, true, true);
-      s.max_iterations = sr.integer("max_iterations", false, 200, 1, 100000);
-      s.backend = sr.text("backend", false, "cpu", {"cpu", "gpu"});
-      s.precision = sr.text("precision", false, "single", {"single", "double"});
-      s.batch_rows = sr.integer("batch_rows", false, 256, 1, 1000000);
-      s.gravity = sr.point("gravity", false, {0, 0, -9.81}, -1e4, 1e4);
-      s.duration = sr.number("duration", true, 1, 0, 1e5, true);
-      s.max_retries = sr.integer("max_retries", false, 3, 0, 20);
-      s.start = sr.text("start", false, "rest", {"rest", "settled"});
-    }
-
-    if (const Json* loads = r.get("loads", false)) {
-      if (!loads->is_array()) {
-        r.error("loads", "must be an array");
-      } else {
-        for (std::size_t i = 0; i < loads->size(); ++i) {
-          std::string path = "loads[" + std::to_string(i) + "]";
-          Reader lr((*loads)[i], path, errors);
-          LoadSpec l;
-          l.body = lr.text("body", true, "");
-          bool known = false;
-          for (const auto& b : scene.bodies) known = known || b.name == l.body;
-          if (lr.has("body") && !l.body.empty() && !known)
-            lr.error(path + ".body", "no body is named '" + l.body + "'");
-          if (const Json* region = lr.get("region", true)) l.region = read_box(*region, path + ".region", errors);
-          if (const Json* events = lr.get("events", true)) {
-            if (!events->is_array() || events->empty()) {
-              lr.error(path + ".events", "must be a non-empty array of {\"t\": s, \"force\": [N, N, N]}");
-            } else {
-              for (std::size_t k = 0; k < events->size(); ++k) {
-                std::string epath = path + ".events[" + std::to_string(k) + "]";
-                Reader er((*events)[k], epath, errors);
-                LoadEvent e;
-                e.time = er.number("t", true, 0, 0, 1e6);
-                e.force = er.point("force", true, {}, -1e6, 1e6);
-                if (!l.events.empty() && !(e.time > l.events.back().time))
-                  er.error(epath + ".t", "times must increase (" + number_text(e.time) +
-                                             " follows " + number_text(l.events.back().time) + ")");
-                l.events.push_back(e);
-              }
-            }
-          }
-          scene.loads.push_back(l);
-        }
-      }
-    }
-
-    if (const Json* render = r.get("render", false)) {
-      Reader rr(*render, "render", errors);
-      auto& s = scene.render;
-      s.capture_every = rr.integer("capture_every", false, 0, 0, 1000000);
-      if (const Json* size = rr.get("size", false)) {
-        if (!size->is_array() || size->size() != 2 || !(*size)[0].is_number_integer() ||
-            !(*size)[1].is_number_integer() || (*size)[0].get<long long>() < 16 ||
-            (*size)[1].get<long long>() < 16 || (*size)[0].get<long long>() > 8192 ||
-            (*size)[1].get<long long>() > 8192) {
-          rr.error("render.size", "must be [width, height], integers in [16, 8192]");
-        } else {
-          s.width = (*size)[0].get<int>();
-          s.height = (*size)[1].get<int>();
-        }
-      }
-      if (const Json* cam = rr.get("camera", false)) {
-        Reader cr(*cam, "render.camera", errors);
-        CameraSpec c;
-        c.eye = cr.point("eye", true, {});
-        c.target = cr.point("target", true, {});
-        c.fov_deg = cr.number("fov_deg", false, 40, 1, 170);
-        if (c.eye == c.target) cr.error("render.camera.eye", "must differ from target");
-        s.camera = c;
-      }
-      s.floor = rr.boolean("floor", true);
-      s.floor_z = rr.number("floor_z", false, 0, -1e6, 1e6);
-    }
-
-    if (const Json* expect = r.get("expect", false)) {
-      if (!expect->is_object()) {
-        r.error("expect", "must be an object {\"metric.path\": {\"min\": x, \"max\": y}}");
-      } else {
-        for (const auto& [key, value] : expect->items()) {
-          std::string path = "expect." + key;
-          Reader er(value, path, errors);
-          Expectation e;
-          e.metric = key;
-          if (er.has("min")) e.min = er.number("min", true, 0, -1e300, 1e300);
-          if (er.has("max")) e.max = er.number("max", true, 0, -1e300, 1e300);
-          if (value.is_object() && !e.min && !e.max) er.error(path, "needs 'min' or 'max'");
-          if (e.min && e.max && *e.min > *e.max) er.error(path, "min is greater than max");
-          scene.expect.push_back(e);
-        }
-      }
-    }
+    if (const Json* bodies = r.get("bodies", true)) read_bodies(r, *bodies, file, scene.bodies, errors);
+    if (const Json* tool = r.get("tool", false)) scene.tool = read_tool(*tool, file, errors);
+    if (const Json* solver = r.get("solver", true)) read_solver(*solver, scene.solver, errors);
+    if (const Json* loads = r.get("loads", false)) read_loads(r, *loads, scene.bodies, scene.loads, errors);
+    if (const Json* render = r.get("render", false)) read_render(*render, scene.render, errors);
+    if (const Json* expect = r.get("expect", false)) read_expect(r, *expect, scene.expect, errors);
   }
   if (!errors.empty()) throw SceneError(name, errors);
   return scene;

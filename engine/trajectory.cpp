@@ -283,27 +283,15 @@ void write_trajectory(const std::filesystem::path& file, const std::vector<ToolS
 
 // ---- reader ----
 
-Trajectory read_trajectory(const std::filesystem::path& file) {
-  FileHandle stream(std::fopen(file.c_str(), "rb"));
-  if (!stream) {
-    throw TrajectoryError(file, std::nullopt,
-                          "cannot open for reading: " + system_error_text(errno));
-  }
-  // The size is taken once: a file still being recorded keeps growing, and whatever arrives
-  // after this point is simply not part of this read.
-  std::error_code size_error;
-  const std::uint64_t file_bytes = std::filesystem::file_size(file, size_error);
-  if (size_error) {
-    throw TrajectoryError(file, std::nullopt, "cannot determine its size: " + size_error.message());
-  }
-  if (file_bytes == 0) {
-    throw TrajectoryError(file, 0, "the file is empty (0 bytes), not a trajectory");
-  }
+namespace {
 
+// Reads and checks the file header (the stream at its start, the file `file_bytes` long);
+// returns its size, where the first chunk starts. Throws on anything but a valid header.
+std::uint32_t read_header(std::FILE* stream, const std::filesystem::path& file, std::uint64_t file_bytes) {
   std::array<std::byte, kTrajectoryMaximumHeaderBytes> header{};
   const std::size_t header_prefix =
       static_cast<std::size_t>(std::min<std::uint64_t>(file_bytes, kTrajectoryMinimumHeaderBytes));
-  const std::size_t got = std::fread(header.data(), 1, header_prefix, stream.get());
+  const std::size_t got = std::fread(header.data(), 1, header_prefix, stream);
   const std::size_t magic_bytes = std::min(got, kFileMagic.size());
   // Comparing only what is there lets a trajectory cut inside its magic be called truncated
   // rather than foreign.
@@ -346,99 +334,146 @@ Trajectory read_trajectory(const std::filesystem::path& file) {
   }
   // Reserved header bytes are skipped unread so a later writer may use them.
   const std::size_t reserved = header_bytes - got;
-  if (std::fread(header.data() + got, 1, reserved, stream.get()) != reserved) {
+  if (std::fread(header.data() + got, 1, reserved, stream) != reserved) {
     throw TrajectoryError(file, got, "read error in the header: " + system_error_text(errno));
   }
+  return header_bytes;
+}
 
-  Trajectory trajectory;
-  auto& report = trajectory.report;
-  // Bounded by the file size, so a lying count cannot make this allocation large.
-  trajectory.samples.reserve(static_cast<std::size_t>((file_bytes - header_bytes) / kSampleBytes));
+struct ChunkHeader {
+  std::uint32_t sample_count = 0;
+  std::uint32_t payload_bytes = 0;
+  std::uint32_t stored_checksum = 0;
+};
 
-  std::uint64_t offset = header_bytes;
-  std::vector<std::byte> payload;
-  std::vector<ToolSample> decoded;
-  std::optional<double> previous_time;
-  for (std::size_t chunk = 0; offset < file_bytes; ++chunk) {
-    const std::uint64_t remaining = file_bytes - offset;
-    auto discard_rest = [&](const std::string& cause) {
-      report.complete = false;
-      report.bytes_discarded = static_cast<std::size_t>(remaining);
-      report.problem = "chunk " + std::to_string(chunk) + " at byte " + std::to_string(offset) +
-                       ": " + cause + "; " + std::to_string(remaining) +
-                       " bytes discarded (this chunk and everything after it)";
-    };
+// Reads the header of the chunk that starts `remaining` bytes before the end of the file and
+// checks that its payload fits there; returns the problem, if any.
+std::optional<std::string> read_chunk_header(std::FILE* stream, std::uint64_t remaining, ChunkHeader& header) {
+  std::array<std::byte, kChunkHeaderBytes> chunk_header{};
+  if (remaining < kChunkHeaderBytes) {
+    return "truncated chunk header (" + std::to_string(remaining) + " of " +
+           std::to_string(kChunkHeaderBytes) + " bytes present)";
+  }
+  if (std::fread(chunk_header.data(), 1, kChunkHeaderBytes, stream) != kChunkHeaderBytes) {
+    return "truncated chunk header (read failed: " + system_error_text(errno) + ")";
+  }
+  if (std::memcmp(chunk_header.data(), kChunkMagic.data(), kChunkMagic.size()) != 0) {
+    return "bad chunk magic (expected 43484e4b \"CHNK\", found " +
+           hex_bytes(chunk_header.data(), kChunkMagic.size()) + ")";
+  }
+  header.sample_count = get_u32(chunk_header.data() + 4);
+  header.payload_bytes = get_u32(chunk_header.data() + 8);
+  header.stored_checksum = get_u32(chunk_header.data() + 12);
+  if (header.sample_count > kMaximumSamplesPerChunk) {
+    return "implausible sample count " + std::to_string(header.sample_count) + " (at most " +
+           std::to_string(kMaximumSamplesPerChunk) + ")";
+  }
+  if (std::uint64_t{header.payload_bytes} != std::uint64_t{header.sample_count} * kSampleBytes) {
+    return "payload size " + std::to_string(header.payload_bytes) + " does not match " +
+           std::to_string(header.sample_count) + " samples of " + std::to_string(kSampleBytes) + " bytes";
+  }
+  if (remaining - kChunkHeaderBytes < header.payload_bytes) {
+    return "truncated chunk: its payload needs " + std::to_string(header.payload_bytes) + " bytes, only " +
+           std::to_string(remaining - kChunkHeaderBytes) + " present";
+  }
+  return std::nullopt;
+}
 
-    std::array<std::byte, kChunkHeaderBytes> chunk_header{};
-    if (remaining < kChunkHeaderBytes) {
-      discard_rest("truncated chunk header (" + std::to_string(remaining) + " of " +
-                   std::to_string(kChunkHeaderBytes) + " bytes present)");
-      break;
-    }
-    if (std::fread(chunk_header.data(), 1, kChunkHeaderBytes, stream.get()) != kChunkHeaderBytes) {
-      discard_rest("truncated chunk header (read failed: " + system_error_text(errno) + ")");
-      break;
-    }
-    if (std::memcmp(chunk_header.data(), kChunkMagic.data(), kChunkMagic.size()) != 0) {
-      discard_rest("bad chunk magic (expected 43484e4b \"CHNK\", found " +
-                   hex_bytes(chunk_header.data(), kChunkMagic.size()) + ")");
-      break;
-    }
-    const std::uint32_t sample_count = get_u32(chunk_header.data() + 4);
-    const std::uint32_t payload_bytes = get_u32(chunk_header.data() + 8);
-    const std::uint32_t stored_checksum = get_u32(chunk_header.data() + 12);
-    if (sample_count > kMaximumSamplesPerChunk) {
-      discard_rest("implausible sample count " + std::to_string(sample_count) + " (at most " +
-                   std::to_string(kMaximumSamplesPerChunk) + ")");
-      break;
-    }
-    if (std::uint64_t{payload_bytes} != std::uint64_t{sample_count} * kSampleBytes) {
-      discard_rest("payload size " + std::to_string(payload_bytes) + " does not match " +
-                   std::to_string(sample_count) + " samples of " + std::to_string(kSampleBytes) +
-                   " bytes");
-      break;
-    }
-    if (remaining - kChunkHeaderBytes < payload_bytes) {
-      discard_rest("truncated chunk: its payload needs " + std::to_string(payload_bytes) +
-                   " bytes, only " + std::to_string(remaining - kChunkHeaderBytes) + " present");
-      break;
-    }
-    payload.resize(payload_bytes);
-    if (std::fread(payload.data(), 1, payload_bytes, stream.get()) != payload_bytes) {
-      discard_rest("truncated chunk (read failed: " + system_error_text(errno) + ")");
-      break;
-    }
-    const std::uint32_t computed_checksum = trajectory_checksum(payload);
-    if (computed_checksum != stored_checksum) {
-      discard_rest("checksum mismatch (stored " + hex32(stored_checksum) + ", computed " +
-                   hex32(computed_checksum) + ")");
-      break;
-    }
-    // A chunk is taken whole or not at all, so its samples are checked before any is kept.
-    decoded.clear();
-    std::optional<std::string> sample_problem;
-    std::optional<double> chunk_previous_time = previous_time;
-    for (std::uint32_t i = 0; i < sample_count; ++i) {
-      const ToolSample sample = decode_sample(payload.data() + std::size_t{i} * kSampleBytes);
-      if (const auto problem = find_sample_problem(sample, chunk_previous_time)) {
-        sample_problem = "sample " + std::to_string(i) + " of the chunk (sample " +
-                         std::to_string(trajectory.samples.size() + i) +
-                         " of the file): " + *problem;
+// Reads the chunks after the file header in order. Whatever stands between them and the end
+// of the file as sized (a truncated, corrupt or invalid chunk) is discarded with everything
+// after it and reported, rather than thrown: a recording cut short keeps what came before.
+class ChunkReader {
+ public:
+  ChunkReader(std::FILE* stream, Trajectory& trajectory) : stream_(stream), trajectory_(trajectory) {}
+
+  void read(std::uint64_t offset, std::uint64_t file_bytes) {
+    auto& report = trajectory_.report;
+    for (std::size_t chunk = 0; offset < file_bytes; ++chunk) {
+      const std::uint64_t remaining = file_bytes - offset;
+      std::uint64_t chunk_bytes = 0;
+      if (const auto cause = read_chunk(remaining, chunk_bytes)) {
+        report.complete = false;
+        report.bytes_discarded = static_cast<std::size_t>(remaining);
+        report.problem = "chunk " + std::to_string(chunk) + " at byte " + std::to_string(offset) + ": " + *cause +
+                         "; " + std::to_string(remaining) + " bytes discarded (this chunk and everything after it)";
         break;
       }
-      chunk_previous_time = sample.time;
-      decoded.push_back(sample);
+      ++report.chunks_read;
+      offset += chunk_bytes;
     }
-    if (sample_problem) {
-      discard_rest("invalid sample: " + *sample_problem);
-      break;
-    }
-    trajectory.samples.insert(trajectory.samples.end(), decoded.begin(), decoded.end());
-    previous_time = chunk_previous_time;
-    ++report.chunks_read;
-    offset += kChunkHeaderBytes + payload_bytes;
   }
-  report.samples_read = trajectory.samples.size();
+
+ private:
+  // Appends the next chunk's samples and sets `chunk_bytes` to its size, or returns why the
+  // chunk cannot be taken.
+  std::optional<std::string> read_chunk(std::uint64_t remaining, std::uint64_t& chunk_bytes) {
+    ChunkHeader header;
+    if (auto problem = read_chunk_header(stream_, remaining, header)) return problem;
+    payload_.resize(header.payload_bytes);
+    if (std::fread(payload_.data(), 1, header.payload_bytes, stream_) != header.payload_bytes) {
+      return "truncated chunk (read failed: " + system_error_text(errno) + ")";
+    }
+    const std::uint32_t computed_checksum = trajectory_checksum(payload_);
+    if (computed_checksum != header.stored_checksum) {
+      return "checksum mismatch (stored " + hex32(header.stored_checksum) + ", computed " +
+             hex32(computed_checksum) + ")";
+    }
+    if (auto problem = decode_payload(header.sample_count)) return "invalid sample: " + *problem;
+    trajectory_.samples.insert(trajectory_.samples.end(), decoded_.begin(), decoded_.end());
+    chunk_bytes = kChunkHeaderBytes + header.payload_bytes;
+    return std::nullopt;
+  }
+
+  // A chunk is taken whole or not at all, so its samples are decoded and checked before any
+  // is kept; the time the next chunk must not go back from advances only when all pass.
+  std::optional<std::string> decode_payload(std::uint32_t sample_count) {
+    decoded_.clear();
+    std::optional<double> chunk_previous_time = previous_time_;
+    for (std::uint32_t i = 0; i < sample_count; ++i) {
+      const ToolSample sample = decode_sample(payload_.data() + std::size_t{i} * kSampleBytes);
+      if (const auto problem = find_sample_problem(sample, chunk_previous_time)) {
+        return "sample " + std::to_string(i) + " of the chunk (sample " +
+               std::to_string(trajectory_.samples.size() + i) + " of the file): " + *problem;
+      }
+      chunk_previous_time = sample.time;
+      decoded_.push_back(sample);
+    }
+    previous_time_ = chunk_previous_time;
+    return std::nullopt;
+  }
+
+  std::FILE* stream_;
+  Trajectory& trajectory_;
+  std::vector<std::byte> payload_;     // reused
+  std::vector<ToolSample> decoded_;    // reused
+  std::optional<double> previous_time_;  // of the last sample kept
+};
+
+}  // namespace
+
+Trajectory read_trajectory(const std::filesystem::path& file) {
+  FileHandle stream(std::fopen(file.c_str(), "rb"));
+  if (!stream) {
+    throw TrajectoryError(file, std::nullopt,
+                          "cannot open for reading: " + system_error_text(errno));
+  }
+  // The size is taken once: a file still being recorded keeps growing, and whatever arrives
+  // after this point is simply not part of this read.
+  std::error_code size_error;
+  const std::uint64_t file_bytes = std::filesystem::file_size(file, size_error);
+  if (size_error) {
+    throw TrajectoryError(file, std::nullopt, "cannot determine its size: " + size_error.message());
+  }
+  if (file_bytes == 0) {
+    throw TrajectoryError(file, 0, "the file is empty (0 bytes), not a trajectory");
+  }
+  const std::uint32_t header_bytes = read_header(stream.get(), file, file_bytes);
+
+  Trajectory trajectory;
+  // Bounded by the file size, so a lying count cannot make this allocation large.
+  trajectory.samples.reserve(static_cast<std::size_t>((file_bytes - header_bytes) / kSampleBytes));
+  ChunkReader(stream.get(), trajectory).read(header_bytes, file_bytes);
+  trajectory.report.samples_read = trajectory.samples.size();
   return trajectory;
 }
 

@@ -169,6 +169,7 @@ struct VolumeCutter::RestSearch {
   LooseSet loose;               // re-selected since the rebuild: tested apart
   long rebuilds = 0;
   PointMemo points;             // per call: the points formed so far
+  std::vector<std::pair<int, double>> candidates;  // reused: element, squared distance
 };
 
 VolumeCutter::VolumeCutter(CorotationalEfg& model, double margin, double slack)
@@ -407,10 +408,13 @@ VolumeCutReport VolumeCutter::cut(std::span<const Vec3> blade_start, std::span<c
   return cut(poses, fractions, active, particles_start, particles_end);
 }
 
-VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses, std::span<const double> fractions,
-                                  std::span<const std::uint8_t> active, const Vector& particles_start,
-                                  const Vector& particles_end, const RestVisibility* rest_cut) {
-  const Eigen::Index size = 3 * static_cast<Eigen::Index>(model_.node_count());
+namespace {
+
+// Throws std::invalid_argument, naming it, on a sweep or positions cut() cannot take (`size`:
+// the model's 3n), before anything changes.
+void check_sweep(std::span<const std::vector<Vec3>> blade_poses, std::span<const double> fractions,
+                 std::span<const std::uint8_t> active, const Vector& particles_start, const Vector& particles_end,
+                 Eigen::Index size) {
   if (blade_poses.size() < 2 || fractions.size() != blade_poses.size() || active.size() + 1 != blade_poses.size()) {
     fail("a sweep needs at least 2 blade poses, one fraction per pose and one active flag per interval, got " +
          std::to_string(blade_poses.size()) + ", " + std::to_string(fractions.size()) + " and " +
@@ -434,6 +438,27 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
   }
   check_finite(particles_start, "particles at the start of the step");
   check_finite(particles_end, "particles at the end of the step");
+}
+
+// The box of the blade's poses at the ends of the active sub-intervals (lo > hi when none is
+// active).
+std::array<Vec3, 2> swept_region(std::span<const std::vector<Vec3>> blade_poses, std::span<const std::uint8_t> active) {
+  Vec3 near_lo = Vec3::Constant(std::numeric_limits<double>::infinity()), near_hi = -near_lo;
+  for (size_t j = 0; j + 1 < blade_poses.size(); ++j) {
+    if (!active[j]) continue;
+    for (size_t end = j; end <= j + 1; ++end)
+      for (const Vec3& point : blade_poses[end]) near_lo = near_lo.cwiseMin(point), near_hi = near_hi.cwiseMax(point);
+  }
+  return {near_lo, near_hi};
+}
+
+}  // namespace
+
+VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses, std::span<const double> fractions,
+                                  std::span<const std::uint8_t> active, const Vector& particles_start,
+                                  const Vector& particles_end, const RestVisibility* rest_cut) {
+  check_sweep(blade_poses, fractions, active, particles_start, particles_end,
+              3 * static_cast<Eigen::Index>(model_.node_count()));
 
   VolumeCutReport report;
   const auto clock_start = std::chrono::steady_clock::now();
@@ -443,31 +468,39 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
   step_points_->begin(model_.element_count(), particles_start, particles_end);
   // The region the blade sweeps this step, grown by the broad phase's margin (what the narrow
   // test can touch beyond the blade): a link whose swept box misses it cannot reach the blade.
-  Vec3 near_lo = Vec3::Constant(std::numeric_limits<double>::infinity()), near_hi = -near_lo;
-  for (size_t j = 0; j + 1 < blade_poses.size(); ++j) {
-    if (!active[j]) continue;
-    for (size_t end = j; end <= j + 1; ++end)
-      for (const Vec3& point : blade_poses[end]) near_lo = near_lo.cwiseMin(point), near_hi = near_hi.cwiseMax(point);
-  }
+  const auto [near_lo, near_hi] = swept_region(blade_poses, active);
   const Vec3 grow = Vec3::Constant(2 * margin_ + 1e-9);
   refit(particles_start, particles_end, near_lo - grow, near_hi + grow);
 
+  SeveredLinks cut_from;
+  sever_swept_links(sweep, particles_start, particles_end, cut_from, report);
+  if (rest_cut && rest_cut->blocked) sever_at_rest(*rest_cut, cut_from, report);
+  total_links_severed_ += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;
+  const auto clock_ccd = std::chrono::steady_clock::now();
+  report.ms_ccd = std::chrono::duration<double, std::milli>(clock_ccd - clock_start).count();
+
+  reselect_severed(sweep, cut_from, rest_cut, particles_start, particles_end, report);
+  report.ms_topology = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - clock_ccd).count();
+  return report;
+}
+
+void VolumeCutter::sever_swept_links(const Sweep& everything, const Vector& particles_start,
+                                     const Vector& particles_end, SeveredLinks& cut_from, VolumeCutReport& report) {
   const auto particle = [](const Vector& x, int p) { return Vec3(x.segment<3>(3 * static_cast<Eigen::Index>(p))); };
   const int link_count = static_cast<int>(particle_links_.size());
+  const auto& blade_poses = everything.poses;
   // Candidates over every active sub-interval (the boxes cover the whole step).
   // (edge, sub-interval) pairs: an edge can only touch the blade in a sub-interval whose
   // blade box overlaps its (whole-step) box, so it is tested in those alone.
   std::vector<std::pair<int, int>> pairs;
   for (size_t j = 0; j + 1 < blade_poses.size(); ++j) {
-    if (!active[j]) continue;
+    if (!everything.active[j]) continue;
     broad_phase_.query(blade_poses[j], blade_poses[j + 1], candidates_);
     for (int id : candidates_) pairs.emplace_back(id, static_cast<int>(j));
   }
   std::sort(pairs.begin(), pairs.end());
-  std::vector<std::uint8_t> intervals(active.size(), 0);
-  const Sweep everything = sweep;
+  std::vector<std::uint8_t> intervals(everything.active.size(), 0);
 
-  std::map<int, std::vector<int>> cut_from;  // element -> particles whose link to it was cut
   for (size_t first = 0; first < pairs.size();) {
     const int id = pairs[first].first;
     std::fill(intervals.begin(), intervals.end(), 0);
@@ -506,69 +539,71 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
       ++report.element_links_severed;
     }
   }
-  // Agreement with the rest cut near this sweep.
-  if (rest_cut && rest_cut->blocked) {
-    const int stride = model_.row_stride();
-    // Each element's links at rest, boxed (rest positions do not move; a row changes only
-    // here, and its box is taken again below): most elements are far from the region.
-    const int elements = model_.element_count();
-    RestLinkIndex& index = *rest_link_index_;
-    if (rest_link_boxes_.size() != static_cast<size_t>(elements)) {
-      rest_link_boxes_.resize(static_cast<size_t>(elements));
-      index.valid = false;
-      for (int e = 0; e < elements; ++e) box_rest_links(e);
-    }
-    // The elements whose box can meet the region, from bins of the boxes (those re-boxed
-    // since the bins were built are tested apart), in increasing order.
-    if (!near_search_->full_scan && (!index.valid || 8 * index.loose.list.size() > static_cast<size_t>(elements))) {
-      index.valid = index.boxes.build(rest_link_boxes_, model_.spacing());
-      index.loose.reset(elements);
-    }
-    std::vector<int>& selected = index.selected;
-    selected.clear();
-    if (index.valid && !near_search_->full_scan) {
-      index.boxes.query(rest_cut->lo, rest_cut->hi, 0.0, [&](int e) {
-        if (!index.loose.loose[e]) selected.push_back(e);
-      });
-      selected.insert(selected.end(), index.loose.list.begin(), index.loose.list.end());
-      std::sort(selected.begin(), selected.end());
-    } else {
-      for (int e = 0; e < elements; ++e) selected.push_back(e);
-    }
-    for (const int e : selected) {
-      if (!model_.element_active(e)) continue;
-      const auto& box = rest_link_boxes_[e];
-      if (!boxes_meet(box[0], box[1], rest_cut->lo, rest_cut->hi)) continue;
-      const Vec3& centre = model_.element_centres()[e];
-      // Each link whose box meets the region (not only the links of the integration points
-      // inside it: a link to a particle a few spacings away, as re-selection makes, can
-      // cross this sweep's cut from an integration point outside it). The box test first:
-      // the exact test (RestCut::crosses) is the costly part.
-      const size_t base = static_cast<size_t>(e) * stride;
-      std::vector<int>* severed = nullptr;
-      bool looked_up = false;
-      for (int k = 0; k < model_.row_lengths()[e]; ++k) {
-        const int p = model_.neighbours()[base + k];
-        const Vec3 to = particle(model_.rest_positions(), p);
-        if (!boxes_meet(centre.cwiseMin(to), centre.cwiseMax(to), rest_cut->lo, rest_cut->hi)) continue;
-        if (!looked_up) {
-          const auto it = cut_from.find(e);
-          severed = it == cut_from.end() ? nullptr : &it->second;
-          looked_up = true;
-        }
-        if (severed != nullptr && std::find(severed->begin(), severed->end(), p) != severed->end()) continue;
-        if (rest_cut->blocked(centre, to)) {
-          if (severed == nullptr) severed = &cut_from[e];
-          severed->push_back(p);
-          ++report.links_severed_at_rest;
-        }
+}
+
+void VolumeCutter::sever_at_rest(const RestVisibility& rest_cut, SeveredLinks& cut_from, VolumeCutReport& report) {
+  const auto particle = [](const Vector& x, int p) { return Vec3(x.segment<3>(3 * static_cast<Eigen::Index>(p))); };
+  const int stride = model_.row_stride();
+  // Each element's links at rest, boxed (rest positions do not move; a row changes only
+  // in re-selection, and its box is taken again there): most elements are far from the region.
+  const int elements = model_.element_count();
+  RestLinkIndex& index = *rest_link_index_;
+  if (rest_link_boxes_.size() != static_cast<size_t>(elements)) {
+    rest_link_boxes_.resize(static_cast<size_t>(elements));
+    index.valid = false;
+    for (int e = 0; e < elements; ++e) box_rest_links(e);
+  }
+  // The elements whose box can meet the region, from bins of the boxes (those re-boxed
+  // since the bins were built are tested apart), in increasing order.
+  if (!near_search_->full_scan && (!index.valid || 8 * index.loose.list.size() > static_cast<size_t>(elements))) {
+    index.valid = index.boxes.build(rest_link_boxes_, model_.spacing());
+    index.loose.reset(elements);
+  }
+  std::vector<int>& selected = index.selected;
+  selected.clear();
+  if (index.valid && !near_search_->full_scan) {
+    index.boxes.query(rest_cut.lo, rest_cut.hi, 0.0, [&](int e) {
+      if (!index.loose.loose[e]) selected.push_back(e);
+    });
+    selected.insert(selected.end(), index.loose.list.begin(), index.loose.list.end());
+    std::sort(selected.begin(), selected.end());
+  } else {
+    for (int e = 0; e < elements; ++e) selected.push_back(e);
+  }
+  for (const int e : selected) {
+    if (!model_.element_active(e)) continue;
+    const auto& box = rest_link_boxes_[e];
+    if (!boxes_meet(box[0], box[1], rest_cut.lo, rest_cut.hi)) continue;
+    const Vec3& centre = model_.element_centres()[e];
+    // Each link whose box meets the region (not only the links of the integration points
+    // inside it: a link to a particle a few spacings away, as re-selection makes, can
+    // cross this sweep's cut from an integration point outside it). The box test first:
+    // the exact test (RestCut::crosses) is the costly part.
+    const size_t base = static_cast<size_t>(e) * stride;
+    std::vector<int>* severed = nullptr;
+    bool looked_up = false;
+    for (int k = 0; k < model_.row_lengths()[e]; ++k) {
+      const int p = model_.neighbours()[base + k];
+      const Vec3 to = particle(model_.rest_positions(), p);
+      if (!boxes_meet(centre.cwiseMin(to), centre.cwiseMax(to), rest_cut.lo, rest_cut.hi)) continue;
+      if (!looked_up) {
+        const auto it = cut_from.find(e);
+        severed = it == cut_from.end() ? nullptr : &it->second;
+        looked_up = true;
+      }
+      if (severed != nullptr && std::find(severed->begin(), severed->end(), p) != severed->end()) continue;
+      if (rest_cut.blocked(centre, to)) {
+        if (severed == nullptr) severed = &cut_from[e];
+        severed->push_back(p);
+        ++report.links_severed_at_rest;
       }
     }
   }
-  total_links_severed_ += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;
-  const auto clock_ccd = std::chrono::steady_clock::now();
-  report.ms_ccd = std::chrono::duration<double, std::milli>(clock_ccd - clock_start).count();
+}
 
+void VolumeCutter::reselect_severed(const Sweep& sweep, const SeveredLinks& cut_from, const RestVisibility* rest_cut,
+                                    const Vector& particles_start, const Vector& particles_end,
+                                    VolumeCutReport& report) {
   // Re-selection of the broken neighbourhoods, in element order (deterministic). Each
   // element's points are formed before any row changes (the test of a candidate's link).
   for (const auto& cut_element : cut_from) {
@@ -614,8 +649,6 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
   }
   particles_start_ = particles_end_ = nullptr;
   rest_cut_ = nullptr;
-  report.ms_topology = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - clock_ccd).count();
-  return report;
 }
 
 std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kept, const std::vector<int>& severed,
@@ -714,7 +747,7 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
   // box-shaped neighbourhood the MLS fit is best conditioned on (the geometry cut's rule,
   // EfgSettings::cuts). Without it the nearest candidates by graph distance tie between the
   // particle behind the kept face and those beside or below it, and the irregular
-  // neighbourhoods they make cost accuracy (stretch_cut at a = 1.96 mm: 7.4 % against 4.3 %).
+  // neighbourhoods they make cost accuracy (the stretch_cut benchmark's error grows markedly).
   // Only a candidate within the graph distance and eligible is taken; the rest is filled below.
   for (int p : severed) {
     if (static_cast<int>(row.size()) >= slots_per_element) break;
@@ -778,21 +811,17 @@ void VolumeCutter::box_rest_links(int element) {
 
 long VolumeCutter::rest_search_rebuilds() const { return rest_search_ ? rest_search_->rebuilds : 0; }
 
-void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world, std::vector<Vec3>& rest,
-                           std::vector<double>* distance) const {
-  rest.resize(world.size());
-  if (distance) distance->resize(world.size());
+const Vec3& VolumeCutter::rest_point(int element, const Vector& particles) const {
+  return rest_search_->points.get(element, [&](int e) { return integration_point(e, particles); });
+}
+
+double VolumeCutter::update_rest_bins(const Vector& particles, bool finite) const {
   const int stride = model_.row_stride();
   const int elements = model_.element_count();
   RestSearch& search = *rest_search_;
-  search.points.begin(elements);
-  const auto point_of = [&](int e) -> const Vec3& {
-    return search.points.get(e, [&](int element) { return integration_point(element, particles); });
-  };
   // How far a point can have moved since the bins were built: |sum_k phi_k (x_k - x_k^bin)|
   // <= sum_k |phi_k| max_k |x_k - x_k^bin|, with room for rounding.
   double drift = std::numeric_limits<double>::infinity();
-  const bool finite = particles.allFinite();
   if (search.valid && finite && search.particles.size() == particles.size()) {
     double moved = 0;
     for (Eigen::Index i = 0; i < particles.size(); i += 3)
@@ -804,7 +833,7 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
     std::vector<Vec3> points(static_cast<size_t>(elements));
     search.shape_sum = 0;
     for (int e = 0; e < elements; ++e) {
-      points[e] = point_of(e);
+      points[e] = rest_point(e, particles);
       double sum = 0;
       const size_t base = static_cast<size_t>(e) * stride;
       for (int k = 0; k < model_.row_lengths()[e]; ++k) sum += std::abs(model_.shape_values()[base + k]);
@@ -821,104 +850,132 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
     ++search.rebuilds;
     drift = 1e-9 * model_.spacing();
   }
-  const bool binned = search.valid && finite;
+  return drift;
+}
+
+namespace {
+
+// The bound D of to_rest's search: just above the least squared distance, moved up until no
+// candidate is within a relative 1e-8 of it; none when that takes more than 64 moves.
+std::optional<double> clear_bound(const std::vector<std::pair<int, double>>& candidates, double least) {
+  double bound = least * (1 + 1e-7) + 1e-300;
+  bool clear = false;
+  for (int tries = 0; tries < 64 && !clear; ++tries) {
+    clear = std::none_of(candidates.begin(), candidates.end(), [&](const auto& c) {
+      return c.second >= bound * (1 - 1e-8) && c.second <= bound * (1 + 1e-8);
+    });
+    if (!clear) bound *= 1 + 1e-7;
+  }
+  if (!clear) return std::nullopt;
+  return bound;
+}
+
+}  // namespace
+
+bool VolumeCutter::nearest_in_bins(const Vector& particles, const Vec3& q, double drift, int hint, int& nearest,
+                                   double& best) const {
+  RestSearch& search = *rest_search_;
   const UniformGrid& bins = search.bins;
   const GridCells& cells = bins.cells;
-  std::vector<std::pair<int, double>> candidates;  // element, squared distance
+  std::vector<std::pair<int, double>>& candidates = search.candidates;  // element, squared distance
+  // The nearest up to a relative 1e-9, the lowest index among ties: where two points are
+  // equally near (a blade midway between two layers of them), roundoff in the positions
+  // (another thread count, the GPU backend) must not pick the other one, whose fit differs.
+  // The rule is a scan in element order keeping a point only when it is nearer than the
+  // kept one by that margin; scanning only the set S of points nearer than a bound D, with
+  // no point at all within a relative 1e-8 of D, gives the same choice: the scan over every
+  // point keeps the first of S it meets (all points before it are beyond D by more than the
+  // margin), and no point outside S can then replace one of S.
+  const auto scan = [&](const auto& order) {
+    for (const auto& [e, d] : order)
+      if (d < best * (1 - 1e-9)) best = d, nearest = e;
+  };
+  // Boxes [q - R, q + R] of growing R: every point within R of q is in the bins of the
+  // box grown by the drift (points are binned where they were at the rebuild), or among
+  // the loose ones. The first R: just beyond the previous choice's distance (the points
+  // of a polyline come in order), else beyond q's distance to the points' box.
+  // The previous choice is a point within its distance of q: no box larger than that is
+  // needed (a box of a cell or more would look at up to 64 bins).
+  double reach = cells.cell;
+  if (hint >= 0) {
+    reach = 1.001 * (rest_point(hint, particles) - q).norm() + 1e-12;
+  } else {
+    const Vec3 outside = (search.lo - q).cwiseMax(q - search.hi).cwiseMax(Vec3::Zero());
+    reach = std::max(reach, std::max(0.0, outside.norm() - drift) + cells.cell);
+  }
+  for (int attempt = 0; attempt < 64; ++attempt) {
+    GridCell first{}, last{};
+    cells.range(q - Vec3::Constant(reach + drift), q + Vec3::Constant(reach + drift), first, last);
+    const bool everything = first[0] == 0 && first[1] == 0 && first[2] == 0 && last[0] == cells.count[0] - 1 &&
+                            last[1] == cells.count[1] - 1 && last[2] == cells.count[2] - 1;
+    candidates.clear();
+    double least = std::numeric_limits<double>::infinity();
+    const auto consider = [&](int e) {
+      const double d = (rest_point(e, particles) - q).squaredNorm();
+      candidates.emplace_back(e, d);
+      least = std::min(least, d);
+    };
+    // A binned point farther than reach + drift from q where it was binned is farther than
+    // reach now: it can be neither within the bound nor near it (both below reach, checked
+    // below), and is passed over without being formed; all are taken when the box holds
+    // every bin. (The box is a cube around that ball.)
+    const double ball = (reach + drift) * (reach + drift) * (1 + 1e-9);
+    bins.visit_cells(first, last, [&](int e) {
+      if (search.loose.loose[e]) return;
+      if (!everything && (search.binned[static_cast<size_t>(e)] - q).squaredNorm() > ball) return;
+      consider(e);
+    });
+    // The loose ones are where they are now: only those within reach of q (per axis) can be
+    // nearer than the bound, which must stay below reach (else the box grows, below), unless
+    // the box holds every bin (then the bound is not checked: all of them).
+    for (int e : search.loose.list)
+      if (everything || ((rest_point(e, particles) - q).cwiseAbs().array() <= reach).all()) consider(e);
+    if (!std::isfinite(least)) {
+      if (everything) return false;  // no finite distance: the caller's scan decides
+      reach *= 2;
+      continue;
+    }
+    const std::optional<double> bound = clear_bound(candidates, least);
+    if (!bound) return false;
+    // Every point within the bound (and its margin) must have been seen.
+    if (!everything && !(*bound * (1 + 1e-8) < reach * reach * (1 - 1e-12))) {
+      reach = std::max(2 * reach, 1.01 * std::sqrt(*bound * (1 + 1e-8)));
+      continue;
+    }
+    std::erase_if(candidates, [&](const auto& c) { return !(c.second < *bound); });
+    std::sort(candidates.begin(), candidates.end());
+    scan(candidates);
+    return true;
+  }
+  return false;
+}
+
+void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world, std::vector<Vec3>& rest,
+                           std::vector<double>* distance) const {
+  rest.resize(world.size());
+  if (distance) distance->resize(world.size());
+  const int stride = model_.row_stride();
+  const int elements = model_.element_count();
+  rest_search_->points.begin(elements);
+  const bool finite = particles.allFinite();
+  const double drift = update_rest_bins(particles, finite);
+  const bool binned = rest_search_->valid && finite;
   int hint = -1;  // the previous point's choice: its distance bounds this point's nearest
   for (size_t w = 0; w < world.size(); ++w) {
     int nearest = 0;
     double best = std::numeric_limits<double>::infinity();
-    // The nearest up to a relative 1e-9, the lowest index among ties: where two points are
-    // equally near (a blade midway between two layers of them), roundoff in the positions
-    // (another thread count, the GPU backend) must not pick the other one, whose fit differs.
-    // The rule is a scan in element order keeping a point only when it is nearer than the
-    // kept one by that margin; scanning only the set S of points nearer than a bound D, with
-    // no point at all within a relative 1e-8 of D, gives the same choice: the scan over every
-    // point keeps the first of S it meets (all points before it are beyond D by more than the
-    // margin), and no point outside S can then replace one of S.
-    const auto scan = [&](const auto& order) {
-      for (const auto& [e, d] : order)
-        if (d < best * (1 - 1e-9)) best = d, nearest = e;
-    };
-    bool found = false;
     const Vec3 q = world[w];
-    if (binned && q.allFinite()) {
-      // Boxes [q - R, q + R] of growing R: every point within R of q is in the bins of the
-      // box grown by the drift (points are binned where they were at the rebuild), or among
-      // the loose ones. The first R: just beyond the previous choice's distance (the points
-      // of a polyline come in order), else beyond q's distance to the points' box.
-      // The previous choice is a point within its distance of q: no box larger than that is
-      // needed (a box of a cell or more would look at up to 64 bins).
-      double reach = cells.cell;
-      if (hint >= 0) {
-        reach = 1.001 * (point_of(hint) - q).norm() + 1e-12;
-      } else {
-        const Vec3 outside = (search.lo - q).cwiseMax(q - search.hi).cwiseMax(Vec3::Zero());
-        reach = std::max(reach, std::max(0.0, outside.norm() - drift) + cells.cell);
-      }
-      for (int attempt = 0; attempt < 64 && !found; ++attempt) {
-        GridCell first{}, last{};
-        cells.range(q - Vec3::Constant(reach + drift), q + Vec3::Constant(reach + drift), first, last);
-        const bool everything = first[0] == 0 && first[1] == 0 && first[2] == 0 && last[0] == cells.count[0] - 1 &&
-                                last[1] == cells.count[1] - 1 && last[2] == cells.count[2] - 1;
-        candidates.clear();
-        double least = std::numeric_limits<double>::infinity();
-        const auto consider = [&](int e) {
-          const double d = (point_of(e) - q).squaredNorm();
-          candidates.emplace_back(e, d);
-          least = std::min(least, d);
-        };
-        // A binned point farther than reach + drift from q where it was binned is farther than
-        // reach now: it can be neither within the bound nor near it (both below reach, checked
-        // below), and is passed over without being formed; all are taken when the box holds
-        // every bin. (The box is a cube around that ball.)
-        const double ball = (reach + drift) * (reach + drift) * (1 + 1e-9);
-        bins.visit_cells(first, last, [&](int e) {
-          if (search.loose.loose[e]) return;
-          if (!everything && (search.binned[static_cast<size_t>(e)] - q).squaredNorm() > ball) return;
-          consider(e);
-        });
-        // The loose ones are where they are now: only those within reach of q (per axis) can be
-        // nearer than the bound, which must stay below reach (else the box grows, below), unless
-        // the box holds every bin (then the bound is not checked: all of them).
-        for (int e : search.loose.list)
-          if (everything || ((point_of(e) - q).cwiseAbs().array() <= reach).all()) consider(e);
-        if (!std::isfinite(least)) {
-          if (everything) break;  // no finite distance: the scan below decides
-          reach *= 2;
-          continue;
-        }
-        // The bound D: just above the least distance, moved up until no point is near it.
-        double bound = least * (1 + 1e-7) + 1e-300;
-        bool clear = false;
-        for (int tries = 0; tries < 64 && !clear; ++tries) {
-          clear = std::none_of(candidates.begin(), candidates.end(), [&](const auto& c) {
-            return c.second >= bound * (1 - 1e-8) && c.second <= bound * (1 + 1e-8);
-          });
-          if (!clear) bound *= 1 + 1e-7;
-        }
-        if (!clear) break;
-        // Every point within the bound (and its margin) must have been seen.
-        if (!everything && !(bound * (1 + 1e-8) < reach * reach * (1 - 1e-12))) {
-          reach = std::max(2 * reach, 1.01 * std::sqrt(bound * (1 + 1e-8)));
-          continue;
-        }
-        std::erase_if(candidates, [&](const auto& c) { return !(c.second < bound); });
-        std::sort(candidates.begin(), candidates.end());
-        scan(candidates);
-        found = true;
-      }
-    }
+    const bool found = binned && q.allFinite() && nearest_in_bins(particles, q, drift, hint, nearest, best);
     if (found) hint = nearest;
     if (!found) {
       nearest = 0;
       best = std::numeric_limits<double>::infinity();
       for (int e = 0; e < elements; ++e) {
-        const double d = (point_of(e) - q).squaredNorm();
+        const double d = (rest_point(e, particles) - q).squaredNorm();
         if (d < best * (1 - 1e-9)) best = d, nearest = e;
       }
     }
+    // X = X_e + F_e^-1 (x - x_e) through the nearest point's shape-matching fit F_e.
     Mat3 fit = Mat3::Zero();
     const size_t base = static_cast<size_t>(nearest) * stride;
     for (int k = 0; k < model_.row_lengths()[nearest]; ++k) {
@@ -927,7 +984,7 @@ void VolumeCutter::to_rest(const Vector& particles, std::span<const Vec3> world,
     }
     if (distance) (*distance)[w] = std::sqrt(best);
     const Eigen::FullPivLU<Mat3> lu(fit);
-    const Vec3 offset = world[w] - point_of(nearest);
+    const Vec3 offset = world[w] - rest_point(nearest, particles);
     rest[w] = model_.element_centres()[nearest] + (lu.isInvertible() ? Vec3(lu.solve(offset)) : offset);
   }
 }

@@ -36,6 +36,7 @@
 #include <optional>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <span>
 #include <memory>
 #include <vector>
@@ -150,6 +151,22 @@ class VolumeCutter {
                                        const Vec3& a1, const Vec3& b1) const;
   std::vector<int> reselect(int element, const std::vector<int>& kept, const std::vector<int>& severed,
                             const Sweep& sweep, bool& isolated, bool& nonlocal);
+  // cut()'s stages, in order: sever the links the blade touches over the sweep, then those the
+  // rest cut blocks near it, then re-select the neighbourhood of every element that lost a
+  // neighbour. SeveredLinks: element -> the particles whose link to it was cut.
+  using SeveredLinks = std::map<int, std::vector<int>>;
+  void sever_swept_links(const Sweep& sweep, const Vector& particles_start, const Vector& particles_end,
+                         SeveredLinks& cut_from, VolumeCutReport& report);
+  void sever_at_rest(const RestVisibility& rest_cut, SeveredLinks& cut_from, VolumeCutReport& report);
+  void reselect_severed(const Sweep& sweep, const SeveredLinks& cut_from, const RestVisibility* rest_cut,
+                        const Vector& particles_start, const Vector& particles_end, VolumeCutReport& report);
+  // to_rest()'s stages: the integration point of `element` (formed once per call), the bins
+  // brought up to date (returns how far a point can have moved since they were built), and
+  // the nearest point to `q` found from them (false: the bins could not settle it).
+  const Vec3& rest_point(int element, const Vector& particles) const;
+  double update_rest_bins(const Vector& particles, bool finite) const;
+  bool nearest_in_bins(const Vector& particles, const Vec3& q, double drift, int hint, int& nearest,
+                       double& best) const;
 
   CorotationalEfg& model_;
   EdgeBroadPhase broad_phase_;
