@@ -1,5 +1,6 @@
 #include "engine/scene.hpp"
 
+#include "engine/model_registry.hpp"
 #include "engine/scene_reader.hpp"
 
 #include <nlohmann/json.hpp>
@@ -74,13 +75,31 @@ GeneratorSpec read_generator(const Json& node, const std::string& path,
   return g;
 }
 
+// A model's settings block is the body's key named after it, read by its registry entry; an
+// absent block reads as an empty one, so the model fills its defaults and names what it
+// requires. The block of another model is refused by name rather than as an unknown key.
+void read_model_settings(Reader& r, BodySpec& b, std::vector<std::string>& errors) {
+  static const Json empty = Json::object();
+  for (const ModelEntry& entry : models().entries()) {
+    if (!entry.read_settings) continue;
+    const Json* block = r.get(entry.name, false);
+    if (entry.name != b.model) {
+      if (block) r.error(r.child(entry.name), "only bodies with model '" + entry.name + "' take " + entry.name + " settings");
+      continue;
+    }
+    Reader settings(block ? *block : empty, r.child(entry.name), errors);
+    entry.read_settings(settings, b);
+  }
+}
+
 BodySpec read_body(const Json& node, const std::string& path, const std::filesystem::path& file,
                    std::vector<std::string>& errors) {
   Reader r(node, path, errors);
   BodySpec b;
   b.name = r.text("name", true, "");
   if (r.has("name") && b.name.empty()) r.error(r.child("name"), "must not be empty");
-  b.model = r.text("model", true, "fem", {"fem", "efg"});
+  b.model = r.text("model", true, "fem", models().names());
+  const ModelEntry* model = models().find(b.model);
   if (const Json* mesh = r.get("mesh", false)) {
     if (!mesh->is_string()) {
       r.error(r.child("mesh"), "must be a file path (string)");
@@ -109,34 +128,13 @@ BodySpec read_body(const Json& node, const std::string& path, const std::filesys
         b.fixed.push_back(read_box((*fixed)[i], r.child("fixed") + "[" + std::to_string(i) + "]", errors));
     }
   }
-  bool cut_surface_given = false;
-  if (const Json* e = r.get("efg", false)) {
-    if (b.model != "efg") {
-      r.error(r.child("efg"), "only bodies with model 'efg' take efg settings");
-    } else {
-      Reader er(*e, r.child("efg"), errors);
-      b.efg.neighbours = er.integer("neighbours", false, 8, 4, 8);
-      if (b.efg.neighbours != 4 && b.efg.neighbours != 8)
-        er.error(er.child("neighbours"), "must be 4 or 8");
-      if (er.has("support_factor"))
-        b.efg.support_factor = er.number("support_factor", false, 3, 1, 10, true);
-      b.efg.samples_per_axis = er.integer("samples_per_axis", false, 4, 1, 64);
-      b.efg.estimate_volumes = er.boolean("estimate_volumes", true);
-      b.efg.threads = er.integer("threads", false, 2, 1, 64);
-      if (er.has("surface_resolution"))
-        b.efg.surface_resolution = er.number("surface_resolution", false, 0.005, 1e-4, 10, true);
-      cut_surface_given = er.has("cut_surface");
-      // One cut-surface design: the voxel boundary separated along the cut gave way to the
-      // thesis's front (seed 004 §2.5), which follows the blade's path rather than cells.
-      if (er.text("cut_surface", false, "front", {"voxel", "front"}) == "voxel")
-        er.error(er.child("cut_surface"), "'voxel' was removed: the thesis's front surface ('front', the default) "
-                                          "replaced it; drop the key or write \"front\"");
-    }
-  }
   b.cuttable = r.boolean("cuttable", false);
-  if (b.cuttable && b.model != "efg") r.error(r.child("cuttable"), "only 'efg' bodies can be cut");
-  if (!b.cuttable && cut_surface_given)
-    r.error(r.child("efg") + ".cut_surface", "only cuttable bodies (\"cuttable\": true) have a cut surface");
+  if (b.cuttable && model && !model->cuttable) {
+    const auto cuttable = models().names_where(&ModelEntry::cuttable);
+    r.error(r.child("cuttable"), cuttable.empty() ? "no registered model can be cut"
+                                                  : "only " + alternatives(cuttable) + " bodies can be cut");
+  }
+  read_model_settings(r, b, errors);
   if (const Json* d = r.get("damping", false)) {
     Reader dr(*d, r.child("damping"), errors);
     b.damping_mass = dr.number("mass", false, 0, 0, 1e4);
