@@ -1,5 +1,6 @@
 #include "app/commands.hpp"
 
+#include "engine/model_registry.hpp"
 #include "engine/replay.hpp"
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
@@ -22,6 +23,18 @@ std::pair<int, int> parse_size(const std::string& text) {
   if (w < 16 || h < 16 || w > 8192 || h > 8192)
     throw std::runtime_error("--size: " + text + " must be within 16x16 and 8192x8192");
   return {w, h};
+}
+
+// The registered models and what each can do: "fem (corotational ...), efg (..., cuttable, gpu)".
+std::string model_list() {
+  std::string text;
+  for (const auto& m : engine::models().entries()) {
+    std::string traits = m.summary;
+    if (m.cuttable) traits += std::string(traits.empty() ? "" : ", ") + "cuttable";
+    if (m.gpu) traits += std::string(traits.empty() ? "" : ", ") + "gpu";
+    text += (text.empty() ? "" : ", ") + m.name + (traits.empty() ? "" : " (" + traits + ")");
+  }
+  return text;
 }
 
 }  // namespace
@@ -95,11 +108,17 @@ int check(const std::string& scene_file) {
   }
   engine::World world(scene, std::move(trajectory));
   std::printf("%s: ok (scene '%s')\n", scene_file.c_str(), scene.name.c_str());
-  for (const auto& body : world.bodies()) {
+  std::printf("  models: %s\n", model_list().c_str());
+  for (std::size_t i = 0; i < world.bodies().size(); ++i) {
+    const auto& body = world.bodies()[i];
+    const engine::ModelEntry* model = engine::models().find(body.model->kind);
+    const std::string nodes = model ? model->node_name + "s" : std::string("nodes");
     int fixed = 0;
     for (auto f : body.data.fixed) fixed += f;
-    std::printf("  body %s: %d nodes, %zu elements, %d fixed nodes, %zu surface triangles\n",
-                body.model->name.c_str(), body.data.mechanics->node_count(), body.model->elements, fixed, body.data.surface.size());
+    std::printf("  body %s (%s%s): %d %s, %zu elements, %d fixed %s, %zu surface triangles\n",
+                body.model->name.c_str(), body.model->kind.c_str(), scene.bodies[i].cuttable ? ", cuttable" : "",
+                body.data.mechanics->node_count(), nodes.c_str(), body.model->elements, fixed, nodes.c_str(),
+                body.data.surface.size());
     if (body.model->snap.boundary_nodes > 0)
       std::printf("    surface snapping: %d boundary nodes, %d moved onto the surface, %d part way, %d left; "
                   "smallest element keeps %.0f %% of its volume\n",

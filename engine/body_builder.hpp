@@ -1,15 +1,38 @@
 // Scene body -> engine::Body: the shape (generator or mesh file), the model named by the
-// body's `model` key (fem: tetrahedra filling the shape; efg: the meshless model with a render
-// surface of its own, and for a cuttable body the cut's state), fixed regions, gravity, the
-// settled start and the integrator's settings.
+// body's `model` key, built by its entry in the registry (engine/model_registry.hpp; fem:
+// tetrahedra filling the shape; efg: the meshless model with a render surface of its own, and
+// for a cuttable body the cut's state), fixed regions, gravity, the settled start and the
+// integrator's settings. The parts below build_body are what the models' builders share.
 #pragma once
 
 #include "engine/body.hpp"
 #include "engine/scene.hpp"
+#include "physics/fem/surface_snap.hpp"
+#include "physics/fem/tet_mesh.hpp"
+
+#include <functional>
+#include <memory>
 
 namespace incise::engine {
 
 // Throws std::runtime_error naming the body (and the field, where one is at fault).
 Body build_body(const BodySpec& spec, const SolverSpec& solver);
+
+// What the body occupies: an inside test and its bounding box.
+struct BodyShape {
+  std::function<bool(const physics::Vec3&)> inside;
+  physics::Vec3 lo, hi;
+};
+
+// Tetrahedra filling the shape with cells of about `resolution`: a box exactly, anything
+// else by voxels whose boundary nodes are snapped onto the true surface (reported in `snap`).
+physics::TetMesh fill_with_tets(const BodySpec& spec, const BodyShape& shape, double resolution,
+                                physics::SnapReport* snap);
+// The read-only part every body has: name, kind (the model's name), integrator, gravity.
+std::shared_ptr<physics::BodyModel> body_model(const BodySpec& spec, const SolverSpec& solver);
+// Positions at rest, velocities and the velocity change zero.
+void start_at_rest(physics::BodyData& body);
+// Marks the nodes of `rest` inside any of the spec's fixed boxes.
+void fix_nodes(physics::BodyData& body, const BodySpec& spec, const physics::Vector& rest);
 
 }  // namespace incise::engine

@@ -1,5 +1,8 @@
 #include "engine/scene.hpp"
 
+#include "engine/model_registry.hpp"
+#include "engine/scene_reader.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <cmath>
@@ -19,141 +22,6 @@ std::string join_errors(const std::string& file, const std::vector<std::string>&
   for (const auto& e : errors) out << "\n  " << file << ": " << e;
   return out.str();
 }
-
-std::string number_text(double v) {
-  std::ostringstream out;
-  out << v;
-  return out.str();
-}
-
-// Reads one JSON object, remembering which keys were consumed so the rest can be
-// reported as unknown. Every accessor records an error and returns a neutral value
-// rather than throwing, so one pass lists all the problems of a file.
-class Reader {
- public:
-  Reader(const Json& node, std::string path, std::vector<std::string>& errors)
-      : node_(node), path_(std::move(path)), errors_(errors) {
-    if (!node_.is_object()) error(path_, "must be an object");
-  }
-
-  ~Reader() {
-    if (!node_.is_object()) return;
-    for (const auto& [key, value] : node_.items()) {
-      if (!used_.count(key)) error(child(key), "unknown key");
-    }
-  }
-
-  bool has(const std::string& key) const { return node_.is_object() && node_.contains(key); }
-  std::string child(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
-  const std::string& path() const { return path_; }
-
-  const Json* get(const std::string& key, bool required) {
-    used_.insert(key);
-    if (!node_.is_object()) return nullptr;
-    auto it = node_.find(key);
-    if (it == node_.end()) {
-      if (required) error(child(key), "is required");
-      return nullptr;
-    }
-    return &*it;
-  }
-
-  // A finite number in [lo, hi] (hi_open: [lo, hi)); lo_open likewise.
-  double number(const std::string& key, bool required, double fallback, double lo, double hi,
-                bool lo_open = false, bool hi_open = false) {
-    const Json* v = get(key, required);
-    if (!v) return fallback;
-    if (!v->is_number()) {
-      error(child(key), "must be a number, not " + std::string(v->type_name()));
-      return fallback;
-    }
-    double x = v->get<double>();
-    bool below = lo_open ? !(x > lo) : !(x >= lo);
-    bool above = hi_open ? !(x < hi) : !(x <= hi);
-    if (!std::isfinite(x) || below || above) {
-      error(child(key), number_text(x) + " must be in " + (lo_open ? "(" : "[") + number_text(lo) +
-                            ", " + number_text(hi) + (hi_open ? ")" : "]"));
-      return fallback;
-    }
-    return x;
-  }
-
-  int integer(const std::string& key, bool required, int fallback, int lo, int hi) {
-    const Json* v = get(key, required);
-    if (!v) return fallback;
-    if (!v->is_number_integer()) {
-      error(child(key), "must be an integer");
-      return fallback;
-    }
-    auto x = v->get<long long>();
-    if (x < lo || x > hi) {
-      error(child(key), std::to_string(x) + " must be in [" + std::to_string(lo) + ", " +
-                            std::to_string(hi) + "]");
-      return fallback;
-    }
-    return static_cast<int>(x);
-  }
-
-  bool boolean(const std::string& key, bool fallback) {
-    const Json* v = get(key, false);
-    if (!v) return fallback;
-    if (!v->is_boolean()) {
-      error(child(key), "must be true or false");
-      return fallback;
-    }
-    return v->get<bool>();
-  }
-
-  std::string text(const std::string& key, bool required, const std::string& fallback,
-                   const std::vector<std::string>& allowed = {}) {
-    const Json* v = get(key, required);
-    if (!v) return fallback;
-    if (!v->is_string()) {
-      error(child(key), "must be a string");
-      return fallback;
-    }
-    auto s = v->get<std::string>();
-    if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), s) == allowed.end()) {
-      std::string list;
-      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      error(child(key), "'" + s + "' is not one of: " + list);
-      return fallback;
-    }
-    return s;
-  }
-
-  Point point(const std::string& key, bool required, Point fallback, double lo = -1e6,
-              double hi = 1e6) {
-    const Json* v = get(key, required);
-    if (!v) return fallback;
-    if (!v->is_array() || v->size() != 3) {
-      error(child(key), "must be an array of 3 numbers");
-      return fallback;
-    }
-    Point p{};
-    for (int i = 0; i < 3; ++i) {
-      const Json& e = (*v)[i];
-      if (!e.is_number() || !std::isfinite(e.get<double>()) || e.get<double>() < lo ||
-          e.get<double>() > hi) {
-        error(child(key) + "[" + std::to_string(i) + "]",
-              "must be a finite number in [" + number_text(lo) + ", " + number_text(hi) + "]");
-        return fallback;
-      }
-      p[i] = e.get<double>();
-    }
-    return p;
-  }
-
-  void error(const std::string& where, const std::string& what) {
-    errors_.push_back((where.empty() ? std::string("(top level)") : where) + ": " + what);
-  }
-
- private:
-  const Json& node_;
-  std::string path_;
-  std::vector<std::string>& errors_;
-  std::set<std::string> used_;
-};
 
 Box read_box(const Json& node, const std::string& path, std::vector<std::string>& errors) {
   Reader r(node, path, errors);
@@ -207,13 +75,31 @@ GeneratorSpec read_generator(const Json& node, const std::string& path,
   return g;
 }
 
+// A model's settings block is the body's key named after it, read by its registry entry; an
+// absent block reads as an empty one, so the model fills its defaults and names what it
+// requires. The block of another model is refused by name rather than as an unknown key.
+void read_model_settings(Reader& r, BodySpec& b, std::vector<std::string>& errors) {
+  static const Json empty = Json::object();
+  for (const ModelEntry& entry : models().entries()) {
+    if (!entry.read_settings) continue;
+    const Json* block = r.get(entry.name, false);
+    if (entry.name != b.model) {
+      if (block) r.error(r.child(entry.name), "only bodies with model '" + entry.name + "' take " + entry.name + " settings");
+      continue;
+    }
+    Reader settings(block ? *block : empty, r.child(entry.name), errors);
+    entry.read_settings(settings, b);
+  }
+}
+
 BodySpec read_body(const Json& node, const std::string& path, const std::filesystem::path& file,
                    std::vector<std::string>& errors) {
   Reader r(node, path, errors);
   BodySpec b;
   b.name = r.text("name", true, "");
   if (r.has("name") && b.name.empty()) r.error(r.child("name"), "must not be empty");
-  b.model = r.text("model", true, "fem", {"fem", "efg"});
+  b.model = r.text("model", true, "fem", models().names());
+  const ModelEntry* model = models().find(b.model);
   if (const Json* mesh = r.get("mesh", false)) {
     if (!mesh->is_string()) {
       r.error(r.child("mesh"), "must be a file path (string)");
@@ -242,34 +128,13 @@ BodySpec read_body(const Json& node, const std::string& path, const std::filesys
         b.fixed.push_back(read_box((*fixed)[i], r.child("fixed") + "[" + std::to_string(i) + "]", errors));
     }
   }
-  bool cut_surface_given = false;
-  if (const Json* e = r.get("efg", false)) {
-    if (b.model != "efg") {
-      r.error(r.child("efg"), "only bodies with model 'efg' take efg settings");
-    } else {
-      Reader er(*e, r.child("efg"), errors);
-      b.efg.neighbours = er.integer("neighbours", false, 8, 4, 8);
-      if (b.efg.neighbours != 4 && b.efg.neighbours != 8)
-        er.error(er.child("neighbours"), "must be 4 or 8");
-      if (er.has("support_factor"))
-        b.efg.support_factor = er.number("support_factor", false, 3, 1, 10, true);
-      b.efg.samples_per_axis = er.integer("samples_per_axis", false, 4, 1, 64);
-      b.efg.estimate_volumes = er.boolean("estimate_volumes", true);
-      b.efg.threads = er.integer("threads", false, 2, 1, 64);
-      if (er.has("surface_resolution"))
-        b.efg.surface_resolution = er.number("surface_resolution", false, 0.005, 1e-4, 10, true);
-      cut_surface_given = er.has("cut_surface");
-      // One cut-surface design: the voxel boundary separated along the cut gave way to the
-      // thesis's front (seed 004 §2.5), which follows the blade's path rather than cells.
-      if (er.text("cut_surface", false, "front", {"voxel", "front"}) == "voxel")
-        er.error(er.child("cut_surface"), "'voxel' was removed: the thesis's front surface ('front', the default) "
-                                          "replaced it; drop the key or write \"front\"");
-    }
-  }
   b.cuttable = r.boolean("cuttable", false);
-  if (b.cuttable && b.model != "efg") r.error(r.child("cuttable"), "only 'efg' bodies can be cut");
-  if (!b.cuttable && cut_surface_given)
-    r.error(r.child("efg") + ".cut_surface", "only cuttable bodies (\"cuttable\": true) have a cut surface");
+  if (b.cuttable && model && !model->cuttable) {
+    const auto cuttable = models().names_where(&ModelEntry::cuttable);
+    r.error(r.child("cuttable"), cuttable.empty() ? "no registered model can be cut"
+                                                  : "only " + alternatives(cuttable) + " bodies can be cut");
+  }
+  read_model_settings(r, b, errors);
   if (const Json* d = r.get("damping", false)) {
     Reader dr(*d, r.child("damping"), errors);
     b.damping_mass = dr.number("mass", false, 0, 0, 1e4);

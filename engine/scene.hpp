@@ -5,6 +5,7 @@
 // the errors of a file are reported together so a user fixes them in one pass.
 #pragma once
 
+#include <any>
 #include <array>
 #include <filesystem>
 #include <optional>
@@ -62,13 +63,14 @@ struct EfgSpec {
 
 struct BodySpec {
   std::string name;
-  std::string model;                      // "fem" (corotational linear tetrahedra) or "efg"
+  std::string model;  // a registered model (engine/model_registry.hpp): "fem" (corotational linear tetrahedra), "efg"
   std::optional<std::filesystem::path> mesh;  // resolved against the scene's folder
   double mesh_scale = 1;
   std::optional<GeneratorSpec> generator;
   double resolution = 0;  // fem: tetrahedra cell size; efg: integration cube side a (particles 2a apart), m
   EfgSpec efg;            // model "efg" only
-  bool cuttable = false;  // efg only: the blade cuts it (topology graph, CCD, cut surface)
+  std::any settings;      // another registered model's own settings block, as its read_settings left it
+  bool cuttable = false;  // models that can be cut only (efg): the blade cuts it (topology graph, CCD, cut surface)
   MaterialSpec material;
   std::vector<Box> fixed;  // nodes inside any box are fixed
   double damping_mass = 0;       // Rayleigh alpha, 1/s

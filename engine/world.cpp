@@ -1,6 +1,7 @@
 #include "engine/world.hpp"
 
 #include "engine/body_builder.hpp"
+#include "engine/model_registry.hpp"
 #include "physics/cut/apply_topology.hpp"
 #include "physics/cut/detect_cuts.hpp"
 #include "physics/gpu/efg_step.hpp"
@@ -83,9 +84,16 @@ void World::reset() {
 
 void World::make_gpu_backend(Body& body, std::size_t index) const {
   const std::string where = scene_.file.string() + ": solver.backend: 'gpu': ";
-  if (!body.data.efg)
+  const ModelEntry* model = models().find(body.model->kind);
+  if (!model || !model->gpu)
     throw std::runtime_error(where + "bodies[" + std::to_string(index) + "] ('" + body.model->name + "') has model '" +
-                             body.model->kind + "'; the GPU backend runs efg bodies only");
+                             body.model->kind + "'; the GPU backend runs " +
+                             alternatives(models().names_where(&ModelEntry::gpu), false) + " bodies only");
+  // The GPU step is the EFG model's (physics/gpu/efg_step.hpp): a model registered with `gpu`
+  // builds its bodies' mechanics as a CorotationalEfg.
+  if (!body.data.efg)
+    throw std::runtime_error(where + "model '" + body.model->kind + "' is registered as running on the GPU but its "
+                           "builder made no CorotationalEfg for the GPU step");
   physics::gpu::GpuSettings settings;
   settings.precision = scene_.solver.precision == "double" ? physics::gpu::Precision::double_precision
                                                            : physics::gpu::Precision::single;
