@@ -1,9 +1,8 @@
 // The thesis's explicit surface cut (seed 004 §2.5, Fig. 4.3-4.4): a closed triangle mesh in
 // the rest configuration, split where the blade's sweep crosses it, its exposed cut face
-// meshed behind a moving front. This is the design issue 4 asks for, and the default; CutSurface
-// (cut_surface.hpp) is the voxel design. A body takes this one with
-// efg.cut_surface "front": the world feeds it the blade mapped to rest at each moment of the
-// sweep, ends a stroke when the blade disengages or the front has left the body, and maps its
+// meshed behind a moving front: the surface of every cuttable body. The cut stages
+// (apply_topology.hpp) feed it the blade mapped to rest at each moment of the sweep and end a
+// stroke when the blade disengages or the front has left the body; remap_surface.hpp maps its
 // vertices by front_mapping.hpp (what is left to do: docs/status.md, "Cutting").
 //
 // A stroke is a sequence of blade samples (polylines at rest, same point count). Between two

@@ -95,8 +95,8 @@ Fall free_piece_fall(World& world, const Body& body, const std::vector<int>& pie
 
 }  // namespace
 
-// What the world keeps of a front surface where the stroke changed it (engine/world.cpp,
-// rebuild_front_surface) is what it would take from the whole surface: the body's and the
+// What the cut keeps of the front surface where the stroke changed it (physics/cut/
+// remap_surface.cpp) is what it would take from the whole surface: the body's and the
 // render's triangles, the vertex positions, the edge counts, and the number of vertices whose
 // point lies across a cut face (the worst so far is at least the current whole count, which
 // is 0 on every shipped scene).
