@@ -116,12 +116,7 @@ void SideRunner::run(const std::function<void()>& own, const std::function<void(
     error_ = nullptr;
   }
   wake_.notify_one();
-  std::exception_ptr own_error;
-  try {
-    own();
-  } catch (...) {
-    own_error = std::current_exception();
-  }
+  const std::exception_ptr own_error = physics::call_catching(own);
   bool mine = false;
   std::exception_ptr side_error;
   {
@@ -134,13 +129,7 @@ void SideRunner::run(const std::function<void()>& own, const std::function<void(
       side_error = error_;
     }
   }
-  if (mine) {
-    try {
-      side();
-    } catch (...) {
-      side_error = std::current_exception();
-    }
-  }
+  if (mine) side_error = physics::call_catching(side);
   if (own_error) std::rethrow_exception(own_error);
   if (side_error) std::rethrow_exception(side_error);
 }
@@ -157,12 +146,7 @@ void SideRunner::work() {
       running_ = true;
       ++taken_;
     }
-    std::exception_ptr error;
-    try {
-      (*job)();
-    } catch (...) {
-      error = std::current_exception();
-    }
+    const std::exception_ptr error = physics::call_catching(*job);
     {
       std::lock_guard lock(mutex_);
       error_ = error;

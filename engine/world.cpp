@@ -6,21 +6,12 @@
 #include "physics/cut/detect_cuts.hpp"
 #include "physics/gpu/efg_step.hpp"
 
+#include "physics/core/stopwatch.hpp"
+
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 
 namespace incise::engine {
-
-namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
-}  // namespace
 
 World::World(const Scene& scene, std::optional<Trajectory> trajectory)
     : scene_(scene), trajectory_(std::move(trajectory)), initial_trajectory_(trajectory_) {
@@ -155,11 +146,11 @@ StepStats World::step() {
     return bytes;
   };
   const long long gpu_bytes_before = gpu_bytes(false), gpu_row_bytes_before = gpu_bytes(true);
-  auto start = Clock::now();
-  auto phase = start;
+  const physics::Stopwatch whole;
+  physics::Stopwatch phase;
   const double end_time = static_cast<double>(steps_ + 1) * scene_.solver.dt;
   take_tool_input(end_time);
-  stats.ms_tool_input = ms_since(phase);
+  stats.ms_tool_input = phase.ms();
   for (auto& body : bodies_) {
     if (!body.cut || !blade()) continue;  // a body is cut by a blade only
     physics::CutStepReport cut;
@@ -168,18 +159,18 @@ StepStats World::step() {
     add_cut_report(cut, stats);
   }
   std::vector<std::vector<physics::NodalSpring>> springs(bodies_.size());
-  phase = Clock::now();
+  phase.restart();
   for (std::size_t b = 0; b < bodies_.size(); ++b) springs[b] = contact(bodies_[b], stats);
-  stats.ms_contact = ms_since(phase);
-  phase = Clock::now();
+  stats.ms_contact = phase.ms();
+  phase.restart();
   for (std::size_t b = 0; b < bodies_.size(); ++b) solve(bodies_[b], springs[b], end_time, stats);
-  stats.ms_solve = ms_since(phase);
-  phase = Clock::now();
+  stats.ms_solve = phase.ms();
+  phase.restart();
   for (auto& body : bodies_) update_surface(body);
-  stats.ms_surface = ms_since(phase);
+  stats.ms_surface = phase.ms();
   ++steps_;
   time_ = end_time;
-  stats.ms_total = ms_since(start);
+  stats.ms_total = whole.ms();
   stats.gpu_bytes = gpu_bytes(false) - gpu_bytes_before;
   stats.gpu_row_bytes = gpu_bytes(true) - gpu_row_bytes_before;
   return stats;

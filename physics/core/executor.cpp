@@ -12,20 +12,19 @@ void SerialExecutor::parallel_for(int count, const std::function<void(int, int)>
 
 void SerialExecutor::run_beside(const std::function<void()>& own, const std::function<void()>& side) {
   // Both run even when own() throws, as they would on two threads; own's error comes first.
-  std::exception_ptr own_error;
-  try {
-    own();
-  } catch (...) {
-    own_error = std::current_exception();
-  }
-  std::exception_ptr side_error;
-  try {
-    side();
-  } catch (...) {
-    side_error = std::current_exception();
-  }
+  const std::exception_ptr own_error = call_catching(own);
+  const std::exception_ptr side_error = call_catching(side);
   if (own_error) std::rethrow_exception(own_error);
   if (side_error) std::rethrow_exception(side_error);
+}
+
+std::exception_ptr call_catching(const std::function<void()>& job) {
+  try {
+    job();
+  } catch (...) {
+    return std::current_exception();
+  }
+  return nullptr;
 }
 
 Executor& serial_executor() {

@@ -7,6 +7,7 @@
 // an executor happens to hand out.
 #pragma once
 
+#include <exception>
 #include <functional>
 
 namespace incise::physics {
@@ -44,5 +45,9 @@ class SerialExecutor final : public Executor {
 
 // The executor of models given none.
 Executor& serial_executor();
+
+// Calls job() and returns what it threw (null when nothing): run_beside's jobs both run even
+// when one throws, as they would on two threads, and their errors are rethrown afterwards.
+std::exception_ptr call_catching(const std::function<void()>& job);
 
 }  // namespace incise::physics

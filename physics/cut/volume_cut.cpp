@@ -1,5 +1,6 @@
 #include "physics/cut/volume_cut.hpp"
 
+#include "physics/core/stopwatch.hpp"
 #include "physics/cut/continuous_collision.hpp"
 #include "physics/cut/uniform_grid.hpp"
 #include "physics/efg/mls.hpp"
@@ -7,7 +8,6 @@
 #include <Eigen/LU>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -461,7 +461,7 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
               3 * static_cast<Eigen::Index>(model_.node_count()));
 
   VolumeCutReport report;
-  const auto clock_start = std::chrono::steady_clock::now();
+  Stopwatch watch;
   const Sweep sweep{blade_poses, fractions, active};
   // The integration points are formed only where they are looked at (near the sweep, the
   // candidates, the re-selected elements).
@@ -476,11 +476,11 @@ VolumeCutReport VolumeCutter::cut(std::span<const std::vector<Vec3>> blade_poses
   sever_swept_links(sweep, particles_start, particles_end, cut_from, report);
   if (rest_cut && rest_cut->blocked) sever_at_rest(*rest_cut, cut_from, report);
   total_links_severed_ += report.particle_links_severed + report.element_links_severed + report.links_severed_at_rest;
-  const auto clock_ccd = std::chrono::steady_clock::now();
-  report.ms_ccd = std::chrono::duration<double, std::milli>(clock_ccd - clock_start).count();
+  report.ms_ccd = watch.ms();
+  watch.restart();
 
   reselect_severed(sweep, cut_from, rest_cut, particles_start, particles_end, report);
-  report.ms_topology = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - clock_ccd).count();
+  report.ms_topology = watch.ms();
   return report;
 }
 
