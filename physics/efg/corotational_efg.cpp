@@ -79,6 +79,97 @@ StrainStress hooke(const Mat3& displacement_gradient, double lambda, double mu) 
 
 }  // namespace
 
+// The build's particle grid and its cut-visibility tests.
+namespace efg_build {
+
+// The particle grid (every other vertex of the integration grid, 2a apart): indices, positions
+// and grid coordinates of its particles.
+struct ParticleGrid {
+  Vec3 origin;
+  double a = 0;
+  std::array<int, 3> counts{};
+  int index(int i, int j, int k) const { return i + counts[0] * (j + counts[1] * k); }
+  std::array<int, 3> coordinates(int index) const {
+    return {index % counts[0], (index / counts[0]) % counts[1], index / (counts[0] * counts[1])};
+  }
+  Vec3 position(int index) const {
+    const auto [i, j, k] = coordinates(index);
+    return Vec3(origin + 2.0 * a * Vec3(i, j, k));
+  }
+  std::size_t size() const { return static_cast<std::size_t>(counts[0]) * counts[1] * counts[2]; }
+};
+
+// (s, r, signed distance) of a point in a cut's frame: corner + s edge_u + r edge_v + d n.
+Vec3 cut_frame(const CutRectangle& cut, const Vec3& point) {
+  const Vec3 normal = cut.edge_u.cross(cut.edge_v).normalized();
+  const Vec3 relative = point - cut.corner;
+  const double u_squared = cut.edge_u.squaredNorm(), v_squared = cut.edge_v.squaredNorm();
+  const double edges_dot = cut.edge_u.dot(cut.edge_v);
+  const double along_u = relative.dot(cut.edge_u), along_v = relative.dot(cut.edge_v);
+  const double determinant = u_squared * v_squared - edges_dot * edges_dot;
+  return Vec3((along_u * v_squared - along_v * edges_dot) / determinant,
+              (along_v * u_squared - along_u * edges_dot) / determinant, normal.dot(relative));
+}
+
+// Whether the settings' build-time cuts hide `to` from `from` (EfgSettings::cuts,
+// front_hidden_beyond).
+bool is_blocked(const EfgSettings& s, const Vec3& from, const Vec3& to) {
+  for (const CutRectangle& cut : s.cuts) {
+    if (cut.blocks(from, to)) return true;
+    if (!(s.front_hidden_beyond < std::numeric_limits<double>::infinity())) continue;
+    // A particle on the crack front (the rim edge r = 0), seen from a point on the cut's
+    // negative side and beside the cut (r > 0).
+    const Vec3 particle = cut_frame(cut, to), point = cut_frame(cut, from);
+    const double scale = std::sqrt(cut.edge_v.squaredNorm());
+    if (std::abs(particle.z()) < 1e-9 * scale && std::abs(particle.y()) < 1e-9 &&
+        particle.x() > 0 && particle.x() < 1 && point.z() < 0 &&
+        point.y() * scale > s.front_hidden_beyond) {
+      return true;
+    }
+  }
+  return false;
+}
+
+// With 4, the nearest corner and its three edge neighbours in the cell: the 4 nearest
+// corners when the point is inside the cell, and never coplanar when it is outside.
+void nearest_corners(const ParticleGrid& grid, const Vec3& centre, std::array<int, 3> cell, int count,
+                     std::vector<int>& row) {
+  std::array<std::pair<double, int>, 8> corners;
+  for (int c = 0; c < 8; ++c) {
+    const int index = grid.index(cell[0] + (c & 1), cell[1] + ((c >> 1) & 1),
+                                    cell[2] + ((c >> 2) & 1));
+    corners[c] = {(grid.position(index) - centre).squaredNorm(), c};
+  }
+  const auto corner_index = [&](int c) {
+    return grid.index(cell[0] + (c & 1), cell[1] + ((c >> 1) & 1), cell[2] + ((c >> 2) & 1));
+  };
+  const auto by_distance = [&](const std::pair<double, int>& left,
+                               const std::pair<double, int>& right) {
+    return left.first != right.first ? left.first < right.first
+                                     : corner_index(left.second) < corner_index(right.second);
+  };
+  std::sort(corners.begin(), corners.end(), by_distance);
+  row.clear();
+  if (count == 8) {
+    for (const auto& corner : corners) row.push_back(corner_index(corner.second));
+    return;
+  }
+  const int nearest = corners[0].second;
+  std::array<std::pair<double, int>, 4> tetrahedron{corners[0]};
+  for (int bit = 0; bit < 3; ++bit) {
+    const int c = nearest ^ (1 << bit);
+    tetrahedron[bit + 1] = {(grid.position(corner_index(c)) - centre).squaredNorm(), c};
+  }
+  std::sort(tetrahedron.begin(), tetrahedron.end(), by_distance);
+  for (const auto& corner : tetrahedron) row.push_back(corner_index(corner.second));
+}
+
+}  // namespace efg_build
+
+using efg_build::ParticleGrid;
+using efg_build::is_blocked;
+using efg_build::nearest_corners;
+
 bool CutRectangle::blocks(const Vec3& from, const Vec3& to) const {
   const Vec3 normal = edge_u.cross(edge_v);
   if (!(normal.squaredNorm() > 0)) return false;
@@ -127,6 +218,19 @@ double CorotationalEfg::total_volume() const {
 
 void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3 box_min,
                             Vec3 box_max) {
+  validate_settings(box_min, box_max);
+  lambda_ = lame_lambda(material_);
+  mu_ = lame_mu(material_);
+  const ParticleGrid grid = lay_grids(box_min, box_max);
+  sample_elements(inside);
+  const std::vector<std::vector<int>> rows = select_neighbourhoods(grid);
+  const std::vector<int> particle_of_grid = keep_used_particles(grid, rows);
+  fill_rows(rows, particle_of_grid);
+  make_masses_positive(grid, particle_of_grid);
+  drop_unused_particles();
+}
+
+void CorotationalEfg::validate_settings(const Vec3& box_min, const Vec3& box_max) const {
   validate_material(material_);
   const EfgSettings& s = settings_;
   const double a = s.spacing;
@@ -155,11 +259,12 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
   if (!box_min.allFinite() || !box_max.allFinite() || !(box_max.array() > box_min.array()).all()) {
     fail("the box " + format_point(box_min) + " to " + format_point(box_max) + " is empty");
   }
-  lambda_ = lame_lambda(material_);
-  mu_ = lame_mu(material_);
+}
 
+ParticleGrid CorotationalEfg::lay_grids(const Vec3& box_min, const Vec3& box_max) {
   // Grids: an even number of cubes per axis, so the particle grid (every other vertex)
   // covers them; the small shrink keeps an exact multiple of a from gaining a cube.
+  const double a = settings_.spacing;
   long long cube_total = 1;
   for (int axis = 0; axis < 3; ++axis) {
     const double count = std::ceil((box_max[axis] - box_min[axis]) / a * (1.0 - 1e-12));
@@ -173,22 +278,16 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
     origin_[axis] = 0.5 * (box_min[axis] + box_max[axis]) - 0.5 * cubes * a;
   }
   if (cube_total > 100'000'000) fail("spacing " + std::to_string(a) + " gives too many cubes");
-  const std::array<int, 3> particle_counts{cube_counts_[0] / 2 + 1, cube_counts_[1] / 2 + 1,
-                                           cube_counts_[2] / 2 + 1};
-  const auto grid_particle = [&](int i, int j, int k) {
-    return i + particle_counts[0] * (j + particle_counts[1] * k);
-  };
-  const auto grid_particle_position = [&](int index) {
-    const int i = index % particle_counts[0];
-    const int j = (index / particle_counts[0]) % particle_counts[1];
-    const int k = index / (particle_counts[0] * particle_counts[1]);
-    return Vec3(origin_ + 2.0 * a * Vec3(i, j, k));
-  };
+  return ParticleGrid{origin_, a, {cube_counts_[0] / 2 + 1, cube_counts_[1] / 2 + 1, cube_counts_[2] / 2 + 1}};
+}
 
+void CorotationalEfg::sample_elements(const std::function<bool(const Vec3&)>& inside) {
   // Integration elements: the cubes with a part inside, V_e by sampling (seed-004 §1.2).
+  const EfgSettings& s = settings_;
+  const double a = s.spacing;
   const int samples = s.samples_per_axis;
   const double sample_volume = a * a * a / (samples * samples * samples);
-  element_of_cube_.assign(static_cast<size_t>(cube_total), -1);
+  element_of_cube_.assign(static_cast<size_t>(cube_counts_[0]) * cube_counts_[1] * cube_counts_[2], -1);
   for (int k = 0; k < cube_counts_[2]; ++k) {
     for (int j = 0; j < cube_counts_[1]; ++j) {
       for (int i = 0; i < cube_counts_[0]; ++i) {
@@ -219,164 +318,111 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
     }
   }
   if (volumes_.empty()) fail("no sample point is inside the body (check the box and spacing)");
-  const int elements = element_count();
+}
 
+std::vector<std::vector<int>> CorotationalEfg::select_neighbourhoods(const ParticleGrid& grid) const {
   // Neighbourhoods in grid-particle indices: the corners of the element's particle cell,
   // nearest first (ties to the lower index), 8 or the 4 nearest (seed-004 §1.3).
-  // (s, r, signed distance) of a point in a cut's frame: corner + s edge_u + r edge_v + d n.
-  const auto cut_frame = [](const CutRectangle& cut, const Vec3& point) {
-    const Vec3 normal = cut.edge_u.cross(cut.edge_v).normalized();
-    const Vec3 relative = point - cut.corner;
-    const double u_squared = cut.edge_u.squaredNorm(), v_squared = cut.edge_v.squaredNorm();
-    const double edges_dot = cut.edge_u.dot(cut.edge_v);
-    const double along_u = relative.dot(cut.edge_u), along_v = relative.dot(cut.edge_v);
-    const double determinant = u_squared * v_squared - edges_dot * edges_dot;
-    return Vec3((along_u * v_squared - along_v * edges_dot) / determinant,
-                (along_v * u_squared - along_u * edges_dot) / determinant, normal.dot(relative));
-  };
-  const auto is_blocked = [&](const Vec3& from, const Vec3& to) {
-    for (const CutRectangle& cut : s.cuts) {
-      if (cut.blocks(from, to)) return true;
-      if (!(s.front_hidden_beyond < std::numeric_limits<double>::infinity())) continue;
-      // A particle on the crack front (the rim edge r = 0), seen from a point on the cut's
-      // negative side and beside the cut (r > 0).
-      const Vec3 particle = cut_frame(cut, to), point = cut_frame(cut, from);
-      const double scale = std::sqrt(cut.edge_v.squaredNorm());
-      if (std::abs(particle.z()) < 1e-9 * scale && std::abs(particle.y()) < 1e-9 &&
-          particle.x() > 0 && particle.x() < 1 && point.z() < 0 &&
-          point.y() * scale > s.front_hidden_beyond) {
-        return true;
-      }
-    }
-    return false;
-  };
-  // With 4, the nearest corner and its three edge neighbours in the cell: the 4 nearest
-  // corners when the point is inside the cell, and never coplanar when it is outside.
-  const auto nearest_corners = [&](const Vec3& centre, std::array<int, 3> cell, int count,
-                                   std::vector<int>& row) {
-    std::array<std::pair<double, int>, 8> corners;
-    for (int c = 0; c < 8; ++c) {
-      const int index = grid_particle(cell[0] + (c & 1), cell[1] + ((c >> 1) & 1),
-                                      cell[2] + ((c >> 2) & 1));
-      corners[c] = {(grid_particle_position(index) - centre).squaredNorm(), c};
-    }
-    const auto corner_index = [&](int c) {
-      return grid_particle(cell[0] + (c & 1), cell[1] + ((c >> 1) & 1), cell[2] + ((c >> 2) & 1));
-    };
-    const auto by_distance = [&](const std::pair<double, int>& left,
-                                 const std::pair<double, int>& right) {
-      return left.first != right.first ? left.first < right.first
-                                       : corner_index(left.second) < corner_index(right.second);
-    };
-    std::sort(corners.begin(), corners.end(), by_distance);
-    row.clear();
-    if (count == 8) {
-      for (const auto& corner : corners) row.push_back(corner_index(corner.second));
-      return;
-    }
-    const int nearest = corners[0].second;
-    std::array<std::pair<double, int>, 4> tetrahedron{corners[0]};
-    for (int bit = 0; bit < 3; ++bit) {
-      const int c = nearest ^ (1 << bit);
-      tetrahedron[bit + 1] = {(grid_particle_position(corner_index(c)) - centre).squaredNorm(), c};
-    }
-    std::sort(tetrahedron.begin(), tetrahedron.end(), by_distance);
-    for (const auto& corner : tetrahedron) row.push_back(corner_index(corner.second));
-  };
+  const EfgSettings& s = settings_;
+  const int elements = element_count();
   std::vector<std::vector<int>> rows(elements);
-  std::vector<Vec3> positions;
   for (int e = 0; e < elements; ++e) {
     const std::array<int, 3>& cube = element_cubes_[e];
     const std::array<int, 3> cell{cube[0] / 2, cube[1] / 2, cube[2] / 2};
-    nearest_corners(centres_[e], cell, s.neighbours, rows[e]);
+    nearest_corners(grid, centres_[e], cell, s.neighbours, rows[e]);
     if (s.cuts.empty()) continue;
     const auto visible = [&](int index) {
-      return !is_blocked(centres_[e], grid_particle_position(index));
+      return !is_blocked(s, centres_[e], grid.position(index));
     };
     if (std::all_of(rows[e].begin(), rows[e].end(), visible)) continue;
-
-    // A cut hides some corners. The visible ones stay (they carry the coupling across the
-    // uncut part, e.g. below a crack front), and each hidden corner is replaced by the particle
-    // one step beyond its neighbour in the cell along an axis (the nearest such one that is
-    // visible and new). An element whose cell the cut cuts off entirely thus gets the
-    // neighbouring cell on its own side, keeping a cell-shaped, well-conditioned neighbourhood.
-    const auto grid_coordinates = [&](int index) {
-      return std::array<int, 3>{index % particle_counts[0],
-                                (index / particle_counts[0]) % particle_counts[1],
-                                index / (particle_counts[0] * particle_counts[1])};
-    };
-    std::vector<int> kept;
-    std::vector<int> hidden;
-    for (int index : rows[e]) (visible(index) ? kept : hidden).push_back(index);
-    for (int index : hidden) {
-      const std::array<int, 3> corner = grid_coordinates(index);
-      // The axis nearest the normal of the cut that hides the corner: stepping along it moves
-      // away from the cut on the element's side, rather than around the crack front.
-      int normal_axis = -1;
-      if (s.replace_along_cut_normal) {
-        for (const CutRectangle& cut : s.cuts) {
-          if (!cut.blocks(centres_[e], grid_particle_position(index))) continue;
-          const Vec3 normal = cut.edge_u.cross(cut.edge_v).cwiseAbs();
-          normal.maxCoeff(&normal_axis);
-          break;
-        }
-      }
-      double best_distance = std::numeric_limits<double>::infinity();
-      int best = -1;
-      for (int pass = 0; pass < 2 && best < 0; ++pass) for (int axis = 0; axis < 3; ++axis) {
-        if (pass == 0 && normal_axis >= 0 && axis != normal_axis) continue;
-        // The in-cell neighbour is one step towards the cell's other face on this axis.
-        const int step = corner[axis] == cell[axis] ? 1 : -1;
-        std::array<int, 3> beyond = corner;
-        beyond[axis] += 2 * step;
-        if (beyond[axis] < 0 || beyond[axis] >= particle_counts[axis]) continue;
-        const int candidate = grid_particle(beyond[0], beyond[1], beyond[2]);
-        if (std::find(kept.begin(), kept.end(), candidate) != kept.end() || !visible(candidate)) {
-          continue;
-        }
-        const double distance = (grid_particle_position(candidate) - centres_[e]).squaredNorm();
-        if (distance < best_distance || (distance == best_distance && candidate < best)) {
-          best_distance = distance;
-          best = candidate;
-        }
-      }
-      if (best >= 0) kept.push_back(best);
-    }
-    // Still too few, or coplanar: add the nearest visible particles (ties to the lower index)
-    // until there are enough spanning 3 dimensions.
-    std::vector<std::pair<double, int>> candidates;
-    for (int k = std::max(0, cell[2] - 2); k <= std::min(particle_counts[2] - 1, cell[2] + 3); ++k) {
-      for (int j = std::max(0, cell[1] - 2); j <= std::min(particle_counts[1] - 1, cell[1] + 3); ++j) {
-        for (int i = std::max(0, cell[0] - 2); i <= std::min(particle_counts[0] - 1, cell[0] + 3); ++i) {
-          const int index = grid_particle(i, j, k);
-          if (std::find(kept.begin(), kept.end(), index) != kept.end() || !visible(index)) continue;
-          candidates.push_back({(grid_particle_position(index) - centres_[e]).squaredNorm(), index});
-        }
-      }
-    }
-    std::sort(candidates.begin(), candidates.end());
-    const auto spans = [&](const std::vector<int>& row) {
-      positions.clear();
-      for (int index : row) positions.push_back(grid_particle_position(index));
-      return spans_three_dimensions(positions);
-    };
-    size_t next = 0;
-    while (static_cast<int>(kept.size()) < longest_row &&
-           (static_cast<int>(kept.size()) < s.neighbours || !spans(kept)) &&
-           next < candidates.size()) {
-      kept.push_back(candidates[next++].second);
-    }
-    if (!spans(kept)) {
-      fail("element " + std::to_string(e) + " at " + format_point(centres_[e]) +
-           " is cut off: no neighbourhood of visible particles spans 3 dimensions");
-    }
-    rows[e] = kept;
+    rows[e] = visible_neighbourhood(grid, e, cell, rows[e]);
   }
+  return rows;
+}
 
+// A cut hides some of element e's cell corners `corners` (EfgSettings::cuts).
+std::vector<int> CorotationalEfg::visible_neighbourhood(const ParticleGrid& grid, int e, const std::array<int, 3>& cell,
+                                                        const std::vector<int>& corners) const {
+  const EfgSettings& s = settings_;
+  const auto visible = [&](int index) { return !is_blocked(s, centres_[e], grid.position(index)); };
+  std::vector<Vec3> positions;
+
+  // A cut hides some corners. The visible ones stay (they carry the coupling across the
+  // uncut part, e.g. below a crack front), and each hidden corner is replaced by the particle
+  // one step beyond its neighbour in the cell along an axis (the nearest such one that is
+  // visible and new). An element whose cell the cut cuts off entirely thus gets the
+  // neighbouring cell on its own side, keeping a cell-shaped, well-conditioned neighbourhood.
+  std::vector<int> kept;
+  std::vector<int> hidden;
+  for (int index : corners) (visible(index) ? kept : hidden).push_back(index);
+  for (int index : hidden) {
+    const std::array<int, 3> corner = grid.coordinates(index);
+    // The axis nearest the normal of the cut that hides the corner: stepping along it moves
+    // away from the cut on the element's side, rather than around the crack front.
+    int normal_axis = -1;
+    if (s.replace_along_cut_normal) {
+      for (const CutRectangle& cut : s.cuts) {
+        if (!cut.blocks(centres_[e], grid.position(index))) continue;
+        const Vec3 normal = cut.edge_u.cross(cut.edge_v).cwiseAbs();
+        normal.maxCoeff(&normal_axis);
+        break;
+      }
+    }
+    double best_distance = std::numeric_limits<double>::infinity();
+    int best = -1;
+    for (int pass = 0; pass < 2 && best < 0; ++pass) for (int axis = 0; axis < 3; ++axis) {
+      if (pass == 0 && normal_axis >= 0 && axis != normal_axis) continue;
+      // The in-cell neighbour is one step towards the cell's other face on this axis.
+      const int step = corner[axis] == cell[axis] ? 1 : -1;
+      std::array<int, 3> beyond = corner;
+      beyond[axis] += 2 * step;
+      if (beyond[axis] < 0 || beyond[axis] >= grid.counts[axis]) continue;
+      const int candidate = grid.index(beyond[0], beyond[1], beyond[2]);
+      if (std::find(kept.begin(), kept.end(), candidate) != kept.end() || !visible(candidate)) {
+        continue;
+      }
+      const double distance = (grid.position(candidate) - centres_[e]).squaredNorm();
+      if (distance < best_distance || (distance == best_distance && candidate < best)) {
+        best_distance = distance;
+        best = candidate;
+      }
+    }
+    if (best >= 0) kept.push_back(best);
+  }
+  // Still too few, or coplanar: add the nearest visible particles (ties to the lower index)
+  // until there are enough spanning 3 dimensions.
+  std::vector<std::pair<double, int>> candidates;
+  for (int k = std::max(0, cell[2] - 2); k <= std::min(grid.counts[2] - 1, cell[2] + 3); ++k) {
+    for (int j = std::max(0, cell[1] - 2); j <= std::min(grid.counts[1] - 1, cell[1] + 3); ++j) {
+      for (int i = std::max(0, cell[0] - 2); i <= std::min(grid.counts[0] - 1, cell[0] + 3); ++i) {
+        const int index = grid.index(i, j, k);
+        if (std::find(kept.begin(), kept.end(), index) != kept.end() || !visible(index)) continue;
+        candidates.push_back({(grid.position(index) - centres_[e]).squaredNorm(), index});
+      }
+    }
+  }
+  std::sort(candidates.begin(), candidates.end());
+  const auto spans = [&](const std::vector<int>& row) {
+    positions.clear();
+    for (int index : row) positions.push_back(grid.position(index));
+    return spans_three_dimensions(positions);
+  };
+  size_t next = 0;
+  while (static_cast<int>(kept.size()) < longest_row &&
+         (static_cast<int>(kept.size()) < s.neighbours || !spans(kept)) &&
+         next < candidates.size()) {
+    kept.push_back(candidates[next++].second);
+  }
+  if (!spans(kept)) {
+    fail("element " + std::to_string(e) + " at " + format_point(centres_[e]) +
+         " is cut off: no neighbourhood of visible particles spans 3 dimensions");
+  }
+  return kept;
+}
+
+std::vector<int> CorotationalEfg::keep_used_particles(const ParticleGrid& grid, const std::vector<std::vector<int>>& rows) {
   // Particles that influence nothing are dropped; the others keep their grid order.
-  std::vector<int> particle_of_grid(static_cast<size_t>(particle_counts[0]) * particle_counts[1] *
-                                        particle_counts[2],
-                                    -1);
+  std::vector<int> particle_of_grid(grid.size(), -1);
   for (const auto& row : rows) {
     for (int index : row) particle_of_grid[index] = 0;
   }
@@ -386,17 +432,20 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
     if (particle_of_grid[index] < 0) continue;
     particle_of_grid[index] = particles++;
     const int g = static_cast<int>(index);
-    particle_cells_.push_back({g % particle_counts[0], (g / particle_counts[0]) % particle_counts[1],
-                               g / (particle_counts[0] * particle_counts[1])});
-    particle_positions.push_back(grid_particle_position(g));
+    particle_cells_.push_back(grid.coordinates(g));
+    particle_positions.push_back(grid.position(g));
   }
   rest_.resize(3 * static_cast<Index>(particles));
   for (int p = 0; p < particles; ++p) rest_.segment<3>(3 * p) = particle_positions[p];
+  return particle_of_grid;
+}
 
+void CorotationalEfg::fill_rows(const std::vector<std::vector<int>>& rows, const std::vector<int>& particle_of_grid) {
+  const int elements = element_count();
   // Rows (ELL).
   int longest = 0;
   for (const auto& row : rows) longest = std::max(longest, static_cast<int>(row.size()));
-  stride_ = std::max(longest, s.row_capacity);
+  stride_ = std::max(longest, settings_.row_capacity);
   const size_t slots = static_cast<size_t>(elements) * stride_;
   row_lengths_.assign(elements, 0);
   neighbours_.assign(slots, 0);
@@ -418,12 +467,16 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
   executor_->parallel_for(elements, [this](int begin, int end) {
     for (int e = begin; e < end; ++e) compute_element(e);
   }, 256);
+}
 
+void CorotationalEfg::make_masses_positive(const ParticleGrid& grid, const std::vector<int>& particle_of_grid) {
   // Lumped mass m_i = sum_e phi_i(x_e) rho V_e (seed-004 §1.5). phi is negative for far
   // corners, so a particle outside the body that only some elements reach as a far corner
   // can get a negative mass. Such particles are taken out of those neighbourhoods (as if they
   // influenced nothing) and the elements recomputed, until every mass is positive.
-  std::vector<uint8_t> excluded(particles, 0);
+  const int elements = element_count();
+  std::vector<Vec3> positions;
+  std::vector<uint8_t> excluded(static_cast<size_t>(rest_.size() / 3), 0);  // per kept particle
   for (int round = 0;; ++round) {
     compute_masses();
     std::vector<uint8_t> used(node_count(), 0), negative(node_count(), 0);
@@ -466,14 +519,14 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
         const int target = row_lengths_[e];
         const auto& cube = element_cubes_[e];
         std::vector<std::pair<double, int>> candidates;
-        for (int k = std::max(0, cube[2] / 2 - 2); k <= std::min(particle_counts[2] - 1, cube[2] / 2 + 3); ++k) {
-          for (int j = std::max(0, cube[1] / 2 - 2); j <= std::min(particle_counts[1] - 1, cube[1] / 2 + 3); ++j) {
-            for (int i = std::max(0, cube[0] / 2 - 2); i <= std::min(particle_counts[0] - 1, cube[0] / 2 + 3); ++i) {
-              const int p = particle_of_grid[grid_particle(i, j, k)];
+        for (int k = std::max(0, cube[2] / 2 - 2); k <= std::min(grid.counts[2] - 1, cube[2] / 2 + 3); ++k) {
+          for (int j = std::max(0, cube[1] / 2 - 2); j <= std::min(grid.counts[1] - 1, cube[1] / 2 + 3); ++j) {
+            for (int i = std::max(0, cube[0] / 2 - 2); i <= std::min(grid.counts[0] - 1, cube[0] / 2 + 3); ++i) {
+              const int p = particle_of_grid[grid.index(i, j, k)];
               if (p < 0 || excluded[p] ||
                   std::find(neighbours_.begin() + base, neighbours_.begin() + base + kept, p) !=
                       neighbours_.begin() + base + kept ||
-                  is_blocked(centres_[e], rest_.segment<3>(3 * p))) {
+                  is_blocked(settings_, centres_[e], rest_.segment<3>(3 * p))) {
                 continue;
               }
               candidates.push_back({(rest_.segment<3>(3 * p) - centres_[e]).squaredNorm(), p});
@@ -504,7 +557,6 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
       for (int c = begin; c < end; ++c) compute_element(changed[c]);
     });
   }
-  drop_unused_particles();
 }
 
 void CorotationalEfg::compute_element(int element) {

@@ -62,6 +62,10 @@
 
 namespace incise::physics {
 
+namespace efg_build {
+struct ParticleGrid;  // corotational_efg.cpp
+}
+
 // A zero-thickness planar cut: the open parallelogram corner + s edge_u + t edge_v, s, t in
 // (0, 1). A point exactly on its plane counts as lying on the side edge_u x edge_v points to;
 // a segment through the rim is not cut.
@@ -240,7 +244,22 @@ class CorotationalEfg final : public DeformableModel {
                                 Vector& out);
 
  private:
+  // The build, step by step: the settings checked, the grids laid over the box, the elements
+  // sampled (V_e, seed 004 §1.2), their neighbourhoods selected (§1.3; cells' corners, those a
+  // build-time cut hides replaced), the particles nothing uses dropped, the rows filled and
+  // their shape functions computed, and the particles whose lumped mass is not positive
+  // taken out of the neighbourhoods until every mass is (§1.5).
   void build(const std::function<bool(const Vec3&)>& inside, Vec3 box_min, Vec3 box_max);
+  using ParticleGrid = efg_build::ParticleGrid;
+  void validate_settings(const Vec3& box_min, const Vec3& box_max) const;
+  ParticleGrid lay_grids(const Vec3& box_min, const Vec3& box_max);
+  void sample_elements(const std::function<bool(const Vec3&)>& inside);
+  std::vector<std::vector<int>> select_neighbourhoods(const ParticleGrid& grid) const;
+  std::vector<int> visible_neighbourhood(const ParticleGrid& grid, int e, const std::array<int, 3>& cell,
+                                         const std::vector<int>& corners) const;
+  std::vector<int> keep_used_particles(const ParticleGrid& grid, const std::vector<std::vector<int>>& rows);
+  void fill_rows(const std::vector<std::vector<int>>& rows, const std::vector<int>& particle_of_grid);
+  void make_masses_positive(const ParticleGrid& grid, const std::vector<int>& particle_of_grid);
   // Recomputes phi, grad phi, the matching coefficients, the rest gradient and the support of
   // an element from its row; throws naming the element if the moment matrix is singular.
   void compute_element(int element);
