@@ -118,8 +118,13 @@ int main(int argc, char** argv) {
   bool performance_quick = false;
   std::string performance_out = "out/bench/performance";
   auto* performance_cmd = bench_cmd->add_subcommand("performance", "Step time by phase while cutting, by element and triangle count");
-  performance_cmd->add_flag("--quick", performance_quick, "The two coarser resolutions only");
+  performance_cmd->add_flag("--quick", performance_quick, "Two resolutions only: the coarsest and 20k elements");
   performance_cmd->add_option("--out", performance_out, "Output folder (performance.csv)")->capture_default_str();
+  std::string performance_preconditioner = "both";
+  performance_cmd->add_option("--preconditioner", performance_preconditioner,
+                              "CG's preconditioner: both side by side, warped_cholesky or jacobi (the Jacobi CG alone)")
+      ->check(CLI::IsMember({"both", "warped_cholesky", "jacobi"}))
+      ->capture_default_str();
   std::string performance_backend = "cpu";
   performance_cmd->add_option("--backend", performance_backend, "gpu: also run every size on the GPU backend")
       ->check(CLI::IsMember({"cpu", "gpu"}))
@@ -154,7 +159,8 @@ int main(int argc, char** argv) {
     if (*synth_cmd) return incise::app::trajectory_synth(synth);
     if (*accuracy_cmd) return incise::bench::run_accuracy_bench(accuracy_quick, accuracy_out, std::cerr);
     if (*stability_cmd) return incise::bench::run_stability_bench(stability_quick, stability_out, std::cerr, stability_resume);
-    if (*performance_cmd) return incise::bench::run_performance_bench(performance_quick, performance_out, std::cerr, performance_backend);
+    if (*performance_cmd) return incise::bench::run_performance_bench(performance_quick, performance_out, std::cerr, performance_backend,
+                                                                     performance_preconditioner);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "incise: %s\n", e.what());
     return 1;

@@ -61,15 +61,23 @@ struct Resolution {
 }  // namespace
 
 int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress,
-                          const std::string& backend) {
+                          const std::string& backend, const std::string& preconditioner) {
   try {
     std::filesystem::create_directories(out_dir);
     const std::filesystem::path scene_file = find_repo_file("assets/scenes/default.json", "performance");
     const engine::Scene base = engine::load_scene(scene_file);
     const std::vector<Resolution> rows =
-        quick ? std::vector<Resolution>{{0.005, 0.0025}, {0.0035, 0.00175}}
+        quick ? std::vector<Resolution>{{0.005, 0.0025}, {0.0028, 0.0014}}
               : std::vector<Resolution>{{0.005, 0.0025}, {0.0035, 0.00175}, {0.0028, 0.0014},
-                                        {0.0028, 0.0006}};
+                                        {0.0028, 0.0006}, {0.0018, 0.0009}};
+    // Each size with the warped rest factor and with Jacobi, side by side (--preconditioner
+    // names one of them alone).
+    std::vector<std::string> preconditioners{"warped_cholesky", "jacobi"};
+    if (preconditioner != "both") {
+      if (preconditioner != "warped_cholesky" && preconditioner != "jacobi")
+        throw std::runtime_error("--preconditioner: '" + preconditioner + "' is not warped_cholesky, jacobi or both");
+      preconditioners = {preconditioner};
+    }
     // From the press to the end of the stroke of default.traj (0.3 s .. 2.0 s): the cut face,
     // and with it whatever grows with the stroke, at its full size.
     if (backend != "cpu" && backend != "gpu")
@@ -80,7 +88,10 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
                            "ms_surface", "ms_total", "dofs", "steps", "ms_topology_max", "cut_share_pct",
                            "cut_events", "device", "bytes_uploaded_per_cut_step", "bytes_full_upload", "cut_surface",
                            "ms_cut", "ms_mapping", "ms_checks", "ms_cut_first_quarter", "ms_cut_last_quarter",
-                           "ms_front_cut", "ms_cut_cpu", "ms_cut_cpu_last_quarter"});
+                           "ms_front_cut", "ms_cut_cpu", "ms_cut_cpu_last_quarter", "preconditioner", "cg_iterations",
+                           "ms_per_iteration", "ms_total_p95", "ms_total_p95_uncut", "cg_iterations_uncut",
+                           "preconditioner_age_max", "preconditioner_build_ms", "preconditioner_wait_ms_max",
+                           "ms_solve_ratio_to_jacobi"});
     // --backend gpu: every size runs on the cpu and then on the gpu (single precision).
     std::vector<std::string> backends{"cpu"};
     if (backend == "gpu") backends.push_back("gpu");
@@ -89,9 +100,13 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
     progress << std::setw(8) << "a mm" << std::setw(8) << "s mm" << std::setw(9) << "elements" << std::setw(10)
              << "triangles" << std::setw(9) << "ccd" << std::setw(10) << "topology" << std::setw(9) << "solve"
              << std::setw(9) << "surface" << std::setw(9) << "total" << std::setw(8) << "cut %" << "   (ms, medians)\n";
-    for (const Resolution& resolution : rows) for (const std::string& row_backend : backends) {
+    for (const Resolution& resolution : rows) {
+    double jacobi_solve = 0, warped_solve = 0;
+    for (const std::string& row_preconditioner : preconditioners) for (const std::string& row_backend : backends) {
+      if (row_backend == "gpu" && row_preconditioner != preconditioners.front()) continue;  // the gpu's is Jacobi
       engine::Scene scene = base;
       scene.solver.backend = row_backend;
+      scene.solver.preconditioner = row_preconditioner;
       scene.bodies[0].resolution = resolution.spacing;
       scene.bodies[0].efg.surface_resolution = resolution.surface;
       scene.render.capture_every = 0;
@@ -102,12 +117,25 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
       const long first = std::lround(0.3 / scene.solver.dt);
       const long last = std::lround(2.0 / scene.solver.dt);
       std::vector<double> ccd, topology, solve, surface, total, cut, mapping, checks, front_cut, cut_cpu;
+      std::vector<double> iterations, per_iteration, uncut_total, uncut_iterations;
       long events = 0;
-      double topology_max = 0;
-      long long cut_step_bytes = 0;
+      double topology_max = 0, build_ms = 0, wait_max = 0;
+      long long cut_step_bytes = 0, age_max = 0;
+      std::string used_preconditioner = "jacobi";
       for (long k = 0; k < last; ++k) {
         const engine::StepStats stats = world.step();
+        used_preconditioner = stats.preconditioner;
+        if (k > 0 && k < first && !stats.cut_tested) {
+          // The uncut steps before the press (the first builds the first factor).
+          uncut_total.push_back(stats.ms_total);
+          uncut_iterations.push_back(stats.cg_iterations);
+        }
         if (k < first || !stats.cut_tested) continue;
+        iterations.push_back(stats.cg_iterations);
+        per_iteration.push_back(stats.cg_iterations > 0 ? stats.ms_solve / stats.cg_iterations : 0.0);
+        age_max = std::max(age_max, stats.preconditioner_age);
+        build_ms = std::max(build_ms, stats.preconditioner_build_ms);
+        wait_max = std::max(wait_max, stats.preconditioner_wait_ms);
         ccd.push_back(stats.ms_ccd);
         topology.push_back(stats.ms_topology);
         cut.push_back(stats.ms_topology - stats.ms_mapping - stats.ms_checks);
@@ -130,10 +158,17 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
       const double cut_first = median(std::vector<double>(cut.begin(), cut.begin() + quarter));
       const double cut_last = median(std::vector<double>(cut.end() - quarter, cut.end()));
       const double cut_cpu_last = median(std::vector<double>(cut_cpu.end() - quarter, cut_cpu.end()));
+      if (row_backend == "cpu") (row_preconditioner == "jacobi" ? jacobi_solve : warped_solve) = median(solve);
+      const double solve_ratio = row_preconditioner != "jacobi" && jacobi_solve > 0 ? median(solve) / jacobi_solve
+                                 : row_preconditioner == "jacobi" && warped_solve > 0 ? warped_solve / median(solve)
+                                                                                      : 0.0;
+      const double p95 = common::percentile(total, 0.95), uncut_p95 = common::percentile(uncut_total, 0.95);
       csv.row("default", row_backend, body.model->elements, body.data.surface.size(), median(ccd), median(topology), median(solve),
               median(surface), median(total), 3 * body.data.mechanics->node_count(), ccd.size(), topology_max, share, events,
               "\"" + device + "\"", bytes_per_cut_step, full_upload, row_surface, median(cut), median(mapping),
-              median(checks), cut_first, cut_last, median(front_cut), median(cut_cpu), cut_cpu_last);
+              median(checks), cut_first, cut_last, median(front_cut), median(cut_cpu), cut_cpu_last, used_preconditioner,
+              median(iterations), median(per_iteration), p95, uncut_p95, median(uncut_iterations), age_max, build_ms,
+              wait_max, solve_ratio);
       csv.flush();
       progress << std::fixed << std::setprecision(2) << std::setw(8) << 1e3 * resolution.spacing << std::setw(8)
                << 1e3 * resolution.surface << std::setw(9) << body.model->elements << std::setw(10) << body.data.surface.size()
@@ -147,7 +182,16 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
       if (body.gpu)
         progress << " on " << device << ", " << std::setprecision(0) << bytes_per_cut_step
                  << " bytes uploaded per cut step, a full upload of the rows " << full_upload;
-      progress << ")\n";
+      progress << ")\n" << std::setw(33) << used_preconditioner << ": CG iterations " << std::setprecision(1)
+               << median(iterations) << " (uncut " << median(uncut_iterations) << "), " << std::setprecision(3)
+               << median(per_iteration) << " ms per iteration, step p95 " << std::setprecision(2) << p95 << " ms (uncut "
+               << uncut_p95 << ", x" << (uncut_p95 > 0 ? p95 / uncut_p95 : 0.0) << ")";
+      if (used_preconditioner != "jacobi")
+        progress << ", factor age max " << age_max << " steps, built in " << std::setprecision(1) << build_ms
+                 << " ms, waited max " << wait_max << " ms";
+      if (solve_ratio > 0) progress << ", solve warped/jacobi x" << std::setprecision(3) << solve_ratio;
+      progress << "\n";
+    }
     }
     progress << "wrote " << (out_dir / "performance.csv").string() << "\n";
     return 0;

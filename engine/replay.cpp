@@ -343,6 +343,10 @@ struct StepTotals {
   std::vector<double> total, tool_input, cut_phase, contact, solve, surface;
   double cg_sum = 0, cg_residual_max = 0, max_force = 0;
   int cg_max = 0, nonfinite = 0, not_converged = 0, contacts_max = 0;
+  std::vector<double> per_iteration;
+  std::string preconditioner = "jacobi";
+  long long preconditioner_age_max = 0;
+  double preconditioner_build_ms_max = 0, preconditioner_wait_ms = 0;
 };
 
 StepTotals gather_steps(const std::vector<StepStats>& stats) {
@@ -356,6 +360,11 @@ StepTotals gather_steps(const std::vector<StepStats>& stats) {
     t.surface.push_back(s.ms_surface);
     t.cg_sum += s.cg_iterations;
     t.cg_max = std::max(t.cg_max, s.cg_iterations);
+    if (s.cg_iterations > 0) t.per_iteration.push_back(s.ms_solve / s.cg_iterations);
+    t.preconditioner = s.preconditioner;
+    t.preconditioner_age_max = std::max(t.preconditioner_age_max, s.preconditioner_age);
+    t.preconditioner_build_ms_max = std::max(t.preconditioner_build_ms_max, s.preconditioner_build_ms);
+    t.preconditioner_wait_ms += s.preconditioner_wait_ms;
     t.cg_residual_max = std::max(t.cg_residual_max, s.cg_residual);
     t.nonfinite += s.nonfinite_events;
     t.not_converged += s.cg_converged ? 0 : 1;
@@ -456,6 +465,11 @@ Json run_metrics(const Scene& scene, const World& world, const RunOutcome& run, 
       {"cg_iterations", {{"mean", stats.empty() ? 0.0 : t.cg_sum / static_cast<double>(stats.size())},
                          {"max", t.cg_max}}},
       {"cg_residual_max", t.cg_residual_max},
+      {"preconditioner", {{"kind", t.preconditioner},
+                          {"ms_per_iteration_median", percentile(t.per_iteration, 0.5)},
+                          {"age_max_steps", t.preconditioner_age_max},
+                          {"build_ms_max", t.preconditioner_build_ms_max},
+                          {"wait_ms_total", t.preconditioner_wait_ms}}},
       {"cg_not_converged_steps", t.not_converged},
       {"nonfinite_events", t.nonfinite},
       {"guards", guards_json(world)},
@@ -568,14 +582,17 @@ void write_steps_csv(const std::filesystem::path& file, const std::vector<StepSt
       {"step", "time_s", "ms_total", "ms_tool_input", "ms_contact", "ms_solve", "ms_surface", "cg_iterations",
        "cg_residual", "contacts", "tool_force_x", "tool_force_y", "tool_force_z", "elastic_energy_J",
        "kinetic_energy_J", "ms_ccd", "ms_topology", "links_severed", "ms_rest_cut", "ms_reselect",
-       "ms_surface_rebuild", "ms_mapping", "ms_checks", "ms_front_cut", "ms_front_wait"});
+       "ms_surface_rebuild", "ms_mapping", "ms_checks", "ms_front_cut", "ms_front_wait", "preconditioner",
+       "ms_per_iteration", "preconditioner_age", "preconditioner_build_ms", "preconditioner_wait_ms"});
   for (std::size_t k = 0; k < stats.size(); ++k) {
     const auto& s = stats[k];
     steps_csv.row(k + 1, static_cast<double>(k + 1) * dt, s.ms_total, s.ms_tool_input, s.ms_contact,
                   s.ms_solve, s.ms_surface, s.cg_iterations, s.cg_residual, s.contacts, s.tool_force[0],
                   s.tool_force[1], s.tool_force[2], s.elastic_energy, s.kinetic_energy, s.ms_ccd, s.ms_topology,
                   s.links_severed, s.ms_rest_cut, s.ms_reselect, s.ms_surface_rebuild, s.ms_mapping, s.ms_checks,
-                  s.ms_front_cut, s.ms_front_wait);
+                  s.ms_front_cut, s.ms_front_wait, s.preconditioner,
+                  s.cg_iterations > 0 ? s.ms_solve / s.cg_iterations : 0.0, s.preconditioner_age,
+                  s.preconditioner_build_ms, s.preconditioner_wait_ms);
   }
 }
 

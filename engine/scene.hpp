@@ -99,6 +99,13 @@ struct SolverSpec {
   Point gravity{0, 0, -9.81};
   double duration = 0;  // s of simulated time for a replay
   int max_retries = 3;  // halvings of dt after a non-finite step
+  // CG's preconditioner on the cpu backend (physics/solve/rest_preconditioner.hpp): "jacobi",
+  // or "warped_cholesky" (the rest-shape factor warped by the rotations, rebuilt beside the
+  // steps after a cut and taking over `preconditioner_latency` steps later). Jacobi stays the
+  // default: the factor cuts CG's iterations 5-9x but its solves cost more than they save on
+  // the organ sizes measured (docs/status.md, "Solver").
+  std::string preconditioner = "jacobi";
+  int preconditioner_latency = 4;
   std::string start = "rest";  // "rest", or "settled": start from static equilibrium under gravity
 };
 

@@ -24,6 +24,26 @@ std::array<double, 3> load_force_at(const LoadSpec& load, double time) {
           a.force[2] + s * (b.force[2] - a.force[2])};
 }
 
+// The factor this step's CG is preconditioned with (nullptr: Jacobi); the first is built here,
+// those after a cut beside the steps (physics/solve/rest_preconditioner.hpp).
+const physics::RestFactor* World::prepare_preconditioner(Body& body, StepStats& stats) {
+  const physics::ImplicitEulerSettings& integrator = body.model->integrator;
+  const double dt = integrator.dt;
+  physics::PreconditionerReport report;
+  physics::Executor& executor = body.executor ? static_cast<physics::Executor&>(*body.executor) : physics::serial_executor();
+  const physics::RestFactor* factor = body.data.preconditioner.prepare(
+      body.model->preconditioner, *body.data.mechanics, body.data.fixed, 1.0 + dt * integrator.rayleigh_mass,
+      dt * integrator.rayleigh_stiffness + dt * dt, body.data.topology_revision, static_cast<long long>(steps_), executor,
+      report);
+  if (factor) {
+    stats.preconditioner = "warped_cholesky";
+    stats.preconditioner_age = std::max(stats.preconditioner_age, report.age);
+    stats.preconditioner_build_ms = std::max(stats.preconditioner_build_ms, report.build_ms);
+    stats.preconditioner_wait_ms += report.wait_ms;
+  }
+  return factor;
+}
+
 void World::solve(Body& body, const std::vector<physics::NodalSpring>& springs,
                        double end_time, StepStats& stats) {
   physics::Vector external = body.data.gravity;
@@ -37,11 +57,12 @@ void World::solve(Body& body, const std::vector<physics::NodalSpring>& springs,
     }
   }
   if (body.cut) body.cut->previous_positions = body.data.state.positions;
+  const physics::RestFactor* factor = body.gpu ? nullptr : prepare_preconditioner(body, stats);
   const physics::StepFunction step = [&](physics::State& state, const physics::ImplicitEulerSettings& settings,
                                          physics::Vector* velocity_change) {
     return body.gpu ? body.gpu->step(*body.data.efg, state, body.data.fixed, external, springs, settings, velocity_change)
                     : physics::implicit_euler_step(*body.data.mechanics, state, body.data.fixed, external, springs,
-                                                   settings, velocity_change);
+                                                   settings, velocity_change, factor);
   };
   const physics::GuardedStepReport report =
       physics::guarded_step(*body.model, body.data, external, springs, scene_.solver.max_retries, step);

@@ -1,5 +1,7 @@
 #include "engine/thread_pool.hpp"
 
+#include <future>
+
 #include <algorithm>
 #include <stdexcept>
 #include <string>
@@ -171,6 +173,10 @@ void ThreadPoolExecutor::run_beside(const std::function<void()>& own,
   } else {
     physics::serial_executor().run_beside(own, side);
   }
+}
+
+std::shared_future<void> ThreadPoolExecutor::run_async(std::function<void()> job) {
+  return std::async(std::launch::async, std::move(job)).share();
 }
 
 std::uint64_t ThreadPoolExecutor::side_taken_by_helper() const {

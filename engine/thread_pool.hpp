@@ -94,6 +94,8 @@ class ThreadPoolExecutor final : public physics::Executor {
   void parallel_for(int count, const std::function<void(int begin, int end)>& task,
                     int minimum_per_thread = 1) override;
   void run_beside(const std::function<void()>& own, const std::function<void()>& side) override;
+  // On a thread of its own (std::async), beside the pool's and the helper's.
+  std::shared_future<void> run_async(std::function<void()> job) override;
 
   bool has_side_helper() const { return side_ != nullptr; }
   // Runs so far whose side job the helper took (0 without a helper).

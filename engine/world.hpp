@@ -42,6 +42,13 @@ struct StepStats {
   double ms_surface = 0;
   double ms_total = 0;
   int cg_iterations = 0;  // summed over bodies and retried sub-steps
+  // CG's preconditioner (solver.preconditioner; "jacobi" on the gpu backend and for models
+  // without a rest stiffness), and for the warped factor: its age (steps since the first cut
+  // it lacks), its build time, and the time this step waited for a late one.
+  std::string preconditioner = "jacobi";
+  long long preconditioner_age = 0;
+  double preconditioner_build_ms = 0;
+  double preconditioner_wait_ms = 0;
   double cg_residual = 0;  // worst relative residual over bodies
   bool cg_converged = true;
   int nonfinite_events = 0;  // steps that produced a non-finite value and were retried
@@ -156,6 +163,7 @@ class World {
   physics::BladeSweep blade_sweep() const;
   std::optional<physics::RestSweep> detect_cuts(Body& body, physics::CutStepReport& report);
   void apply_topology(Body& body, const std::optional<physics::RestSweep>& sweep, physics::CutStepReport& report);
+  const physics::RestFactor* prepare_preconditioner(Body& body, StepStats& stats);
   void solve(Body& body, const std::vector<physics::NodalSpring>& springs, double end_time,
                   StepStats& stats);
 

@@ -12,6 +12,7 @@
 #include "physics/core/model.hpp"
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/fem/surface_snap.hpp"
+#include "physics/solve/rest_preconditioner.hpp"
 
 #include <array>
 #include <cstdint>
@@ -26,6 +27,7 @@ struct BodyModel {
   std::string name;
   std::string kind;  // the model's name in the registry: "fem", "efg"
   ImplicitEulerSettings integrator;
+  PreconditionerSettings preconditioner;
   Vec3 gravity = Vec3::Zero();  // acceleration, m/s^2 (lumped into BodyData::gravity)
   // The body's box at rest (its shape's), the region a whole-surface remapping covers.
   Vec3 rest_lo = Vec3::Zero(), rest_hi = Vec3::Zero();
@@ -44,6 +46,10 @@ struct BodyData {
   Vector velocity_change;  // last step's dv: the CG's warm start
   double last_energy = 0;  // elastic + kinetic after the last step (the energy watchdog)
   std::vector<std::uint8_t> fixed;  // per node
+  // Counts the changes of the mechanics' topology (a cut's re-selections, pinned particles):
+  // the preconditioner rebuilds its factor when it moves.
+  std::uint64_t topology_revision = 0;
+  RestPreconditioner preconditioner;  // the factor the solves use, and the one being built
   Vector gravity;  // 3n; lumped again when a cut moves the masses
   // The surface the user sees and the tool touches. Tetrahedral bodies: the boundary of the
   // volume mesh, in node indices (BodyModel::surface_nodes). Meshless bodies (`embedding`

@@ -19,10 +19,24 @@ void zero_fixed(const std::vector<uint8_t>& fixed_nodes, Vector& v) {
 CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const Vector& diagonal,
                             const std::vector<uint8_t>& fixed_nodes, Vector& x,
                             const CgSettings& settings) {
+  if (diagonal.size() != b.size()) {
+    throw std::invalid_argument("conjugate_gradient: diagonal (" + std::to_string(diagonal.size()) +
+                                ") must have the size of b (" + std::to_string(b.size()) + ")");
+  }
+  Vector inverse_diagonal(b.size());
+  for (Eigen::Index i = 0; i < b.size(); ++i) {
+    const double d = diagonal[i];
+    inverse_diagonal[i] = (d > 0.0 && std::isfinite(d)) ? 1.0 / d : 1.0;
+  }
+  const Preconditioner jacobi = [&](const Vector& r, Vector& out) { out = inverse_diagonal.cwiseProduct(r); };
+  return preconditioned_conjugate_gradient(apply, b, jacobi, fixed_nodes, x, settings);
+}
+
+CgResult preconditioned_conjugate_gradient(const LinearOperator& apply, const Vector& b, const Preconditioner& precondition,
+                            const std::vector<uint8_t>& fixed_nodes, Vector& x, const CgSettings& settings) {
   const Eigen::Index size = b.size();
-  if (x.size() != size || diagonal.size() != size) {
+  if (x.size() != size) {
     throw std::invalid_argument("conjugate_gradient: x (" + std::to_string(x.size()) +
-                                ") and diagonal (" + std::to_string(diagonal.size()) +
                                 ") must have the size of b (" + std::to_string(size) + ")");
   }
   if (!fixed_nodes.empty() && static_cast<Eigen::Index>(3 * fixed_nodes.size()) != size) {
@@ -48,12 +62,6 @@ CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const 
     return result;
   }
 
-  Vector inverse_diagonal(size);
-  for (Eigen::Index i = 0; i < size; ++i) {
-    const double d = diagonal[i];
-    inverse_diagonal[i] = (d > 0.0 && std::isfinite(d)) ? 1.0 / d : 1.0;
-  }
-
   Vector product(size);
   apply(x, product);
   Vector residual = filtered_b - product;
@@ -69,7 +77,9 @@ CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const 
     return result;
   }
 
-  Vector preconditioned = inverse_diagonal.cwiseProduct(residual);
+  Vector preconditioned(size);
+  precondition(residual, preconditioned);
+  zero_fixed(fixed_nodes, preconditioned);
   Vector direction = preconditioned;
   double residual_dot_preconditioned = residual.dot(preconditioned);
   Vector candidate(size);
@@ -108,7 +118,8 @@ CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const 
       return result;
     }
 
-    preconditioned = inverse_diagonal.cwiseProduct(residual);
+    precondition(residual, preconditioned);
+    zero_fixed(fixed_nodes, preconditioned);
     const double next_dot = residual.dot(preconditioned);
     // Fletcher-Reeves form of beta, exact in exact arithmetic for a fixed preconditioner.
     const double beta = next_dot / residual_dot_preconditioned;

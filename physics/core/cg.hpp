@@ -1,5 +1,6 @@
-// Matrix-free Jacobi-preconditioned conjugate gradient with fixed degrees of freedom
-// projected out (the filtered CG of Baraff & Witkin 1998, section 5.3).
+// Matrix-free preconditioned conjugate gradient with fixed degrees of freedom projected out
+// (the filtered CG of Baraff & Witkin 1998, section 5.3): Jacobi, or any SPD preconditioner
+// given as a function (physics/solve/warped_preconditioner.hpp).
 #pragma once
 
 #include <cstdint>
@@ -26,6 +27,9 @@ struct CgResult {
 // out = A p. `out` is already sized like p; the callable overwrites it.
 using LinearOperator = std::function<void(const Vector& p, Vector& out)>;
 
+// z = P^-1 r for an SPD P. `out` is already sized like r; the callable overwrites it.
+using Preconditioner = std::function<void(const Vector& r, Vector& out)>;
+
 // Solves A x = b on the free degrees of freedom, A symmetric positive definite there.
 // - `x` is the initial guess on entry (its size must match b) and the solution on exit.
 // - `fixed_nodes` holds one entry per node (3 degrees of freedom each), 1 = fixed; empty means
@@ -37,5 +41,9 @@ using LinearOperator = std::function<void(const Vector& p, Vector& out)>;
 CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const Vector& diagonal,
                             const std::vector<uint8_t>& fixed_nodes, Vector& x,
                             const CgSettings& settings = {});
+
+// The same with the preconditioner `precondition` (its output is zeroed on fixed nodes).
+CgResult preconditioned_conjugate_gradient(const LinearOperator& apply, const Vector& b, const Preconditioner& precondition,
+                            const std::vector<uint8_t>& fixed_nodes, Vector& x, const CgSettings& settings = {});
 
 }  // namespace incise::physics

@@ -6,6 +6,15 @@ namespace incise::physics {
 
 Executor::~Executor() = default;
 
+std::shared_future<void> Executor::run_async(std::function<void()> job) {
+  std::promise<void> done;
+  if (const std::exception_ptr error = call_catching(job))
+    done.set_exception(error);
+  else
+    done.set_value();
+  return done.get_future().share();
+}
+
 void SerialExecutor::parallel_for(int count, const std::function<void(int, int)>& task, int) {
   task(0, count);
 }

@@ -9,6 +9,7 @@
 
 #include <exception>
 #include <functional>
+#include <future>
 
 namespace incise::physics {
 
@@ -31,6 +32,12 @@ class Executor {
   // Returns when both are done; an exception of either is rethrown here (own's first). own()
   // may call parallel_for; side() may not. Not reentrant.
   virtual void run_beside(const std::function<void()>& own, const std::function<void()>& side) = 0;
+
+  // Starts job() to run beside the calls that follow (a rest-shape factor built over several
+  // steps) and returns its completion, which rethrows what it threw. This default runs it
+  // here, before returning: an executor with threads to spare runs it on one of them. The job
+  // must read and write only what it owns.
+  virtual std::shared_future<void> run_async(std::function<void()> job);
 };
 
 // Every loop on the calling thread, in one range; run_beside calls own() then side(). It

@@ -1,5 +1,7 @@
 #include "physics/core/implicit_euler.hpp"
 
+#include "physics/solve/warped_preconditioner.hpp"
+
 #include <stdexcept>
 #include <string>
 
@@ -53,6 +55,24 @@ void check_inputs(const DeformableModel& model, const State& state,
   if (!(settings.dt > 0.0)) fail("dt must be positive");
 }
 
+// CG preconditioned with the diagonal of A = m_coefficient M + k_coefficient K.
+CgResult jacobi_solve(const DeformableModel& model, std::span<const NodalSpring> springs, const Vector& masses,
+                      double mass_coefficient, double stiffness_coefficient, const LinearOperator& apply,
+                      const Vector& right_hand_side, const std::vector<uint8_t>& fixed_nodes, Vector& velocity_change,
+                      const CgSettings& settings) {
+  Vector stiffness_diagonal = Vector::Zero(right_hand_side.size());
+  model.add_stiffness_diagonal(stiffness_diagonal);
+  for (const NodalSpring& spring : springs) {
+    stiffness_diagonal.segment<3>(3 * spring.node) += spring.stiffness.diagonal();
+  }
+  Vector diagonal(right_hand_side.size());
+  for (Index node = 0; node < masses.size(); ++node) {
+    diagonal.segment<3>(3 * node) = mass_coefficient * masses[node] * Vec3::Ones() +
+                                    stiffness_coefficient * stiffness_diagonal.segment<3>(3 * node);
+  }
+  return conjugate_gradient(apply, right_hand_side, diagonal, fixed_nodes, velocity_change, settings);
+}
+
 }  // namespace
 
 Vector gravity_forces(const Vector& lumped_masses, const Vec3& g) {
@@ -75,7 +95,7 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
                                const std::vector<uint8_t>& fixed_nodes,
                                const Vector& external_forces, std::span<const NodalSpring> springs,
                                const ImplicitEulerSettings& settings,
-                               Vector* velocity_change_guess) {
+                               Vector* velocity_change_guess, const RestFactor* rest_factor) {
   check_inputs(model, state, fixed_nodes, external_forces, springs, settings);
   StepReport report;
   const Index size = state.positions.size();
@@ -117,22 +137,18 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
     out += stiffness_coefficient * stiffness_p;
   };
 
-  Vector stiffness_diagonal = Vector::Zero(size);
-  model.add_stiffness_diagonal(stiffness_diagonal);
-  for (const NodalSpring& spring : springs) {
-    stiffness_diagonal.segment<3>(3 * spring.node) += spring.stiffness.diagonal();
-  }
-  Vector diagonal(size);
-  for (Index node = 0; node < masses.size(); ++node) {
-    diagonal.segment<3>(3 * node) = mass_coefficient * masses[node] * Vec3::Ones() +
-                                    stiffness_coefficient * stiffness_diagonal.segment<3>(3 * node);
-  }
-
   Vector velocity_change = Vector::Zero(size);
   if (velocity_change_guess && velocity_change_guess->size() == size && velocity_change_guess->allFinite())
     velocity_change = *velocity_change_guess;
-  report.cg = conjugate_gradient(apply, right_hand_side, diagonal, fixed_nodes, velocity_change,
-                                 settings.cg);
+  if (rest_factor && rest_factor->size() == size) {
+    std::vector<Eigen::Quaterniond> rotations;
+    model.node_rotations(rotations);
+    const Preconditioner warped = [&](const Vector& r, Vector& z) { warped_solve(*rest_factor, rotations, r, z); };
+    report.cg = preconditioned_conjugate_gradient(apply, right_hand_side, warped, fixed_nodes, velocity_change, settings.cg);
+  } else {
+    report.cg = jacobi_solve(model, springs, masses, mass_coefficient, stiffness_coefficient, apply, right_hand_side,
+                             fixed_nodes, velocity_change, settings.cg);
+  }
   if (report.cg.nonfinite) {
     report.nonfinite = true;
     return report;

@@ -8,6 +8,7 @@
 
 #include "physics/core/cg.hpp"
 #include "physics/core/model.hpp"
+#include "physics/solve/rest_factor.hpp"
 
 namespace incise::physics {
 
@@ -39,11 +40,14 @@ struct StepReport {
 // - `velocity_change` (optional, 3n): CG starts from it and receives the new dv. Passing the
 //   previous step's dv warm-starts CG (motion changes little between steps); it is as
 //   deterministic as a zero start. Left unchanged when the step is rejected.
+// - `rest_factor` (optional): CG is preconditioned with it, warped by the model's node
+//   rotations (physics/solve/warped_preconditioner.hpp), instead of Jacobi. It may be the
+//   factor of an older topology or another dt: any SPD approximation converges, only slower.
 StepReport implicit_euler_step(DeformableModel& model, State& state,
                                const std::vector<uint8_t>& fixed_nodes,
                                const Vector& external_forces, std::span<const NodalSpring> springs,
                                const ImplicitEulerSettings& settings,
-                               Vector* velocity_change = nullptr);
+                               Vector* velocity_change = nullptr, const RestFactor* rest_factor = nullptr);
 
 // m_i g at every node (3n).
 Vector gravity_forces(const Vector& lumped_masses, const Vec3& g);

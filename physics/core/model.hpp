@@ -5,9 +5,13 @@
 // of MuJoCo's mjModel / mjData: copying or resetting a simulation is copying the State.
 #pragma once
 
+#include "physics/solve/block_matrix.hpp"
+
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace incise::physics {
@@ -39,6 +43,15 @@ class DeformableModel {
   // diag += diagonal of K (for the Jacobi preconditioner).
   virtual void add_stiffness_diagonal(Vector& diag) const = 0;
   virtual double elastic_energy(const Vector& x) const = 0;
+
+  // For rest-shape preconditioners (physics/solve/): a job that assembles K0, the stiffness
+  // with every rotation the identity, from its own copy of what it reads, so that it may run
+  // on another thread while the model changes (a cut). Empty: the model offers none, and its
+  // solves are Jacobi-preconditioned.
+  virtual std::function<BlockMatrix()> rest_stiffness_job() const { return {}; }
+  // Per node, the mean of the frozen rotations of the elements around it (unit quaternions):
+  // the warp of a rest-shape preconditioner. Empty: the identity.
+  virtual void node_rotations(std::vector<Eigen::Quaterniond>& out) const { out.clear(); }
 };
 
 // A point force with its own stiffness, added to the implicit system (penalty contact,

@@ -163,6 +163,7 @@ void apply_topology(CutContext& ctx, const BladeSweep& blade, const std::optiona
   watch.restart();
   const bool pinned = pin_orphans(ctx);
   const bool changed = volume.any() || faces > 0;
+  if (volume.any() || pinned) body.topology_revision++;  // the mechanics changed: a new factor
   if (changed) {
     // The masses moved with the neighbourhoods: so does their weight.
     body.gravity = gravity_forces(body.mechanics->lumped_masses(), model.gravity);

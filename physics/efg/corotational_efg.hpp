@@ -183,6 +183,8 @@ class CorotationalEfg final : public DeformableModel {
   void add_stiffness_diagonal(Vector& diagonal) const override;
   // With rotations extracted from x itself, so it is invariant under rigid motions of x.
   double elastic_energy(const Vector& x) const override;
+  std::function<BlockMatrix()> rest_stiffness_job() const override;
+  void node_rotations(std::vector<Eigen::Quaterniond>& out) const override;
 
   // Where the element loops run: the given executor, which must outlive its use here, or the
   // calling thread (serial_executor) for nullptr. The model owns no thread.

@@ -34,6 +34,8 @@ class CorotationalTetFem final : public DeformableModel {
   // Uses rotations computed from x itself (not the frozen ones), so the energy is invariant
   // under rigid motions of x.
   double elastic_energy(const Vector& x) const override;
+  std::function<BlockMatrix()> rest_stiffness_job() const override;
+  void node_rotations(std::vector<Eigen::Quaterniond>& out) const override;
 
   int element_count() const { return static_cast<int>(elements_.size()); }
   const std::vector<std::array<int, 4>>& elements() const { return elements_; }

@@ -1,0 +1,65 @@
+#include "physics/solve/rest_factor.hpp"
+
+#include <Eigen/CholmodSupport>
+#include <Eigen/SparseCholesky>
+
+#include <chrono>
+#include <mutex>
+#include <stdexcept>
+
+extern "C" void openblas_set_num_threads(int);
+
+namespace incise::physics {
+
+using SparseMatrix = Eigen::SparseMatrix<double>;
+
+FactorBackend default_factor_backend() {
+#if defined(__SANITIZE_THREAD__)
+  return FactorBackend::simplicial;
+#else
+  return FactorBackend::cholmod;
+#endif
+}
+
+const char* to_string(FactorBackend backend) {
+  return backend == FactorBackend::cholmod ? "cholmod" : "simplicial";
+}
+
+struct RestFactor::Solver {
+  Eigen::CholmodSupernodalLLT<SparseMatrix> cholmod;
+  Eigen::SimplicialLLT<SparseMatrix> simplicial;
+};
+
+RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
+                       double mass_coefficient, double stiffness_coefficient, FactorBackend backend)
+    : solver_(std::make_unique<Solver>()), size_(3 * stiffness.nodes()), backend_(backend) {
+  const auto start = std::chrono::steady_clock::now();
+  if (!(mass_coefficient > 0) || !(stiffness_coefficient >= 0))
+    throw std::invalid_argument("RestFactor: the mass coefficient must be positive and the stiffness one non-negative");
+  const SparseMatrix matrix = stiffness.system(masses, fixed, mass_coefficient, stiffness_coefficient);
+  if (backend == FactorBackend::cholmod) {
+    // One BLAS thread: the factor is built beside the step, whose threads have the cores.
+    static std::once_flag single_threaded_blas;
+    std::call_once(single_threaded_blas, [] { openblas_set_num_threads(1); });
+    solver_->cholmod.compute(matrix);
+    if (solver_->cholmod.info() != Eigen::Success)
+      throw std::runtime_error("RestFactor: CHOLMOD found the rest system not positive definite");
+    factor_nonzeros_ = static_cast<long long>(solver_->cholmod.cholmod().lnz);
+  } else {
+    solver_->simplicial.compute(matrix);
+    if (solver_->simplicial.info() != Eigen::Success)
+      throw std::runtime_error("RestFactor: the rest system is not positive definite");
+    factor_nonzeros_ = solver_->simplicial.matrixL().nestedExpression().nonZeros();
+  }
+  build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+RestFactor::~RestFactor() = default;
+
+void RestFactor::solve(Eigen::VectorXd& x) const {
+  Eigen::VectorXd solution = backend_ == FactorBackend::cholmod ? Eigen::VectorXd(solver_->cholmod.solve(x))
+                                                                 : Eigen::VectorXd(solver_->simplicial.solve(x));
+  x.swap(solution);
+}
+
+}  // namespace incise::physics

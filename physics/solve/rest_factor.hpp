@@ -1,0 +1,60 @@
+// The Cholesky factor of a body's implicit system in its rest shape,
+//   A0 = mass_coefficient M + stiffness_coefficient K0   (K0: every rotation the identity),
+// the fixed nodes decoupled. Warped by the current rotations it preconditions the corotated
+// system (physics/solve/warped_preconditioner.hpp; SOFA's WarpPreconditioner, Courtecuisse
+// et al. 2010). Immutable once built, so one factor may be shared by the steps that use it
+// while the next is built on another thread.
+#pragma once
+
+#include "physics/solve/block_matrix.hpp"
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace incise::physics {
+
+enum class FactorBackend {
+  // CHOLMOD's supernodal factorisation (dense BLAS on supernodes): several times faster to
+  // build; its OpenMP and OpenBLAS threads are limited to one so that it neither competes with
+  // the step's threads nor depends on their count.
+  cholmod,
+  // Eigen's simplicial LLT (AMD ordering): no BLAS, no threads; used under ThreadSanitizer,
+  // which cannot see OpenMP's and OpenBLAS's synchronisation.
+  simplicial,
+};
+
+// CHOLMOD unless the build is ThreadSanitizer's.
+FactorBackend default_factor_backend();
+
+class RestFactor {
+ public:
+  // Throws std::runtime_error if A0 is not positive definite (a body with a free rigid mode
+  // and no mass term cannot be: the mass coefficient must be positive).
+  RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
+             double mass_coefficient, double stiffness_coefficient, FactorBackend backend = default_factor_backend());
+  ~RestFactor();
+  RestFactor(const RestFactor&) = delete;
+  RestFactor& operator=(const RestFactor&) = delete;
+
+  // x <- A0^-1 x (3n). Not safe to call from two threads at once (the solvers keep workspace).
+  void solve(Eigen::VectorXd& x) const;
+
+  int size() const { return size_; }
+  long long factor_nonzeros() const { return factor_nonzeros_; }
+  double build_ms() const { return build_ms_; }  // the matrix and its factorisation
+  FactorBackend backend() const { return backend_; }
+
+ private:
+  struct Solver;
+  std::unique_ptr<Solver> solver_;
+  int size_ = 0;
+  long long factor_nonzeros_ = 0;
+  double build_ms_ = 0;
+  FactorBackend backend_;
+};
+
+const char* to_string(FactorBackend backend);
+
+}  // namespace incise::physics

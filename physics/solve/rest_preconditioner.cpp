@@ -1,0 +1,69 @@
+#include "physics/solve/rest_preconditioner.hpp"
+
+#include "physics/core/stopwatch.hpp"
+
+#include <stdexcept>
+
+namespace incise::physics {
+
+const char* to_string(PreconditionerKind kind) {
+  return kind == PreconditionerKind::jacobi ? "jacobi" : "warped_cholesky";
+}
+
+RestPreconditioner::Pending RestPreconditioner::start(const DeformableModel& model, const std::vector<std::uint8_t>& fixed,
+                                                      double mass_coefficient, double stiffness_coefficient,
+                                                      std::uint64_t revision, long long step, int latency,
+                                                      Executor& executor) {
+  Pending pending;
+  pending.revision = revision;
+  pending.started = step;
+  pending.due = step + latency;
+  pending.result = std::make_shared<FactorPtr>();
+  // Everything the job reads is its own copy: the model may be cut again meanwhile.
+  auto assemble = model.rest_stiffness_job();
+  pending.done = executor.run_async([result = pending.result, assemble = std::move(assemble),
+                                     masses = model.lumped_masses(), fixed, mass_coefficient, stiffness_coefficient] {
+    const BlockMatrix stiffness = assemble();
+    *result = std::make_shared<const RestFactor>(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient);
+  });
+  ++builds_;
+  return pending;
+}
+
+const RestFactor* RestPreconditioner::prepare(const PreconditionerSettings& settings, const DeformableModel& model, const std::vector<std::uint8_t>& fixed,
+                                              double mass_coefficient, double stiffness_coefficient, std::uint64_t revision,
+                                              long long step, Executor& executor, PreconditionerReport& report) {
+  if (settings.kind == PreconditionerKind::jacobi || unsupported_) return nullptr;
+  if (!current_) {
+    if (!model.rest_stiffness_job()) {
+      unsupported_ = true;  // the model offers no rest stiffness: Jacobi
+      return nullptr;
+    }
+    // The first factor, before the first step: on the critical path, the solve needs it now.
+    Pending first = start(model, fixed, mass_coefficient, stiffness_coefficient, revision, step, 0, serial_executor());
+    first.done.get();
+    current_ = *first.result;
+    current_revision_ = revision;
+    report.built_here = true;
+  }
+  if (lacking_.empty() || lacking_.back().first != revision) {
+    if (revision != current_revision_) lacking_.emplace_back(revision, step);
+  }
+  if (pending_ && step >= pending_->due) {
+    const Stopwatch wait;
+    pending_->done.get();  // rethrows the build's error
+    report.wait_ms = wait.ms();
+    current_ = *pending_->result;
+    current_revision_ = pending_->revision;
+    while (!lacking_.empty() && lacking_.front().first <= current_revision_) lacking_.pop_front();
+    pending_.reset();
+    report.adopted = true;
+  }
+  if (!pending_ && revision != current_revision_)
+    pending_ = std::make_shared<Pending>(start(model, fixed, mass_coefficient, stiffness_coefficient, revision, step, settings.latency, executor));
+  report.age = lacking_.empty() ? 0 : step - lacking_.front().second;
+  report.build_ms = current_->build_ms();
+  return current_.get();
+}
+
+}  // namespace incise::physics

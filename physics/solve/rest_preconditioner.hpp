@@ -1,0 +1,81 @@
+// A body's rest-shape preconditioner over the steps: which factor its solves use, and when a
+// cut's new one takes over.
+//
+// The factor of A0 = (1 + dt alpha) M + (dt beta + dt^2) K0 is built once before the first
+// step. A topology change (a cut re-selects neighbourhoods, moves masses, pins particles)
+// leaves it a valid preconditioner of the new system, only a less exact one, so the steps go
+// on with it while the new factor is built beside them (Executor::run_async; Courtecuisse et
+// al. 2014 update theirs asynchronously likewise). The new factor takes over exactly
+// `latency` steps after the change that started it, waiting for it if it is late: which
+// factor a step uses depends on the step count only, never on the threads' timing, so
+// replays stay bit-for-bit.
+#pragma once
+
+#include "physics/core/executor.hpp"
+#include "physics/core/model.hpp"
+#include "physics/solve/rest_factor.hpp"
+
+#include <cstdint>
+#include <deque>
+#include <utility>
+#include <future>
+#include <memory>
+#include <vector>
+
+namespace incise::physics {
+
+enum class PreconditionerKind {
+  jacobi,           // the diagonal of A: no factor
+  warped_cholesky,  // the rest factor warped by the node rotations (warped_preconditioner.hpp)
+};
+
+const char* to_string(PreconditionerKind kind);
+
+struct PreconditionerSettings {
+  PreconditionerKind kind = PreconditionerKind::warped_cholesky;
+  int latency = 4;  // steps between a topology change and its factor taking over
+};
+
+// What the step reports about it.
+struct PreconditionerReport {
+  long long age = 0;        // steps since the topology change the factor in use lags, 0 = current
+  double build_ms = 0;      // the factor in use: its build time (on its thread)
+  double wait_ms = 0;       // this step waited for a late factor
+  bool adopted = false;     // a new factor took over this step
+  bool built_here = false;  // built on the step's critical path (the first one)
+};
+
+class RestPreconditioner {
+ public:
+  // Before step `step`'s solve: the factor it uses (nullptr: Jacobi, for that kind or a model
+  // that offers no rest stiffness). `revision` counts the model's topology changes
+  // (BodyData::topology_revision); `masses`, `fixed` and the coefficients are the current
+  // system's. Starts a build on `executor` when the topology moved past the last one started.
+  const RestFactor* prepare(const PreconditionerSettings& settings, const DeformableModel& model, const std::vector<std::uint8_t>& fixed, double mass_coefficient,
+                            double stiffness_coefficient, std::uint64_t revision, long long step, Executor& executor,
+                            PreconditionerReport& report);
+
+  int builds() const { return builds_; }
+
+ private:
+  using FactorPtr = std::shared_ptr<const RestFactor>;
+  struct Pending {
+    std::shared_ptr<FactorPtr> result;  // written by the job
+    std::shared_future<void> done;
+    std::uint64_t revision = 0;
+    long long due = 0;        // the step it takes over at
+    long long started = 0;    // the step that started it
+  };
+  Pending start(const DeformableModel& model, const std::vector<std::uint8_t>& fixed, double mass_coefficient,
+                double stiffness_coefficient, std::uint64_t revision, long long step, int latency, Executor& executor);
+
+  FactorPtr current_;
+  std::uint64_t current_revision_ = 0;
+  // The topology revisions the factor in use lacks, with the step each was first seen at.
+  std::deque<std::pair<std::uint64_t, long long>> lacking_;
+  std::shared_ptr<Pending> pending_;
+  int builds_ = 0;
+  bool unsupported_ = false;
+};
+
+}  // namespace incise::physics

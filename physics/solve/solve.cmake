@@ -1,0 +1,17 @@
+# Linear solvers beyond the CG (physics/solve): the rest-shape factor and its warp. Included
+# by physics/CMakeLists.txt after add_library(incise_physics ...). The factor is CHOLMOD's
+# (SuiteSparse, OpenBLAS behind it; Debian: libsuitesparse-dev libopenblas-dev).
+target_sources(incise_physics PRIVATE
+  ${CMAKE_CURRENT_LIST_DIR}/block_matrix.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/rest_factor.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/warped_preconditioner.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/rest_preconditioner.cpp
+)
+find_path(INCISE_CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse)
+find_library(INCISE_CHOLMOD_LIBRARY cholmod)
+find_library(INCISE_OPENBLAS_LIBRARY openblas)
+if(NOT INCISE_CHOLMOD_INCLUDE_DIR OR NOT INCISE_CHOLMOD_LIBRARY OR NOT INCISE_OPENBLAS_LIBRARY)
+  message(FATAL_ERROR "incise_physics needs CHOLMOD and OpenBLAS (Debian: libsuitesparse-dev libopenblas-dev; scripts/setup installs them)")
+endif()
+target_include_directories(incise_physics SYSTEM PUBLIC ${INCISE_CHOLMOD_INCLUDE_DIR})
+target_link_libraries(incise_physics PUBLIC ${INCISE_CHOLMOD_LIBRARY} ${INCISE_OPENBLAS_LIBRARY})
