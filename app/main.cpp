@@ -120,10 +120,10 @@ int main(int argc, char** argv) {
   auto* performance_cmd = bench_cmd->add_subcommand("performance", "Step time by phase while cutting, by element and triangle count");
   performance_cmd->add_flag("--quick", performance_quick, "Two resolutions only: the coarsest and 20k elements");
   performance_cmd->add_option("--out", performance_out, "Output folder (performance.csv)")->capture_default_str();
-  std::string performance_preconditioner = "both";
+  std::string performance_preconditioner = "all";
   performance_cmd->add_option("--preconditioner", performance_preconditioner,
-                              "CG's preconditioner: both side by side, warped_cholesky or jacobi (the Jacobi CG alone)")
-      ->check(CLI::IsMember({"both", "warped_cholesky", "jacobi"}))
+                              "CG's preconditioner: all side by side, or two_level, warped_cholesky or jacobi (the Jacobi CG) alone")
+      ->check(CLI::IsMember({"all", "two_level", "warped_cholesky", "jacobi"}))
       ->capture_default_str();
   std::string performance_backend = "cpu";
   performance_cmd->add_option("--backend", performance_backend, "gpu: also run every size on the GPU backend")

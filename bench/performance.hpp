@@ -17,6 +17,6 @@ namespace incise::bench {
 // backend "gpu": each size also runs on the GPU backend (rows with backend=gpu, the device
 // and the bytes uploaded per cut step). The cut_surface column is "front", the one design.
 int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress,
-                          const std::string& backend = "cpu", const std::string& preconditioner = "both");
+                          const std::string& backend = "cpu", const std::string& preconditioner = "all");
 
 }  // namespace incise::bench

@@ -132,8 +132,9 @@ std::shared_ptr<physics::BodyModel> body_model(const BodySpec& spec, const Solve
   model->integrator.rayleigh_stiffness = spec.damping_stiffness;
   model->integrator.cg.tolerance = solver.tolerance;
   model->integrator.cg.max_iterations = solver.max_iterations;
-  model->preconditioner.kind = solver.preconditioner == "jacobi" ? physics::PreconditionerKind::jacobi
-                                                                 : physics::PreconditionerKind::warped_cholesky;
+  model->preconditioner.kind = solver.preconditioner == "warped_cholesky" ? physics::PreconditionerKind::warped_cholesky
+                                : solver.preconditioner == "two_level"     ? physics::PreconditionerKind::two_level
+                                                                           : physics::PreconditionerKind::jacobi;
   model->preconditioner.latency = solver.preconditioner_latency;
   model->gravity = vec(solver.gravity);
   return model;

@@ -36,7 +36,7 @@ const physics::RestFactor* World::prepare_preconditioner(Body& body, StepStats& 
       dt * integrator.rayleigh_stiffness + dt * dt, body.data.topology_revision, static_cast<long long>(steps_), executor,
       report);
   if (factor) {
-    stats.preconditioner = "warped_cholesky";
+    stats.preconditioner = physics::to_string(body.model->preconditioner.kind);
     stats.preconditioner_age = std::max(stats.preconditioner_age, report.age);
     stats.preconditioner_build_ms = std::max(stats.preconditioner_build_ms, report.build_ms);
     stats.preconditioner_wait_ms += report.wait_ms;

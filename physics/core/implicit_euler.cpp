@@ -2,6 +2,7 @@
 
 #include "physics/solve/warped_preconditioner.hpp"
 
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -55,21 +56,28 @@ void check_inputs(const DeformableModel& model, const State& state,
   if (!(settings.dt > 0.0)) fail("dt must be positive");
 }
 
-// CG preconditioned with the diagonal of A = m_coefficient M + k_coefficient K.
-CgResult jacobi_solve(const DeformableModel& model, std::span<const NodalSpring> springs, const Vector& masses,
-                      double mass_coefficient, double stiffness_coefficient, const LinearOperator& apply,
-                      const Vector& right_hand_side, const std::vector<uint8_t>& fixed_nodes, Vector& velocity_change,
-                      const CgSettings& settings) {
-  Vector stiffness_diagonal = Vector::Zero(right_hand_side.size());
+// The diagonal of A = m_coefficient M + k_coefficient K (the springs' included).
+Vector jacobi_diagonal(const DeformableModel& model, std::span<const NodalSpring> springs, const Vector& masses,
+                       double mass_coefficient, double stiffness_coefficient) {
+  Vector stiffness_diagonal = Vector::Zero(3 * masses.size());
   model.add_stiffness_diagonal(stiffness_diagonal);
   for (const NodalSpring& spring : springs) {
     stiffness_diagonal.segment<3>(3 * spring.node) += spring.stiffness.diagonal();
   }
-  Vector diagonal(right_hand_side.size());
+  Vector diagonal(3 * masses.size());
   for (Index node = 0; node < masses.size(); ++node) {
     diagonal.segment<3>(3 * node) = mass_coefficient * masses[node] * Vec3::Ones() +
                                     stiffness_coefficient * stiffness_diagonal.segment<3>(3 * node);
   }
+  return diagonal;
+}
+
+// CG preconditioned with that diagonal.
+CgResult jacobi_solve(const DeformableModel& model, std::span<const NodalSpring> springs, const Vector& masses,
+                      double mass_coefficient, double stiffness_coefficient, const LinearOperator& apply,
+                      const Vector& right_hand_side, const std::vector<uint8_t>& fixed_nodes, Vector& velocity_change,
+                      const CgSettings& settings) {
+  const Vector diagonal = jacobi_diagonal(model, springs, masses, mass_coefficient, stiffness_coefficient);
   return conjugate_gradient(apply, right_hand_side, diagonal, fixed_nodes, velocity_change, settings);
 }
 
@@ -143,7 +151,17 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   if (rest_factor && rest_factor->size() == size) {
     std::vector<Eigen::Quaterniond> rotations;
     model.node_rotations(rotations);
-    const Preconditioner warped = [&](const Vector& r, Vector& z) { warped_solve(*rest_factor, rotations, r, z); };
+    // A coarse factor corrects only the smooth part: Jacobi takes the rest (additive two-level).
+    const Vector inverse_diagonal =
+        rest_factor->coarse() ? jacobi_diagonal(model, springs, masses, mass_coefficient, stiffness_coefficient)
+                                    .unaryExpr([](double d) { return d > 0.0 && std::isfinite(d) ? 1.0 / d : 1.0; })
+                              : Vector();
+    Vector coarse(size);
+    const Preconditioner warped = [&](const Vector& r, Vector& z) {
+      if (!rest_factor->coarse()) return warped_solve(*rest_factor, rotations, r, z);
+      warped_solve(*rest_factor, rotations, r, coarse);
+      z = inverse_diagonal.cwiseProduct(r) + coarse;
+    };
     report.cg = preconditioned_conjugate_gradient(apply, right_hand_side, warped, fixed_nodes, velocity_change, settings.cg);
   } else {
     report.cg = jacobi_solve(model, springs, masses, mass_coefficient, stiffness_coefficient, apply, right_hand_side,

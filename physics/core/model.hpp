@@ -52,6 +52,9 @@ class DeformableModel {
   // Per node, the mean of the frozen rotations of the elements around it (unit quaternions):
   // the warp of a rest-shape preconditioner. Empty: the identity.
   virtual void node_rotations(std::vector<Eigen::Quaterniond>& out) const { out.clear(); }
+  // The typical distance between neighbouring nodes at rest, which a two-level
+  // preconditioner's coarse grid doubles (physics/solve/coarse_space.hpp). 0: unknown.
+  virtual double node_spacing() const { return 0; }
 };
 
 // A point force with its own stiffness, added to the implicit system (penalty contact,

@@ -185,6 +185,7 @@ class CorotationalEfg final : public DeformableModel {
   double elastic_energy(const Vector& x) const override;
   std::function<BlockMatrix()> rest_stiffness_job() const override;
   void node_rotations(std::vector<Eigen::Quaterniond>& out) const override;
+  double node_spacing() const override;
 
   // Where the element loops run: the given executor, which must outlive its use here, or the
   // calling thread (serial_executor) for nullptr. The model owns no thread.

@@ -57,4 +57,6 @@ void CorotationalEfg::node_rotations(std::vector<Eigen::Quaterniond>& out) const
   mean.finish(out);
 }
 
+double CorotationalEfg::node_spacing() const { return 2 * settings_.spacing; }  // the particle grid's
+
 }  // namespace incise::physics

@@ -36,6 +36,7 @@ class CorotationalTetFem final : public DeformableModel {
   double elastic_energy(const Vector& x) const override;
   std::function<BlockMatrix()> rest_stiffness_job() const override;
   void node_rotations(std::vector<Eigen::Quaterniond>& out) const override;
+  double node_spacing() const override;
 
   int element_count() const { return static_cast<int>(elements_.size()); }
   const std::vector<std::array<int, 4>>& elements() const { return elements_; }

@@ -52,4 +52,19 @@ void CorotationalTetFem::node_rotations(std::vector<Eigen::Quaterniond>& out) co
   mean.finish(out);
 }
 
+double CorotationalTetFem::node_spacing() const {
+  // The mean edge length (each tet's six edges; shared edges counted once per tet).
+  double sum = 0;
+  long long count = 0;
+  for (const auto& tet : elements_) {
+    for (int a = 0; a < 4; ++a) {
+      for (int b = a + 1; b < 4; ++b) {
+        sum += (rest_.segment<3>(3 * tet[a]) - rest_.segment<3>(3 * tet[b])).norm();
+        ++count;
+      }
+    }
+  }
+  return count > 0 ? sum / static_cast<double>(count) : 0.0;
+}
+
 }  // namespace incise::physics

@@ -31,12 +31,18 @@ struct RestFactor::Solver {
 };
 
 RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
-                       double mass_coefficient, double stiffness_coefficient, FactorBackend backend)
+                       double mass_coefficient, double stiffness_coefficient, FactorBackend backend,
+                       const CoarseSpace* coarse)
     : solver_(std::make_unique<Solver>()), size_(3 * stiffness.nodes()), backend_(backend) {
   const auto start = std::chrono::steady_clock::now();
   if (!(mass_coefficient > 0) || !(stiffness_coefficient >= 0))
     throw std::invalid_argument("RestFactor: the mass coefficient must be positive and the stiffness one non-negative");
-  const SparseMatrix matrix = stiffness.system(masses, fixed, mass_coefficient, stiffness_coefficient);
+  SparseMatrix matrix = stiffness.system(masses, fixed, mass_coefficient, stiffness_coefficient);
+  if (coarse) {
+    prolongation_ = coarse->prolongation;
+    SparseMatrix galerkin = SparseMatrix(prolongation_.transpose()) * (matrix * prolongation_);
+    matrix = std::move(galerkin);
+  }
   if (backend == FactorBackend::cholmod) {
     // One BLAS thread: the factor is built beside the step, whose threads have the cores.
     static std::once_flag single_threaded_blas;
@@ -57,9 +63,13 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
 RestFactor::~RestFactor() = default;
 
 void RestFactor::solve(Eigen::VectorXd& x) const {
-  Eigen::VectorXd solution = backend_ == FactorBackend::cholmod ? Eigen::VectorXd(solver_->cholmod.solve(x))
-                                                                 : Eigen::VectorXd(solver_->simplicial.solve(x));
-  x.swap(solution);
+  const Eigen::VectorXd right = coarse() ? Eigen::VectorXd(prolongation_.transpose() * x) : x;
+  Eigen::VectorXd solution = backend_ == FactorBackend::cholmod ? Eigen::VectorXd(solver_->cholmod.solve(right))
+                                                                 : Eigen::VectorXd(solver_->simplicial.solve(right));
+  if (coarse())
+    x = prolongation_ * solution;
+  else
+    x.swap(solution);
 }
 
 }  // namespace incise::physics

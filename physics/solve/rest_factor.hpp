@@ -1,12 +1,15 @@
 // The Cholesky factor of a body's implicit system in its rest shape,
 //   A0 = mass_coefficient M + stiffness_coefficient K0   (K0: every rotation the identity),
-// the fixed nodes decoupled. Warped by the current rotations it preconditions the corotated
+// the fixed nodes decoupled; or, given a coarse space P (coarse_space.hpp), of its Galerkin
+// coarse system P^T A0 P, whose solve is then the coarse correction P (P^T A0 P)^-1 P^T of a
+// two-level preconditioner. Warped by the current rotations it preconditions the corotated
 // system (physics/solve/warped_preconditioner.hpp; SOFA's WarpPreconditioner, Courtecuisse
 // et al. 2010). Immutable once built, so one factor may be shared by the steps that use it
 // while the next is built on another thread.
 #pragma once
 
 #include "physics/solve/block_matrix.hpp"
+#include "physics/solve/coarse_space.hpp"
 
 #include <cstdint>
 #include <memory>
@@ -33,13 +36,17 @@ class RestFactor {
   // Throws std::runtime_error if A0 is not positive definite (a body with a free rigid mode
   // and no mass term cannot be: the mass coefficient must be positive).
   RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
-             double mass_coefficient, double stiffness_coefficient, FactorBackend backend = default_factor_backend());
+             double mass_coefficient, double stiffness_coefficient, FactorBackend backend = default_factor_backend(),
+             const CoarseSpace* coarse = nullptr);
   ~RestFactor();
   RestFactor(const RestFactor&) = delete;
   RestFactor& operator=(const RestFactor&) = delete;
 
-  // x <- A0^-1 x (3n). Not safe to call from two threads at once (the solvers keep workspace).
+  // x <- A0^-1 x, or P (P^T A0 P)^-1 P^T x with a coarse space (3n). Not safe to call from two
+  // threads at once (the solvers keep workspace).
   void solve(Eigen::VectorXd& x) const;
+  bool coarse() const { return prolongation_.size() > 0; }
+  int factored_size() const { return coarse() ? static_cast<int>(prolongation_.cols()) : size_; }
 
   int size() const { return size_; }
   long long factor_nonzeros() const { return factor_nonzeros_; }
@@ -49,6 +56,7 @@ class RestFactor {
  private:
   struct Solver;
   std::unique_ptr<Solver> solver_;
+  Eigen::SparseMatrix<double> prolongation_;  // empty: the whole system is factored
   int size_ = 0;
   long long factor_nonzeros_ = 0;
   double build_ms_ = 0;

@@ -7,24 +7,38 @@
 namespace incise::physics {
 
 const char* to_string(PreconditionerKind kind) {
-  return kind == PreconditionerKind::jacobi ? "jacobi" : "warped_cholesky";
+  switch (kind) {
+    case PreconditionerKind::jacobi: return "jacobi";
+    case PreconditionerKind::warped_cholesky: return "warped_cholesky";
+    case PreconditionerKind::two_level: return "two_level";
+  }
+  return "?";
 }
 
 RestPreconditioner::Pending RestPreconditioner::start(const DeformableModel& model, const std::vector<std::uint8_t>& fixed,
                                                       double mass_coefficient, double stiffness_coefficient,
-                                                      std::uint64_t revision, long long step, int latency,
-                                                      Executor& executor) {
+                                                      std::uint64_t revision, long long step,
+                                                      const PreconditionerSettings& settings, Executor& executor) {
   Pending pending;
   pending.revision = revision;
   pending.started = step;
-  pending.due = step + latency;
+  pending.due = step + settings.latency;
   pending.result = std::make_shared<FactorPtr>();
   // Everything the job reads is its own copy: the model may be cut again meanwhile.
   auto assemble = model.rest_stiffness_job();
+  const double coarse_spacing =
+      settings.kind == PreconditionerKind::two_level ? settings.coarsening * model.node_spacing() : 0.0;
   pending.done = executor.run_async([result = pending.result, assemble = std::move(assemble),
-                                     masses = model.lumped_masses(), fixed, mass_coefficient, stiffness_coefficient] {
+                                     masses = model.lumped_masses(), rest = model.rest_positions(), fixed,
+                                     mass_coefficient, stiffness_coefficient, coarse_spacing] {
     const BlockMatrix stiffness = assemble();
-    *result = std::make_shared<const RestFactor>(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient);
+    if (coarse_spacing > 0) {
+      const CoarseSpace coarse = make_coarse_space(rest, coarse_spacing, fixed);
+      *result = std::make_shared<const RestFactor>(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient,
+                                                   default_factor_backend(), &coarse);
+    } else {
+      *result = std::make_shared<const RestFactor>(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient);
+    }
   });
   ++builds_;
   return pending;
@@ -35,12 +49,12 @@ const RestFactor* RestPreconditioner::prepare(const PreconditionerSettings& sett
                                               long long step, Executor& executor, PreconditionerReport& report) {
   if (settings.kind == PreconditionerKind::jacobi || unsupported_) return nullptr;
   if (!current_) {
-    if (!model.rest_stiffness_job()) {
+    if (!model.rest_stiffness_job() || (settings.kind == PreconditionerKind::two_level && !(model.node_spacing() > 0))) {
       unsupported_ = true;  // the model offers no rest stiffness: Jacobi
       return nullptr;
     }
     // The first factor, before the first step: on the critical path, the solve needs it now.
-    Pending first = start(model, fixed, mass_coefficient, stiffness_coefficient, revision, step, 0, serial_executor());
+    Pending first = start(model, fixed, mass_coefficient, stiffness_coefficient, revision, step, settings, serial_executor());
     first.done.get();
     current_ = *first.result;
     current_revision_ = revision;
@@ -60,7 +74,7 @@ const RestFactor* RestPreconditioner::prepare(const PreconditionerSettings& sett
     report.adopted = true;
   }
   if (!pending_ && revision != current_revision_)
-    pending_ = std::make_shared<Pending>(start(model, fixed, mass_coefficient, stiffness_coefficient, revision, step, settings.latency, executor));
+    pending_ = std::make_shared<Pending>(start(model, fixed, mass_coefficient, stiffness_coefficient, revision, step, settings, executor));
   report.age = lacking_.empty() ? 0 : step - lacking_.front().second;
   report.build_ms = current_->build_ms();
   return current_.get();

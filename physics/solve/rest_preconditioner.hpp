@@ -27,6 +27,9 @@ namespace incise::physics {
 enum class PreconditionerKind {
   jacobi,           // the diagonal of A: no factor
   warped_cholesky,  // the rest factor warped by the node rotations (warped_preconditioner.hpp)
+  // Jacobi plus the coarse correction of an embedded grid twice the node spacing (additive
+  // two-level: P^-1 = D^-1 + R P (P^T A0 P)^-1 P^T R^T; coarse_space.hpp), warped likewise.
+  two_level,
 };
 
 const char* to_string(PreconditionerKind kind);
@@ -34,6 +37,7 @@ const char* to_string(PreconditionerKind kind);
 struct PreconditionerSettings {
   PreconditionerKind kind = PreconditionerKind::warped_cholesky;
   int latency = 4;  // steps between a topology change and its factor taking over
+  double coarsening = 2;  // two_level: the coarse grid's spacing over the model's node spacing
 };
 
 // What the step reports about it.
@@ -67,7 +71,8 @@ class RestPreconditioner {
     long long started = 0;    // the step that started it
   };
   Pending start(const DeformableModel& model, const std::vector<std::uint8_t>& fixed, double mass_coefficient,
-                double stiffness_coefficient, std::uint64_t revision, long long step, int latency, Executor& executor);
+                double stiffness_coefficient, std::uint64_t revision, long long step, const PreconditionerSettings& settings,
+                Executor& executor);
 
   FactorPtr current_;
   std::uint64_t current_revision_ = 0;

@@ -3,6 +3,7 @@
 # (SuiteSparse, OpenBLAS behind it; Debian: libsuitesparse-dev libopenblas-dev).
 target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/block_matrix.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/coarse_space.cpp
   ${CMAKE_CURRENT_LIST_DIR}/rest_factor.cpp
   ${CMAKE_CURRENT_LIST_DIR}/warped_preconditioner.cpp
   ${CMAKE_CURRENT_LIST_DIR}/rest_preconditioner.cpp

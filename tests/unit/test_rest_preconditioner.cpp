@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 
 #include <memory>
+#include <cstdio>
 #include <random>
 
 namespace incise::physics {
@@ -20,9 +21,9 @@ namespace {
 
 const Material tissue{5e3, 0.45, 1060};
 
-std::unique_ptr<CorotationalEfg> small_efg() {
+std::unique_ptr<CorotationalEfg> small_efg(double spacing = 0.005) {
   EfgSettings settings;
-  settings.spacing = 0.005;
+  settings.spacing = spacing;
   // A ball: partial cubes, re-selected neighbourhoods and varied rows, not only full cells.
   return std::make_unique<CorotationalEfg>(
       [](const Vec3& p) { return p.norm() < 0.021; }, Vec3::Constant(-0.025), Vec3::Constant(0.025), tissue, settings);
@@ -162,6 +163,75 @@ TEST(RestPreconditioner, JacobiAndModelsWithoutRestStiffnessGetNoFactor) {
   PreconditionerReport report;
   EXPECT_EQ(preconditioner.prepare(jacobi, *model, {}, 1, 1e-4, 0, 0, serial_executor(), report), nullptr);
   EXPECT_EQ(preconditioner.builds(), 0);
+}
+
+}  // namespace
+}  // namespace incise::physics
+
+namespace incise::physics {
+namespace {
+
+// The embedded coarse grid: a partition of unity on the free nodes it reaches (so translations
+// are exact), nothing on fixed nodes, and a Galerkin system that factors (full column rank).
+TEST(CoarseSpace, IsAPartitionOfUnityOnTheFreeNodesAndLeavesTheFixedOnesOut) {
+  auto model = small_efg();
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(model->node_count()), 0);
+  for (size_t i = 0; i < fixed.size(); i += 7) fixed[i] = 1;
+  const CoarseSpace space = make_coarse_space(model->rest_positions(), 2 * model->node_spacing(), fixed);
+  ASSERT_GT(space.coarse_nodes, 0);
+  EXPECT_LT(space.coarse_nodes, model->node_count() / 3);
+  const Vector ones = Vector::Ones(3 * space.coarse_nodes);
+  const Vector row_sums = space.prolongation * ones;
+  int reached = 0;
+  for (int node = 0; node < model->node_count(); ++node) {
+    for (int k = 0; k < 3; ++k) {
+      const double sum = row_sums[3 * node + k];
+      if (fixed[static_cast<size_t>(node)]) {
+        EXPECT_EQ(sum, 0.0);
+      } else if (sum != 0.0) {
+        EXPECT_NEAR(sum, 1.0, 1e-12);
+        reached += k == 0;
+      }
+    }
+  }
+  EXPECT_GT(reached, model->node_count() * 3 / 4);
+  model->update_rotations(model->rest_positions());
+  const RestFactor coarse(model->rest_stiffness_job()(), model->lumped_masses(), fixed, 1.0, 1e-4,
+                          default_factor_backend(), &space);
+  EXPECT_TRUE(coarse.coarse());
+  EXPECT_EQ(coarse.factored_size(), 3 * space.coarse_nodes);
+}
+
+// Jacobi plus the coarse correction (two_level) reaches the Jacobi CG's solution in fewer
+// iterations on a partly fixed EFG ball (about 10 particles across), turned and stretched.
+TEST(CoarseSpace, TheTwoLevelPreconditionerNeedsFewerIterationsThanJacobiForTheSameSolution) {
+  auto model = small_efg(0.002);
+  const Vector& rest = model->rest_positions();
+  const Eigen::Quaterniond turn(Eigen::AngleAxisd(0.4, Vec3::UnitZ()));
+  Vector x(rest.size());
+  for (Eigen::Index i = 0; i < rest.size() / 3; ++i)
+    x.segment<3>(3 * i) = turn * Vec3(rest.segment<3>(3 * i).cwiseProduct(Vec3(1.1, 1.0, 0.95)));
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(model->node_count()), 0);
+  for (int i = 0; i < model->node_count(); ++i) fixed[static_cast<size_t>(i)] = rest[3 * i + 2] < -0.015;
+  State state{x, Vector::Zero(rest.size())};
+  ImplicitEulerSettings settings;
+  settings.dt = 0.01;
+  settings.cg.tolerance = 1e-8;
+  settings.cg.max_iterations = 2000;
+  const Vector gravity = gravity_forces(model->lumped_masses(), Vec3(0, 0, -9.81));
+  State jacobi_state = state;
+  const StepReport jacobi = implicit_euler_step(*model, jacobi_state, fixed, gravity, {}, settings);
+  const CoarseSpace space = make_coarse_space(rest, 2 * model->node_spacing(), fixed);
+  const RestFactor coarse(model->rest_stiffness_job()(), model->lumped_masses(), fixed, 1.0, settings.dt * settings.dt,
+                          default_factor_backend(), &space);
+  State two_level_state = state;
+  const StepReport two_level = implicit_euler_step(*model, two_level_state, fixed, gravity, {}, settings, nullptr, &coarse);
+  ASSERT_TRUE(jacobi.cg.converged);
+  ASSERT_TRUE(two_level.cg.converged);
+  EXPECT_LT(two_level.cg.iterations, jacobi.cg.iterations * 3 / 4);
+  const double moved = (jacobi_state.positions - x).cwiseAbs().maxCoeff();
+  EXPECT_LE((two_level_state.positions - jacobi_state.positions).cwiseAbs().maxCoeff(), 1e-5 * moved);
+  std::printf("CG iterations: jacobi %d, two_level %d\n", jacobi.cg.iterations, two_level.cg.iterations);
 }
 
 }  // namespace

@@ -426,10 +426,11 @@ TEST(WorldCut, TheFrontSurfaceKeptAcrossOtherShippedCutScenesIsTheWholeSurfacesA
   }
 }
 
-// The warped rest factor (solver.preconditioner "warped_cholesky"): rebuilt after each cut on
-// a thread of its own and taking over a fixed number of steps later, it replays bit-for-bit;
-// it reaches the Jacobi CG's solution (same tolerance) in fewer iterations, through the cut.
-TEST(WorldCut, TheWarpedFactorReplaysBitForBitThroughCutsAndAgreesWithJacobi) {
+// The warped rest factors (solver.preconditioner "warped_cholesky" and "two_level"): rebuilt
+// after each cut on a thread of their own and taking over a fixed number of steps later, they
+// replay bit-for-bit and reach the Jacobi CG's solution (same tolerance) in fewer iterations,
+// through the cut.
+TEST(WorldCut, TheRestFactorsReplayBitForBitThroughCutsAndAgreeWithJacobi) {
   TempDir dir("incise_world_cut_warped");
   Scene scene = beam_cut_scene(dir, 0.02);
   auto run = [&](const std::string& preconditioner, long long* iterations, long long* max_age) {
@@ -449,6 +450,8 @@ TEST(WorldCut, TheWarpedFactorReplaysBitForBitThroughCutsAndAgreesWithJacobi) {
     return std::make_pair(world.state_hash(), world.bodies()[0].data.state.positions);
   };
   long long warped_iterations = 0, again_iterations = 0, jacobi_iterations = 0, age = 0, unused = 0;
+  long long two_level_iterations = 0, two_level_age = 0;
+  const auto two_level = run("two_level", &two_level_iterations, &two_level_age);
   const auto warped = run("warped_cholesky", &warped_iterations, &age);
   const auto again = run("warped_cholesky", &again_iterations, &unused);
   const auto jacobi = run("jacobi", &jacobi_iterations, &unused);
@@ -460,4 +463,7 @@ TEST(WorldCut, TheWarpedFactorReplaysBitForBitThroughCutsAndAgreesWithJacobi) {
   const double moved = (jacobi.second - rest).cwiseAbs().maxCoeff();
   ASSERT_GT(moved, 0);
   EXPECT_LE((warped.second - jacobi.second).cwiseAbs().maxCoeff(), 1e-4 * moved);
+  EXPECT_LT(two_level_iterations, jacobi_iterations);
+  EXPECT_GE(two_level_age, 1);
+  EXPECT_LE((two_level.second - jacobi.second).cwiseAbs().maxCoeff(), 1e-4 * moved);
 }

@@ -1,0 +1,31 @@
+// A coarse space for a two-level preconditioner: the trilinear functions of a regular grid of
+// spacing H laid over the body's rest shape (the embedded coarse grid of geometric multigrid
+// on unstructured or meshless nodes; Dick, Georgii and Westermann 2011 coarsen the hexahedral
+// grid the same way). P maps coarse values to the nodes: node i takes sum_c w_ic u_c, w the
+// trilinear weights of its cell's corners.
+//
+// For the EFG particle grid (2a apart) with H = 4a every coarse vertex that holds a particle
+// is that particle, and the rest lie halfway between: standard geometric coarsening. Coarse
+// vertices outside the body that would carry only a sliver of a node's weight are dropped and
+// the node's weights renormalised (translations stay exact); fixed nodes take no coarse value.
+// Every kept vertex has a node of weight >= 1/2 on it alone, so P has full column rank and
+// P^T A P is positive definite whenever A is.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <cstdint>
+#include <vector>
+
+namespace incise::physics {
+
+struct CoarseSpace {
+  Eigen::SparseMatrix<double> prolongation;  // 3n x 3m, 3x3 blocks w_ic I
+  int coarse_nodes = 0;
+};
+
+// `rest`: 3n rest positions; `spacing`: H; `fixed`: per node, 1 = fixed (empty: none).
+CoarseSpace make_coarse_space(const Eigen::VectorXd& rest, double spacing, const std::vector<std::uint8_t>& fixed);
+
+}  // namespace incise::physics
