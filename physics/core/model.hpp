@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace incise::physics {
@@ -39,6 +40,10 @@ class DeformableModel {
   // diag += diagonal of K (for the Jacobi preconditioner).
   virtual void add_stiffness_diagonal(Vector& diag) const = 0;
   virtual double elastic_energy(const Vector& x) const = 0;
+  // A deep copy whose future is the same as this one's, bit for bit (copying a body's data
+  // copies its model: the model changes as it steps and as it is cut). What the model only
+  // borrows (an EFG model's executor) is borrowed by the copy too; its owner re-points it.
+  virtual std::unique_ptr<DeformableModel> clone() const = 0;
 };
 
 // A point force with its own stiffness, added to the implicit system (penalty contact,

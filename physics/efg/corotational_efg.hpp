@@ -172,6 +172,10 @@ class CorotationalEfg final : public DeformableModel {
   ~CorotationalEfg() override;
   CorotationalEfg(CorotationalEfg&&) noexcept;
   CorotationalEfg& operator=(CorotationalEfg&&) noexcept;
+  // Copies everything, the scratch of the element loops included; the copy runs its loops on
+  // the same executor until set_executor says otherwise.
+  CorotationalEfg(const CorotationalEfg&);
+  CorotationalEfg& operator=(const CorotationalEfg&);
 
   // DeformableModel.
   int node_count() const override { return static_cast<int>(masses_.size()); }
@@ -183,6 +187,7 @@ class CorotationalEfg final : public DeformableModel {
   void add_stiffness_diagonal(Vector& diagonal) const override;
   // With rotations extracted from x itself, so it is invariant under rigid motions of x.
   double elastic_energy(const Vector& x) const override;
+  std::unique_ptr<DeformableModel> clone() const override;
 
   // Where the element loops run: the given executor, which must outlive its use here, or the
   // calling thread (serial_executor) for nullptr. The model owns no thread.

@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <memory>
 #include <vector>
 
 #include "physics/core/model.hpp"
@@ -34,6 +35,7 @@ class CorotationalTetFem final : public DeformableModel {
   // Uses rotations computed from x itself (not the frozen ones), so the energy is invariant
   // under rigid motions of x.
   double elastic_energy(const Vector& x) const override;
+  std::unique_ptr<DeformableModel> clone() const override { return std::make_unique<CorotationalTetFem>(*this); }
 
   int element_count() const { return static_cast<int>(elements_.size()); }
   const std::vector<std::array<int, 4>>& elements() const { return elements_; }
