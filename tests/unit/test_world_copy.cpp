@@ -1,7 +1,7 @@
 // Copying the world copies the simulation (issue 28, STYLE.md's mjData): a World copied in the
 // middle of the default scene's incision, after several cut events, steps on through further
 // cuts to the same state hash as the original at every step; and the two share nothing, so
-// stepping the copy leaves the original where it was.
+// stepping the copy leaves the original where it was. A tetrahedral body copies as well.
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
@@ -99,4 +99,21 @@ TEST(WorldCopy, SteppingTheCopyLeavesTheOriginalWhereItWas) {
     world.step();
     ASSERT_EQ(world.state_hash(), copy_hashes[static_cast<std::size_t>(k)]) << "step " << world.steps_taken();
   }
+}
+
+TEST(WorldCopy, ATetrahedralBodyPushedByAProbeCopiesToo) {
+  // The FEM model's copy (its rotations and all) and no threads of its own to start; copied
+  // before the probe meets the organ (step 45), both stepped on through the contact.
+  World world = shipped_world("probe_organ");
+  for (int k = 0; k < 40; ++k) world.step();
+  World copy = world;
+  EXPECT_FALSE(copy.bodies()[0].executor);
+  EXPECT_NE(copy.bodies()[0].data.mechanics.get(), world.bodies()[0].data.mechanics.get());
+  int contacts = 0;
+  for (int k = 0; k < 15; ++k) {
+    contacts += world.step().contacts;
+    copy.step();
+    ASSERT_EQ(world.state_hash(), copy.state_hash()) << "step " << world.steps_taken();
+  }
+  EXPECT_GT(contacts, 0);
 }
