@@ -480,6 +480,7 @@ class AssembledLinearModel final : public DeformableModel {
     return 0.5 * u.dot(stiffness_ * u);
   }
 
+  std::unique_ptr<DeformableModel> clone() const override { return std::make_unique<AssembledLinearModel>(*this); }
  private:
   SparseMatrix stiffness_;
   Vector rest_;

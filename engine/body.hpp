@@ -17,7 +17,20 @@ namespace incise::engine {
 // A body: its read-only model and its data (physics/core/body.hpp), and for a cuttable body
 // the same split of its cut (physics/cut/cut_body.hpp). The engine adds what runs it: the
 // threads its model's loops use and, with solver.backend "gpu", its step on the GPU.
+//
+// A copy is the same body stepping on to the same future, bit for bit, sharing nothing that
+// changes: it shares the read-only models, copies the data and the cut (physics' copies, the cut
+// made for the copied EFG model) and starts threads of its own, as many, which its model's
+// loops then run on. A body on the GPU is not copied (std::runtime_error naming it): its step
+// keeps a context and buffers of its own.
 struct Body {
+  Body() = default;
+  Body(const Body& other);
+  Body& operator=(const Body& other);
+  Body(Body&&) = default;
+  Body& operator=(Body&&) = default;
+  ~Body() = default;
+
   std::shared_ptr<const physics::BodyModel> model;
   physics::BodyData data;
   std::shared_ptr<const physics::CutModel> cut_model;  // cuttable bodies only

@@ -112,6 +112,14 @@ class World {
   // `trajectory` drives the tool when the scene has one (already read by the caller so the
   // read report can go to the metrics).
   World(const Scene& scene, std::optional<Trajectory> trajectory);
+  // Copying the world copies the simulation: the copy steps on to the same states as this
+  // one, bit for bit (the same state_hash() after every step), and shares nothing that
+  // either changes (engine/body.hpp: each body's data, cut and threads its own). Throws
+  // std::runtime_error for a world with a body on the GPU.
+  World(const World& other) = default;
+  World& operator=(const World& other) = default;
+  World(World&&) = default;
+  World& operator=(World&&) = default;
 
   StepStats step();
   // Live tool input (issue 5): the tool's samples arrive while the world runs, from the haptic

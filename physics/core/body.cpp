@@ -1,6 +1,37 @@
 #include "physics/core/body.hpp"
 
+#include <stdexcept>
+
 namespace incise::physics {
+
+// Every member is copied here: a member added to BodyData must be added to this list.
+BodyData::BodyData(const BodyData& other)
+    : mechanics(other.mechanics ? other.mechanics->clone() : nullptr),
+      state(other.state),
+      velocity_change(other.velocity_change),
+      last_energy(other.last_energy),
+      fixed(other.fixed),
+      topology_revision(other.topology_revision),
+      preconditioner(other.preconditioner),  // shares the immutable factors, in use and being built
+      gravity(other.gravity),
+      surface(other.surface),
+      render_triangles(other.render_triangles),
+      render_cut_face(other.render_cut_face),
+      embedding(other.embedding),
+      surface_positions(other.surface_positions),
+      fixed_vertices(other.fixed_vertices) {
+  // efg is the mechanics seen as an EFG model: the copy's own.
+  if (other.efg) {
+    efg = dynamic_cast<CorotationalEfg*>(mechanics.get());
+    if (!efg || other.efg != other.mechanics.get())
+      throw std::logic_error("BodyData: efg is not the body's mechanical model; cannot copy the body");
+  }
+}
+
+BodyData& BodyData::operator=(const BodyData& other) {
+  if (this != &other) *this = BodyData(other);
+  return *this;
+}
 
 std::uint8_t fixed_vertex(const BodyData& body, int v) {
   const auto& embedding = *body.embedding;

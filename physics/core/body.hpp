@@ -39,7 +39,16 @@ struct BodyModel {
   std::vector<std::vector<int>> load_nodes;
 };
 
+// Copying the data copies the simulation (STYLE.md, MuJoCo's mjData): a copy is deep (its own
+// mechanical model, efg pointing at it) and steps on to the same future, bit for bit.
 struct BodyData {
+  BodyData() = default;
+  BodyData(const BodyData& other);
+  BodyData& operator=(const BodyData& other);
+  BodyData(BodyData&&) noexcept = default;
+  BodyData& operator=(BodyData&&) noexcept = default;
+  ~BodyData() = default;
+
   std::unique_ptr<DeformableModel> mechanics;
   CorotationalEfg* efg = nullptr;  // mechanics, when it is an EFG model
   State state;

@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <vector>
 
 namespace incise::physics {
@@ -55,6 +56,10 @@ class DeformableModel {
   // The typical distance between neighbouring nodes at rest, which a two-level
   // preconditioner's coarse grid doubles (physics/solve/coarse_space.hpp). 0: unknown.
   virtual double node_spacing() const { return 0; }
+  // A deep copy whose future is the same as this one's, bit for bit (copying a body's data
+  // copies its model: the model changes as it steps and as it is cut). What the model only
+  // borrows (an EFG model's executor) is borrowed by the copy too; its owner re-points it.
+  virtual std::unique_ptr<DeformableModel> clone() const = 0;
 };
 
 // A point force with its own stiffness, added to the implicit system (penalty contact,

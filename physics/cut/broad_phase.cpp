@@ -94,6 +94,27 @@ EdgeBroadPhase::~EdgeBroadPhase() = default;
 EdgeBroadPhase::EdgeBroadPhase(EdgeBroadPhase&&) noexcept = default;
 EdgeBroadPhase& EdgeBroadPhase::operator=(EdgeBroadPhase&&) noexcept = default;
 
+EdgeBroadPhase::EdgeBroadPhase(const EdgeBroadPhase& other)
+    : margin_(other.margin_),
+      slack_(other.slack_),
+      tree_(std::make_unique<btDbvt>()),
+      traversal_(std::make_unique<Traversal>()),
+      leaves_(other.leaves_.size(), nullptr),
+      edge_count_(other.edge_count_) {
+  // The stored boxes by increasing id (the header says why the tree's shape does not matter).
+  for (std::size_t id = 0; id < other.leaves_.size(); ++id) {
+    const btDbvtNode* leaf = other.leaves_[id];
+    if (leaf == nullptr) continue;
+    leaves_[id] = tree_->insert(leaf->volume, nullptr);
+    leaves_[id]->dataAsInt = static_cast<int>(id);
+  }
+}
+
+EdgeBroadPhase& EdgeBroadPhase::operator=(const EdgeBroadPhase& other) {
+  if (this != &other) *this = EdgeBroadPhase(other);
+  return *this;
+}
+
 bool EdgeBroadPhase::set_edge(int id, const MovingSegment& edge) {
   if (id < 0) throw std::invalid_argument("broad phase: edge id " + std::to_string(id) + " is negative");
   const Box box = swept_box(edge, "edge", id);

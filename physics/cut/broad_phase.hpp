@@ -39,8 +39,12 @@ class EdgeBroadPhase {
   ~EdgeBroadPhase();
   EdgeBroadPhase(EdgeBroadPhase&&) noexcept;
   EdgeBroadPhase& operator=(EdgeBroadPhase&&) noexcept;
-  EdgeBroadPhase(const EdgeBroadPhase&) = delete;
-  EdgeBroadPhase& operator=(const EdgeBroadPhase&) = delete;
+  // A copy holds the same edges in the same boxes, in a tree of its own built from them: its
+  // shape may differ from this one's, but a query answers the ids whose stored box meets the
+  // blade's, sorted, which the boxes alone decide; and set_edge compares with the stored box.
+  // So the copy answers every later call as this one would.
+  EdgeBroadPhase(const EdgeBroadPhase& other);
+  EdgeBroadPhase& operator=(const EdgeBroadPhase& other);
 
   // Inserts the edge `id`, or, when it is already there, refits it to its swept box this
   // step. Returns whether the tree changed (false: the new box fits in the stored one).

@@ -4,6 +4,23 @@
 
 namespace incise::physics {
 
+// Every member is copied here: a member added to CutData must be added to this list.
+CutData::CutData(const CutData& other, CorotationalEfg& model)
+    : cutter(other.cutter ? std::make_unique<VolumeCutter>(*other.cutter, model) : nullptr),
+      surface(other.surface ? std::make_unique<FrontSurface>(*other.surface) : nullptr),
+      rest_cut(other.rest_cut ? std::make_unique<RestCut>(*other.rest_cut) : nullptr),
+      mapping(other.mapping),
+      topology(other.topology),
+      linked(other.linked),
+      blade_pieces(other.blade_pieces),
+      stroke_folds(other.stroke_folds),
+      engaged(other.engaged),
+      previous_positions(other.previous_positions),
+      orphans_pinned(other.orphans_pinned) {
+  // The mapping's candidates were binned from the body's model: the copy's are its copy's.
+  if (mapping.cubes.model) mapping.cubes.model = &model;
+}
+
 CutData make_cut_data(const BodyModel& model, BodyData& body, const CutModel& cut_model, std::vector<Vec3> vertices,
                       std::vector<std::array<int, 3>> triangles) {
   CutData cut;

@@ -57,7 +57,16 @@ struct LinkedAcrossCache {
   LinkedAcrossIndex index;
 };
 
+// Copied with the body it cuts: CutData(other, model) is a deep copy of `other` for a copy of
+// its body (BodyData's copy), whose EFG model `model` its cutter edits and its caches refer
+// to, so that the two bodies cut on alike, bit for bit, and share nothing.
 struct CutData {
+  CutData() = default;
+  CutData(const CutData& other, CorotationalEfg& model);
+  CutData(CutData&&) = default;
+  CutData& operator=(CutData&&) = default;
+  ~CutData() = default;
+
   std::unique_ptr<VolumeCutter> cutter;  // the topology graph; edits the body's EFG rows
   std::unique_ptr<FrontSurface> surface;
   std::unique_ptr<RestCut> rest_cut;     // every sweep so far, at rest

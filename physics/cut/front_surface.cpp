@@ -621,6 +621,35 @@ FrontSurface::~FrontSurface() = default;
 FrontSurface::FrontSurface(FrontSurface&&) noexcept = default;
 FrontSurface& FrontSurface::operator=(FrontSurface&&) noexcept = default;
 
+// Every member is copied here: a member added to FrontSurface must be added to this list.
+FrontSurface::FrontSurface(const FrontSurface& other)
+    : front_width_(other.front_width_),
+      base_vertices_(other.base_vertices_),
+      base_triangles_(other.base_triangles_),
+      base_(other.base_ ? std::make_unique<Base>(*other.base_) : nullptr),
+      stroke_(other.stroke_ ? std::make_unique<Stroke>(*other.stroke_) : nullptr),
+      spare_edge_cut_(other.spare_edge_cut_),
+      samples_(other.samples_),
+      sample_t_(other.sample_t_),
+      blade_s_(other.blade_s_),
+      base_planes_(other.base_planes_),
+      vertices_(other.vertices_),
+      triangles_(other.triangles_),
+      vertex_planes_(other.vertex_planes_),
+      crack_front_(other.crack_front_),
+      base_crack_front_(other.base_crack_front_),
+      base_cut_face_(other.base_cut_face_),
+      cut_face_(other.cut_face_),
+      replaced_slots_(other.replaced_slots_),
+      planed_base_(other.planed_base_),
+      last_report_(other.last_report_),
+      reuse_face_(other.reuse_face_) {}
+
+FrontSurface& FrontSurface::operator=(const FrontSurface& other) {
+  if (this != &other) *this = FrontSurface(other);
+  return *this;
+}
+
 void FrontSurface::index_base() {
   base_ = std::make_unique<Base>();
   base_->edges = edge_table(base_triangles_);

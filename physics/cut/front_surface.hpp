@@ -134,6 +134,9 @@ class FrontSurface {
   ~FrontSurface();
   FrontSurface(FrontSurface&&) noexcept;
   FrontSurface& operator=(FrontSurface&&) noexcept;
+  // A deep copy: the same surface, stroke and caches, so it cuts on as this one would.
+  FrontSurface(const FrontSurface& other);
+  FrontSurface& operator=(const FrontSurface& other);
 
   // A sample whose points moved less than this times w on average since the stroke's last
   // sample is not taken (the cut stays as it is).

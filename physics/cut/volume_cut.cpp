@@ -797,6 +797,34 @@ std::vector<int> VolumeCutter::reselect(int element, const std::vector<int>& kep
 
 VolumeCutter::~VolumeCutter() = default;
 
+// Every member is copied here but the call-scoped pointers (valid only inside cut()): a member
+// added to VolumeCutter must be added to this list.
+VolumeCutter::VolumeCutter(const VolumeCutter& other, CorotationalEfg& model)
+    : model_(model),
+      broad_phase_(other.broad_phase_),
+      margin_(other.margin_),
+      particle_links_(other.particle_links_),
+      particle_link_severed_(other.particle_link_severed_),
+      links_of_particle_(other.links_of_particle_),
+      element_link_particles_(other.element_link_particles_),
+      element_stale_(other.element_stale_),
+      stale_list_(other.stale_list_),
+      total_links_severed_(other.total_links_severed_),
+      candidates_(other.candidates_),
+      reached_(other.reached_),
+      search_(other.search_),
+      step_points_(std::make_unique<StepPoints>(*other.step_points_)),
+      rest_link_boxes_(other.rest_link_boxes_),
+      near_search_(std::make_unique<NearSearch>(*other.near_search_)),
+      rest_link_index_(std::make_unique<RestLinkIndex>(*other.rest_link_index_)),
+      rest_search_(std::make_unique<RestSearch>(*other.rest_search_)) {
+  if (model.node_count() != other.model_.node_count() || model.element_count() != other.model_.element_count() ||
+      model.neighbours() != other.model_.neighbours())
+    fail("a copy must cut a copy of the model the original cuts (the same particles, elements and rows)");
+  // The step's points name the step's particles only while cut() runs.
+  step_points_->particles_start = step_points_->particles_end = nullptr;
+}
+
 void VolumeCutter::box_rest_links(int element) {
   const Vec3& centre = model_.element_centres()[element];
   Vec3 lo = centre, hi = centre;

@@ -70,7 +70,10 @@ class VolumeCutter {
   // boxes (m; at least the CCD touching distance), `slack` keeps boxes fat between refits.
   VolumeCutter(CorotationalEfg& model, double margin, double slack);
   ~VolumeCutter();
-  VolumeCutter(const VolumeCutter&) = delete;
+  // The cutter of a copy of `other`'s model (a copy of the body it cuts; the same rows): the
+  // same graph, severed links and searches, editing `model`, so that it cuts as `other` would.
+  VolumeCutter(const VolumeCutter& other, CorotationalEfg& model);
+  VolumeCutter(const VolumeCutter&) = delete;  // it would edit the other's model
   VolumeCutter& operator=(const VolumeCutter&) = delete;
 
   // One step: the blade polyline at t = 0 and t = 1 (same point count, >= 2) and the particle

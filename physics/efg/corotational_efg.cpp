@@ -207,6 +207,10 @@ CorotationalEfg::CorotationalEfg(Vec3 box_min, Vec3 box_max, const Material& mat
 CorotationalEfg::~CorotationalEfg() = default;
 CorotationalEfg::CorotationalEfg(CorotationalEfg&&) noexcept = default;
 CorotationalEfg& CorotationalEfg::operator=(CorotationalEfg&&) noexcept = default;
+CorotationalEfg::CorotationalEfg(const CorotationalEfg&) = default;
+CorotationalEfg& CorotationalEfg::operator=(const CorotationalEfg&) = default;
+
+std::unique_ptr<DeformableModel> CorotationalEfg::clone() const { return std::make_unique<CorotationalEfg>(*this); }
 
 void CorotationalEfg::set_executor(Executor* executor) {
   executor_ = executor ? executor : &serial_executor();

@@ -172,6 +172,10 @@ class CorotationalEfg final : public DeformableModel {
   ~CorotationalEfg() override;
   CorotationalEfg(CorotationalEfg&&) noexcept;
   CorotationalEfg& operator=(CorotationalEfg&&) noexcept;
+  // Copies everything, the scratch of the element loops included; the copy runs its loops on
+  // the same executor until set_executor says otherwise.
+  CorotationalEfg(const CorotationalEfg&);
+  CorotationalEfg& operator=(const CorotationalEfg&);
 
   // DeformableModel.
   int node_count() const override { return static_cast<int>(masses_.size()); }
@@ -186,6 +190,7 @@ class CorotationalEfg final : public DeformableModel {
   std::function<BlockMatrix()> rest_stiffness_job() const override;
   void node_rotations(std::vector<Eigen::Quaterniond>& out) const override;
   double node_spacing() const override;
+  std::unique_ptr<DeformableModel> clone() const override;
 
   // Where the element loops run: the given executor, which must outlive its use here, or the
   // calling thread (serial_executor) for nullptr. The model owns no thread.

@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <memory>
 #include <vector>
 
 #include "physics/core/model.hpp"
@@ -37,6 +38,7 @@ class CorotationalTetFem final : public DeformableModel {
   std::function<BlockMatrix()> rest_stiffness_job() const override;
   void node_rotations(std::vector<Eigen::Quaterniond>& out) const override;
   double node_spacing() const override;
+  std::unique_ptr<DeformableModel> clone() const override { return std::make_unique<CorotationalTetFem>(*this); }
 
   int element_count() const { return static_cast<int>(elements_.size()); }
   const std::vector<std::array<int, 4>>& elements() const { return elements_; }

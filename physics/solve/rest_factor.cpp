@@ -64,6 +64,7 @@ RestFactor::~RestFactor() = default;
 
 void RestFactor::solve(Eigen::VectorXd& x) const {
   const Eigen::VectorXd right = coarse() ? Eigen::VectorXd(prolongation_.transpose() * x) : x;
+  const std::lock_guard<std::mutex> lock(solving_);
   Eigen::VectorXd solution = backend_ == FactorBackend::cholmod ? Eigen::VectorXd(solver_->cholmod.solve(right))
                                                                  : Eigen::VectorXd(solver_->simplicial.solve(right));
   if (coarse())

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -42,8 +43,8 @@ class RestFactor {
   RestFactor(const RestFactor&) = delete;
   RestFactor& operator=(const RestFactor&) = delete;
 
-  // x <- A0^-1 x, or P (P^T A0 P)^-1 P^T x with a coarse space (3n). Not safe to call from two
-  // threads at once (the solvers keep workspace).
+  // x <- A0^-1 x, or P (P^T A0 P)^-1 P^T x with a coarse space (3n). A copied World shares its
+  // factors with the original, so calls are serialised (the solvers keep workspace).
   void solve(Eigen::VectorXd& x) const;
   bool coarse() const { return prolongation_.size() > 0; }
   int factored_size() const { return coarse() ? static_cast<int>(prolongation_.cols()) : size_; }
@@ -56,6 +57,7 @@ class RestFactor {
  private:
   struct Solver;
   std::unique_ptr<Solver> solver_;
+  mutable std::mutex solving_;
   Eigen::SparseMatrix<double> prolongation_;  // empty: the whole system is factored
   int size_ = 0;
   long long factor_nonzeros_ = 0;

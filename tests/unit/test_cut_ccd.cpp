@@ -820,5 +820,50 @@ TEST(EdgeBroadPhase, ResultsAreDeterministicAndQueriesReuseMemory) {
   EXPECT_EQ(first, again);
 }
 
+// A copy holds the same fat boxes in a tree of its own: after refits (some edges re-boxed,
+// some not), a removal and a rebalance, it answers every query and set_edge as the original
+// does, and changing one leaves the other as it was.
+TEST(EdgeBroadPhase, ACopyAnswersAsTheOriginalAndIsIndependent) {
+  std::mt19937_64 random(11);
+  EdgeSet set = random_edges(random, 300, 0.2, 0.05);
+  EdgeBroadPhase original(1e-6, 0.02);
+  for (int i = 0; i < 300; ++i) original.set_edge(2 * i, set.edges[i]);
+  advance(random, set, 0.05);
+  for (int i = 0; i < 300; ++i) original.set_edge(2 * i, set.edges[i]);
+  original.remove_edge(10);
+  original.rebalance(3);
+
+  EdgeBroadPhase copy(original);
+  EXPECT_EQ(copy.edge_count(), original.edge_count());
+  EXPECT_FALSE(copy.contains(10));
+  const auto same_answers = [&](EdgeBroadPhase& a, EdgeBroadPhase& b) {
+    std::vector<int> from_a, from_b;
+    for (int q = 0; q < 20; ++q) {
+      const Vec3 p(0.8 * (q / 10.0 - 1), 0.1 * q / 20.0, 0);
+      const std::vector<Vec3> start = {p + Vec3(0, -0.3, 0), p + Vec3(0.3, -0.3, 0.1)};
+      const std::vector<Vec3> end = {p + Vec3(0, 0.3, 0), p + Vec3(0.3, 0.3, -0.1)};
+      a.query(start, end, from_a);
+      b.query(start, end, from_b);
+      if (from_a != from_b) return false;
+    }
+    return true;
+  };
+  EXPECT_TRUE(same_answers(original, copy));
+  // The next refit: the same edges need a new box in both (set_edge compares with the stored one).
+  advance(random, set, 0.05);
+  for (int i = 0; i < 300; ++i) {
+    if (i == 5) continue;  // edge 10 is gone from both
+    EXPECT_EQ(copy.set_edge(2 * i, set.edges[i]), original.set_edge(2 * i, set.edges[i])) << "edge " << 2 * i;
+  }
+  EXPECT_TRUE(same_answers(original, copy));
+  // Independent: what the copy removes the original keeps.
+  copy.remove_edge(0);
+  EXPECT_TRUE(original.contains(0));
+  EXPECT_EQ(original.edge_count(), copy.edge_count() + 1);
+  EdgeBroadPhase assigned(1.0);
+  assigned = original;
+  EXPECT_TRUE(same_answers(original, assigned));
+}
+
 }  // namespace
 }  // namespace incise::physics

@@ -232,3 +232,25 @@ TEST(GpuWorld, TheFrontSurfaceCutsTheBeamOnTheGpuAsOnTheCpu) {
               events, body.data.surface.size(), difference, mc);
   EXPECT_LT(difference, 1e-8 * std::max(mc, 1e-6) + 1e-12);
 }
+
+// A world copies its bodies (engine/body.hpp), but not a body stepped on the GPU: its step
+// keeps a context and buffers of its own. The copy is refused, naming the body, and the world
+// copied from steps on as before.
+TEST(GpuWorld, AWorldWithABodyOnTheGpuRefusesToBeCopiedNamingTheBody) {
+  TempDir dir("incise_gpu_world_copy");
+  const Scene scene = parse(beam_cut_json(dir, "gpu", "single", 1e-6), dir);  // writes the trajectory
+  World gpu(scene, read_trajectory(dir.path / "cut.traj"));
+  ASSERT_TRUE(gpu.bodies()[0].gpu);
+  gpu.step();
+  try {
+    const World copy = gpu;
+    FAIL() << "a world with a GPU body was copied";
+  } catch (const std::runtime_error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("body 'beam'"), std::string::npos) << message;
+    EXPECT_NE(message.find("GPU"), std::string::npos) << message;
+  }
+  EXPECT_EQ(gpu.steps_taken(), 1u);
+  gpu.step();
+  EXPECT_EQ(gpu.steps_taken(), 2u);
+}

@@ -42,6 +42,7 @@ class SpringToOrigin final : public DeformableModel {
     return 0.5 * stiffness_ * x.squaredNorm();
   }
 
+  std::unique_ptr<DeformableModel> clone() const override { return std::make_unique<SpringToOrigin>(*this); }
  private:
   Vector masses_;
   Vector rest_;

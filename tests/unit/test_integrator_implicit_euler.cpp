@@ -25,6 +25,7 @@ class PointMasses final : public DeformableModel {
   void add_stiffness_diagonal(Vector&) const override {}
   double elastic_energy(const Vector&) const override { return 0; }
 
+  std::unique_ptr<DeformableModel> clone() const override { return std::make_unique<PointMasses>(*this); }
  private:
   Vector masses_;
   Vector rest_;

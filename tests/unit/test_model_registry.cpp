@@ -34,6 +34,7 @@ class Tethered : public physics::DeformableModel {
   void add_stiffness_diagonal(physics::Vector& diag) const override { diag.array() += k_; }
   double elastic_energy(const physics::Vector& x) const override { return 0.5 * k_ * (x - rest_).squaredNorm(); }
 
+  std::unique_ptr<physics::DeformableModel> clone() const override { return std::make_unique<Tethered>(*this); }
  private:
   physics::Vector rest_, masses_;
   double k_;
