@@ -194,9 +194,13 @@ bool CutRectangle::blocks(const Vec3& from, const Vec3& to) const {
 CorotationalEfg::CorotationalEfg(const std::function<bool(const Vec3&)>& inside, Vec3 box_min,
                                  Vec3 box_max, const Material& material,
                                  const EfgSettings& settings, Executor* executor)
-    : material_(material), settings_(settings) {
+    : building_(std::make_shared<EfgRestShape>()) {
+  building_->material = material;
+  building_->settings = settings;
+  shape_ = building_;
   set_executor(executor);
   build(inside, box_min, box_max);
+  building_.reset();  // read-only from here on
 }
 
 CorotationalEfg::CorotationalEfg(Vec3 box_min, Vec3 box_max, const Material& material,
@@ -223,8 +227,8 @@ double CorotationalEfg::total_volume() const {
 void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3 box_min,
                             Vec3 box_max) {
   validate_settings(box_min, box_max);
-  lambda_ = lame_lambda(material_);
-  mu_ = lame_mu(material_);
+  building_->lambda = lame_lambda(building_->material);
+  building_->mu = lame_mu(building_->material);
   const ParticleGrid grid = lay_grids(box_min, box_max);
   sample_elements(inside);
   const std::vector<std::vector<int>> rows = select_neighbourhoods(grid);
@@ -235,8 +239,8 @@ void CorotationalEfg::build(const std::function<bool(const Vec3&)>& inside, Vec3
 }
 
 void CorotationalEfg::validate_settings(const Vec3& box_min, const Vec3& box_max) const {
-  validate_material(material_);
-  const EfgSettings& s = settings_;
+  validate_material(building_->material);
+  const EfgSettings& s = building_->settings;
   const double a = s.spacing;
   if (!(a > 0) || !std::isfinite(a)) fail("spacing must be positive, got " + std::to_string(a));
   if (s.neighbours != 4 && s.neighbours != 8) {
@@ -268,34 +272,34 @@ void CorotationalEfg::validate_settings(const Vec3& box_min, const Vec3& box_max
 ParticleGrid CorotationalEfg::lay_grids(const Vec3& box_min, const Vec3& box_max) {
   // Grids: an even number of cubes per axis, so the particle grid (every other vertex)
   // covers them; the small shrink keeps an exact multiple of a from gaining a cube.
-  const double a = settings_.spacing;
+  const double a = building_->settings.spacing;
   long long cube_total = 1;
   for (int axis = 0; axis < 3; ++axis) {
     const double count = std::ceil((box_max[axis] - box_min[axis]) / a * (1.0 - 1e-12));
     if (count > 1 << 20) fail("spacing " + std::to_string(a) + " is too small for the box");
     int cubes = std::max(1, static_cast<int>(count));
     cubes += cubes % 2;
-    cube_counts_[axis] = cubes;
+    building_->cube_counts[axis] = cubes;
     cube_total *= cubes;
     // Centred on the box: a symmetric body gets a symmetric grid, and when the extent is a
     // multiple of 2a the particles lie on the box faces (where clamps usually are).
-    origin_[axis] = 0.5 * (box_min[axis] + box_max[axis]) - 0.5 * cubes * a;
+    building_->origin[axis] = 0.5 * (box_min[axis] + box_max[axis]) - 0.5 * cubes * a;
   }
   if (cube_total > 100'000'000) fail("spacing " + std::to_string(a) + " gives too many cubes");
-  return ParticleGrid{origin_, a, {cube_counts_[0] / 2 + 1, cube_counts_[1] / 2 + 1, cube_counts_[2] / 2 + 1}};
+  return ParticleGrid{building_->origin, a, {building_->cube_counts[0] / 2 + 1, building_->cube_counts[1] / 2 + 1, building_->cube_counts[2] / 2 + 1}};
 }
 
 void CorotationalEfg::sample_elements(const std::function<bool(const Vec3&)>& inside) {
   // Integration elements: the cubes with a part inside, V_e by sampling (seed-004 §1.2).
-  const EfgSettings& s = settings_;
+  const EfgSettings& s = building_->settings;
   const double a = s.spacing;
   const int samples = s.samples_per_axis;
   const double sample_volume = a * a * a / (samples * samples * samples);
-  element_of_cube_.assign(static_cast<size_t>(cube_counts_[0]) * cube_counts_[1] * cube_counts_[2], -1);
-  for (int k = 0; k < cube_counts_[2]; ++k) {
-    for (int j = 0; j < cube_counts_[1]; ++j) {
-      for (int i = 0; i < cube_counts_[0]; ++i) {
-        const Vec3 cube_min = origin_ + a * Vec3(i, j, k);
+  building_->element_of_cube.assign(static_cast<size_t>(building_->cube_counts[0]) * building_->cube_counts[1] * building_->cube_counts[2], -1);
+  for (int k = 0; k < building_->cube_counts[2]; ++k) {
+    for (int j = 0; j < building_->cube_counts[1]; ++j) {
+      for (int i = 0; i < building_->cube_counts[0]; ++i) {
+        const Vec3 cube_min = building_->origin + a * Vec3(i, j, k);
         int inside_count = 0;
         Vec3 sample_sum = Vec3::Zero();  // in sample units from cube_min, exact in doubles
         for (int w = 0; w < samples; ++w) {
@@ -310,11 +314,11 @@ void CorotationalEfg::sample_elements(const std::function<bool(const Vec3&)>& in
           }
         }
         if (inside_count == 0) continue;
-        element_of_cube_[i + static_cast<size_t>(cube_counts_[0]) * (j + cube_counts_[1] * k)] =
+        building_->element_of_cube[i + static_cast<size_t>(building_->cube_counts[0]) * (j + building_->cube_counts[1] * k)] =
             static_cast<int>(volumes_.size());
-        element_cubes_.push_back({i, j, k});
+        building_->element_cubes.push_back({i, j, k});
         // A full cube's centroid is its centre exactly (the sums are exact in doubles).
-        centres_.push_back(s.centroid_points && s.estimate_volumes
+        building_->centres.push_back(s.centroid_points && s.estimate_volumes
                                ? Vec3(cube_min + a * sample_sum / (static_cast<double>(inside_count) * samples))
                                : Vec3(cube_min + Vec3::Constant(0.5 * a)));
         volumes_.push_back(s.estimate_volumes ? inside_count * sample_volume : a * a * a);
@@ -327,16 +331,16 @@ void CorotationalEfg::sample_elements(const std::function<bool(const Vec3&)>& in
 std::vector<std::vector<int>> CorotationalEfg::select_neighbourhoods(const ParticleGrid& grid) const {
   // Neighbourhoods in grid-particle indices: the corners of the element's particle cell,
   // nearest first (ties to the lower index), 8 or the 4 nearest (seed-004 §1.3).
-  const EfgSettings& s = settings_;
+  const EfgSettings& s = building_->settings;
   const int elements = element_count();
   std::vector<std::vector<int>> rows(elements);
   for (int e = 0; e < elements; ++e) {
-    const std::array<int, 3>& cube = element_cubes_[e];
+    const std::array<int, 3>& cube = building_->element_cubes[e];
     const std::array<int, 3> cell{cube[0] / 2, cube[1] / 2, cube[2] / 2};
-    nearest_corners(grid, centres_[e], cell, s.neighbours, rows[e]);
+    nearest_corners(grid, building_->centres[e], cell, s.neighbours, rows[e]);
     if (s.cuts.empty()) continue;
     const auto visible = [&](int index) {
-      return !is_blocked(s, centres_[e], grid.position(index));
+      return !is_blocked(s, building_->centres[e], grid.position(index));
     };
     if (std::all_of(rows[e].begin(), rows[e].end(), visible)) continue;
     rows[e] = visible_neighbourhood(grid, e, cell, rows[e]);
@@ -347,8 +351,8 @@ std::vector<std::vector<int>> CorotationalEfg::select_neighbourhoods(const Parti
 // A cut hides some of element e's cell corners `corners` (EfgSettings::cuts).
 std::vector<int> CorotationalEfg::visible_neighbourhood(const ParticleGrid& grid, int e, const std::array<int, 3>& cell,
                                                         const std::vector<int>& corners) const {
-  const EfgSettings& s = settings_;
-  const auto visible = [&](int index) { return !is_blocked(s, centres_[e], grid.position(index)); };
+  const EfgSettings& s = building_->settings;
+  const auto visible = [&](int index) { return !is_blocked(s, building_->centres[e], grid.position(index)); };
   std::vector<Vec3> positions;
 
   // A cut hides some corners. The visible ones stay (they carry the coupling across the
@@ -366,7 +370,7 @@ std::vector<int> CorotationalEfg::visible_neighbourhood(const ParticleGrid& grid
     int normal_axis = -1;
     if (s.replace_along_cut_normal) {
       for (const CutRectangle& cut : s.cuts) {
-        if (!cut.blocks(centres_[e], grid.position(index))) continue;
+        if (!cut.blocks(building_->centres[e], grid.position(index))) continue;
         const Vec3 normal = cut.edge_u.cross(cut.edge_v).cwiseAbs();
         normal.maxCoeff(&normal_axis);
         break;
@@ -385,7 +389,7 @@ std::vector<int> CorotationalEfg::visible_neighbourhood(const ParticleGrid& grid
       if (std::find(kept.begin(), kept.end(), candidate) != kept.end() || !visible(candidate)) {
         continue;
       }
-      const double distance = (grid.position(candidate) - centres_[e]).squaredNorm();
+      const double distance = (grid.position(candidate) - building_->centres[e]).squaredNorm();
       if (distance < best_distance || (distance == best_distance && candidate < best)) {
         best_distance = distance;
         best = candidate;
@@ -401,7 +405,7 @@ std::vector<int> CorotationalEfg::visible_neighbourhood(const ParticleGrid& grid
       for (int i = std::max(0, cell[0] - 2); i <= std::min(grid.counts[0] - 1, cell[0] + 3); ++i) {
         const int index = grid.index(i, j, k);
         if (std::find(kept.begin(), kept.end(), index) != kept.end() || !visible(index)) continue;
-        candidates.push_back({(grid.position(index) - centres_[e]).squaredNorm(), index});
+        candidates.push_back({(grid.position(index) - building_->centres[e]).squaredNorm(), index});
       }
     }
   }
@@ -418,7 +422,7 @@ std::vector<int> CorotationalEfg::visible_neighbourhood(const ParticleGrid& grid
     kept.push_back(candidates[next++].second);
   }
   if (!spans(kept)) {
-    fail("element " + std::to_string(e) + " at " + format_point(centres_[e]) +
+    fail("element " + std::to_string(e) + " at " + format_point(building_->centres[e]) +
          " is cut off: no neighbourhood of visible particles spans 3 dimensions");
   }
   return kept;
@@ -436,11 +440,11 @@ std::vector<int> CorotationalEfg::keep_used_particles(const ParticleGrid& grid, 
     if (particle_of_grid[index] < 0) continue;
     particle_of_grid[index] = particles++;
     const int g = static_cast<int>(index);
-    particle_cells_.push_back(grid.coordinates(g));
+    building_->particle_cells.push_back(grid.coordinates(g));
     particle_positions.push_back(grid.position(g));
   }
-  rest_.resize(3 * static_cast<Index>(particles));
-  for (int p = 0; p < particles; ++p) rest_.segment<3>(3 * p) = particle_positions[p];
+  building_->positions.resize(3 * static_cast<Index>(particles));
+  for (int p = 0; p < particles; ++p) building_->positions.segment<3>(3 * p) = particle_positions[p];
   return particle_of_grid;
 }
 
@@ -449,7 +453,7 @@ void CorotationalEfg::fill_rows(const std::vector<std::vector<int>>& rows, const
   // Rows (ELL).
   int longest = 0;
   for (const auto& row : rows) longest = std::max(longest, static_cast<int>(row.size()));
-  stride_ = std::max(longest, settings_.row_capacity);
+  stride_ = std::max(longest, building_->settings.row_capacity);
   const size_t slots = static_cast<size_t>(elements) * stride_;
   row_lengths_.assign(elements, 0);
   neighbours_.assign(slots, 0);
@@ -480,7 +484,7 @@ void CorotationalEfg::make_masses_positive(const ParticleGrid& grid, const std::
   // influenced nothing) and the elements recomputed, until every mass is positive.
   const int elements = element_count();
   std::vector<Vec3> positions;
-  std::vector<uint8_t> excluded(static_cast<size_t>(rest_.size() / 3), 0);  // per kept particle
+  std::vector<uint8_t> excluded(static_cast<size_t>(building_->positions.size() / 3), 0);  // per kept particle
   for (int round = 0;; ++round) {
     compute_masses();
     std::vector<uint8_t> used(node_count(), 0), negative(node_count(), 0);
@@ -497,11 +501,11 @@ void CorotationalEfg::make_masses_positive(const ParticleGrid& grid, const std::
     }
     if (negative_count == 0) break;
     const auto first_negative = static_cast<int>(std::find(negative.begin(), negative.end(), 1) - negative.begin());
-    const auto cell = particle_cells_[first_negative];
+    const auto cell = building_->particle_cells[first_negative];
     const std::string culprit =
         "particle " + std::to_string(first_negative) + " (grid " + std::to_string(cell[0]) + ", " +
         std::to_string(cell[1]) + ", " + std::to_string(cell[2]) + ", at " +
-        format_point(rest_.segment<3>(3 * first_negative)) + ") has lumped mass " +
+        format_point(building_->positions.segment<3>(3 * first_negative)) + ") has lumped mass " +
         std::to_string(masses_[first_negative]) + " <= 0";
     if (round == 8) fail(culprit + " and removing such particles does not settle");
     for (int p = 0; p < node_count(); ++p) excluded[p] = excluded[p] || negative[p];
@@ -514,14 +518,14 @@ void CorotationalEfg::make_masses_positive(const ParticleGrid& grid, const std::
         const int p = neighbours_[base + k];
         if (negative[p]) continue;
         neighbours_[base + kept++] = p;
-        positions.push_back(rest_.segment<3>(3 * p));
+        positions.push_back(building_->positions.segment<3>(3 * p));
       }
       if (kept == row_lengths_[e]) continue;
       if (kept < 4 || !spans_three_dimensions(positions)) {
         // Too few left (with 4 neighbours, any loss): refill to the former length with the
         // nearest particles that are allowed and visible (ties to the lower index).
         const int target = row_lengths_[e];
-        const auto& cube = element_cubes_[e];
+        const auto& cube = building_->element_cubes[e];
         std::vector<std::pair<double, int>> candidates;
         for (int k = std::max(0, cube[2] / 2 - 2); k <= std::min(grid.counts[2] - 1, cube[2] / 2 + 3); ++k) {
           for (int j = std::max(0, cube[1] / 2 - 2); j <= std::min(grid.counts[1] - 1, cube[1] / 2 + 3); ++j) {
@@ -530,10 +534,10 @@ void CorotationalEfg::make_masses_positive(const ParticleGrid& grid, const std::
               if (p < 0 || excluded[p] ||
                   std::find(neighbours_.begin() + base, neighbours_.begin() + base + kept, p) !=
                       neighbours_.begin() + base + kept ||
-                  is_blocked(settings_, centres_[e], rest_.segment<3>(3 * p))) {
+                  is_blocked(building_->settings, building_->centres[e], building_->positions.segment<3>(3 * p))) {
                 continue;
               }
-              candidates.push_back({(rest_.segment<3>(3 * p) - centres_[e]).squaredNorm(), p});
+              candidates.push_back({(building_->positions.segment<3>(3 * p) - building_->centres[e]).squaredNorm(), p});
             }
           }
         }
@@ -543,11 +547,11 @@ void CorotationalEfg::make_masses_positive(const ParticleGrid& grid, const std::
           if (static_cast<int>(row.size()) >= target && spans_three_dimensions(positions)) break;
           if (static_cast<int>(row.size()) >= longest_row) break;
           row.push_back(candidate.second);
-          positions.push_back(rest_.segment<3>(3 * candidate.second));
+          positions.push_back(building_->positions.segment<3>(3 * candidate.second));
         }
         if (!spans_three_dimensions(positions)) {
           fail(culprit + ", and element " + std::to_string(e) + " at " +
-               format_point(centres_[e]) + " cannot do without it");
+               format_point(building_->centres[e]) + " cannot do without it");
         }
         if (static_cast<int>(row.size()) > stride_) restride(static_cast<int>(row.size()));
         const size_t new_base = static_cast<size_t>(e) * stride_;
@@ -566,19 +570,19 @@ void CorotationalEfg::make_masses_positive(const ParticleGrid& grid, const std::
 void CorotationalEfg::compute_element(int element) {
   const size_t base = static_cast<size_t>(element) * stride_;
   const int length = row_lengths_[element];
-  const Vec3& centre = centres_[element];
+  const Vec3& centre = shape_->centres[element];
   std::array<Vec3, longest_row> positions;
   double farthest = 0;
   for (int k = 0; k < length; ++k) {
-    positions[k] = rest_.segment<3>(3 * static_cast<Index>(neighbours_[base + k]));
+    positions[k] = shape_->positions.segment<3>(3 * static_cast<Index>(neighbours_[base + k]));
     farthest = std::max(farthest, (positions[k] - centre).norm());
   }
   // h = support factor x the distance to the farthest neighbour ([our interpretation] of the
   // thesis's "radius of the region of influence", seed-004 §1.4): every neighbour weighs > 0.
-  const double support = settings_.support_factor * farthest;
+  const double support = shape_->settings.support_factor * farthest;
   supports_[element] = support;
   const std::span<const Vec3> neighbour_positions(positions.data(), length);
-  if (!mls_shape_functions(centre, neighbour_positions, support, settings_.spacing,
+  if (!mls_shape_functions(centre, neighbour_positions, support, shape_->settings.spacing,
                            std::span<double>(&shape_values_[base], length),
                            std::span<Vec3>(&shape_gradients_[base], length))) {
     fail("element " + std::to_string(element) + " at " + format_point(centre) +
@@ -615,10 +619,10 @@ void CorotationalEfg::compute_element(int element) {
 }
 
 void CorotationalEfg::compute_masses() {
-  masses_ = Vector::Zero(rest_.size() / 3);
+  masses_ = Vector::Zero(shape_->positions.size() / 3);
   for (int e = 0; e < element_count(); ++e) {
     const size_t base = static_cast<size_t>(e) * stride_;
-    const double element_mass = material_.density * volumes_[e];
+    const double element_mass = shape_->material.density * volumes_[e];
     for (int k = 0; k < row_lengths_[e]; ++k) {
       masses_[neighbours_[base + k]] += shape_values_[base + k] * element_mass;
     }
@@ -635,14 +639,14 @@ void CorotationalEfg::drop_unused_particles() {
   for (int p = 0; p < node_count(); ++p) {
     if (new_index[p] < 0) continue;
     new_index[p] = kept;
-    rest_.segment<3>(3 * kept) = rest_.segment<3>(3 * p);
+    building_->positions.segment<3>(3 * kept) = building_->positions.segment<3>(3 * p);
     masses_[kept] = masses_[p];
-    particle_cells_[kept] = particle_cells_[p];
+    building_->particle_cells[kept] = building_->particle_cells[p];
     ++kept;
   }
-  rest_.conservativeResize(3 * static_cast<Index>(kept));
+  building_->positions.conservativeResize(3 * static_cast<Index>(kept));
   masses_.conservativeResize(kept);
-  particle_cells_.resize(kept);
+  building_->particle_cells.resize(kept);
   for (int e = 0; e < element_count(); ++e) {
     const size_t base = static_cast<size_t>(e) * stride_;
     for (int k = 0; k < row_lengths_[e]; ++k) neighbours_[base + k] = new_index[neighbours_[base + k]];
@@ -693,7 +697,7 @@ void CorotationalEfg::set_neighbourhood(int element, std::span<const int> partic
     if (std::find(particles.begin(), particles.begin() + k, p) != particles.begin() + k) {
       fail("set_neighbourhood: particle " + std::to_string(p) + " given twice");
     }
-    positions.push_back(rest_.segment<3>(3 * p));
+    positions.push_back(shape_->positions.segment<3>(3 * p));
   }
   if (!spans_three_dimensions(positions)) {
     fail("set_neighbourhood: the particles of element " + std::to_string(element) +
@@ -749,7 +753,7 @@ void CorotationalEfg::set_neighbourhood(int element, std::span<const int> partic
     }
     return weights;
   };
-  const double element_mass = material_.density * volumes_[element];
+  const double element_mass = shape_->material.density * volumes_[element];
   std::vector<int> references = references_;
   for (int p : old_neighbours) --references[p];
   for (int p : particles) ++references[p];
@@ -802,7 +806,7 @@ void CorotationalEfg::set_neighbourhood(int element, std::span<const int> partic
 Quaternion CorotationalEfg::element_rotation(const Vector& x, int element,
                                              const Quaternion& start) const {
   const size_t base = static_cast<size_t>(element) * stride_;
-  const std::vector<Vec3>& coefficients = settings_.rotation == EfgRotation::shape_matching
+  const std::vector<Vec3>& coefficients = shape_->settings.rotation == EfgRotation::shape_matching
                                               ? matching_coefficients_
                                               : shape_gradients_;
   Mat3 fit = Mat3::Zero();
@@ -819,7 +823,7 @@ void CorotationalEfg::update_rotations(const Vector& x) {
       orientations_[e] = element_rotation(x, e, orientations_[e]);
       rotations_[e] = orientations_[e].toRotationMatrix();
     }
-  }, std::max(1, settings_.threaded_elements / 2));
+  }, std::max(1, shape_->settings.threaded_elements / 2));
 }
 
 template <typename ElementTerm>
@@ -837,14 +841,14 @@ void CorotationalEfg::accumulate(Vector& out, const ElementTerm& term) const {
       const int last = static_cast<int>(static_cast<long long>(elements) * (part + 1) / partition_count);
       for (int e = first; e < last; ++e) term(e, buffer);
     }
-  }, elements >= settings_.threaded_elements ? 1 : partition_count);
+  }, elements >= shape_->settings.threaded_elements ? 1 : partition_count);
   executor_->parallel_for(node_count(), [&](int begin, int end) {
     for (Index i = 3 * static_cast<Index>(begin); i < 3 * static_cast<Index>(end); ++i) {
       double sum = partition_buffers_[0][i];
       for (int part = 1; part < partition_count; ++part) sum += partition_buffers_[part][i];
       out[i] += sum;
     }
-  }, std::max(1, settings_.threaded_elements / 4));
+  }, std::max(1, shape_->settings.threaded_elements / 4));
 }
 
 void CorotationalEfg::add_elastic_forces(const Vector& x, Vector& f) const {
@@ -859,7 +863,7 @@ void CorotationalEfg::add_elastic_forces(const Vector& x, Vector& f) const {
     // grad u = sum_n (R^T x_n - X_n) (x) grad phi_n = R^T sum_n x_n (x) grad phi_n - G0.
     const Mat3& rotation = rotations_[e];
     const StrainStress local =
-        hooke(rotation.transpose() * gradient - rest_gradients_[e], lambda_, mu_);
+        hooke(rotation.transpose() * gradient - rest_gradients_[e], shape_->lambda, shape_->mu);
     const Mat3 scaled = -volumes_[e] * rotation * local.stress;
     for (int k = 0; k < length; ++k) {
       buffer.segment<3>(3 * static_cast<Index>(neighbours_[base + k])).noalias() +=
@@ -878,7 +882,7 @@ void CorotationalEfg::add_stiffness_product(const Vector& p, Vector& out) const 
                             shape_gradients_[base + k].transpose();
     }
     const Mat3& rotation = rotations_[e];
-    const StrainStress local = hooke(rotation.transpose() * gradient, lambda_, mu_);
+    const StrainStress local = hooke(rotation.transpose() * gradient, shape_->lambda, shape_->mu);
     const Mat3 scaled = volumes_[e] * rotation * local.stress;
     for (int k = 0; k < length; ++k) {
       buffer.segment<3>(3 * static_cast<Index>(neighbours_[base + k])).noalias() +=
@@ -897,8 +901,8 @@ void CorotationalEfg::add_stiffness_diagonal(Vector& diagonal) const {
       const Vec3& g = shape_gradients_[base + k];
       const Vec3 turned = rotation * g;
       buffer.segment<3>(3 * static_cast<Index>(neighbours_[base + k])) +=
-          volumes_[e] * ((lambda_ + mu_) * turned.cwiseProduct(turned) +
-                         Vec3::Constant(mu_ * g.squaredNorm()));
+          volumes_[e] * ((shape_->lambda + shape_->mu) * turned.cwiseProduct(turned) +
+                         Vec3::Constant(shape_->mu * g.squaredNorm()));
     }
   });
 }
@@ -914,11 +918,11 @@ double CorotationalEfg::elastic_energy(const Vector& x) const {
                     shape_gradients_[base + k].transpose();
       }
       const StrainStress local =
-          hooke(rotation.transpose() * gradient - rest_gradients_[e], lambda_, mu_);
+          hooke(rotation.transpose() * gradient - rest_gradients_[e], shape_->lambda, shape_->mu);
       // W = 1/2 sigma : eps = mu eps : eps + lambda / 2 tr(eps)^2.
       element_energies_[e] = 0.5 * volumes_[e] * (local.stress.cwiseProduct(local.strain)).sum();
     }
-  }, std::max(1, settings_.threaded_elements / 2));
+  }, std::max(1, shape_->settings.threaded_elements / 2));
   double energy = 0;
   for (double element_energy : element_energies_) energy += element_energy;
   return energy;
@@ -930,7 +934,7 @@ SurfaceEmbedding CorotationalEfg::embed_surface(const Vector& rest_vertices) con
          " coordinates, not a multiple of 3");
   }
   const Index vertices = rest_vertices.size() / 3;
-  const double a = settings_.spacing;
+  const double a = shape_->settings.spacing;
   SurfaceEmbedding embedding;
   embedding.stride = stride_;
   embedding.elements.resize(vertices);
@@ -947,9 +951,9 @@ SurfaceEmbedding CorotationalEfg::embed_surface(const Vector& rest_vertices) con
     std::array<long long, 3> cube;
     long long nearest_shell = 0, farthest_shell = 0;  // Chebyshev distances to the grid's cubes
     for (int axis = 0; axis < 3; ++axis) {
-      const double coordinate = std::clamp((vertex[axis] - origin_[axis]) / a, -1e9, 1e9);
+      const double coordinate = std::clamp((vertex[axis] - shape_->origin[axis]) / a, -1e9, 1e9);
       cube[axis] = static_cast<long long>(std::floor(coordinate));
-      const long long last_cube = cube_counts_[axis] - 1;
+      const long long last_cube = shape_->cube_counts[axis] - 1;
       nearest_shell = std::max({nearest_shell, -cube[axis], cube[axis] - last_cube});
       farthest_shell = std::max({farthest_shell, std::abs(cube[axis]), std::abs(cube[axis] - last_cube)});
     }
@@ -957,15 +961,15 @@ SurfaceEmbedding CorotationalEfg::embed_surface(const Vector& rest_vertices) con
     int best = -1;
     for (long long r = nearest_shell; r <= farthest_shell; ++r) {
       const auto low = [&](int axis) { return std::max(-r, -cube[axis]); };
-      const auto high = [&](int axis) { return std::min(r, cube_counts_[axis] - 1 - cube[axis]); };
+      const auto high = [&](int axis) { return std::min(r, shape_->cube_counts[axis] - 1 - cube[axis]); };
       for (long long dz = low(2); dz <= high(2); ++dz) {
         for (long long dy = low(1); dy <= high(1); ++dy) {
           for (long long dx = low(0); dx <= high(0); ++dx) {
             if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != r) continue;
             const long long i = cube[0] + dx, j = cube[1] + dy, k = cube[2] + dz;
-            const int e = element_of_cube_[i + cube_counts_[0] * (j + cube_counts_[1] * k)];
+            const int e = shape_->element_of_cube[i + shape_->cube_counts[0] * (j + shape_->cube_counts[1] * k)];
             if (e < 0) continue;
-            const double distance = (centres_[e] - vertex).squaredNorm();
+            const double distance = (shape_->centres[e] - vertex).squaredNorm();
             if (distance < best_distance || (distance == best_distance && e < best)) {
               best_distance = distance;
               best = e;
@@ -983,12 +987,12 @@ SurfaceEmbedding CorotationalEfg::embed_surface(const Vector& rest_vertices) con
     positions.clear();
     double farthest = 0;
     for (int k = 0; k < length; ++k) {
-      positions.push_back(rest_.segment<3>(3 * static_cast<Index>(neighbours_[base + k])));
+      positions.push_back(shape_->positions.segment<3>(3 * static_cast<Index>(neighbours_[base + k])));
       farthest = std::max(farthest, (positions.back() - vertex).norm());
     }
     // The element's support, widened if the vertex sits off-centre so that every neighbour
     // keeps a positive weight (the same rule as for the integration point).
-    const double support = std::max(supports_[best], settings_.support_factor * farthest);
+    const double support = std::max(supports_[best], shape_->settings.support_factor * farthest);
     const size_t row = static_cast<size_t>(v) * stride_;
     if (!mls_shape_functions(vertex, positions, support, a,
                              std::span<double>(&embedding.weights[row], length), {})) {
@@ -1043,7 +1047,7 @@ void CorotationalEfg::deactivate_element(int element) {
     for (double& w : shares) sum += (w = std::max(w, 0.0));
     for (double& w : shares) w /= sum;
   }
-  const double element_mass = material_.density * volumes_[element];
+  const double element_mass = shape_->material.density * volumes_[element];
   for (int k = 0; k < length; ++k) {
     const int p = neighbours_[base + k];
     --references_[p];

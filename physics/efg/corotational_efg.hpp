@@ -154,6 +154,23 @@ struct SurfaceEmbedding {
   int vertex_count() const { return static_cast<int>(elements.size()); }
 };
 
+// The model's read-only part (MuJoCo's mjModel to the rows' mjData): what the build decides
+// once and no step or cut changes. A cut re-selects neighbourhoods, recomputes their shape
+// functions, moves masses and deactivates elements: those stay in the model's own data. Copies
+// of a model share this part.
+struct EfgRestShape {
+  Material material;
+  EfgSettings settings;
+  double lambda = 0, mu = 0;
+  Vec3 origin = Vec3::Zero();
+  std::array<int, 3> cube_counts{};
+  Vector positions;                                   // particles' rest positions, 3n
+  std::vector<std::array<int, 3>> particle_cells;     // per particle
+  std::vector<Vec3> centres;                          // per element: its integration point
+  std::vector<std::array<int, 3>> element_cubes;      // per element
+  std::vector<int> element_of_cube;  // cube index -> element, -1 for empty cubes
+};
+
 class CorotationalEfg final : public DeformableModel {
  public:
   // The body is {X in [box_min, box_max] : inside(X)}. The grids are centred on the box, with
@@ -179,7 +196,7 @@ class CorotationalEfg final : public DeformableModel {
 
   // DeformableModel.
   int node_count() const override { return static_cast<int>(masses_.size()); }
-  const Vector& rest_positions() const override { return rest_; }
+  const Vector& rest_positions() const override { return shape_->positions; }
   const Vector& lumped_masses() const override { return masses_; }
   void update_rotations(const Vector& x) override;
   void add_elastic_forces(const Vector& x, Vector& f) const override;
@@ -206,19 +223,21 @@ class CorotationalEfg final : public DeformableModel {
   const std::vector<Vec3>& shape_gradients() const { return shape_gradients_; }    // grad phi_n(x_e)
   // c_n with F_e = sum_n x_n (x) c_n the least-squares linear fit of the neighbourhood.
   const std::vector<Vec3>& matching_coefficients() const { return matching_coefficients_; }
-  const std::vector<Vec3>& element_centres() const { return centres_; }
+  const std::vector<Vec3>& element_centres() const { return shape_->centres; }
   const std::vector<double>& element_volumes() const { return volumes_; }
   const std::vector<double>& element_supports() const { return supports_; }  // h per element
   const std::vector<Mat3>& rotations() const { return rotations_; }
   // Grid coordinates (i, j, k) of each particle (position grid_origin() + 2a (i, j, k)) and of
   // each element's cube (centre grid_origin() + a (i + 1/2, j + 1/2, k + 1/2); the element's
   // integration point, element_centres(), lies in that cube).
-  const std::vector<std::array<int, 3>>& particle_grid_coordinates() const { return particle_cells_; }
-  const std::vector<std::array<int, 3>>& element_grid_coordinates() const { return element_cubes_; }
-  double spacing() const { return settings_.spacing; }
-  const Vec3& grid_origin() const { return origin_; }
-  const EfgSettings& settings() const { return settings_; }
-  const Material& material() const { return material_; }
+  const std::vector<std::array<int, 3>>& particle_grid_coordinates() const { return shape_->particle_cells; }
+  const std::vector<std::array<int, 3>>& element_grid_coordinates() const { return shape_->element_cubes; }
+  double spacing() const { return shape_->settings.spacing; }
+  const Vec3& grid_origin() const { return shape_->origin; }
+  const EfgSettings& settings() const { return shape_->settings; }
+  const Material& material() const { return shape_->material; }
+  // The read-only part (shared by copies of this model).
+  const std::shared_ptr<const EfgRestShape>& rest_shape() const { return shape_; }
   double total_volume() const;  // sum of V_e
 
   // Replaces an element's neighbourhood (existing particle indices, at least 4, distinct,
@@ -282,24 +301,16 @@ class CorotationalEfg final : public DeformableModel {
   template <typename ElementTerm>
   void accumulate(Vector& out, const ElementTerm& term) const;
 
-  Material material_;
-  EfgSettings settings_;
-  double lambda_ = 0;
-  double mu_ = 0;
-  Vec3 origin_ = Vec3::Zero();
-  std::array<int, 3> cube_counts_{};
+  // The read-only part, shared by copies; written through building_ during the build only.
+  std::shared_ptr<const EfgRestShape> shape_;
+  std::shared_ptr<EfgRestShape> building_;
 
   // Particles.
-  Vector rest_;
   Vector masses_;
-  std::vector<std::array<int, 3>> particle_cells_;
 
   // Elements.
-  std::vector<Vec3> centres_;
   std::vector<double> volumes_;
   std::vector<double> supports_;
-  std::vector<std::array<int, 3>> element_cubes_;
-  std::vector<int> element_of_cube_;  // cube index -> element, -1 for empty cubes
   std::vector<Mat3> rest_gradients_;  // sum_n X_n (x) grad phi_n, the identity up to rounding
   std::vector<Mat3> rotations_;
   // Cutting (set_neighbourhood): mass-sharing rule per element, rows using each particle

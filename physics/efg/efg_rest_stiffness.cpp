@@ -15,7 +15,7 @@ std::function<BlockMatrix()> CorotationalEfg::rest_stiffness_job() const {
     std::vector<double> volumes;
   };
   auto rows = std::make_shared<const Rows>(
-      Rows{node_count(), stride_, lambda_, mu_, row_lengths_, neighbours_, shape_gradients_, volumes_});
+      Rows{node_count(), stride_, shape_->lambda, shape_->mu, row_lengths_, neighbours_, shape_gradients_, volumes_});
   return [rows] {
     const auto& r = *rows;
     const int elements = static_cast<int>(r.volumes.size());
@@ -57,6 +57,6 @@ void CorotationalEfg::node_rotations(std::vector<Eigen::Quaterniond>& out) const
   mean.finish(out);
 }
 
-double CorotationalEfg::node_spacing() const { return 2 * settings_.spacing; }  // the particle grid's
+double CorotationalEfg::node_spacing() const { return 2 * shape_->settings.spacing; }  // the particle grid's
 
 }  // namespace incise::physics
