@@ -459,7 +459,7 @@ TEST(WorldCut, TheRestFactorsReplayBitForBitThroughCutsAndAgreeWithJacobi) {
   EXPECT_EQ(warped_iterations, again_iterations);
   EXPECT_GE(age, 1);  // steps ran on a factor older than the cut
   EXPECT_LT(warped_iterations, jacobi_iterations / 2);
-  const physics::Vector& rest = World(scene, read_trajectory(dir.path / "cut.traj")).bodies()[0].data.state.positions;
+  const physics::Vector rest = World(scene, read_trajectory(dir.path / "cut.traj")).bodies()[0].data.state.positions;
   const double moved = (jacobi.second - rest).cwiseAbs().maxCoeff();
   ASSERT_GT(moved, 0);
   EXPECT_LE((warped.second - jacobi.second).cwiseAbs().maxCoeff(), 1e-4 * moved);
