@@ -21,8 +21,9 @@ namespace incise::physics {
 
 enum class FactorBackend {
   // CHOLMOD's supernodal factorisation (dense BLAS on supernodes): several times faster to
-  // build; its OpenMP and OpenBLAS threads are limited to one so that it neither competes with
-  // the step's threads nor depends on their count.
+  // build. OpenBLAS is limited to one thread, so that it does not compete with the step's
+  // threads; CHOLMOD's own OpenMP loops only copy and scatter, whose results do not depend on
+  // their threads (the replay tests check the bits).
   cholmod,
   // Eigen's simplicial LLT (AMD ordering): no BLAS, no threads; used under ThreadSanitizer,
   // which cannot see OpenMP's and OpenBLAS's synchronisation.

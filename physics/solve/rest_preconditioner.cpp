@@ -53,7 +53,7 @@ const RestFactor* RestPreconditioner::prepare(const PreconditionerSettings& sett
       unsupported_ = true;  // the model offers no rest stiffness: Jacobi
       return nullptr;
     }
-    // The first factor, before the first step: on the critical path, the solve needs it now.
+    // The first factor, at the first step: on the critical path, the solve needs it now.
     Pending first = start(model, fixed, mass_coefficient, stiffness_coefficient, revision, step, settings, serial_executor());
     first.done.get();
     current_ = *first.result;

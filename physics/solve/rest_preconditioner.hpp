@@ -1,8 +1,8 @@
 // A body's rest-shape preconditioner over the steps: which factor its solves use, and when a
 // cut's new one takes over.
 //
-// The factor of A0 = (1 + dt alpha) M + (dt beta + dt^2) K0 is built once before the first
-// step. A topology change (a cut re-selects neighbourhoods, moves masses, pins particles)
+// The factor of A0 = (1 + dt alpha) M + (dt beta + dt^2) K0 (or of its coarse system) is
+// built at the first step, on its critical path. A topology change (a cut re-selects neighbourhoods, moves masses, pins particles)
 // leaves it a valid preconditioner of the new system, only a less exact one, so the steps go
 // on with it while the new factor is built beside them (Executor::run_async; Courtecuisse et
 // al. 2014 update theirs asynchronously likewise). The new factor takes over exactly
