@@ -16,6 +16,15 @@ void zero_fixed(const std::vector<uint8_t>& fixed_nodes, Vector& v) {
 
 }  // namespace
 
+Vector jacobi_inverse(const Vector& diagonal) {
+  Vector inverse(diagonal.size());
+  for (Eigen::Index i = 0; i < diagonal.size(); ++i) {
+    const double d = diagonal[i];
+    inverse[i] = (d > 0.0 && std::isfinite(d)) ? 1.0 / d : 1.0;
+  }
+  return inverse;
+}
+
 CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const Vector& diagonal,
                             const std::vector<uint8_t>& fixed_nodes, Vector& x,
                             const CgSettings& settings) {
@@ -23,11 +32,7 @@ CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const 
     throw std::invalid_argument("conjugate_gradient: diagonal (" + std::to_string(diagonal.size()) +
                                 ") must have the size of b (" + std::to_string(b.size()) + ")");
   }
-  Vector inverse_diagonal(b.size());
-  for (Eigen::Index i = 0; i < b.size(); ++i) {
-    const double d = diagonal[i];
-    inverse_diagonal[i] = (d > 0.0 && std::isfinite(d)) ? 1.0 / d : 1.0;
-  }
+  const Vector inverse_diagonal = jacobi_inverse(diagonal);
   const Preconditioner jacobi = [&](const Vector& r, Vector& out) { out = inverse_diagonal.cwiseProduct(r); };
   return preconditioned_conjugate_gradient(apply, b, jacobi, fixed_nodes, x, settings);
 }

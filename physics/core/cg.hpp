@@ -42,6 +42,10 @@ CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const 
                             const std::vector<uint8_t>& fixed_nodes, Vector& x,
                             const CgSettings& settings = {});
 
+// 1 / diagonal, entry by entry, with 1 where an entry is not positive and finite: the Jacobi
+// preconditioner of conjugate_gradient above (and the fine part of a two-level one).
+Vector jacobi_inverse(const Vector& diagonal);
+
 // The same with the preconditioner `precondition` (its output is zeroed on fixed nodes).
 CgResult preconditioned_conjugate_gradient(const LinearOperator& apply, const Vector& b, const Preconditioner& precondition,
                             const std::vector<uint8_t>& fixed_nodes, Vector& x, const CgSettings& settings = {});

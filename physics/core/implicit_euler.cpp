@@ -153,9 +153,9 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
     model.node_rotations(rotations);
     // A coarse factor corrects only the smooth part: Jacobi takes the rest (additive two-level).
     const Vector inverse_diagonal =
-        rest_factor->coarse() ? jacobi_diagonal(model, springs, masses, mass_coefficient, stiffness_coefficient)
-                                    .unaryExpr([](double d) { return d > 0.0 && std::isfinite(d) ? 1.0 / d : 1.0; })
-                              : Vector();
+        rest_factor->coarse()
+            ? jacobi_inverse(jacobi_diagonal(model, springs, masses, mass_coefficient, stiffness_coefficient))
+            : Vector();
     Vector coarse(size);
     const Preconditioner warped = [&](const Vector& r, Vector& z) {
       if (!rest_factor->coarse()) return warped_solve(*rest_factor, rotations, r, z);

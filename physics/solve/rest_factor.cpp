@@ -21,10 +21,6 @@ FactorBackend default_factor_backend() {
 #endif
 }
 
-const char* to_string(FactorBackend backend) {
-  return backend == FactorBackend::cholmod ? "cholmod" : "simplicial";
-}
-
 struct RestFactor::Solver {
   Eigen::CholmodSupernodalLLT<SparseMatrix> cholmod;
   Eigen::SimplicialLLT<SparseMatrix> simplicial;

@@ -66,6 +66,5 @@ class RestFactor {
   FactorBackend backend_;
 };
 
-const char* to_string(FactorBackend backend);
 
 }  // namespace incise::physics
