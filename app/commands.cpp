@@ -157,6 +157,11 @@ int trajectory_info(const std::string& file) {
   std::printf("%s: %zu samples in %zu chunks", file.c_str(), s.size(), trajectory.report.chunks_read);
   if (!s.empty()) std::printf(", t = %.6f .. %.6f s", s.front().time, s.back().time);
   std::printf("\n");
+  // Recorded in real time: the CGs the budget stopped, which a replay repeats.
+  if (!trajectory.cg_stops.empty())
+    std::printf("%zu CG stops recorded over steps %llu .. %llu (a replay repeats them)\n", trajectory.cg_stops.size(),
+                static_cast<unsigned long long>(trajectory.cg_stops.front().step),
+                static_cast<unsigned long long>(trajectory.cg_stops.back().step));
   if (!trajectory.report.complete) {
     std::printf("damaged: %s\n", trajectory.report.problem.c_str());
     return 2;

@@ -167,6 +167,7 @@ int run(const RunArgs& args) {
   }
 
   engine::SessionOptions options;
+  options.budget = scene.solver.realtime;
   options.clock = engine::SessionOptions::Clock::realtime;
   options.loop.spin_ns = 300'000;  // spins away the sleep's late wake-ups (physics-choices.md)
   const std::filesystem::path record_base = args.record.empty() ? "recording.traj" : args.record;

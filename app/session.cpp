@@ -33,6 +33,7 @@ int session(const SessionArgs& args) {
 
   haptics::VirtualDevice device;
   engine::SessionOptions options;
+  options.budget = scene.solver.realtime;
   options.keep_ticks = true;
   if (!args.record.empty()) options.record = args.record;
   options.script = [&](double t) {

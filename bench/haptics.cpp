@@ -66,6 +66,7 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
   engine::SessionOptions session_options;
   session_options.clock = engine::SessionOptions::Clock::realtime;
   session_options.keep_ticks = true;
+  session_options.budget = scene.solver.realtime;
   session_options.loop.spin_ns = static_cast<std::int64_t>(options.spin_us * 1000);
   session_options.loop.realtime_priority = options.realtime_priority;
   device.set_pose(scripted_stroke(0, engage));

@@ -2,6 +2,7 @@
 
 #include "haptics/clock.hpp"
 #include "physics/core/contact.hpp"
+#include "physics/core/stopwatch.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -233,10 +234,25 @@ StepStats HapticSession::step() {
     drain();
     if (world_->last_tool_sample_time() > before) waiting_since = std::chrono::steady_clock::now();
   }
-  const StepStats stats = world_->step();
+  const StepStats stats = world_->step(step_deadline_ns(end));
+  if (stats.cg_budget_stops > 0) {
+    ++steps_over_budget_;
+    residual_max_over_budget_ = std::max(residual_max_over_budget_, stats.cg_residual);
+  }
+  const std::vector<CgStop> stops = world_->take_cg_stops();
+  if (writer_) writer_->append_cg_stops(stops);
   cut_steps_.push_back(stats.cut_event ? 1 : 0);
   publish(world_->steps_taken());
   return stats;
+}
+
+std::int64_t HapticSession::step_deadline_ns(double end) const {
+  if (!options_.budget) return 0;
+  const double allowed = options_.budget_share * world_->dt();
+  if (options_.clock == SessionOptions::Clock::simulated)
+    return physics::steady_now_ns() + static_cast<std::int64_t>(std::llround(allowed * 1e9));
+  // The hand reaches the next step's end then: physics is a step behind it at most.
+  return t0_ns_ + static_cast<std::int64_t>(std::llround((end + allowed) * 1e9));
 }
 
 void HapticSession::publish(std::uint64_t step) {
@@ -305,7 +321,12 @@ nlohmann::json session_summary(const HapticSession& session) {
                       {"samples_recorded", session.samples_recorded()},
                       {"state_hash", hash.str()},
                       {"surface_triangles", triangles},
-                      {"cut_events", world.cut_totals().events}};
+                      {"cut_events", world.cut_totals().events},
+                      {"real_time",
+                       {{"budget", session.budget()},
+                        {"steps_over_budget", session.steps_over_budget()},
+                        {"cg_stops", world.real_time_budget().deadline_stops()},
+                        {"residual_max_over_budget", session.residual_max_over_budget()}}}};
   if (!session.ticks().empty()) {
     const ForceJumps jumps = force_jumps(session.ticks(), session.cut_steps());
     double max_force = 0;

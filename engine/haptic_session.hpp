@@ -84,6 +84,13 @@ struct SessionOptions {
   // simulated: called with the tick's time (s since t0) before each tick.
   std::function<void(double)> script;
   double realtime_stall_s = 2.0;  // realtime: no tick for this long is an error
+  // Real time (engine/real_time_budget.hpp; the commands set it from solver.realtime): each
+  // step's CG stops when its time is up, so the tissue never falls behind the hand. On the
+  // realtime clock step k must be done when the hand reaches t_k + dt (a step late is caught
+  // up by the next); on the simulated clock within dt of wall time from its start. The stops
+  // go to the recording, whose replay repeats them.
+  bool budget = false;
+  double budget_share = 1.0;  // of dt: how much later than the above the step may end (tests force stops with ~0)
 };
 
 class HapticSession {
@@ -109,6 +116,10 @@ class HapticSession {
   // cut_steps()[k] == 1 when step k changed the topology (index 0: the initial state).
   const std::vector<std::uint8_t>& cut_steps() const { return cut_steps_; }
   std::uint64_t samples_recorded() const { return samples_recorded_; }
+  // Real time: the steps whose CG the budget stopped, and the worst residual they left.
+  std::uint64_t steps_over_budget() const { return steps_over_budget_; }
+  double residual_max_over_budget() const { return residual_max_over_budget_; }
+  bool budget() const { return options_.budget; }
   std::int64_t t0_ns() const { return t0_ns_; }
   const haptics::ContactModel& last_model() const { return last_model_; }
 
@@ -116,6 +127,7 @@ class HapticSession {
   void take(const haptics::TickSample& tick);
   void drain();
   void publish(std::uint64_t step);
+  std::int64_t step_deadline_ns(double end) const;  // 0 without a budget
 
   SessionOptions options_;
   haptics::Device& device_;
@@ -129,6 +141,8 @@ class HapticSession {
   std::vector<haptics::TickSample> ticks_;
   std::vector<std::uint8_t> cut_steps_{0};
   std::uint64_t samples_recorded_ = 0;
+  std::uint64_t steps_over_budget_ = 0;
+  double residual_max_over_budget_ = 0;
   std::array<double, 3> previous_proxy_{};
   haptics::ContactModel last_model_{};
   bool stopped_ = false;

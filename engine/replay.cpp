@@ -238,6 +238,7 @@ std::optional<Trajectory> load_trajectory(const Scene& scene, const ReplayOption
     summary = {{"file", trajectory_file->string()},
                {"samples", trajectory->samples.size()},
                {"chunks", trajectory->report.chunks_read},
+               {"cg_stops", trajectory->cg_stops.size()},
                {"complete", trajectory->report.complete},
                {"problem", trajectory->report.problem}};
   }
@@ -342,7 +343,7 @@ RunOutcome run_steps(World& world, const Scene& scene, const ReplayOptions& opti
 struct StepTotals {
   std::vector<double> total, tool_input, cut_phase, contact, solve, surface;
   double cg_sum = 0, cg_residual_max = 0, max_force = 0;
-  int cg_max = 0, nonfinite = 0, not_converged = 0, contacts_max = 0;
+  int cg_max = 0, nonfinite = 0, not_converged = 0, budget_stopped = 0, contacts_max = 0;
   std::vector<double> per_iteration;
   std::string preconditioner = "jacobi";
   long long preconditioner_age_max = 0;
@@ -367,7 +368,9 @@ StepTotals gather_steps(const std::vector<StepStats>& stats) {
     t.preconditioner_wait_ms += s.preconditioner_wait_ms;
     t.cg_residual_max = std::max(t.cg_residual_max, s.cg_residual);
     t.nonfinite += s.nonfinite_events;
-    t.not_converged += s.cg_converged ? 0 : 1;
+    // A CG a recorded real-time stop ended is counted apart from one that ran out of iterations.
+    t.not_converged += s.cg_converged || s.cg_budget_stops > 0 ? 0 : 1;
+    t.budget_stopped += s.cg_budget_stops > 0 ? 1 : 0;
     t.contacts_max = std::max(t.contacts_max, s.contacts);
     t.max_force = std::max(t.max_force, std::sqrt(s.tool_force[0] * s.tool_force[0] +
                                                   s.tool_force[1] * s.tool_force[1] +
@@ -471,6 +474,7 @@ Json run_metrics(const Scene& scene, const World& world, const RunOutcome& run, 
                           {"build_ms_max", t.preconditioner_build_ms_max},
                           {"wait_ms_total", t.preconditioner_wait_ms}}},
       {"cg_not_converged_steps", t.not_converged},
+      {"cg_budget_stopped_steps", t.budget_stopped},
       {"nonfinite_events", t.nonfinite},
       {"guards", guards_json(world)},
       {"energy_J", {{"elastic", last.elastic_energy}, {"kinetic", last.kinetic_energy}}},
@@ -583,7 +587,7 @@ void write_steps_csv(const std::filesystem::path& file, const std::vector<StepSt
        "cg_residual", "contacts", "tool_force_x", "tool_force_y", "tool_force_z", "elastic_energy_J",
        "kinetic_energy_J", "ms_ccd", "ms_topology", "links_severed", "ms_rest_cut", "ms_reselect",
        "ms_surface_rebuild", "ms_mapping", "ms_checks", "ms_front_cut", "ms_front_wait", "preconditioner",
-       "ms_per_iteration", "preconditioner_age", "preconditioner_build_ms", "preconditioner_wait_ms"});
+       "ms_per_iteration", "preconditioner_age", "preconditioner_build_ms", "preconditioner_wait_ms", "cg_budget_stops"});
   for (std::size_t k = 0; k < stats.size(); ++k) {
     const auto& s = stats[k];
     steps_csv.row(k + 1, static_cast<double>(k + 1) * dt, s.ms_total, s.ms_tool_input, s.ms_contact,
@@ -592,7 +596,7 @@ void write_steps_csv(const std::filesystem::path& file, const std::vector<StepSt
                   s.links_severed, s.ms_rest_cut, s.ms_reselect, s.ms_surface_rebuild, s.ms_mapping, s.ms_checks,
                   s.ms_front_cut, s.ms_front_wait, s.preconditioner,
                   s.cg_iterations > 0 ? s.ms_solve / s.cg_iterations : 0.0, s.preconditioner_age,
-                  s.preconditioner_build_ms, s.preconditioner_wait_ms);
+                  s.preconditioner_build_ms, s.preconditioner_wait_ms, s.cg_budget_stops);
   }
 }
 

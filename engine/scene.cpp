@@ -224,6 +224,8 @@ void read_solver(const Json& solver, SolverSpec& s, std::vector<std::string>& er
   s.preconditioner = sr.text("preconditioner", false, "jacobi", {"jacobi", "warped_cholesky", "two_level"});
   s.preconditioner_latency = sr.integer("preconditioner_latency", false, 4, 0, 1000);
   s.start = sr.text("start", false, "rest", {"rest", "settled"});
+  s.realtime = sr.boolean("realtime", true);
+  s.realtime_min_iterations = sr.integer("realtime_min_iterations", false, 3, 1, 100000);
 }
 
 // One load: a body named in `bodies`, a region, and force events at increasing times.

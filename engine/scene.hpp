@@ -107,6 +107,11 @@ struct SolverSpec {
   std::string preconditioner = "jacobi";
   int preconditioner_latency = 4;
   std::string start = "rest";  // "rest", or "settled": start from static equilibrium under gravity
+  // Real time (engine/real_time_budget.hpp): live sessions (`run`, `session`, `bench haptics`)
+  // stop each step's CG when its time is up, after at least realtime_min_iterations; replay
+  // ignores it and repeats the stops a recording holds.
+  bool realtime = true;
+  int realtime_min_iterations = 3;
 };
 
 struct LoadEvent {

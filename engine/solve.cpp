@@ -58,17 +58,23 @@ void World::solve(Body& body, const std::vector<physics::NodalSpring>& springs,
   }
   if (body.cut) body.cut->previous_positions = body.data.state.positions;
   const physics::RestFactor* factor = body.gpu ? nullptr : prepare_preconditioner(body, stats);
-  const physics::StepFunction step = [&](physics::State& state, const physics::ImplicitEulerSettings& settings,
+  const physics::StepFunction step = [&](physics::State& state, const physics::ImplicitEulerSettings& given,
                                          physics::Vector* velocity_change) {
-    return body.gpu ? body.gpu->step(*body.data.efg, state, body.data.fixed, external, springs, settings, velocity_change)
-                    : physics::implicit_euler_step(*body.data.mechanics, state, body.data.fixed, external, springs,
-                                                   settings, velocity_change, factor);
+    physics::ImplicitEulerSettings settings = given;
+    settings.cg.budget = budget_.next();
+    const physics::StepReport report =
+        body.gpu ? body.gpu->step(*body.data.efg, state, body.data.fixed, external, springs, settings, velocity_change)
+                 : physics::implicit_euler_step(*body.data.mechanics, state, body.data.fixed, external, springs,
+                                                settings, velocity_change, factor);
+    budget_.solved(report.cg);
+    return report;
   };
   const physics::GuardedStepReport report =
       physics::guarded_step(*body.model, body.data, external, springs, scene_.solver.max_retries, step);
   stats.cg_iterations += report.cg_iterations;
   stats.cg_residual = std::max(stats.cg_residual, report.cg_residual);
   stats.cg_converged = stats.cg_converged && report.cg_converged;
+  stats.cg_budget_stops += report.cg_budget_stops;
   stats.nonfinite_events += report.nonfinite_retries;
   stats.energy_growth_events += report.energy_growth;
   stats.elastic_energy += report.elastic_energy;

@@ -18,6 +18,7 @@ namespace {
 
 constexpr std::array<char, 8> kFileMagic{'I', 'N', 'C', 'T', 'R', 'A', 'J', '\0'};
 constexpr std::array<char, 4> kChunkMagic{'C', 'H', 'N', 'K'};
+constexpr std::array<char, 4> kCgStopMagic{'C', 'G', 'S', 'T'};  // version 2
 // Device quaternions often come from float arithmetic, whose normalisation is good to ~1e-7;
 // anything further from unit length is not a rotation someone meant to record.
 constexpr double kQuaternionNormTolerance = 1e-4;
@@ -121,6 +122,16 @@ std::optional<std::string> find_sample_problem(const ToolSample& sample,
     return "time " + shortest(sample.time) + " is earlier than the previous sample's time " +
            shortest(*previous_time);
   }
+  return std::nullopt;
+}
+
+// The one definition of a valid CG stop, shared by writer and reader like the samples'.
+std::optional<std::string> find_stop_problem(const CgStop& stop, const std::optional<CgStop>& previous) {
+  if (stop.step == 0) return "step 0 (steps count from 1)";
+  if (stop.iterations == 0) return "zero iterations";
+  if (previous && (stop.step < previous->step || (stop.step == previous->step && stop.solve <= previous->solve)))
+    return "step " + std::to_string(stop.step) + " solve " + std::to_string(stop.solve) + " does not come after step " +
+           std::to_string(previous->step) + " solve " + std::to_string(previous->solve);
   return std::nullopt;
 }
 
@@ -234,6 +245,41 @@ void TrajectoryWriter::append(const ToolSample& sample) {
   if (pending_samples_ == samples_per_chunk_) write_pending_chunk();
 }
 
+void TrajectoryWriter::append_cg_stops(std::span<const CgStop> stops) {
+  if (!stream_) {
+    throw std::logic_error("TrajectoryWriter: CG stops to '" + file_.string() + "' after it was closed or failed");
+  }
+  if (stops.empty()) return;
+  std::optional<CgStop> previous = last_stop_;
+  for (const CgStop& stop : stops) {
+    if (const auto problem = find_stop_problem(stop, previous))
+      throw std::invalid_argument("TrajectoryWriter: CG stop for '" + file_.string() + "': " + *problem);
+    previous = stop;
+  }
+  std::vector<std::byte> chunk(kChunkHeaderBytes + stops.size() * kCgStopBytes);
+  for (std::size_t i = 0; i < stops.size(); ++i) {
+    std::byte* out = chunk.data() + kChunkHeaderBytes + i * kCgStopBytes;
+    put_u64(out, stops[i].step);
+    put_u32(out + 8, stops[i].solve);
+    put_u32(out + 12, stops[i].iterations);
+  }
+  const std::size_t payload_bytes = stops.size() * kCgStopBytes;
+  std::memcpy(chunk.data(), kCgStopMagic.data(), kCgStopMagic.size());
+  put_u32(chunk.data() + 4, static_cast<std::uint32_t>(stops.size()));
+  put_u32(chunk.data() + 8, static_cast<std::uint32_t>(payload_bytes));
+  put_u32(chunk.data() + 12, trajectory_checksum({chunk.data() + kChunkHeaderBytes, payload_bytes}));
+  if (std::fwrite(chunk.data(), 1, chunk.size(), stream_) != chunk.size() || std::fflush(stream_) != 0) {
+    const int error_number = errno;
+    std::fclose(stream_);
+    stream_ = nullptr;
+    throw TrajectoryError(file_, bytes_written_,
+                          "cannot write a chunk of " + std::to_string(stops.size()) + " CG stops: " +
+                              system_error_text(error_number));
+  }
+  bytes_written_ += chunk.size();
+  last_stop_ = previous;
+}
+
 void TrajectoryWriter::write_pending_chunk() {
   if (pending_samples_ == 0) return;
   const std::size_t payload_bytes = pending_samples_ * kSampleBytes;
@@ -287,7 +333,8 @@ namespace {
 
 // Reads and checks the file header (the stream at its start, the file `file_bytes` long);
 // returns its size, where the first chunk starts. Throws on anything but a valid header.
-std::uint32_t read_header(std::FILE* stream, const std::filesystem::path& file, std::uint64_t file_bytes) {
+std::uint32_t read_header(std::FILE* stream, const std::filesystem::path& file, std::uint64_t file_bytes,
+                          std::uint32_t& version) {
   std::array<std::byte, kTrajectoryMaximumHeaderBytes> header{};
   const std::size_t header_prefix =
       static_cast<std::size_t>(std::min<std::uint64_t>(file_bytes, kTrajectoryMinimumHeaderBytes));
@@ -307,11 +354,11 @@ std::uint32_t read_header(std::FILE* stream, const std::filesystem::path& file, 
                               " bytes, a header needs at least " +
                               std::to_string(kTrajectoryMinimumHeaderBytes));
   }
-  const std::uint32_t version = get_u32(header.data() + 8);
-  if (version != kTrajectoryVersion) {
+  version = get_u32(header.data() + 8);
+  if (version != 1 && version != kTrajectoryVersion) {
     throw TrajectoryError(file, 8,
                           "unsupported version " + std::to_string(version) +
-                              " (this reader supports version " +
+                              " (this reader supports versions 1 and " +
                               std::to_string(kTrajectoryVersion) + ")");
   }
   const std::uint32_t header_bytes = get_u32(header.data() + 12);
@@ -325,7 +372,7 @@ std::uint32_t read_header(std::FILE* stream, const std::filesystem::path& file, 
   const std::uint32_t flags = get_u32(header.data() + 16);
   if (flags != 0) {
     throw TrajectoryError(file, 16,
-                          "unsupported flags " + hex32(flags) + " (version 1 defines none)");
+                          "unsupported flags " + hex32(flags) + " (versions 1 and 2 define none)");
   }
   if (file_bytes < header_bytes) {
     throw TrajectoryError(file, file_bytes,
@@ -341,14 +388,16 @@ std::uint32_t read_header(std::FILE* stream, const std::filesystem::path& file, 
 }
 
 struct ChunkHeader {
-  std::uint32_t sample_count = 0;
+  bool cg_stops = false;          // a CGST chunk (version 2), else CHNK
+  std::uint32_t sample_count = 0;  // records: samples or CG stops
   std::uint32_t payload_bytes = 0;
   std::uint32_t stored_checksum = 0;
 };
 
 // Reads the header of the chunk that starts `remaining` bytes before the end of the file and
 // checks that its payload fits there; returns the problem, if any.
-std::optional<std::string> read_chunk_header(std::FILE* stream, std::uint64_t remaining, ChunkHeader& header) {
+std::optional<std::string> read_chunk_header(std::FILE* stream, std::uint64_t remaining, std::uint32_t version,
+                                             ChunkHeader& header) {
   std::array<std::byte, kChunkHeaderBytes> chunk_header{};
   if (remaining < kChunkHeaderBytes) {
     return "truncated chunk header (" + std::to_string(remaining) + " of " +
@@ -357,20 +406,24 @@ std::optional<std::string> read_chunk_header(std::FILE* stream, std::uint64_t re
   if (std::fread(chunk_header.data(), 1, kChunkHeaderBytes, stream) != kChunkHeaderBytes) {
     return "truncated chunk header (read failed: " + system_error_text(errno) + ")";
   }
-  if (std::memcmp(chunk_header.data(), kChunkMagic.data(), kChunkMagic.size()) != 0) {
-    return "bad chunk magic (expected 43484e4b \"CHNK\", found " +
+  header.cg_stops = version >= 2 && std::memcmp(chunk_header.data(), kCgStopMagic.data(), kCgStopMagic.size()) == 0;
+  if (!header.cg_stops && std::memcmp(chunk_header.data(), kChunkMagic.data(), kChunkMagic.size()) != 0) {
+    return std::string("bad chunk magic (expected 43484e4b \"CHNK\"") +
+           (version >= 2 ? " or 43475354 \"CGST\"" : "") + ", found " +
            hex_bytes(chunk_header.data(), kChunkMagic.size()) + ")";
   }
   header.sample_count = get_u32(chunk_header.data() + 4);
   header.payload_bytes = get_u32(chunk_header.data() + 8);
   header.stored_checksum = get_u32(chunk_header.data() + 12);
+  const char* records = header.cg_stops ? "CG stops" : "samples";
+  const std::size_t record_bytes = header.cg_stops ? kCgStopBytes : kSampleBytes;
   if (header.sample_count > kMaximumSamplesPerChunk) {
-    return "implausible sample count " + std::to_string(header.sample_count) + " (at most " +
-           std::to_string(kMaximumSamplesPerChunk) + ")";
+    return std::string("implausible ") + (header.cg_stops ? "CG stop" : "sample") + " count " +
+           std::to_string(header.sample_count) + " (at most " + std::to_string(kMaximumSamplesPerChunk) + ")";
   }
-  if (std::uint64_t{header.payload_bytes} != std::uint64_t{header.sample_count} * kSampleBytes) {
+  if (std::uint64_t{header.payload_bytes} != std::uint64_t{header.sample_count} * record_bytes) {
     return "payload size " + std::to_string(header.payload_bytes) + " does not match " +
-           std::to_string(header.sample_count) + " samples of " + std::to_string(kSampleBytes) + " bytes";
+           std::to_string(header.sample_count) + " " + records + " of " + std::to_string(record_bytes) + " bytes";
   }
   if (remaining - kChunkHeaderBytes < header.payload_bytes) {
     return "truncated chunk: its payload needs " + std::to_string(header.payload_bytes) + " bytes, only " +
@@ -384,7 +437,8 @@ std::optional<std::string> read_chunk_header(std::FILE* stream, std::uint64_t re
 // after it and reported, rather than thrown: a recording cut short keeps what came before.
 class ChunkReader {
  public:
-  ChunkReader(std::FILE* stream, Trajectory& trajectory) : stream_(stream), trajectory_(trajectory) {}
+  ChunkReader(std::FILE* stream, std::uint32_t version, Trajectory& trajectory)
+      : stream_(stream), version_(version), trajectory_(trajectory) {}
 
   void read(std::uint64_t offset, std::uint64_t file_bytes) {
     auto& report = trajectory_.report;
@@ -408,7 +462,7 @@ class ChunkReader {
   // chunk cannot be taken.
   std::optional<std::string> read_chunk(std::uint64_t remaining, std::uint64_t& chunk_bytes) {
     ChunkHeader header;
-    if (auto problem = read_chunk_header(stream_, remaining, header)) return problem;
+    if (auto problem = read_chunk_header(stream_, remaining, version_, header)) return problem;
     payload_.resize(header.payload_bytes);
     if (std::fread(payload_.data(), 1, header.payload_bytes, stream_) != header.payload_bytes) {
       return "truncated chunk (read failed: " + system_error_text(errno) + ")";
@@ -417,6 +471,12 @@ class ChunkReader {
     if (computed_checksum != header.stored_checksum) {
       return "checksum mismatch (stored " + hex32(header.stored_checksum) + ", computed " +
              hex32(computed_checksum) + ")";
+    }
+    if (header.cg_stops) {
+      if (auto problem = decode_stops(header.sample_count)) return "invalid CG stop: " + *problem;
+      trajectory_.cg_stops.insert(trajectory_.cg_stops.end(), stops_.begin(), stops_.end());
+      chunk_bytes = kChunkHeaderBytes + header.payload_bytes;
+      return std::nullopt;
     }
     if (auto problem = decode_payload(header.sample_count)) return "invalid sample: " + *problem;
     trajectory_.samples.insert(trajectory_.samples.end(), decoded_.begin(), decoded_.end());
@@ -442,8 +502,27 @@ class ChunkReader {
     return std::nullopt;
   }
 
+  std::optional<std::string> decode_stops(std::uint32_t count) {
+    stops_.clear();
+    std::optional<CgStop> previous;
+    if (!trajectory_.cg_stops.empty()) previous = trajectory_.cg_stops.back();
+    for (std::uint32_t i = 0; i < count; ++i) {
+      const std::byte* in = payload_.data() + std::size_t{i} * kCgStopBytes;
+      const CgStop stop{get_u64(in), get_u32(in + 8), get_u32(in + 12)};
+      if (const auto problem = find_stop_problem(stop, previous)) {
+        return "stop " + std::to_string(i) + " of the chunk (stop " + std::to_string(trajectory_.cg_stops.size() + i) +
+               " of the file): " + *problem;
+      }
+      previous = stop;
+      stops_.push_back(stop);
+    }
+    return std::nullopt;
+  }
+
   std::FILE* stream_;
+  std::uint32_t version_;
   Trajectory& trajectory_;
+  std::vector<CgStop> stops_;  // reused
   std::vector<std::byte> payload_;     // reused
   std::vector<ToolSample> decoded_;    // reused
   std::optional<double> previous_time_;  // of the last sample kept
@@ -467,13 +546,15 @@ Trajectory read_trajectory(const std::filesystem::path& file) {
   if (file_bytes == 0) {
     throw TrajectoryError(file, 0, "the file is empty (0 bytes), not a trajectory");
   }
-  const std::uint32_t header_bytes = read_header(stream.get(), file, file_bytes);
+  std::uint32_t version = 0;
+  const std::uint32_t header_bytes = read_header(stream.get(), file, file_bytes, version);
 
   Trajectory trajectory;
   // Bounded by the file size, so a lying count cannot make this allocation large.
   trajectory.samples.reserve(static_cast<std::size_t>((file_bytes - header_bytes) / kSampleBytes));
-  ChunkReader(stream.get(), trajectory).read(header_bytes, file_bytes);
+  ChunkReader(stream.get(), version, trajectory).read(header_bytes, file_bytes);
   trajectory.report.samples_read = trajectory.samples.size();
+  trajectory.report.cg_stops_read = trajectory.cg_stops.size();
   return trajectory;
 }
 

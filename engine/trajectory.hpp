@@ -35,9 +35,22 @@ struct ToolSample {
 
 inline constexpr std::uint32_t kToolButtonEngaged = 1u << 0;
 
+// A CG that a live session's real-time budget stopped (physics/core/cg.hpp, CgBudget): the
+// `solve`-th CG of step `step` (counted from 0 in the step's order: bodies, then retried
+// sub-steps) did `iterations` iterations. A replay stops that CG there, so it takes the steps
+// the session took.
+struct CgStop {
+  std::uint64_t step = 0;  // 1 for the first step
+  std::uint32_t solve = 0;
+  std::uint32_t iterations = 0;  // >= 1
+
+  friend bool operator==(const CgStop&, const CgStop&) = default;
+};
+
 struct TrajectoryReadReport {
   std::size_t chunks_read = 0;  // good chunks, all of whose samples were returned
   std::size_t samples_read = 0;
+  std::size_t cg_stops_read = 0;
   bool complete = true;             // false when a damaged or truncated tail was discarded
   std::size_t bytes_discarded = 0;  // from the start of the first bad chunk to the end of the file
   std::string problem;  // empty when complete; otherwise names the chunk, byte offset and cause
@@ -45,6 +58,7 @@ struct TrajectoryReadReport {
 
 struct Trajectory {
   std::vector<ToolSample> samples;
+  std::vector<CgStop> cg_stops;  // in (step, solve) order; empty unless recorded in real time
   TrajectoryReadReport report;
 };
 
@@ -63,13 +77,14 @@ class TrajectoryError : public std::runtime_error {
 };
 
 // Format constants, public so tests and tools can reason about offsets.
-inline constexpr std::uint32_t kTrajectoryVersion = 1;
+inline constexpr std::uint32_t kTrajectoryVersion = 2;  // what this writer emits; 1 is read too
 inline constexpr std::size_t kTrajectoryHeaderBytes = 32;         // what this writer emits
 inline constexpr std::size_t kTrajectoryMinimumHeaderBytes = 20;  // magic, version, size, flags
 inline constexpr std::size_t kTrajectoryMaximumHeaderBytes = 4096;
 inline constexpr std::size_t kChunkHeaderBytes = 16;
 inline constexpr std::size_t kSampleBytes = 80;
 inline constexpr std::size_t kMaximumSamplesPerChunk = 1'000'000;
+inline constexpr std::size_t kCgStopBytes = 16;  // version 2: step u64, solve u32, iterations u32
 
 // CRC-32 as in IEEE 802.3 / zlib (reflected 0x04C11DB7, init and final xor 0xFFFFFFFF), the
 // checksum stored in every chunk header. Exposed so tools and tests can build valid chunks.
@@ -90,6 +105,10 @@ class TrajectoryWriter {
   // or a time earlier than the previous sample's; std::logic_error after close(); TrajectoryError
   // when the file cannot be written.
   void append(const ToolSample& sample);
+  // Writes the stops as a chunk of their own at once (a step's stops are few, and a replay of
+  // what a crash kept needs the stops of every step it kept). Throws std::invalid_argument for
+  // a stop out of (step, solve) order or with zero iterations, as append() does for a sample.
+  void append_cg_stops(std::span<const CgStop> stops);
   // Writes the pending samples as a (possibly short) chunk and hands everything to the OS.
   void flush();
   // Flushes and closes; further appends throw. Calling it twice is harmless.
@@ -109,13 +128,15 @@ class TrajectoryWriter {
   std::size_t samples_written_ = 0;
   std::uint64_t bytes_written_ = 0;
   std::optional<double> last_time_;
+  std::optional<CgStop> last_stop_;
 };
 
 // Throws TrajectoryError when the file is missing, empty, has a truncated header, is not a
 // trajectory (bad magic) or has an unsupported version or flags. A truncated or corrupted chunk
 // (bad magic, implausible sizes, checksum mismatch, or samples that fail validation: times
-// decreasing, non-finite numbers, quaternion norm away from 1) ends the read there: the samples
-// of the chunks before it are returned with report.complete = false.
+// decreasing, non-finite numbers, quaternion norm away from 1; CG stops out of order or of
+// zero iterations) ends the read there: the samples and stops of the chunks before it are
+// returned with report.complete = false.
 Trajectory read_trajectory(const std::filesystem::path& file);
 
 void write_trajectory(const std::filesystem::path& file, const std::vector<ToolSample>& samples,

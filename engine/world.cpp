@@ -14,7 +14,9 @@
 namespace incise::engine {
 
 World::World(const Scene& scene, std::optional<Trajectory> trajectory)
-    : scene_(scene), trajectory_(std::move(trajectory)), initial_trajectory_(trajectory_) {
+    : scene_(scene), trajectory_(std::move(trajectory)), initial_trajectory_(trajectory_),
+      budget_(scene_.solver.realtime_min_iterations) {
+  if (trajectory_) budget_.repeat(trajectory_->cg_stops);
   build();
 }
 
@@ -70,6 +72,8 @@ void World::reset() {
   guard_counts_ = GuardCounts{};
   cut_totals_ = CutTotals{};
   guard_events_.clear();
+  budget_.reset();
+  ms_after_solve_ = 0;
   build();
 }
 
@@ -137,7 +141,7 @@ void add_cut_report(const physics::CutStepReport& report, StepStats& stats) {
 
 }  // namespace
 
-StepStats World::step() {
+StepStats World::step(std::int64_t deadline_ns) {
   StepStats stats;
   const auto gpu_bytes = [this](bool rows) {
     long long bytes = 0;
@@ -151,6 +155,7 @@ StepStats World::step() {
   const double end_time = static_cast<double>(steps_ + 1) * scene_.solver.dt;
   take_tool_input(end_time);
   stats.ms_tool_input = phase.ms();
+  budget_.begin_step(steps_ + 1, deadline_ns > 0 ? deadline_ns - static_cast<std::int64_t>(ms_after_solve_ * 1e6) : 0);
   for (auto& body : bodies_) {
     if (!body.cut || !blade()) continue;  // a body is cut by a blade only
     physics::CutStepReport cut;
@@ -168,6 +173,7 @@ StepStats World::step() {
   phase.restart();
   for (auto& body : bodies_) update_surface(body);
   stats.ms_surface = phase.ms();
+  ms_after_solve_ = stats.ms_surface;
   ++steps_;
   time_ = end_time;
   stats.ms_total = whole.ms();

@@ -11,6 +11,7 @@
 #pragma once
 
 #include "engine/body.hpp"
+#include "engine/real_time_budget.hpp"
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
 #include "physics/core/body.hpp"
@@ -51,6 +52,7 @@ struct StepStats {
   double preconditioner_wait_ms = 0;
   double cg_residual = 0;  // worst relative residual over bodies
   bool cg_converged = true;
+  int cg_budget_stops = 0;  // CGs the real-time budget stopped unconverged (engine/real_time_budget.hpp)
   int nonfinite_events = 0;  // steps that produced a non-finite value and were retried
   int energy_growth_events = 0;
   int contacts = 0;
@@ -121,7 +123,13 @@ class World {
   World(World&&) = default;
   World& operator=(World&&) = default;
 
-  StepStats step();
+  // One step. `deadline_ns` (steady_now_ns clock; 0: none) is when a live session needs the
+  // step done (real time, engine/real_time_budget.hpp): its CGs stop in time for the surface
+  // update after them. A trajectory's recorded CG stops are repeated whatever the deadline.
+  StepStats step(std::int64_t deadline_ns = 0);
+  // The CG stops the deadlines made since the last call, for the recording (in order).
+  std::vector<CgStop> take_cg_stops() { return budget_.take_stops(); }
+  const RealTimeBudget& real_time_budget() const { return budget_; }
   // Live tool input (issue 5): the tool's samples arrive while the world runs, from the haptic
   // loop, instead of all being known up front. Each step uses the samples as a recorded
   // trajectory would (the pose at the step's end and every sample inside it as the blade's
@@ -186,6 +194,8 @@ class World {
   GuardCounts guard_counts_;
   CutTotals cut_totals_;
   std::vector<GuardEvent> guard_events_;
+  RealTimeBudget budget_;
+  double ms_after_solve_ = 0;  // the last step's surface update: what a CG deadline leaves room for
   void log_guard(const std::string& body, const std::string& kind, const std::string& detail);
 };
 

@@ -1,5 +1,7 @@
 #include "physics/core/cg.hpp"
 
+#include "physics/core/stopwatch.hpp"
+
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -15,6 +17,11 @@ void zero_fixed(const std::vector<uint8_t>& fixed_nodes, Vector& v) {
 }
 
 }  // namespace
+
+bool budget_spent(const CgBudget& budget, int iterations) {
+  if (budget.stop_at > 0) return iterations >= budget.stop_at;
+  return budget.deadline_ns > 0 && iterations >= budget.min_iterations && steady_now_ns() >= budget.deadline_ns;
+}
 
 Vector jacobi_inverse(const Vector& diagonal) {
   Vector inverse(diagonal.size());
@@ -120,6 +127,10 @@ CgResult preconditioned_conjugate_gradient(const LinearOperator& apply, const Ve
     result.relative_residual = residual_norm / b_norm;
     if (result.relative_residual <= settings.tolerance) {
       result.converged = true;
+      return result;
+    }
+    if (budget_spent(settings.budget, result.iterations)) {
+      result.stopped_by_budget = true;
       return result;
     }
 

@@ -11,9 +11,25 @@
 
 namespace incise::physics {
 
+// Real time (issue 29): a live session's step must end before the hand is a step ahead, so
+// its CG stops at a wall-clock deadline however far from the tolerance, the body left short
+// of equilibrium rather than behind the hand (SOFA's users cap CG's iterations for the same
+// reason). A truncated CG from the previous step's dv is still the A-norm-best dv of its
+// Krylov space. The stop depends on the machine's speed, so a recording keeps the iterations
+// each stopped CG did, and its replay stops there (`stop_at`) to take the same steps.
+struct CgBudget {
+  std::int64_t deadline_ns = 0;  // CLOCK_MONOTONIC (steady_now_ns); 0: none
+  int min_iterations = 1;        // done even when the deadline has already passed
+  int stop_at = 0;               // > 0: a recorded stop, exactly this many iterations (the deadline is ignored)
+};
+
+// True when a CG that has done `iterations` iterations, not converged, must stop here.
+bool budget_spent(const CgBudget& budget, int iterations);
+
 struct CgSettings {
   double tolerance = 1e-6;  // on |r| / |b|, both restricted to the free degrees of freedom
   int max_iterations = 200;
+  CgBudget budget;
 };
 
 struct CgResult {
@@ -22,6 +38,7 @@ struct CgResult {
   bool converged = false;
   bool nonfinite = false;  // a NaN or infinity appeared; x holds the last finite iterate
   bool non_positive_curvature = false;  // p.Ap <= 0: the operator is not positive definite
+  bool stopped_by_budget = false;  // not converged: the deadline passed or a recorded stop was reached
 };
 
 // out = A p. `out` is already sized like p; the callable overwrites it.

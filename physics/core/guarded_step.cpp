@@ -48,7 +48,11 @@ GuardedStepReport guarded_step(const BodyModel& model, BodyData& body, const Vec
       last = step(body.state, settings, &body.velocity_change);
       report.cg_iterations += last.cg.iterations;
       report.cg_residual = std::max(report.cg_residual, last.cg.relative_residual);
-      if (!last.cg.converged && !last.nonfinite) {
+      if (last.cg.stopped_by_budget && !last.nonfinite) {
+        // Real time: the step's time was up (cg.hpp, CgBudget); counted, not a guard.
+        report.cg_converged = false;
+        report.cg_budget_stops++;
+      } else if (!last.cg.converged && !last.nonfinite) {
         report.cg_converged = false;
         report.cg_not_converged++;
         report.events.push_back({"cg_not_converged", "relative residual " + std::to_string(last.cg.relative_residual) +

@@ -29,6 +29,7 @@ struct GuardedStepReport {
   bool cg_converged = true;
   int nonfinite_retries = 0;
   int cg_not_converged = 0;
+  int cg_budget_stops = 0;  // solves stopped unconverged by their real-time budget (cg.hpp)
   int energy_growth = 0;
   double elastic_energy = 0, kinetic_energy = 0;  // of the new state
   // The force of the tissue on the tool: minus the contact forces the implicit step applied,

@@ -3,8 +3,18 @@
 #pragma once
 
 #include <chrono>
+#include <cstdint>
+#include <time.h>
 
 namespace incise::physics {
+
+// CLOCK_MONOTONIC in nanoseconds: the haptic loop's clock (haptics/clock.hpp), so a deadline
+// set from the hand's time can be checked inside a solve.
+inline std::int64_t steady_now_ns() {
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  return std::int64_t{now.tv_sec} * 1'000'000'000 + now.tv_nsec;
+}
 
 class Stopwatch {
  public:

@@ -807,6 +807,10 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
         cg.converged = true;
         break;
       }
+      if (budget_spent(settings.cg.budget, cg.iterations)) {
+        cg.stopped_by_budget = true;
+        break;
+      }
       s.run(Kernel::cg_direction, dofs, {{a_binding, &s.z}, {b_binding, &s.p}}, 0, rz_current, rz_next);
       std::swap(rz_current, rz_next);
     }

@@ -105,6 +105,63 @@ TEST(HapticSession, ARecordedSessionReplaysHeadlessToTheSameCut) {
   EXPECT_EQ(result.metrics["cut"]["events"].get<long>(), events);
 }
 
+// Real time (issue 29): a budget that is always spent stops every CG after the minimum of
+// iterations; the recording keeps each stop and its replay repeats them, to the same cut and
+// state. Without the stops the same samples replay to another state (the stops matter).
+TEST(HapticSession, CgStopsOfARealTimeSessionAreRecordedAndReplayedBitForBit) {
+  TempDir dir("incise_session_budget");
+  const Scene scene = beam_scene(dir);
+  haptics::VirtualDevice device;
+  SessionOptions options;
+  options.record = dir.path / "session.traj";
+  options.budget = true;
+  options.budget_share = 1e-9;  // the deadline is now: every CG stops at min_iterations
+  options.script = [&](double t) { device.set_pose(stroke(t, true)); };
+  const int steps = 30;
+  std::string hash;
+  std::uint64_t stops = 0, over = 0;
+  long events = 0;
+  {
+    HapticSession session(scene, device, options);
+    for (int k = 0; k < steps; ++k) {
+      const StepStats stats = session.step();
+      // One body, no retries: a stopped CG did exactly the minimum.
+      if (stats.cg_budget_stops > 0) EXPECT_EQ(stats.cg_iterations, scene.solver.realtime_min_iterations);
+    }
+    session.stop();
+    hash = hex64(session.world().state_hash());
+    events = session.world().cut_totals().events;
+    stops = session.world().real_time_budget().deadline_stops();
+    over = session.steps_over_budget();
+    EXPECT_EQ(session_summary(session)["real_time"]["cg_stops"].get<std::uint64_t>(), stops);
+  }
+  ASSERT_GT(events, 0) << "the stroke should cut";
+  ASSERT_GE(over, static_cast<std::uint64_t>(steps) / 2) << "the budget should stop most steps' CG";
+  const Trajectory recorded = read_trajectory(dir.path / "session.traj");
+  ASSERT_EQ(recorded.cg_stops.size(), stops);
+  for (const CgStop& stop : recorded.cg_stops)
+    EXPECT_EQ(stop.iterations, static_cast<std::uint32_t>(scene.solver.realtime_min_iterations));
+
+  ReplayOptions replay;
+  replay.out_dir = dir.path / "replay";
+  replay.trajectory = dir.path / "session.traj";
+  replay.steps = steps;
+  const auto result = run_replay(scene, replay);
+  ASSERT_TRUE(result.ok);
+  EXPECT_EQ(result.metrics["state_hash"].get<std::string>(), hash);
+  EXPECT_EQ(result.metrics["cut"]["events"].get<long>(), events);
+  EXPECT_EQ(result.metrics["cg_budget_stopped_steps"].get<std::uint64_t>(), over);
+  EXPECT_EQ(result.metrics["cg_not_converged_steps"].get<int>(), 0);
+
+  write_trajectory(dir.path / "samples_only.traj", recorded.samples);
+  replay.trajectory = dir.path / "samples_only.traj";
+  replay.out_dir = dir.path / "replay_without_stops";
+  const auto converged = run_replay(scene, replay);
+  ASSERT_TRUE(converged.ok);
+  EXPECT_NE(converged.metrics["state_hash"].get<std::string>(), hash);
+  EXPECT_EQ(converged.metrics["cg_budget_stopped_steps"].get<std::uint64_t>(), 0u);
+}
+
 TEST(HapticSession, TheContactModelIsRebuiltInTheCutStepAndTheForceStaysContinuous) {
   TempDir dir("incise_session_force");
   const Scene scene = beam_scene(dir);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "physics/core/cg.hpp"
+#include "physics/core/stopwatch.hpp"
 
 namespace incise::physics {
 namespace {
@@ -84,6 +85,49 @@ TEST(ConjugateGradient, StopsAtMaxIterationsUnconverged) {
   EXPECT_EQ(result.iterations, 3);
   EXPECT_GT(result.relative_residual, 1e-14);
   EXPECT_NEAR(result.relative_residual, (b - a * x).norm() / b.norm(), 1e-12);
+}
+
+// Real time (issue 29): a deadline already passed stops CG after its minimum of iterations; a
+// recorded stop repeats exactly the iterate of the CG it stopped (the same x as a CG capped
+// at that many iterations), and a deadline far ahead changes nothing.
+TEST(ConjugateGradient, ABudgetStopsAtTheDeadlineAndARecordedStopRepeatsTheIterate) {
+  const int size = 36;
+  const Dense a = make_spd(size, 3);
+  const Vector b = make_vector(size, 4);
+  CgSettings settings;
+  settings.tolerance = 1e-12;
+
+  Vector converged = Vector::Zero(size);
+  const CgResult full = conjugate_gradient(dense_operator(a), b, a.diagonal(), {}, converged, settings);
+  ASSERT_TRUE(full.converged);
+  ASSERT_GT(full.iterations, 6);
+
+  CgSettings late = settings;
+  late.budget.deadline_ns = 1;  // long past
+  late.budget.min_iterations = 4;
+  Vector stopped = Vector::Zero(size);
+  const CgResult at_deadline = conjugate_gradient(dense_operator(a), b, a.diagonal(), {}, stopped, late);
+  EXPECT_TRUE(at_deadline.stopped_by_budget);
+  EXPECT_FALSE(at_deadline.converged);
+  EXPECT_EQ(at_deadline.iterations, 4);
+
+  CgSettings recorded = settings;
+  recorded.budget.stop_at = 4;
+  recorded.budget.deadline_ns = steady_now_ns() + 3'600'000'000'000;  // ignored beside a recorded stop
+  Vector repeated = Vector::Zero(size);
+  const CgResult repeat = conjugate_gradient(dense_operator(a), b, a.diagonal(), {}, repeated, recorded);
+  EXPECT_TRUE(repeat.stopped_by_budget);
+  EXPECT_EQ(repeat.iterations, 4);
+  EXPECT_EQ(repeated, stopped);
+  EXPECT_GT((repeated - converged).norm(), 1e-6 * converged.norm());
+
+  CgSettings ahead = settings;
+  ahead.budget.deadline_ns = steady_now_ns() + 3'600'000'000'000;
+  Vector unhurried = Vector::Zero(size);
+  const CgResult in_time = conjugate_gradient(dense_operator(a), b, a.diagonal(), {}, unhurried, ahead);
+  EXPECT_TRUE(in_time.converged);
+  EXPECT_FALSE(in_time.stopped_by_budget);
+  EXPECT_EQ(unhurried, converged);
 }
 
 TEST(ConjugateGradient, RespectsFixedMask) {

@@ -172,7 +172,7 @@ TEST_F(TrajectoryFile, FormatIsLittleEndianFieldByField) {
   const auto bytes = read_bytes(file);
   ASSERT_EQ(bytes.size(), kTrajectoryHeaderBytes + kChunkHeaderBytes + kSampleBytes);
   EXPECT_EQ(std::memcmp(bytes.data(), "INCTRAJ\0", 8), 0);
-  EXPECT_EQ(bytes[8], std::byte{1});    // version 1, low byte first
+  EXPECT_EQ(bytes[8], std::byte{2});    // version 2, low byte first
   EXPECT_EQ(bytes[12], std::byte{32});  // header size
   EXPECT_EQ(std::memcmp(bytes.data() + 32, "CHNK", 4), 0);
   EXPECT_EQ(bytes[36], std::byte{1});   // one sample
@@ -321,11 +321,11 @@ TEST_F(TrajectoryFile, BadMagicThrows) {
 
 TEST_F(TrajectoryFile, UnsupportedVersionThrows) {
   auto bytes = read_bytes(write_standard());
-  put_u32(bytes, 8, 2);
+  put_u32(bytes, 8, 3);
   const fs::path file = path("future.traj");
   write_bytes(file, bytes);
   const std::string message = error_of(file);
-  EXPECT_TRUE(contains(message, "unsupported version 2")) << message;
+  EXPECT_TRUE(contains(message, "unsupported version 3")) << message;
   EXPECT_TRUE(contains(message, "at byte 8")) << message;
 }
 
@@ -677,6 +677,56 @@ TEST(TrajectorySynth, RejectsUnusableSpecs) {
   PokeSpec bad_rate;
   bad_rate.rate_hz = 0;
   EXPECT_THROW(synthesize_poke(bad_rate), std::invalid_argument);
+}
+
+// Version 2 (issue 29): the CG stops of a real-time session, in chunks of their own between the
+// samples', read back in order; a version-1 file (written before them) still reads, and
+// holds no CGST chunk; stops out of order are refused by the writer and end the read.
+TEST_F(TrajectoryFile, CgStopsRoundTripBesideTheSamplesAndVersionOneStillReads) {
+  const fs::path file = path("stops.traj");
+  std::vector<ToolSample> samples(7);
+  for (std::size_t i = 0; i < samples.size(); ++i) samples[i].time = 0.001 * static_cast<double>(i);
+  const std::vector<CgStop> first{{1, 0, 3}, {1, 2, 5}}, second{{4, 0, 7}};
+  {
+    TrajectoryWriter writer(file, 3);
+    for (std::size_t i = 0; i < 4; ++i) writer.append(samples[i]);
+    writer.append_cg_stops(first);
+    for (std::size_t i = 4; i < samples.size(); ++i) writer.append(samples[i]);
+    writer.append_cg_stops(second);
+    EXPECT_THROW(writer.append_cg_stops(std::vector<CgStop>{{4, 0, 2}}), std::invalid_argument);  // not after {4, 0}
+    EXPECT_THROW(writer.append_cg_stops(std::vector<CgStop>{{5, 0, 0}}), std::invalid_argument);  // no iteration
+    writer.close();
+  }
+  const Trajectory read = read_trajectory(file);
+  EXPECT_TRUE(read.report.complete) << read.report.problem;
+  EXPECT_EQ(read.samples, samples);
+  const std::vector<CgStop> all{{1, 0, 3}, {1, 2, 5}, {4, 0, 7}};
+  EXPECT_EQ(read.cg_stops, all);
+  EXPECT_EQ(read.report.cg_stops_read, 3u);
+
+  // The same bytes as version 1: a CGST chunk is not a chunk of version 1.
+  auto bytes = read_bytes(file);
+  put_u32(bytes, 8, 1);
+  write_bytes(path("v1.traj"), bytes);
+  const Trajectory v1 = read_trajectory(path("v1.traj"));
+  EXPECT_FALSE(v1.report.complete);
+  EXPECT_TRUE(contains(v1.report.problem, "bad chunk magic")) << v1.report.problem;
+  EXPECT_TRUE(v1.cg_stops.empty());
+
+  // A stop going back in time, re-sealed so only the validation can object: the read ends there.
+  bytes = read_bytes(file);
+  const std::size_t second_stops = kTrajectoryHeaderBytes + (kChunkHeaderBytes + 3 * kSampleBytes) +
+                                   (kChunkHeaderBytes + 2 * kCgStopBytes) + (kChunkHeaderBytes + 3 * kSampleBytes);
+  ASSERT_EQ(std::memcmp(bytes.data() + second_stops, "CGST", 4), 0);
+  bytes[second_stops + kChunkHeaderBytes] = std::byte{1};  // step 4 -> 1
+  put_u32(bytes, second_stops + 12,
+          trajectory_checksum(std::span<const std::byte>(bytes).subspan(second_stops + kChunkHeaderBytes, kCgStopBytes)));
+  write_bytes(path("back.traj"), bytes);
+  const Trajectory back = read_trajectory(path("back.traj"));
+  EXPECT_FALSE(back.report.complete);
+  EXPECT_TRUE(contains(back.report.problem, "invalid CG stop")) << back.report.problem;
+  EXPECT_EQ(back.cg_stops, first);
+  EXPECT_EQ(back.samples.size(), 6u);
 }
 
 }  // namespace
