@@ -53,6 +53,23 @@ struct LiveSnapshot {
   bool recording = false;
   std::string recording_file;
   int session = 0;  // counts restarts
+  // Where physics' time went since the session (re)started: sums over its steps, in ms, of the
+  // cut (CCD and topology), contact, solve and surface phases and the whole step; CG
+  // iterations; steps whose CG the real-time budget stopped.
+  struct Totals {
+    double ms_cut = 0, ms_contact = 0, ms_solve = 0, ms_surface = 0, ms_step = 0, cg_iterations = 0;
+    std::uint64_t steps = 0, over_budget = 0;
+    void add(const engine::StepStats& stats) {
+      ms_cut += stats.ms_ccd + stats.ms_topology;
+      ms_contact += stats.ms_contact;
+      ms_solve += stats.ms_solve;
+      ms_surface += stats.ms_surface;
+      ms_step += stats.ms_total;
+      cg_iterations += stats.cg_iterations;
+      over_budget += stats.cg_budget_stops > 0 ? 1 : 0;
+      ++steps;
+    }
+  } totals;
 };
 
 // Requests from the panels to the physics thread (plain values: the queue never allocates).
@@ -216,6 +233,8 @@ int run(const RunArgs& args) {
       begin(!args.record.empty());
       const auto& w0 = session->world();
       for (const auto& body : w0.bodies()) triangles_at_start += body.data.surface.size();
+      LiveSnapshot::Totals totals;
+      int totals_session = -1;
       auto publish = [&](const engine::StepStats& stats, double rtf) {
         const engine::World& world = session->world();
         auto& s = latest.back();
@@ -229,7 +248,10 @@ int run(const RunArgs& args) {
         for (const auto& body : world.bodies()) s.triangles += body.data.surface.size();
         s.recording = recording;
         s.recording_file = recording ? record_file.string() : std::string();
+        if (totals_session != session_count) totals = {}, totals_session = session_count;
+        if (stats.ms_total > 0) totals.add(stats);
         s.session = session_count;
+        s.totals = totals;
         latest.publish();
       };
       publish({}, 0);
@@ -292,6 +314,7 @@ int run(const RunArgs& args) {
   double plane_z = 0;
   bool plane_set = false;
   long frames = 0;
+  double draw_ms = 0;  // drawing and presenting the frames (llvmpipe draws on the CPUs physics uses)
   double drag_end_sim_time = -1;
   const auto session_start = SteadyClock::now();
 
@@ -381,6 +404,7 @@ int run(const RunArgs& args) {
       surface_plot.push(static_cast<float>(s.stats.ms_surface));
     }
 
+    const auto draw_start = SteadyClock::now();
     window.draw(s.frame, [&] {
       ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_Always);
       ImGui::SetNextWindowSize(ImVec2(300, 0), ImGuiCond_Always);
@@ -392,6 +416,8 @@ int run(const RunArgs& args) {
       ImGui::Text("%s %s  blade %s  depth %.1f mm", args.device.c_str(), haptics::to_string(tick.state),
                   (tick.pose.buttons & haptics::kButtonEngage) ? "ENGAGED" : "off", 1000 * (top - plane_z));
       ImGui::Text("cuts %ld  triangles %zu", s.cut_events, s.triangles);
+      ImGui::Text("CG %d it  residual %.1e  over budget %llu", s.stats.cg_iterations, s.stats.cg_residual,
+                  static_cast<unsigned long long>(s.totals.over_budget));
       if (ImGui::CollapsingHeader("haptic loop", ImGuiTreeNodeFlags_DefaultOpen)) {
         ImGui::Text("p50 %.0f p99 %.0f max %.0f us >2ms %llu", periods.p50_us, periods.p99_us, periods.max_us,
                     static_cast<unsigned long long>(periods.over_2ms));
@@ -430,6 +456,7 @@ int run(const RunArgs& args) {
       ImGui::TextDisabled("left button or space: engage");
       ImGui::End();
     });
+    draw_ms += std::chrono::duration<double, std::milli>(SteadyClock::now() - draw_start).count();
     ++frames;
   }
   render::Image shot;
@@ -444,6 +471,14 @@ int run(const RunArgs& args) {
   if (want_shot) render::write_png(args.screenshot, shot);
   std::printf("window: %ld frames, physics t = %.3f s, %ld cut events, triangles %zu -> %zu\n", frames, sim_time, cuts,
               triangles_at_start, triangles);
+  // Where the time went: the real-time factor, physics' phases per step, the frames' drawing.
+  const LiveSnapshot::Totals& t = final_snapshot.totals;
+  const double n = std::max<double>(1, static_cast<double>(t.steps));
+  std::printf("physics: x%.2f real time, %llu steps, per step %.1f ms (cut %.1f, contact %.1f, solve %.1f with %.1f CG "
+              "iterations, surface %.1f), %llu over budget; frames: %.1f ms each to draw\n",
+              final_snapshot.real_time_factor, static_cast<unsigned long long>(t.steps), t.ms_step / n, t.ms_cut / n,
+              t.ms_contact / n, t.ms_solve / n, t.cg_iterations / n, t.ms_surface / n,
+              static_cast<unsigned long long>(t.over_budget), frames > 0 ? draw_ms / static_cast<double>(frames) : 0.0);
   if (!last_recording.empty()) std::printf("recorded %s (summary %s.json)\n", last_recording.c_str(), last_recording.c_str());
   if (!physics_error.empty()) {
     std::fprintf(stderr, "incise: physics stopped: %s\n", physics_error.c_str());

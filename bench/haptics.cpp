@@ -143,17 +143,23 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
         {"wall_time_s", wall},
         {"real_time_factor", wall > 0 ? sim / wall : 0},
         {"lag_behind_hand_s_at_end", wall - sim},
+        {"lag_behind_hand_steps_at_end", (wall - sim) / scene.solver.dt},
+        {"real_time_budget", session.budget()},
+        {"steps_over_budget", session.steps_over_budget()},
+        {"residual_max_over_budget", session.residual_max_over_budget()},
         {"ms_per_step_median", common::median(step_ms)},
         {"ms_per_step_max", step_ms.empty() ? 0 : *std::max_element(step_ms.begin(), step_ms.end())}}},
   };
   char line[512];
   std::snprintf(line, sizeof line,
                 "%-16s %7.1f Hz  period p50 %6.1f p99 %6.1f p99.9 %6.1f max %7.1f us  >2ms %3llu  "
-                "jump N/ms: cut %.4f, publication %.4f, between %.4f  |F|max %.2f N  cuts %ld  physics x%.2f",
+                "jump N/ms: cut %.4f, publication %.4f, between %.4f  |F|max %.2f N  cuts %ld  physics x%.3f, "
+                "lag %.1f steps, %llu steps over budget",
                 engage ? "cutting" : "without cutting", rate, periods.p50_us, periods.p99_us, periods.p999_us,
                 periods.max_us, static_cast<unsigned long long>(periods.over_2ms), jumps.at_cut_max,
                 jumps.at_publication_max, jumps.between_max, max_force, session.world().cut_totals().events,
-                wall > 0 ? sim / wall : 0);
+                wall > 0 ? sim / wall : 0, (wall - sim) / scene.solver.dt,
+                static_cast<unsigned long long>(session.steps_over_budget()));
   return {j, line};
 }
 

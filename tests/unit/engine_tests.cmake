@@ -19,4 +19,5 @@ gtest_discover_tests(test_engine DISCOVERY_TIMEOUT 60)
 # The haptic loop in the engine (issue 5): engine/haptic_session.hpp.
 add_executable(test_haptic_session ${CMAKE_CURRENT_LIST_DIR}/test_haptic_session.cpp)
 target_link_libraries(test_haptic_session PRIVATE incise_engine GTest::gtest_main)
+target_compile_definitions(test_haptic_session PRIVATE INCISE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
 gtest_discover_tests(test_haptic_session DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "haptics")

@@ -162,6 +162,44 @@ TEST(HapticSession, CgStopsOfARealTimeSessionAreRecordedAndReplayedBitForBit) {
   EXPECT_EQ(converged.metrics["cg_budget_stopped_steps"].get<std::uint64_t>(), 0u);
 }
 
+// Real time on the default lobe with every CG stopped at its minimum (3 iterations, far from
+// the tolerance): the tissue lags its equilibrium but stays stable through the incision (no
+// energy growth guard, bounded energy). A truncated CG started from the previous step's dv
+// as it was kept its stale smooth part step after step and the energy grew 600-fold in 80
+// steps; the start scaled to its best multiple (cg.hpp) does not.
+TEST(HapticSession, EveryCgStoppedAtItsMinimumStaysStableThroughTheIncision) {
+  TempDir dir("incise_session_starved");
+  const Scene scene = load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes/default.json");
+  const Trajectory script = read_trajectory(*scene.tool->trajectory);
+  haptics::VirtualDevice device;
+  SessionOptions options;
+  options.budget = true;
+  options.budget_share = 1e-9;
+  options.script = [&](double t) {
+    const ToolSample s = sample_at(script.samples, t);
+    haptics::DevicePose pose;
+    pose.position = s.position;
+    pose.orientation = s.orientation;
+    pose.buttons = s.buttons & kToolButtonEngaged;
+    device.set_pose(pose);
+  };
+  HapticSession session(scene, device, options);
+  double energy_max = 0;
+  for (int k = 0; k < 150; ++k) {
+    const StepStats stats = session.step();
+    energy_max = std::max(energy_max, stats.elastic_energy + stats.kinetic_energy);
+  }
+  session.stop();
+  const World& world = session.world();
+  std::printf("starved: %llu steps over budget, %ld cut events, energy max %.4g J, energy growth guards %ld\n",
+              static_cast<unsigned long long>(session.steps_over_budget()), world.cut_totals().events, energy_max,
+              world.guard_counts().energy_growth);
+  EXPECT_GE(session.steps_over_budget(), 100u);
+  EXPECT_GT(world.cut_totals().events, 0);
+  EXPECT_EQ(world.guard_counts().energy_growth, 0);
+  EXPECT_LT(energy_max, 0.1);
+}
+
 TEST(HapticSession, TheContactModelIsRebuiltInTheCutStepAndTheForceStaysContinuous) {
   TempDir dir("incise_session_force");
   const Scene scene = beam_scene(dir);
