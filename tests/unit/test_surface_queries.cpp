@@ -45,11 +45,11 @@ double exact_winding(const TriangleSoup& soup, const Vector3d& p) {
   return incise::engine::winding_number(soup, {p.x(), p.y(), p.z()});
 }
 
-double brute_distance(const TriangleSoup& soup, const SurfaceQueries& queries, const Vector3d& p) {
-  (void)queries;
+// The distance to every triangle, each the smaller of the distance to its plane (where the
+// foot lies inside it) and to its three edges: another route than the hierarchy's (Ericson's
+// regions), over every triangle.
+double brute_distance(const TriangleSoup& soup, const Vector3d& p) {
   double best = std::numeric_limits<double>::infinity();
-  // Sampled finely per triangle would be slow; the exact distance to a triangle is the
-  // minimum over its plane (when the foot is inside) and its three edges.
   for (const auto& t : soup.triangles) {
     const Vector3d a(soup.vertices[t[0]][0], soup.vertices[t[0]][1], soup.vertices[t[0]][2]);
     const Vector3d b(soup.vertices[t[1]][0], soup.vertices[t[1]][1], soup.vertices[t[1]][2]);
@@ -85,7 +85,9 @@ TEST(SurfaceQueries, WindingNumberAgreesWithTheExactSum) {
     const double exact = exact_winding(soup, p), fast = queries.winding_number(p);
     worst = std::max(worst, std::abs(fast - exact));
     // Identical classification wherever the point is not within rounding of the surface.
-    if (queries.nearest(p).distance > 1e-9) EXPECT_EQ(fast > 0.5, exact > 0.5) << p.transpose();
+    if (queries.nearest(p).distance > 1e-9) {
+      EXPECT_EQ(fast > 0.5, exact > 0.5) << p.transpose();
+    }
     inside += exact > 0.5;
     near += queries.nearest(p).distance < 0.003;
   }
@@ -125,7 +127,7 @@ TEST(SurfaceQueries, NearestPointIsTheBruteForceNearest) {
   for (int k = 0; k < 400; ++k) {
     const Vector3d p = random_point(rng, soup, 0.05);
     const auto nearest = queries.nearest(p);
-    EXPECT_NEAR(nearest.distance, brute_distance(soup, queries, p), 1e-12);
+    EXPECT_NEAR(nearest.distance, brute_distance(soup, p), 1e-12);
     EXPECT_NEAR((nearest.point - p).norm(), nearest.distance, 1e-12);
     ASSERT_GE(nearest.triangle, 0);
   }
@@ -148,7 +150,7 @@ TEST(MeshShape, InsideAndLineSectionsAgreeWithTheExactSum) {
     for (int j = 0; j < 20; ++j) {
       const double s = 0.05 * unit(rng);
       const Vector3d q = p + s * n;
-      if (shape.queries().nearest(q).distance < 1e-9) continue;
+      if (shape.queries().nearest(q).distance < 1e-9) continue;  // within rounding of the surface
       EXPECT_EQ(section->inside_at(s), exact_winding(soup, q) > 0.5) << "point " << k << " s " << s;
     }
   }
