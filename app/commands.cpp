@@ -119,6 +119,9 @@ int check(const std::string& scene_file) {
                 body.model->name.c_str(), body.model->kind.c_str(), scene.bodies[i].cuttable ? ", cuttable" : "",
                 body.data.mechanics->node_count(), nodes.c_str(), body.model->elements, fixed, nodes.c_str(),
                 body.data.surface.size());
+    const engine::BuildTimes& t = body.build_ms;
+    std::printf("    built in %.0f ms: shape %.0f, volume %.0f, surface %.0f, cut %.0f, settle %.0f\n", t.total, t.shape,
+                t.volume, t.surface, t.cut, t.settle);
     if (body.model->snap.boundary_nodes > 0)
       std::printf("    surface snapping: %d boundary nodes, %d moved onto the surface, %d part way, %d left; "
                   "smallest element keeps %.0f %% of its volume\n",

@@ -28,7 +28,8 @@ Body::Body(const Body& other)
       cut(other.cut ? std::make_unique<physics::CutData>(*other.cut, *data.efg) : nullptr),
       executor(other.executor ? std::make_unique<ThreadPoolExecutor>(other.executor->thread_count(),
                                                                      other.executor->has_side_helper())
-                              : nullptr) {
+                              : nullptr),
+      build_ms(other.build_ms) {
   // The copied model still borrows the original's threads: it takes this body's instead.
   if (data.efg && other.executor && &other.data.efg->executor() == other.executor.get())
     data.efg->set_executor(executor.get());

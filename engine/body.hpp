@@ -14,6 +14,17 @@ class EfgStep;  // physics/gpu/efg_step.hpp
 
 namespace incise::engine {
 
+// Where a body's construction went, in ms of wall time (incise check prints it, metrics.json
+// has it as build_ms). Never an input to the simulation.
+struct BuildTimes {
+  double shape = 0;    // the shape's inside test: a mesh read and its hierarchy (surface_queries.hpp)
+  double volume = 0;   // the elements over the shape: EFG cells and their volumes, or the tetrahedra
+  double surface = 0;  // the render or first cut surface put onto the shape (voxel boundary, fairing)
+  double cut = 0;      // a cuttable body's cut state over it
+  double settle = 0;   // solver.start "settled": the static solve
+  double total = 0;
+};
+
 // A body: its read-only model and its data (physics/core/body.hpp), and for a cuttable body
 // the same split of its cut (physics/cut/cut_body.hpp). The engine adds what runs it: the
 // threads its model's loops use and, with solver.backend "gpu", its step on the GPU.
@@ -40,6 +51,7 @@ struct Body {
   // surface cut runs beside the volume's (apply_topology). The model owns none.
   std::unique_ptr<ThreadPoolExecutor> executor;
   std::shared_ptr<physics::gpu::EfgStep> gpu;  // solver.backend "gpu": its step, surface and rows
+  BuildTimes build_ms;
 };
 
 }  // namespace incise::engine

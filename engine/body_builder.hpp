@@ -18,9 +18,11 @@ namespace incise::engine {
 // Throws std::runtime_error naming the body (and the field, where one is at fault).
 Body build_body(const BodySpec& spec, const SolverSpec& solver);
 
-// What the body occupies: an inside test and its bounding box.
+// What the body occupies: an inside test and its bounding box; for an imported mesh also its
+// sections along lines (engine/mesh_shape.hpp), which the fairing uses.
 struct BodyShape {
   std::function<bool(const physics::Vec3&)> inside;
+  physics::LineQuery along;
   physics::Vec3 lo, hi;
 };
 

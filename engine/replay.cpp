@@ -410,6 +410,11 @@ struct PositionsDigest {
 };
 
 // metrics.json `bodies`; `digest` receives the positions digest, summed in the same pass.
+Json build_ms_json(const BuildTimes& b) {
+  return {{"total", b.total}, {"shape", b.shape}, {"volume", b.volume}, {"surface", b.surface},
+          {"cut", b.cut}, {"settle", b.settle}};
+}
+
 Json bodies_json(const World& world, PositionsDigest& digest) {
   std::size_t nodes = 0;
   Json bodies = Json::array();
@@ -436,11 +441,27 @@ Json bodies_json(const World& world, PositionsDigest& digest) {
                       {"dofs", 3 * n},
                       {"elements", body.model->elements},
                       {"fixed_nodes", fixed},
-                      {"surface_triangles", body.data.surface.size()}});
+                      {"surface_triangles", body.data.surface.size()},
+                      {"build_ms", build_ms_json(body.build_ms)}});
   }
   for (auto& c : digest.centroid) c /= static_cast<double>(std::max<std::size_t>(nodes, 1));
   digest.mean_displacement /= static_cast<double>(std::max<std::size_t>(nodes, 1));
   return bodies;
+}
+
+// metrics.json `build_ms`: the world's construction, every body's parts summed.
+Json world_build_ms_json(const World& world) {
+  BuildTimes sum;
+  for (const auto& body : world.bodies()) {
+    const BuildTimes& b = body.build_ms;
+    sum.shape += b.shape;
+    sum.volume += b.volume;
+    sum.surface += b.surface;
+    sum.cut += b.cut;
+    sum.settle += b.settle;
+    sum.total += b.total;
+  }
+  return build_ms_json(sum);
 }
 
 // metrics.json before the optional sections: the run, its timings, the solver, the state.
@@ -484,6 +505,7 @@ Json run_metrics(const Scene& scene, const World& world, const RunOutcome& run, 
       {"state_hash", hex64(world.state_hash())},
       {"motion_hash", hex64(world.motion_hash())},
       {"bodies", bodies},
+      {"build_ms", world_build_ms_json(world)},
       {"tool", {{"max_force_N", t.max_force}, {"max_contacts", t.contacts_max}}},
       {"dofs", {{"initial", dofs_initial}, {"final", dofs_final}}},
       {"trajectory", trajectory_json},

@@ -6,6 +6,7 @@
 #include "engine/mesh_import.hpp"
 #include "engine/model_registry.hpp"
 #include "physics/core/contact.hpp"
+#include "physics/core/stopwatch.hpp"
 #include "physics/cut/voxel_boundary.hpp"
 #include "physics/efg/efg_static.hpp"
 #include "physics/fem/static_solve.hpp"
@@ -70,7 +71,7 @@ void make_render_surface(physics::BodyModel& model, physics::BodyData& body, con
     // Embedded, this surface carries no element: onto the shape and evened out along it.
     std::vector<physics::Vec3> faired(static_cast<std::size_t>(vertices));
     for (int v = 0; v < vertices; ++v) faired[static_cast<std::size_t>(v)] = rest_vertices.segment<3>(3 * v);
-    physics::fair_surface_onto_shape(faired, body.surface, shape.inside, resolution);
+    physics::fair_surface_onto_shape(faired, body.surface, shape.inside, resolution, 3, shape.along);
     for (int v = 0; v < vertices; ++v) rest_vertices.segment<3>(3 * v) = faired[static_cast<std::size_t>(v)];
   }
   body.render_triangles.clear();
@@ -95,11 +96,16 @@ void make_cut(Body& result, const physics::BodyModel& model, const BodySpec& spe
   auto cut_model = std::make_shared<physics::CutModel>();
   cut_model->spacing = spec.resolution;
   cut_model->surface_cell = spec.efg.surface_resolution.value_or(0.5 * spec.resolution);
+  physics::Stopwatch watch;
   physics::TriangleSurface initial = physics::voxel_boundary(shape.inside, shape.lo, shape.hi, cut_model->surface_cell);
-  physics::fair_surface_onto_shape(initial.vertices, initial.triangles, shape.inside, cut_model->surface_cell);
+  physics::fair_surface_onto_shape(initial.vertices, initial.triangles, shape.inside, cut_model->surface_cell, 3,
+                                   shape.along);
+  result.build_ms.surface = watch.ms();
+  watch.restart();
   result.cut = std::make_unique<physics::CutData>(
       physics::make_cut_data(model, result.data, *cut_model, std::move(initial.vertices), std::move(initial.triangles)));
   result.cut_model = std::move(cut_model);
+  result.build_ms.cut = watch.ms();
 }
 
 Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodyShape& shape) {
@@ -114,14 +120,19 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
   result.executor = std::make_unique<ThreadPoolExecutor>(spec.efg.threads, spec.cuttable && spec.efg.threads >= 2);
   physics::Vector rest_vertices;
   try {
+    physics::Stopwatch watch;
     auto efg = std::make_unique<physics::CorotationalEfg>(shape.inside, shape.lo, shape.hi, material, efg_settings(spec),
                                                           result.executor.get());
     body.efg = efg.get();
     body.mechanics = std::move(efg);
-    if (spec.cuttable)
+    result.build_ms.volume = watch.ms();
+    watch.restart();
+    if (spec.cuttable) {
       make_cut(result, *model, spec, shape);
-    else
+    } else {
       make_render_surface(*model, body, spec, shape, rest_vertices);
+      result.build_ms.surface = watch.ms();
+    }
   } catch (const std::exception& e) {
     throw std::runtime_error(where + ": " + e.what());
   }
@@ -132,12 +143,14 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
   fix_nodes(body, spec, efg.rest_positions());
   body.gravity = physics::gravity_forces(efg.lumped_masses(), model->gravity);
   if (solver.start == "settled") {
+    const physics::Stopwatch watch;
     try {
       body.state.positions += physics::solve_static(physics::assemble_stiffness(efg), body.gravity, body.fixed);
     } catch (const std::exception& e) {
       throw std::runtime_error(where + ": solver.start 'settled' needs a body held in place by its "
                                "fixed regions: " + e.what());
     }
+    result.build_ms.settle = watch.ms();
   }
   physics::set_fixed_vertices(body);
   physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);

@@ -3,6 +3,7 @@
 // cut and runs on the CPU only.
 #include "engine/body_builder.hpp"
 #include "engine/model_registry.hpp"
+#include "physics/core/stopwatch.hpp"
 #include "physics/fem/corotational_fem.hpp"
 #include "physics/fem/static_solve.hpp"
 
@@ -20,8 +21,10 @@ Body build_fem_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
   physics::BodyData& body = result.data;
   const std::string where = "body '" + spec.name + "'";
   physics::TetMesh mesh;
+  physics::Stopwatch watch;
   try {
     mesh = fill_with_tets(spec, shape, spec.resolution, &model->snap);
+    result.build_ms.volume = watch.ms();
   } catch (const std::exception& e) {
     throw std::runtime_error(where + ": " + e.what());
   }
@@ -35,6 +38,7 @@ Body build_fem_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
   fix_nodes(body, spec, body.mechanics->rest_positions());
   body.gravity = physics::gravity_forces(body.mechanics->lumped_masses(), model->gravity);
   if (solver.start == "settled") {
+    watch.restart();
     // Start from static equilibrium under gravity (small-strain solve, exact enough for the
     // sag of a supported organ), so a replay does not begin with the body dropping.
     try {
@@ -44,6 +48,7 @@ Body build_fem_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
       throw std::runtime_error(where + ": solver.start 'settled' needs a body held in place by its "
                                "fixed regions: " + e.what());
     }
+    result.build_ms.settle = watch.ms();
   }
   std::vector<int> surface_index(n, -1);
   for (const auto& t : body.surface)

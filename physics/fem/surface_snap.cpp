@@ -37,21 +37,42 @@ double bisect(const std::function<bool(const Vec3&)>& inside, const Vec3& p, con
 }
 
 // Where the line p + s n crosses the boundary of `inside` within |s| <= reach: a coarse march
-// (so that a thin feature is not jumped over), then bisection.
+// (so that a thin feature is not jumped over), then bisection. With `along`, the points of the
+// line are classified from its section, the same march and bisection.
 std::optional<double> crossing(const std::function<bool(const Vec3&)>& inside, const Vec3& p, const Vec3& n,
-                               double reach, int steps, int bisections) {
-  const bool p_inside = inside(p);
+                               double reach, int steps, int bisections, const LineQuery& along = {}) {
+  const std::optional<LineSection> section = along ? along(p, n, reach) : std::nullopt;
+  const auto inside_at = [&](double s) { return section ? section->inside_at(s) : inside(p + s * n); };
+  const bool p_inside = inside_at(0);
   const double sign = p_inside ? 1.0 : -1.0;  // inside: the boundary is further out
   double previous = 0;
   for (int k = 1; k <= steps; ++k) {
     const double s = sign * reach * k / steps;
-    if (inside(p + s * n) != p_inside) return bisect(inside, p, n, previous, s, p_inside, bisections);
+    if (inside_at(s) != p_inside) {
+      double lo = previous, hi = s;
+      for (int b = 0; b < bisections; ++b) {
+        const double mid = 0.5 * (lo + hi);
+        (inside_at(mid) == p_inside ? lo : hi) = mid;
+      }
+      return 0.5 * (lo + hi);
+    }
     previous = s;
   }
   return std::nullopt;
 }
 
 }  // namespace
+
+bool LineSection::inside_at(double s) const {
+  // The winding number at s: the one at 0 and the changes passed on the way (backwards,
+  // undone).
+  int w = winding;
+  for (const auto& [t, change] : crossings) {
+    if (s > 0 && t > 0 && t < s) w += change;
+    if (s < 0 && t < 0 && t > s) w -= change;
+  }
+  return w > 0;
+}
 
 SnapReport snap_boundary_to_surface(TetMesh& mesh, const std::function<bool(const Vec3&)>& inside,
                                     double reach, double min_volume_ratio, int bisections) {
@@ -132,7 +153,8 @@ SnapReport snap_boundary_to_surface(TetMesh& mesh, const std::function<bool(cons
 
 
 FairReport fair_surface_onto_shape(std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
-                                   const std::function<bool(const Vec3&)>& inside, double cell, int passes) {
+                                   const std::function<bool(const Vec3&)>& inside, double cell, int passes,
+                                   const LineQuery& along) {
   FairReport report;
   const int n = static_cast<int>(vertices.size());
   if (!(cell > 0) || !std::isfinite(cell))
@@ -226,7 +248,7 @@ FairReport fair_surface_onto_shape(std::vector<Vec3>& vertices, const std::vecto
     ++report.vertices;
     const Vec3 normal = normal_at(v);
     const Vec3 p = vertices[static_cast<std::size_t>(v)];
-    const auto s = normal.isZero() ? std::nullopt : crossing(inside, p, normal, 1.5 * cell, steps, bisections);
+    const auto s = normal.isZero() ? std::nullopt : crossing(inside, p, normal, 1.5 * cell, steps, bisections, along);
     if (!s) {
       ++report.not_found;
       continue;
@@ -252,7 +274,7 @@ FairReport fair_surface_onto_shape(std::vector<Vec3>& vertices, const std::vecto
     const Vec3 normal = normal_at(v);
     const Vec3 q = vertices[static_cast<std::size_t>(v)];
     vertices[static_cast<std::size_t>(v)] = from;
-    const auto s = normal.isZero() ? std::nullopt : crossing(inside, q, normal, 1.5 * cell, steps, bisections);
+    const auto s = normal.isZero() ? std::nullopt : crossing(inside, q, normal, 1.5 * cell, steps, bisections, along);
     return s && move_to(v, q + *s * normal);
   };
   for (int v = 0; v < n; ++v)
@@ -274,7 +296,7 @@ FairReport fair_surface_onto_shape(std::vector<Vec3>& vertices, const std::vecto
     for (int k = 0; k < 8 && !crease[static_cast<std::size_t>(v)]; ++k) {
       const double angle = k * std::numbers::pi / 4;
       const Vec3 q = p + r * (std::cos(angle) * t1 + std::sin(angle) * t2);
-      const auto s = crossing(inside, q, normal, r, 8, 24);
+      const auto s = crossing(inside, q, normal, r, 8, 24, along);
       if (!s || std::abs(*s) > 0.25 * r) crease[static_cast<std::size_t>(v)] = 1;
     }
     report.creases += crease[static_cast<std::size_t>(v)];
@@ -302,7 +324,7 @@ FairReport fair_surface_onto_shape(std::vector<Vec3>& vertices, const std::vecto
       Vec3 slide = 0.5 * (centroid - p);
       slide -= normal.dot(slide) * normal;
       const Vec3 q = p + slide;
-      const auto s = crossing(inside, q, normal, cell, steps, bisections);
+      const auto s = crossing(inside, q, normal, cell, steps, bisections, along);
       if (s && move_to(v, q + *s * normal))
         ++report.slid;
       else

@@ -9,6 +9,8 @@
 
 #include <array>
 #include <functional>
+#include <optional>
+#include <utility>
 #include <vector>
 
 namespace incise::physics {
@@ -39,6 +41,19 @@ struct FairReport {
   int refused = 0;       // tangential moves refused (no crossing, or a triangle would turn over)
 };
 
+// A shape's boundary along a line p + s n, for shapes that know it exactly (an imported mesh:
+// engine/mesh_shape.hpp): the winding number at p and, sorted, the parameters s where the line
+// crosses the boundary with the change of the winding number there going towards +s. Inside
+// is a winding number above one half, as the point test has it.
+struct LineSection {
+  int winding = 0;
+  std::vector<std::pair<double, int>> crossings;
+  bool inside_at(double s) const;
+};
+// The line p + s n, |s| <= reach, or nullopt where the shape cannot say (the line grazes an
+// edge): the caller asks point by point.
+using LineQuery = std::function<std::optional<LineSection>(const Vec3& p, const Vec3& n, double reach)>;
+
 // Fairs a closed triangle surface that approximates the boundary of `inside` (a voxel
 // boundary snapped by snap_boundary_to_surface, whose nodes stop short or land unevenly where
 // the voxel normals are quantised: the organ's hammered look). Every vertex is put on the
@@ -54,8 +69,11 @@ struct FairReport {
 // embedded surface): the tetrahedra a snap keeps from flattening are not looked at.
 // Throws std::invalid_argument (naming it) for a cell that is not positive, negative passes,
 // a triangle's vertex out of range or a vertex on a triangle that is not finite, before
-// anything moves.
+// anything moves. With `along`, each march and bisection along a line classifies its points
+// from the line's section rather than asking `inside` for each (the same answers, but for
+// points within rounding of the boundary).
 FairReport fair_surface_onto_shape(std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
-                                   const std::function<bool(const Vec3&)>& inside, double cell, int passes = 3);
+                                   const std::function<bool(const Vec3&)>& inside, double cell, int passes = 3,
+                                   const LineQuery& along = {});
 
 }  // namespace incise::physics

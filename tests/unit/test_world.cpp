@@ -81,6 +81,17 @@ TEST(World, ReplayIsDeterministicAndTheHashSeesChanges) {
   EXPECT_NE(a.metrics["state_hash"], c.metrics["state_hash"]);
 }
 
+TEST(World, BodiesSayWhereTheirConstructionWent) {
+  TempDir dir("incise_world_build_ms");
+  const World world(write_scene(dir, block_scene(false)), std::nullopt);
+  const BuildTimes& t = world.bodies()[0].build_ms;
+  EXPECT_GT(t.volume, 0);  // the tetrahedra were made and timed
+  for (const double part : {t.shape, t.volume, t.surface, t.cut, t.settle}) EXPECT_GE(part, 0);
+  // The parts are disjoint spans of the whole.
+  EXPECT_LE(t.shape + t.volume + t.surface + t.cut + t.settle, t.total);
+  EXPECT_EQ(World(world).bodies()[0].build_ms.total, t.total);  // a copy was built the same way
+}
+
 TEST(World, FreeBodyFallsWithGravityExactly) {
   // No support, no tool: internal forces cancel, so the centroid velocity after n implicit
   // Euler steps is exactly g t, whatever the elasticity does.
