@@ -82,15 +82,37 @@ void check_ply(const std::filesystem::path& file) {
   if (auto problem = ply_header_problem(in, error ? 0 : bytes)) throw MeshError(file.string() + ": " + *problem);
 }
 
+// Reads the file and post-processes it in a second pass. First assimp validates what its reader
+// made (an index past the vertices is an import error, not an out-of-bounds read in
+// import_surface); then a face without vertices is refused and each mesh's primitive types are
+// recomputed from its faces: assimp 5.2.5's triangulation aborts the whole process on an
+// assertion when a PLY reader's empty face made it claim polygons (found by fuzz_mesh).
+const aiScene* read_scene(Assimp::Importer& importer, const std::filesystem::path& file) {
+  const aiScene* scene = importer.ReadFile(file.string(), aiProcess_ValidateDataStructure);
+  if (!scene) return nullptr;
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    aiMesh* mesh = scene->mMeshes[m];
+    unsigned types = 0;
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const unsigned n = mesh->mFaces[f].mNumIndices;
+      if (n == 0)
+        throw MeshError(file.string() + ": mesh " + std::to_string(m) + " face " + std::to_string(f) + " has no vertices");
+      types |= n == 1 ? aiPrimitiveType_POINT : n == 2 ? aiPrimitiveType_LINE : n == 3 ? aiPrimitiveType_TRIANGLE
+                                                                                         : aiPrimitiveType_POLYGON;
+    }
+    mesh->mPrimitiveTypes = types;
+  }
+  return importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                                      aiProcess_PreTransformVertices | aiProcess_FindDegenerates);
+}
+
 }  // namespace
 
 TriangleSoup import_surface(const std::filesystem::path& file, double scale) {
   if (!std::filesystem::exists(file)) throw MeshError(file.string() + ": file does not exist");
   check_ply(file);
   Assimp::Importer importer;
-  const aiScene* scene = importer.ReadFile(
-      file.string(), aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                         aiProcess_PreTransformVertices | aiProcess_FindDegenerates);
+  const aiScene* scene = read_scene(importer, file);
   if (!scene || !scene->mRootNode || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE))
     throw MeshError(file.string() + ": cannot read mesh: " + importer.GetErrorString());
   TriangleSoup soup;

@@ -137,3 +137,19 @@ TEST(MeshImport, MalformedPlyHeadersAreRefusedBeforeAssimpReadsThem) {
     std::filesystem::remove(path);
   }
 }
+
+// A face list entry of zero vertices made assimp 5.2.5's PLY reader claim polygons and its
+// triangulation abort the process on an assertion (fuzz/corpus/mesh/regression_ply_empty_face_abort.ply).
+TEST(MeshImport, AnEmptyPlyFaceIsRefusedRatherThanAborting) {
+  const std::string ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                          "element face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
+                          "3 0 2 1\n0\n3 0 3 2\n3 1 2 3\n";
+  auto path = write_file("incise_empty_face.ply", ply);
+  try {
+    import_surface(path);
+    ADD_FAILURE() << "accepted";
+  } catch (const MeshError& e) {
+    EXPECT_NE(std::string(e.what()).find("incise_empty_face.ply: mesh 0 face 1 has no vertices"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove(path);
+}
