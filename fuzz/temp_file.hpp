@@ -9,13 +9,28 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <system_error>
+#include <vector>
 
 #include <unistd.h>
 
 namespace incise::fuzz {
 
 inline std::filesystem::path temp_file(const std::string& name) {
-  return std::filesystem::temp_directory_path() / ("incise_fuzz_" + std::to_string(::getpid()) + "_" + name);
+  // Removed when the process exits normally, as libFuzzer's timed runs and ctest's replays do.
+  struct Remover {
+    std::vector<std::filesystem::path> files;
+    ~Remover() {
+      for (const auto& file : files) {
+        std::error_code ignored;
+        std::filesystem::remove(file, ignored);
+      }
+    }
+  };
+  static Remover remover;
+  remover.files.push_back(std::filesystem::temp_directory_path() /
+                          ("incise_fuzz_" + std::to_string(::getpid()) + "_" + name));
+  return remover.files.back();
 }
 
 inline void write_file(const std::filesystem::path& file, const std::uint8_t* data, std::size_t size) {
