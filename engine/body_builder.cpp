@@ -75,18 +75,9 @@ BodyShape body_shape(const BodySpec& spec) {
   if (spec.generator) {
     const auto& g = *spec.generator;
     shape.inside = inside_test(g);
-    if (g.type == "box") {
-      shape.lo = vec(g.box.min);
-      shape.hi = vec(g.box.max);
-    } else if (g.type == "cylinder" || g.type == "torus") {
-      physics::Vec3 half = physics::Vec3::Constant(g.type == "torus" ? g.major_radius + g.radius : g.radius);
-      half[g.axis] = g.type == "torus" ? g.radius : 0.5 * g.length;
-      shape.lo = vec(g.center) - half;
-      shape.hi = vec(g.center) + half;
-    } else {
-      shape.lo = vec(g.center) - vec(g.radii);
-      shape.hi = vec(g.center) + vec(g.radii);
-    }
+    const Box bounds = generator_bounds(g);
+    shape.lo = vec(bounds.min);
+    shape.hi = vec(bounds.max);
   } else {
     const TriangleSoup soup = import_surface(*spec.mesh, spec.mesh_scale);
     // The fill, the EFG cells' volumes and the fairing ask "inside?" millions of times: the
@@ -159,6 +150,9 @@ Body build_body(const BodySpec& spec, const SolverSpec& solver) {
   } catch (const std::exception& e) {
     throw std::runtime_error("body '" + spec.name + "': " + e.what());
   }
+  // A mesh's extent is known only now (parse_scene checked the generated shapes).
+  if (auto problem = size_problem(spec, {shape.lo.x(), shape.lo.y(), shape.lo.z()}, {shape.hi.x(), shape.hi.y(), shape.hi.z()}))
+    throw std::runtime_error("body '" + spec.name + "': resolution " + *problem);
   const ModelEntry* model = models().find(spec.model);
   if (!model)
     throw std::runtime_error("body '" + spec.name + "': model '" + spec.model + "' is not registered (registered: " +

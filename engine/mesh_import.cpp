@@ -4,19 +4,115 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <cctype>
 #include <cmath>
+#include <cstdlib>
+#include <fstream>
 #include <map>
 #include <numbers>
+#include <optional>
+#include <set>
+#include <sstream>
 #include <string>
+#include <vector>
 
 namespace incise::engine {
 
+namespace {
+
+bool is_ply_type(const std::string& t) {
+  static const std::set<std::string> types = {"char",  "uchar", "short", "ushort", "int",   "uint",    "float",
+                                              "double", "int8", "uint8", "int16",  "uint16", "int32", "uint32",
+                                              "float32", "float64"};
+  return types.count(t) > 0;
+}
+
+// A PLY file's header, checked before assimp reads the file: assimp 5.2.5 loops without end on
+// a property line it cannot parse (found by fuzz_mesh), and allocates whatever an element count
+// says. Each line must be one the format defines, and no element may claim more entries than
+// the file has bytes. Returns the problem, naming the header line.
+std::optional<std::string> ply_header_problem(std::istream& in, std::uintmax_t file_bytes) {
+  std::string line;
+  for (int number = 1; std::getline(in, line) && number <= 10000; ++number) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream words(line);
+    std::vector<std::string> w;
+    for (std::string word; words >> word;) w.push_back(word);
+    const std::string where = "PLY header line " + std::to_string(number) + " ('" + line.substr(0, 80) + "'): ";
+    if (number == 1) {
+      if (w.size() != 1 || w[0] != "ply") return where + "must be 'ply'";
+    } else if (w.empty() || w[0] == "comment" || w[0] == "obj_info") {
+    } else if (w[0] == "end_header") {
+      return std::nullopt;
+    } else if (w[0] == "format") {
+      if (w.size() != 3 || (w[1] != "ascii" && w[1] != "binary_little_endian" && w[1] != "binary_big_endian"))
+        return where + "format must be ascii, binary_little_endian or binary_big_endian, with a version";
+    } else if (w[0] == "element") {
+      char* end = nullptr;
+      const unsigned long long count = w.size() == 3 ? std::strtoull(w[2].c_str(), &end, 10) : 0;
+      if (w.size() != 3 || !end || *end != '\0' || w[2][0] == '-')
+        return where + "must be 'element NAME COUNT'";
+      if (count > file_bytes)
+        return where + "claims " + w[2] + " entries, more than the file's " + std::to_string(file_bytes) + " bytes";
+    } else if (w[0] == "property") {
+      const bool list = w.size() == 5 && w[1] == "list" && is_ply_type(w[2]) && is_ply_type(w[3]);
+      if (!list && !(w.size() == 3 && is_ply_type(w[1])))
+        return where + "must be 'property TYPE NAME' or 'property list TYPE TYPE NAME' (TYPE: char, uchar, short, "
+                       "ushort, int, uint, float, double or their sized names)";
+    } else {
+      return where + "is not a PLY header line";
+    }
+  }
+  return "the PLY header has no 'end_header' line";
+}
+
+// Refuses a file assimp would read as PLY (named .ply, or starting with 'ply') whose header is
+// bad.
+void check_ply(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::string extension = file.extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  char start[3] = {};
+  const bool starts_ply = in.read(start, 3) && std::string(start, 3) == "ply";
+  if (extension != ".ply" && !starts_ply) return;
+  in.clear();
+  in.seekg(0);
+  std::error_code error;
+  const auto bytes = std::filesystem::file_size(file, error);
+  if (auto problem = ply_header_problem(in, error ? 0 : bytes)) throw MeshError(file.string() + ": " + *problem);
+}
+
+// Reads the file and post-processes it in a second pass. First assimp validates what its reader
+// made (an index past the vertices is an import error, not an out-of-bounds read in
+// import_surface); then a face without vertices is refused and each mesh's primitive types are
+// recomputed from its faces: assimp 5.2.5's triangulation aborts the whole process on an
+// assertion when a PLY reader's empty face made it claim polygons (found by fuzz_mesh).
+const aiScene* read_scene(Assimp::Importer& importer, const std::filesystem::path& file) {
+  const aiScene* scene = importer.ReadFile(file.string(), aiProcess_ValidateDataStructure);
+  if (!scene) return nullptr;
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    aiMesh* mesh = scene->mMeshes[m];
+    unsigned types = 0;
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const unsigned n = mesh->mFaces[f].mNumIndices;
+      if (n == 0)
+        throw MeshError(file.string() + ": mesh " + std::to_string(m) + " face " + std::to_string(f) + " has no vertices");
+      types |= n == 1 ? aiPrimitiveType_POINT : n == 2 ? aiPrimitiveType_LINE : n == 3 ? aiPrimitiveType_TRIANGLE
+                                                                                         : aiPrimitiveType_POLYGON;
+    }
+    mesh->mPrimitiveTypes = types;
+  }
+  return importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                                      aiProcess_PreTransformVertices | aiProcess_FindDegenerates);
+}
+
+}  // namespace
+
 TriangleSoup import_surface(const std::filesystem::path& file, double scale) {
   if (!std::filesystem::exists(file)) throw MeshError(file.string() + ": file does not exist");
+  check_ply(file);
   Assimp::Importer importer;
-  const aiScene* scene = importer.ReadFile(
-      file.string(), aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                         aiProcess_PreTransformVertices | aiProcess_FindDegenerates);
+  const aiScene* scene = read_scene(importer, file);
   if (!scene || !scene->mRootNode || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE))
     throw MeshError(file.string() + ": cannot read mesh: " + importer.GetErrorString());
   TriangleSoup soup;

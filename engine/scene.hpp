@@ -158,6 +158,17 @@ struct Scene {
   std::vector<Expectation> expect;
 };
 
+// The axis-aligned box a generated shape fills.
+Box generator_bounds(const GeneratorSpec& generator);
+// What building `body` over the box [lo, hi] takes, estimated from its cell count at its
+// resolution (engine/scene.cpp has the measured bytes per cell), and the refusal when that is
+// more than the machine's physical memory (or `memory_bytes`, tests): the cells and the
+// estimate, named so the user can see which resolution to coarsen. Checked before anything of
+// the body is allocated: by parse_scene for generated bodies, by build_body for meshes.
+double estimated_bytes(const BodySpec& body, const Point& lo, const Point& hi);
+std::optional<std::string> size_problem(const BodySpec& body, const Point& lo, const Point& hi,
+                                        std::optional<double> memory_bytes = std::nullopt);
+
 // Reads and validates; throws SceneError listing every problem.
 Scene load_scene(const std::filesystem::path& file);
 // The same from text (tests); `file` only names the source in messages and resolves paths.

@@ -19,10 +19,31 @@ namespace incise::engine {
 
 using Json = nlohmann::json;
 
+// A scene nests a handful of levels (bodies[0].generator.min); deeper text is refused before
+// it is parsed.
+inline constexpr int kSceneMaxDepth = 32;
+
+// Parses scene text (engine/scene_json.cpp). On failure returns null and adds one error naming
+// the line and column, and the field being read where there is one (`solver.dt: number 1e400
+// is out of range (line 5, column 18)`).
+Json parse_scene_json(const std::string& text, std::vector<std::string>& errors);
+
 inline std::string number_text(double v) {
   std::ostringstream out;
   out << v;
   return out.str();
+}
+
+// What a value is, for messages about the wrong type: "a string", "an array of 2", "null".
+inline std::string kind_of(const Json& v) {
+  if (v.is_array()) return "an array of " + std::to_string(v.size());
+  if (v.is_object()) return "an object";
+  if (v.is_string()) return "a string";
+  if (v.is_boolean()) return v.get<bool>() ? "true" : "false";
+  if (v.is_null()) return "null";
+  if (v.is_number_integer()) return v.dump();
+  if (v.is_number()) return number_text(v.get<double>());
+  return v.type_name();
 }
 
 // Reads one JSON object, remembering which keys were consumed so the rest can be
@@ -32,7 +53,7 @@ class Reader {
  public:
   Reader(const Json& node, std::string path, std::vector<std::string>& errors)
       : node_(node), path_(std::move(path)), errors_(errors) {
-    if (!node_.is_object()) error(path_, "must be an object");
+    if (!node_.is_object()) error(path_, "must be an object, not " + kind_of(node_));
   }
 
   ~Reader() {
@@ -63,7 +84,7 @@ class Reader {
     const Json* v = get(key, required);
     if (!v) return fallback;
     if (!v->is_number()) {
-      error(child(key), "must be a number, not " + std::string(v->type_name()));
+      error(child(key), "must be a number, not " + kind_of(*v));
       return fallback;
     }
     double x = v->get<double>();
@@ -81,13 +102,14 @@ class Reader {
     const Json* v = get(key, required);
     if (!v) return fallback;
     if (!v->is_number_integer()) {
-      error(child(key), "must be an integer");
+      error(child(key), "must be an integer, not " + kind_of(*v));
       return fallback;
     }
-    auto x = v->get<long long>();
-    if (x < lo || x > hi) {
-      error(child(key), std::to_string(x) + " must be in [" + std::to_string(lo) + ", " +
-                            std::to_string(hi) + "]");
+    // An unsigned value beyond long long's range would wrap to a negative one.
+    const bool too_large = v->is_number_unsigned() && (hi < 0 || v->get<unsigned long long>() > static_cast<unsigned long long>(hi));
+    const auto x = too_large ? 0LL : v->get<long long>();
+    if (too_large || x < lo || x > hi) {
+      error(child(key), v->dump() + " must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
       return fallback;
     }
     return static_cast<int>(x);
@@ -97,7 +119,7 @@ class Reader {
     const Json* v = get(key, false);
     if (!v) return fallback;
     if (!v->is_boolean()) {
-      error(child(key), "must be true or false");
+      error(child(key), "must be true or false, not " + kind_of(*v));
       return fallback;
     }
     return v->get<bool>();
@@ -108,7 +130,7 @@ class Reader {
     const Json* v = get(key, required);
     if (!v) return fallback;
     if (!v->is_string()) {
-      error(child(key), "must be a string");
+      error(child(key), "must be a string, not " + kind_of(*v));
       return fallback;
     }
     auto s = v->get<std::string>();
@@ -126,7 +148,7 @@ class Reader {
     const Json* v = get(key, required);
     if (!v) return fallback;
     if (!v->is_array() || v->size() != 3) {
-      error(child(key), "must be an array of 3 numbers");
+      error(child(key), "must be an array of 3 numbers, not " + kind_of(*v));
       return fallback;
     }
     Point p{};
@@ -135,7 +157,7 @@ class Reader {
       if (!e.is_number() || !std::isfinite(e.get<double>()) || e.get<double>() < lo ||
           e.get<double>() > hi) {
         error(child(key) + "[" + std::to_string(i) + "]",
-              "must be a finite number in [" + number_text(lo) + ", " + number_text(hi) + "]");
+              kind_of(e) + " must be a finite number in [" + number_text(lo) + ", " + number_text(hi) + "]");
         return fallback;
       }
       p[i] = e.get<double>();

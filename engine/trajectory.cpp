@@ -8,6 +8,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <string_view>
 #include <system_error>
@@ -665,6 +666,28 @@ std::span<const ToolSample> samples_between(const std::vector<ToolSample>& sampl
 
 namespace incise::engine {
 
+namespace {
+
+// q / |q|, or nothing for a zero quaternion. The components are scaled by the largest first, so
+// that values near a double's limits neither overflow nor vanish in the sum of squares (1e200
+// once made the norm infinite and the orientation zero).
+std::optional<std::array<double, 4>> unit_quaternion(const double* q) {
+  double largest = 0;
+  for (int c = 0; c < 4; ++c) largest = std::max(largest, std::abs(q[c]));
+  if (!(largest > 0)) return std::nullopt;
+  std::array<double, 4> scaled{};
+  double norm = 0;
+  for (int c = 0; c < 4; ++c) {
+    scaled[c] = q[c] / largest;
+    norm += scaled[c] * scaled[c];
+  }
+  norm = std::sqrt(norm);
+  for (double& component : scaled) component /= norm;
+  return scaled;
+}
+
+}  // namespace
+
 std::vector<ToolSample> import_csv(std::istream& in, const std::string& name) {
   const auto fail = [&name](const std::string& what) { return TrajectoryError(name, std::nullopt, what); };
   std::string line;
@@ -703,17 +726,20 @@ std::vector<ToolSample> import_csv(std::istream& in, const std::string& name) {
     ToolSample sample;
     sample.time = values[0];
     for (int c = 0; c < 3; ++c) sample.position[c] = values[1 + c];
-    double norm = 0;
-    for (int c = 0; c < 4; ++c) norm += values[4 + c] * values[4 + c];
-    norm = std::sqrt(norm);
-    if (!(norm > 1e-12)) throw fail("line " + std::to_string(number) + ": the quaternion (qw, qx, qy, qz) is zero");
-    for (int c = 0; c < 4; ++c) sample.orientation[c] = values[4 + c] / norm;
+    const auto orientation = unit_quaternion(&values[4]);
+    if (!orientation) throw fail("line " + std::to_string(number) + ": the quaternion (qw, qx, qy, qz) is zero");
+    sample.orientation = *orientation;
     if (values[8] < 0 || values[8] != std::floor(values[8]) || values[8] > 4294967295.0)
       throw fail("line " + std::to_string(number) + ": column 9 (buttons): " + std::to_string(values[8]) +
                             " is not an unsigned integer");
     sample.buttons = static_cast<std::uint32_t>(values[8]);
-    if (with_force)
-      for (int c = 0; c < 3; ++c) sample.force[c] = static_cast<float>(values[9 + c]);
+    for (int c = 0; with_force && c < 3; ++c) {
+      // Forces are stored as floats: a larger value would be stored as infinity.
+      if (!(std::abs(values[9 + c]) <= std::numeric_limits<float>::max()))
+        throw fail("line " + std::to_string(number) + ", column " + std::to_string(10 + c) + " (" + columns[9 + c] +
+                   "): " + shortest(values[9 + c]) + " N is beyond a float's range");
+      sample.force[c] = static_cast<float>(values[9 + c]);
+    }
     if (!samples.empty() && !(sample.time > samples.back().time))
       throw fail("line " + std::to_string(number) + ": time " + std::to_string(sample.time) +
                             " does not increase (previous " + std::to_string(samples.back().time) + ")");

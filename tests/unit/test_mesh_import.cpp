@@ -5,6 +5,9 @@
 
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 using incise::engine::import_surface;
 using incise::engine::MeshError;
@@ -104,4 +107,49 @@ TEST(MeshImport, StlAndPlyAreReadToo) {
     EXPECT_NEAR(std::abs(winding_number(soup, {0.5, 0.5, 0.5})), 1.0, 1e-9);
     std::filesystem::remove(path);
   }
+}
+
+// assimp 5.2.5 never returns from these (fuzz/corpus/mesh/regression_ply_*): the header is
+// checked first and the bad line named.
+TEST(MeshImport, MalformedPlyHeadersAreRefusedBeforeAssimpReadsThem) {
+  const std::string good_start = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\n";
+  const std::string rest = "element face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
+                           "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {good_start + "property fload y\n" + rest, "PLY header line 5 ('property fload y'): must be 'property TYPE NAME'"},
+      {good_start + "property float y\nproperty float z\nelement face 4\nproperty list 0 2 1\nend_header\n",
+       "PLY header line 8 ('property list 0 2 1')"},
+      {"ply\xfc\xff\n" + good_start.substr(4), "PLY header line 1"},
+      {"ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nend_header\n",
+       "PLY header line 3 ('element vertex 4000000000'): claims 4000000000 entries, more than the file's"},
+      {"ply\nformat ascii 1.0\nelement vertex 4\n", "has no 'end_header' line"},
+  };
+  for (const auto& [text, expected] : cases) {
+    SCOPED_TRACE(expected);
+    auto path = write_file("incise_bad.ply", text);
+    try {
+      import_surface(path);
+      ADD_FAILURE() << "accepted";
+    } catch (const MeshError& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("incise_bad.ply"), std::string::npos) << e.what();
+    }
+    std::filesystem::remove(path);
+  }
+}
+
+// A face list entry of zero vertices made assimp 5.2.5's PLY reader claim polygons and its
+// triangulation abort the process on an assertion (fuzz/corpus/mesh/regression_ply_empty_face_abort.ply).
+TEST(MeshImport, AnEmptyPlyFaceIsRefusedRatherThanAborting) {
+  const std::string ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                          "element face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
+                          "3 0 2 1\n0\n3 0 3 2\n3 1 2 3\n";
+  auto path = write_file("incise_empty_face.ply", ply);
+  try {
+    import_surface(path);
+    ADD_FAILURE() << "accepted";
+  } catch (const MeshError& e) {
+    EXPECT_NE(std::string(e.what()).find("incise_empty_face.ply: mesh 0 face 1 has no vertices"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove(path);
 }

@@ -77,7 +77,7 @@ TEST(Scene, BrokenScenesAreRefusedWithTheFieldNamed) {
       {"unknown key", [](Json& s) { s["bodies"][0]["colour"] = "red"; }, "bodies[0].colour: unknown key"},
       {"unknown top-level key", [](Json& s) { s["solvr"] = Json::object(); }, "solvr: unknown key"},
       {"missing solver", [](Json& s) { s.erase("solver"); }, "solver: is required"},
-      {"dt as string", [](Json& s) { s["solver"]["dt"] = "fast"; }, "solver.dt: must be a number, not string"},
+      {"dt as string", [](Json& s) { s["solver"]["dt"] = "fast"; }, "solver.dt: must be a number, not a string"},
       {"unknown model", [](Json& s) { s["bodies"][0]["model"] = "sph"; }, "bodies[0].model: 'sph' is not one of: fem, efg"},
       {"efg settings on a fem body", [](Json& s) { s["bodies"][0]["efg"] = {{"neighbours", 8}}; },
        "bodies[0].efg: only bodies with model 'efg' take efg settings"},
@@ -132,7 +132,19 @@ TEST(Scene, BrokenScenesAreRefusedWithTheFieldNamed) {
       {"duplicate body names", [](Json& s) { s["bodies"].push_back(s["bodies"][0]); },
        "bodies[1].name: 'block' is used twice"},
       {"non-integer iterations", [](Json& s) { s["solver"]["max_iterations"] = 2.5; },
-       "solver.max_iterations: must be an integer"},
+       "solver.max_iterations: must be an integer, not 2.5"},
+      // Beyond long long, the value once wrapped to -1 and the message quoted that.
+      {"iterations beyond 64 bits", [](Json& s) { s["solver"]["max_iterations"] = 18446744073709551615ull; },
+       "solver.max_iterations: 18446744073709551615 must be in [1, 100000]"},
+      {"flag as a number", [](Json& s) { s["render"]["floor"] = 1; }, "render.floor: must be true or false, not 1"},
+      {"name as an array", [](Json& s) { s["name"] = {1, 2}; }, "name: must be a string, not an array of 2"},
+      {"body as null", [](Json& s) { s["bodies"][0] = nullptr; }, "bodies[0]: must be an object, not null"},
+      {"point with two numbers, named", [](Json& s) { s["solver"]["gravity"] = {0, -9.81}; },
+       "solver.gravity: must be an array of 3 numbers, not an array of 2"},
+      {"resolution needing petabytes", [](Json& s) {
+         s["bodies"][0]["generator"]["max"] = {1, 1, 1};
+         s["bodies"][0]["resolution"] = 1e-4;
+       }, "bodies[0].resolution: 0.0001 m over the body's 1 x 1 x 1 m bounding box is 1e+12 cells, about 4.1 PB"},
   };
   ASSERT_GE(cases.size(), 10u);
   for (const auto& c : cases) {
@@ -165,6 +177,66 @@ TEST(Scene, InvalidJsonNamesTheLine) {
     EXPECT_NE(m.find("not valid JSON"), std::string::npos) << m;
     EXPECT_NE(m.find("line 4"), std::string::npos) << m;
   }
+}
+
+// nlohmann throws out_of_range for a number beyond a double with neither line nor key; the
+// scene reader places it.
+TEST(Scene, NumberOutOfRangeNamesTheFieldAndTheLine) {
+  const std::string text = "{\n  \"name\": \"x\",\n  \"solver\": {\"dt\": 1e400}\n}";
+  try {
+    parse_scene(text, kSceneFile);
+    FAIL() << "accepted 1e400";
+  } catch (const SceneError& e) {
+    ASSERT_EQ(e.errors().size(), 1u);
+    EXPECT_EQ(e.errors()[0], "solver.dt: number 1e400 is out of range (line 3, column 20)");
+    EXPECT_NE(std::string(e.what()).find("test_scene.json"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Scene, SyntaxErrorNamesTheElementBeingRead) {
+  try {
+    parse_scene("{\"name\": \"x\", \"bodies\": [{}, {\"name\": tru}]}", kSceneFile);
+    FAIL();
+  } catch (const SceneError& e) {
+    ASSERT_EQ(e.errors().size(), 1u);
+    const std::string& m = e.errors()[0];
+    EXPECT_EQ(m.rfind("line 1, column ", 0), 0u) << m;
+    EXPECT_NE(m.find("not valid JSON"), std::string::npos) << m;
+    EXPECT_NE(m.find("(near bodies[1].name)"), std::string::npos) << m;
+  }
+}
+
+TEST(Scene, NestingBeyondTheLimitIsRefusedWhereItStarts) {
+  const std::string deep = std::string(40, '[') + std::string(40, ']');
+  try {
+    parse_scene("{\"name\": \"x\",\n \"bodies\": " + deep + "}", kSceneFile);
+    FAIL();
+  } catch (const SceneError& e) {
+    ASSERT_EQ(e.errors().size(), 1u);
+    // The root object is level 1, so the 32nd bracket (column 12 + 31) is level 33.
+    EXPECT_EQ(e.errors()[0], "line 2, column 43: nested deeper than 32 levels (a scene needs a handful)");
+  }
+  // Brackets inside strings are text, not nesting.
+  EXPECT_THROW(
+      try { parse_scene("{\"name\": \"" + deep + "\"}", kSceneFile); } catch (const SceneError& e) {
+        EXPECT_EQ(std::string(e.what()).find("nested"), std::string::npos) << e.what();
+        throw;
+      },
+      SceneError);
+}
+
+TEST(Scene, SizeEstimateRefusesWhatTheMachineLacks) {
+  incise::engine::BodySpec body;
+  body.resolution = 0.01;
+  const incise::engine::Point lo{0, 0, 0}, hi{0.1, 0.2, 0.3};  // 10 x 20 x 30 cells
+  EXPECT_DOUBLE_EQ(incise::engine::estimated_bytes(body, lo, hi), 6000 * 4096.0);
+  EXPECT_FALSE(incise::engine::size_problem(body, lo, hi, 6000 * 4096.0 + 1));
+  const auto problem = incise::engine::size_problem(body, lo, hi, 1e6);
+  ASSERT_TRUE(problem);
+  EXPECT_EQ(*problem, "0.01 m over the body's 0.1 x 0.2 x 0.3 m bounding box is 6e+03 cells, about 24.6 MB to "
+                      "build; this machine has 1 MB (coarsen the resolution)");
+  body.efg.surface_resolution = 0.005;  // 8 times the cells, at a smaller cost each
+  EXPECT_DOUBLE_EQ(incise::engine::estimated_bytes(body, lo, hi), 6000 * 4096.0 + 48000 * 512.0);
 }
 
 TEST(Scene, MissingAndEmptyFilesAreErrors) {

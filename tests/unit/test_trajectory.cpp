@@ -730,4 +730,25 @@ TEST_F(TrajectoryFile, CgStopsRoundTripBesideTheSamplesAndVersionOneStillReads) 
 }
 
 }  // namespace
+// fuzz_trajectory_csv found both: a quaternion whose sum of squares overflows was imported as
+// zero, and a force beyond a float's range as infinity; the writer refuses either sample.
+TEST(TrajectoryImportCsv, LargeQuaternionIsNormalisedAndLargeForceRefused) {
+  std::istringstream large("time,x,y,z,qw,qx,qy,qz,buttons\n0,0,0,0,1e200,1e200,0,0,1\n");
+  const auto samples = import_csv(large, "large.csv");
+  ASSERT_EQ(samples.size(), 1u);
+  EXPECT_NEAR(samples[0].orientation[0], std::sqrt(0.5), 1e-15);
+  EXPECT_NEAR(samples[0].orientation[1], std::sqrt(0.5), 1e-15);
+  EXPECT_EQ(samples[0].buttons, 1u);
+
+  std::istringstream force("time,x,y,z,qw,qx,qy,qz,buttons,fx,fy,fz\n0,0,0,0,1,0,0,0,0,0,0,0\n1,0,0,0,1,0,0,0,0,0,-1e300,0\n");
+  try {
+    import_csv(force, "force.csv");
+    FAIL() << "accepted a force of -1e300 N";
+  } catch (const TrajectoryError& e) {
+    EXPECT_EQ(std::string(e.what()), "trajectory file 'force.csv': line 3, column 11 (fy): -1e+300 N is beyond a float's range");
+  }
+  std::istringstream zero("time,x,y,z,qw,qx,qy,qz,buttons\n0,0,0,0,0,0,0,0,0\n");
+  EXPECT_THROW(import_csv(zero, "zero.csv"), TrajectoryError);
+}
+
 }  // namespace incise::engine

@@ -1,0 +1,59 @@
+#!/usr/bin/env python3
+"""Writes the binary and text seeds of fuzz/corpus/ (the scene seeds are copies of shipped and
+broken scenes). The formats: docs/trajectory.md and docs/haptics-protocol.md; both checksum
+with zlib's CRC-32."""
+import os
+import struct
+import zlib
+
+root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "corpus")
+
+
+def write(target, name, data):
+    with open(os.path.join(root, target, name), "wb") as f:
+        f.write(data if isinstance(data, bytes) else data.encode())
+
+
+def sample(t, x, buttons=0, q=(1.0, 0.0, 0.0, 0.0), force=(0.0, 0.0, 0.0)):
+    return struct.pack("<8dI3f", t, x, 0.01, 0.02, *q, buttons, *force)
+
+
+def chunk(samples):
+    payload = b"".join(samples)
+    return b"CHNK" + struct.pack("<III", len(samples), len(payload), zlib.crc32(payload)) + payload
+
+
+header = b"INCTRAJ\0" + struct.pack("<III", 1, 32, 0) + bytes(12)
+two_chunks = header + chunk([sample(0.0, 0.0), sample(0.001, 0.001, 1)]) + chunk([sample(0.002, 0.002, 1, force=(0.5, 0, 0))])
+write("trajectory", "two_chunks.traj", two_chunks)
+write("trajectory", "truncated.traj", two_chunks[:-7])
+write("trajectory", "header_only.traj", header)
+write("trajectory", "long_header.traj", b"INCTRAJ\0" + struct.pack("<III", 1, 40, 0) + bytes(20) + chunk([sample(0.5, 0.1)]))
+
+write("trajectory_csv", "keyframes.csv", "time,x,y,z,qw,qx,qy,qz,buttons\n0,0,0,0.05,1,0,0,0,0\n0.5,0.01,0,0.03,1,0,0,0,1\n1,0.02,0,0.03,0.7071,0.7071,0,0,1\n")
+write("trajectory_csv", "with_force.csv", "time,x,y,z,qw,qx,qy,qz,buttons,fx,fy,fz\r\n0,0,0,0,1,0,0,0,0,0,0,0\r\n\r\n1e-3,1e-3,-2e-3,0.5,2,0,0,0,3,0.25,-1.5,0\r\n")
+
+def pose(session, sequence, timestamp, position, q, buttons=0):
+    body = struct.pack("<IBBH", 0x48434E49, 1, 1, 92) + struct.pack("<IIQq", session, buttons, sequence, timestamp)
+    body += struct.pack("<3d4d", *position, *q)
+    return body + struct.pack("<I", zlib.crc32(body))
+
+def force(session, state, sequence, pose_sequence, timestamp, f):
+    body = struct.pack("<IBBH", 0x48434E49, 1, 2, 68) + struct.pack("<IB3xQQq", session, state, sequence, pose_sequence, timestamp)
+    body += struct.pack("<3d", *f)
+    return body + struct.pack("<I", zlib.crc32(body))
+
+write("udp_pose", "pose.bin", pose(7, 1, 1_000_000, (0.01, -0.02, 0.03), (1, 0, 0, 0), 1))
+write("udp_pose", "pose_turned.bin", pose(7, 2, 2_000_000, (0, 0, 0), (0.70710678, 0, 0.70710678, 0)))
+write("udp_pose", "force.bin", force(7, 1, 3, 2, 3_000_000, (0.1, 0.2, -0.3)))
+
+tetra_obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+write("mesh", "tetra.obj", b"\0" + tetra_obj.encode())
+tri = [((0, 0, 0), (0, 1, 0), (1, 0, 0)), ((0, 0, 0), (1, 0, 0), (0, 0, 1)), ((0, 0, 0), (0, 0, 1), (0, 1, 0)), ((1, 0, 0), (0, 1, 0), (0, 0, 1))]
+stl = "solid t\n" + "".join("facet normal 0 0 0\nouter loop\n" + "".join("vertex %g %g %g\n" % v for v in t) + "endloop\nendfacet\n" for t in tri) + "endsolid t\n"
+write("mesh", "tetra_ascii.stl", b"\1" + stl.encode())
+binary = bytes(80) + struct.pack("<I", len(tri)) + b"".join(struct.pack("<3f", 0, 0, 0) + b"".join(struct.pack("<3f", *v) for v in t) + b"\0\0" for t in tri)
+write("mesh", "tetra_binary.stl", b"\1" + binary)
+ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"
+write("mesh", "tetra_ascii.ply", b"\2" + ply.encode())
+write("mesh", "open.obj", b"\0" + "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".encode())
