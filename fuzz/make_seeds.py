@@ -30,6 +30,16 @@ write("trajectory", "truncated.traj", two_chunks[:-7])
 write("trajectory", "header_only.traj", header)
 write("trajectory", "long_header.traj", b"INCTRAJ\0" + struct.pack("<III", 1, 40, 0) + bytes(20) + chunk([sample(0.5, 0.1)]))
 
+
+def stops(records):  # version 2: (step, solve, iterations) of CGs a real-time budget stopped
+    payload = b"".join(struct.pack("<QII", *r) for r in records)
+    return b"CGST" + struct.pack("<III", len(records), len(payload), zlib.crc32(payload)) + payload
+
+
+header2 = b"INCTRAJ\0" + struct.pack("<III", 2, 32, 0) + bytes(12)
+write("trajectory", "cg_stops.traj", header2 + chunk([sample(0.0, 0.0), sample(0.01, 0.001, 1)]) + stops([(1, 0, 3), (1, 1, 4)]) +
+      chunk([sample(0.02, 0.002, 1)]) + stops([(2, 0, 7)]))
+
 write("trajectory_csv", "keyframes.csv", "time,x,y,z,qw,qx,qy,qz,buttons\n0,0,0,0.05,1,0,0,0,0\n0.5,0.01,0,0.03,1,0,0,0,1\n1,0.02,0,0.03,0.7071,0.7071,0,0,1\n")
 write("trajectory_csv", "with_force.csv", "time,x,y,z,qw,qx,qy,qz,buttons,fx,fy,fz\r\n0,0,0,0,1,0,0,0,0,0,0,0\r\n\r\n1e-3,1e-3,-2e-3,0.5,2,0,0,0,3,0.25,-1.5,0\r\n")
 

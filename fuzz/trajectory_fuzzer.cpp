@@ -21,6 +21,14 @@ void check(const incise::engine::Trajectory& trajectory) {
     for (double q : samples[i].orientation) norm += q * q;
     if (!(std::abs(std::sqrt(norm) - 1) <= 1e-3)) std::abort();
   }
+  const auto& stops = trajectory.cg_stops;
+  if (trajectory.report.cg_stops_read != stops.size()) std::abort();
+  for (std::size_t i = 0; i < stops.size(); ++i) {
+    if (stops[i].step == 0 || stops[i].iterations == 0) std::abort();
+    if (i > 0 && (stops[i].step < stops[i - 1].step ||
+                  (stops[i].step == stops[i - 1].step && stops[i].solve <= stops[i - 1].solve)))
+      std::abort();
+  }
 }
 
 }  // namespace
