@@ -17,6 +17,7 @@
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
+#include "haptics/clock.hpp"
 #include "haptics/replay_device.hpp"
 #include "haptics/spsc_ring.hpp"
 #include "haptics/udp_device.hpp"
@@ -256,11 +257,8 @@ int run(const RunArgs& args) {
       };
       publish({}, 0);
       ready.store(true, std::memory_order_release);
-      auto wall_start = SteadyClock::now();
-      double sim_start = 0;
       while (!stop.load(std::memory_order_acquire)) {
         Request r;
-        bool restarted = false;
         while (requests.try_pop(r)) {
           if (r.kind == Request::Kind::apply_parameters) {
             for (auto& body : current.bodies) {
@@ -273,17 +271,14 @@ int run(const RunArgs& args) {
           } else {
             begin(r.kind == Request::Kind::record_start);
           }
-          restarted = true;
-        }
-        if (restarted) {
-          wall_start = SteadyClock::now();
-          sim_start = 0;
         }
         // step() waits for the haptic tick after the step's end: physics keeps to the hand's
-        // time and falls behind it when a step takes longer than dt.
+        // time; in real time (solver.realtime) its CG stops when the hand is a step further,
+        // otherwise it falls behind when a step takes longer than dt.
         const engine::StepStats stats = session->step();
-        const double wall = std::chrono::duration<double>(SteadyClock::now() - wall_start).count();
-        publish(stats, wall > 0 ? (session->world().time() - sim_start) / wall : 0);
+        // Against the hand's clock, which starts before the world is built (t0 of the session).
+        const double wall = 1e-9 * static_cast<double>(haptics::monotonic_now_ns() - session->t0_ns());
+        publish(stats, wall > 0 ? session->world().time() / wall : 0);
       }
       loop_view.store(nullptr, std::memory_order_release);
       session->stop();
@@ -416,7 +411,7 @@ int run(const RunArgs& args) {
       ImGui::Text("%s %s  blade %s  depth %.1f mm", args.device.c_str(), haptics::to_string(tick.state),
                   (tick.pose.buttons & haptics::kButtonEngage) ? "ENGAGED" : "off", 1000 * (top - plane_z));
       ImGui::Text("cuts %ld  triangles %zu", s.cut_events, s.triangles);
-      ImGui::Text("CG %d it  residual %.1e  over budget %llu", s.stats.cg_iterations, s.stats.cg_residual,
+      ImGui::Text("CG %d it  r %.1e  %llu over budget", s.stats.cg_iterations, s.stats.cg_residual,
                   static_cast<unsigned long long>(s.totals.over_budget));
       if (ImGui::CollapsingHeader("haptic loop", ImGuiTreeNodeFlags_DefaultOpen)) {
         ImGui::Text("p50 %.0f p99 %.0f max %.0f us >2ms %llu", periods.p50_us, periods.p99_us, periods.max_us,
