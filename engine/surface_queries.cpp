@@ -1,5 +1,7 @@
 #include "engine/surface_queries.hpp"
 
+#include "physics/core/contact.hpp"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -24,27 +26,6 @@ double solid_angle(const Vector3d& pa, const Vector3d& pb, const Vector3d& pc, c
   const double det = a.dot(b.cross(c));
   const double denominator = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
   return 2 * std::atan2(det, denominator);
-}
-
-// Closest point of triangle (a, b, c) to p (Ericson, Real-Time Collision Detection, 5.1.5).
-Vector3d closest_on_triangle(const Vector3d& p, const Vector3d& a, const Vector3d& b, const Vector3d& c) {
-  const Vector3d ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return a;
-  const Vector3d bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return b;
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + d1 / (d1 - d3) * ab;
-  const Vector3d cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return c;
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + d2 / (d2 - d6) * ac;
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
-  const double denominator = 1 / (va + vb + vc);
-  return a + ab * (vb * denominator) + ac * (vc * denominator);
 }
 
 // Whether the segment p + t d, t in [t_lo, t_hi], meets the box (slabs; a zero component of
@@ -241,7 +222,7 @@ SurfaceQueries::Nearest SurfaceQueries::nearest(const Vector3d& p) const {
     if (node.left < 0) {
       for (int t = node.first; t < node.first + node.count; ++t) {
         const Triangle& tri = triangles_[static_cast<std::size_t>(t)];
-        const Vector3d q = closest_on_triangle(p, tri.a, tri.b, tri.c);
+        const Vector3d q = physics::closest_point_on_triangle(p, tri.a, tri.b, tri.c);
         const double d2 = (q - p).squaredNorm();
         if (d2 < best2) {
           best2 = d2;
