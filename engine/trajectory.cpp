@@ -246,6 +246,34 @@ void TrajectoryWriter::append(const ToolSample& sample) {
   if (pending_samples_ == samples_per_chunk_) write_pending_chunk();
 }
 
+namespace {
+
+// Seals a chunk whose payload follows its kChunkHeaderBytes (magic, record count, payload
+// size, CRC of the payload) and hands it to the OS with one fwrite, then fflush: once the
+// chunk is with the OS a crash of this process can no longer lose it. On failure the stream
+// is closed and set to null: a partly written chunk would make every later chunk unreachable
+// for the reader, so the writer stops there instead of carrying on behind it.
+void write_chunk(std::FILE*& stream, const std::filesystem::path& file, std::uint64_t offset,
+                 std::vector<std::byte>& chunk, const std::array<char, 4>& magic, std::size_t records,
+                 const char* what) {
+  const std::size_t payload_bytes = chunk.size() - kChunkHeaderBytes;
+  std::byte* header = chunk.data();
+  std::memcpy(header, magic.data(), magic.size());
+  put_u32(header + 4, static_cast<std::uint32_t>(records));
+  put_u32(header + 8, static_cast<std::uint32_t>(payload_bytes));
+  put_u32(header + 12, trajectory_checksum({header + kChunkHeaderBytes, payload_bytes}));
+  if (std::fwrite(chunk.data(), 1, chunk.size(), stream) != chunk.size() || std::fflush(stream) != 0) {
+    const int error_number = errno;
+    std::fclose(stream);
+    stream = nullptr;
+    throw TrajectoryError(file, offset,
+                          "cannot write a chunk of " + std::to_string(records) + " " + what + ": " +
+                              system_error_text(error_number));
+  }
+}
+
+}  // namespace
+
 void TrajectoryWriter::append_cg_stops(std::span<const CgStop> stops) {
   if (!stream_) {
     throw std::logic_error("TrajectoryWriter: CG stops to '" + file_.string() + "' after it was closed or failed");
@@ -264,44 +292,14 @@ void TrajectoryWriter::append_cg_stops(std::span<const CgStop> stops) {
     put_u32(out + 8, stops[i].solve);
     put_u32(out + 12, stops[i].iterations);
   }
-  const std::size_t payload_bytes = stops.size() * kCgStopBytes;
-  std::memcpy(chunk.data(), kCgStopMagic.data(), kCgStopMagic.size());
-  put_u32(chunk.data() + 4, static_cast<std::uint32_t>(stops.size()));
-  put_u32(chunk.data() + 8, static_cast<std::uint32_t>(payload_bytes));
-  put_u32(chunk.data() + 12, trajectory_checksum({chunk.data() + kChunkHeaderBytes, payload_bytes}));
-  if (std::fwrite(chunk.data(), 1, chunk.size(), stream_) != chunk.size() || std::fflush(stream_) != 0) {
-    const int error_number = errno;
-    std::fclose(stream_);
-    stream_ = nullptr;
-    throw TrajectoryError(file_, bytes_written_,
-                          "cannot write a chunk of " + std::to_string(stops.size()) + " CG stops: " +
-                              system_error_text(error_number));
-  }
+  write_chunk(stream_, file_, bytes_written_, chunk, kCgStopMagic, stops.size(), "CG stops");
   bytes_written_ += chunk.size();
   last_stop_ = previous;
 }
 
 void TrajectoryWriter::write_pending_chunk() {
   if (pending_samples_ == 0) return;
-  const std::size_t payload_bytes = pending_samples_ * kSampleBytes;
-  std::byte* header = chunk_.data();
-  std::memcpy(header, kChunkMagic.data(), kChunkMagic.size());
-  put_u32(header + 4, static_cast<std::uint32_t>(pending_samples_));
-  put_u32(header + 8, static_cast<std::uint32_t>(payload_bytes));
-  put_u32(header + 12, trajectory_checksum({header + kChunkHeaderBytes, payload_bytes}));
-  // One fwrite for header and payload, then fflush: once the chunk is with the OS a crash of
-  // this process can no longer lose it.
-  if (std::fwrite(chunk_.data(), 1, chunk_.size(), stream_) != chunk_.size() ||
-      std::fflush(stream_) != 0) {
-    const int error_number = errno;
-    // A partly written chunk would make every later chunk unreachable for the reader, so the
-    // writer stops here instead of carrying on behind it.
-    std::fclose(stream_);
-    stream_ = nullptr;
-    throw TrajectoryError(file_, bytes_written_,
-                          "cannot write a chunk of " + std::to_string(pending_samples_) +
-                              " samples: " + system_error_text(error_number));
-  }
+  write_chunk(stream_, file_, bytes_written_, chunk_, kChunkMagic, pending_samples_, "samples");
   bytes_written_ += chunk_.size();
   chunk_.resize(kChunkHeaderBytes);
   pending_samples_ = 0;
