@@ -171,6 +171,23 @@ void main() {
 )";
 
 // r = free (b - A x), z = M^-1 r, p = z: A = A x, B = b, C = r, D = z, E = p, F = M^-1.
+// The warm start x and its product Ax scaled by a = x.b / x.Ax (cg.cpp's
+// scale_initial_guess: the multiple of the last step's dv nearest the solution in the A-norm,
+// which keeps a CG stopped by the real-time budget from gaining energy). x.b = scalars[slot0],
+// x.Ax = scalars[slot1]; nothing moves when x.Ax is not positive (a zero guess) or a is not
+// finite. A = x, B = Ax.
+const char* const kScaleGuess = R"(
+void main() {
+  int i = int(gl_GlobalInvocationID.x);
+  if (i >= count) return;
+  real curvature = scalars[slot1];
+  real a = scalars[slot0] / curvature;
+  if (!(curvature > real(0)) || !finite(a)) return;
+  va[i] *= a;
+  vb[i] *= a;
+}
+)";
+
 const char* const kResidualInit = R"(
 void main() {
   int i = int(gl_GlobalInvocationID.x);
@@ -380,6 +397,7 @@ const char* kernel_name(Kernel kernel) {
     case Kernel::node_gather: return "node_gather";
     case Kernel::diagonal: return "diagonal";
     case Kernel::right_hand_side: return "right_hand_side";
+    case Kernel::scale_guess: return "scale_guess";
     case Kernel::residual_init: return "residual_init";
     case Kernel::dot_partial: return "dot_partial";
     case Kernel::dot_final: return "dot_final";
@@ -415,6 +433,7 @@ std::string kernel_source(Kernel kernel, bool double_precision) {
     case Kernel::node_gather: body = kNodeGather; break;
     case Kernel::diagonal: body = kDiagonal; break;
     case Kernel::right_hand_side: body = kRightHandSide; break;
+    case Kernel::scale_guess: body = kScaleGuess; break;
     case Kernel::residual_init: body = kResidualInit; break;
     case Kernel::dot_partial: body = kDotPartial; break;
     case Kernel::dot_final: body = kDotFinal; break;

@@ -15,6 +15,7 @@ enum class Kernel {
   node_gather,
   diagonal,
   right_hand_side,
+  scale_guess,
   residual_init,
   dot_partial,
   dot_final,

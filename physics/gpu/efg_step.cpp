@@ -39,7 +39,7 @@ enum Binding : GLuint {
 
 // Scalars: 0 p.Ap, 1 r.r (the two read back per iteration), 2 and 3 r.z (old and new in
 // turn), 4 b.b.
-constexpr int curvature_slot = 0, residual_slot = 1, rz_slot = 2, rhs_slot = 4;
+constexpr int curvature_slot = 0, residual_slot = 1, rz_slot = 2, rhs_slot = 4, guess_slot = 5;
 
 // Incidence rows get this many slots (at least; a quarter of the longest row if more)
 // beyond the longest at (re)allocation: re-selection after cuts adds particles beyond the
@@ -767,6 +767,8 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
   }
   if (!solved) {
     s.product_of(s.dv, s.product, 2);
+    s.dot(dofs, s.dv, s.rhs, guess_slot, &s.dv, &s.product, guess_slot + 1);
+    s.run(Kernel::scale_guess, dofs, {{a_binding, &s.dv}, {b_binding, &s.product}}, 0, guess_slot, guess_slot + 1);
     s.run(Kernel::residual_init, dofs,
           {{a_binding, &s.product}, {b_binding, &s.rhs}, {c_binding, &s.r}, {d_binding, &s.z}, {e_binding, &s.p},
            {f_binding, &s.inverse_diagonal}});
