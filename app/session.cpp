@@ -5,12 +5,14 @@
 #include "app/commands.hpp"
 
 #include "engine/haptic_session.hpp"
+#include "engine/incision_score.hpp"
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
 #include "haptics/virtual_device.hpp"
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -45,7 +47,9 @@ int session(const SessionArgs& args) {
     device.set_pose(pose);
   };
   engine::HapticSession run(scene, device, options);
-  for (long k = 0; k < steps; ++k) run.step();
+  std::vector<engine::StepStats> step_stats;
+  step_stats.reserve(static_cast<std::size_t>(std::max(0L, steps)));
+  for (long k = 0; k < steps; ++k) step_stats.push_back(run.step());
   run.stop();
 
   const auto& world = run.world();
@@ -53,6 +57,12 @@ int session(const SessionArgs& args) {
   report["script"] = script_file.string();
   report["record"] = args.record;
   std::filesystem::create_directories(args.out);
+  if (scene.plan) {
+    report["score"] = engine::score_json(engine::score_incision(*scene.plan, world, step_stats, scene.solver.dt));
+    std::ofstream score(std::filesystem::path(args.out) / "score.json");
+    score << report["score"].dump(2) << "\n";
+    if (!score) throw std::runtime_error((std::filesystem::path(args.out) / "score.json").string() + ": cannot write");
+  }
   const auto file = std::filesystem::path(args.out) / "session.json";
   std::ofstream out(file);
   out << report.dump(2) << "\n";
