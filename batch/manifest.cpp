@@ -132,7 +132,9 @@ void read_job(const Json& node, const std::string& path, const std::filesystem::
     }
     point.overrides.insert(point.overrides.end(), chosen.begin(), chosen.end());
     std::string index = std::to_string(p);
-    point.name += "-" + std::string(width - std::min<int>(width, index.size()), '0') + index;
+    index.insert(0, static_cast<std::size_t>(width) - std::min<std::size_t>(width, index.size()), '0');
+    point.name += '-';
+    point.name += index;
     jobs.push_back(std::move(point));
   }
 }
