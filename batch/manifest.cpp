@@ -27,6 +27,17 @@ std::string read_text(const std::filesystem::path& file) {
   return buffer.str();
 }
 
+// A path relative to the manifest's folder, made absolute and canonical: jobs.json must read
+// the same from every shard, whatever folder each was started from and however it named the
+// manifest, or the second shard would take the folder for another batch's.
+std::filesystem::path resolve(const std::filesystem::path& base, const std::string& path) {
+  std::error_code error;
+  const std::filesystem::path absolute = std::filesystem::absolute(base / path, error);
+  if (error) return (base / path).lexically_normal();
+  const std::filesystem::path canonical = std::filesystem::weakly_canonical(absolute, error);
+  return error ? absolute.lexically_normal() : canonical;
+}
+
 bool valid_name(const std::string& name) {
   if (name.empty() || name.size() > 100 || name[0] == '.') return false;
   for (char c : name)
@@ -93,14 +104,14 @@ void read_job(const Json& node, const std::string& path, const std::filesystem::
   const std::string scene = r.text("scene", true, "");
   const Json* scene_json = nullptr;
   if (!scene.empty()) {
-    job.scene = base / scene;
+    job.scene = resolve(base, scene);
     std::string problem;
     const Json& root = scenes.get(job.scene, problem);
     if (!problem.empty()) r.error(r.child("scene"), problem);
     else scene_json = &root;
   }
   if (r.has("trajectory")) {
-    job.trajectory = base / r.text("trajectory", true, "");
+    job.trajectory = resolve(base, r.text("trajectory", true, ""));
     if (!std::filesystem::is_regular_file(*job.trajectory))
       r.error(r.child("trajectory"), "no such file " + job.trajectory->string());
   }
@@ -179,8 +190,8 @@ Json jobs_json(const Manifest& manifest) {
     Json overrides = Json::object();
     for (const auto& [key, value] : job.overrides) overrides[key] = value;
     jobs.push_back({{"name", job.name},
-                    {"scene", job.scene.lexically_normal().string()},
-                    {"trajectory", job.trajectory ? job.trajectory->lexically_normal().string() : ""},
+                    {"scene", job.scene.string()},
+                    {"trajectory", job.trajectory ? job.trajectory->string() : ""},
                     {"overrides", overrides}});
   }
   return {{"manifest", manifest.file.string()}, {"override_keys", manifest.override_keys}, {"jobs", jobs}};

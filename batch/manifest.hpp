@@ -17,8 +17,8 @@ namespace incise::batch {
 // One run: a replay of a scene into DIR/jobs/NAME/.
 struct Job {
   std::string name;                // unique; the folder's name
-  std::filesystem::path scene;     // resolved against the manifest's folder
-  std::optional<std::filesystem::path> trajectory;
+  std::filesystem::path scene;     // resolved against the manifest's folder, canonical
+  std::optional<std::filesystem::path> trajectory;  // likewise
   std::optional<long> steps;       // default: the scene's solver.duration / dt
   int capture_every = 0;           // frames only when asked
   Overrides overrides;             // the job's own, then its grid point's

@@ -61,7 +61,7 @@ Json run_job(const Job& job, std::size_t index, const std::filesystem::path& dir
   const auto start = std::chrono::steady_clock::now();
   Json overrides = Json::object();
   for (const auto& [key, value] : job.overrides) overrides[key] = value;
-  Json outcome = {{"job", job.name},       {"index", index},  {"scene", job.scene.lexically_normal().string()},
+  Json outcome = {{"job", job.name},       {"index", index},  {"scene", job.scene.string()},
                   {"overrides", overrides}, {"outcome", "ok"}, {"error", ""},
                   {"state_hash", ""},       {"steps", 0},     {"shard", std::to_string(shard.index) + "/" + std::to_string(shard.count)}};
   try {

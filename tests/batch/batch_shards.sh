@@ -43,4 +43,10 @@ rm "$work/all/jobs/beam-002/outcome.json"
 "$incise" batch "$manifest" --out "$work/all" 2> "$work.resume.log" || true
 grep -q 'shard 0/1: 5 jobs, 1 run, 4 finished before' "$work.resume.log" || { cat "$work.resume.log"; exit 1; }
 diff <(summary_columns "$work/summary.before.csv") <(summary_columns "$summary") || { echo "the resumed job differs"; exit 1; }
+# Another manifest into the same folder is refused before it runs anything.
+other=$(dirname "$manifest")/../../assets/batch/example.json
+if "$incise" batch "$other" --out "$work/all" 2> "$work.other.log"; then echo "another batch ran into the folder"; exit 1; fi
+grep -q 'holds another batch' "$work.other.log" || { cat "$work.other.log"; exit 1; }
+[ ! -d "$work/all/jobs/block-000" ] || { echo "another batch's job ran"; exit 1; }
+
 echo "ok: $(grep -c . "$summary") lines in summary.csv; two shards merged match the whole batch; resume skips finished jobs"
