@@ -1,6 +1,6 @@
 #include "batch/merge.hpp"
 
-#include "batch/runner.hpp"
+#include "batch/json_file.hpp"
 #include "bench/plot.hpp"
 
 #include <nlohmann/json.hpp>
@@ -13,16 +13,6 @@ namespace incise::batch {
 namespace {
 
 using Json = nlohmann::json;
-
-Json read_json(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(file.string() + ": cannot open (is this a batch's --out folder?)");
-  try {
-    return Json::parse(in);
-  } catch (const std::exception& e) {
-    throw std::runtime_error(file.string() + ": not valid JSON: " + e.what());
-  }
-}
 
 // A CSV field: quoted (RFC 4180) when it holds a comma, a quote or a line break.
 std::string field(const std::string& text) {
@@ -60,7 +50,9 @@ std::string plot_script(const std::vector<std::pair<std::string, double>>& bars)
 }  // namespace
 
 MergeTotals merge_batch(const std::filesystem::path& out_dir, std::ostream& progress) {
-  const Json jobs_file = read_json(out_dir / "jobs.json");
+  if (!std::filesystem::exists(out_dir / "jobs.json"))
+    throw std::runtime_error((out_dir / "jobs.json").string() + ": no such file (is this a batch's --out folder?)");
+  const Json jobs_file = read_json_file(out_dir / "jobs.json");
   std::vector<std::string> keys = jobs_file.value("override_keys", std::vector<std::string>{});
   std::ostringstream csv;
   csv << "job,outcome,state_hash";
@@ -72,7 +64,7 @@ MergeTotals merge_batch(const std::filesystem::path& out_dir, std::ostream& prog
     const std::string name = job.at("name");
     const std::filesystem::path outcome_file = out_dir / "jobs" / name / "outcome.json";
     const bool finished = std::filesystem::exists(outcome_file);
-    const Json outcome = finished ? read_json(outcome_file) : Json::object();
+    const Json outcome = finished ? read_json_file(outcome_file) : Json::object();
     const std::string result = finished ? outcome.value("outcome", "failed") : "missing";
     ++totals.jobs;
     result == "ok" ? ++totals.ok : result == "missing" ? ++totals.missing : ++totals.failed;

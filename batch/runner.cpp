@@ -1,10 +1,10 @@
 #include "batch/runner.hpp"
 
+#include "batch/json_file.hpp"
+
 #include "engine/replay.hpp"
 #include "engine/scene.hpp"
 #include "engine/scene_reader.hpp"
-
-#include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
@@ -14,16 +14,6 @@
 namespace incise::batch {
 
 namespace {
-
-Json read_json(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(file.string() + ": cannot open");
-  try {
-    return Json::parse(in);
-  } catch (const std::exception& e) {
-    throw std::runtime_error(file.string() + ": not valid JSON: " + e.what());
-  }
-}
 
 // The scene with the job's overrides applied to its JSON before the scene reader runs, so
 // a bad value is refused naming the scene file and the field, as in the file itself.
@@ -94,7 +84,7 @@ void write_jobs_file(const Manifest& manifest, const std::filesystem::path& out_
   const std::filesystem::path file = out_dir / "jobs.json";
   const Json jobs = jobs_json(manifest);
   if (std::filesystem::exists(file)) {
-    const Json before = read_json(file);
+    const Json before = read_json_file(file);
     if (before.value("jobs", Json()) != jobs["jobs"])
       throw std::runtime_error(file.string() + ": this folder holds another batch (its jobs differ from " +
                                manifest.file.string() + "'s); choose another --out");
@@ -114,17 +104,6 @@ Shard parse_shard(const std::string& text) {
   return shard;
 }
 
-void write_atomically(const std::filesystem::path& file, const std::string& text) {
-  // The process id keeps shards writing the same file (jobs.json) off each other's temporary.
-  const std::filesystem::path temporary = file.string() + ".tmp" + std::to_string(::getpid());
-  {
-    std::ofstream out(temporary, std::ios::binary);
-    out << text;
-    if (!out) throw std::runtime_error(temporary.string() + ": cannot write");
-  }
-  std::filesystem::rename(temporary, file);
-}
-
 BatchTotals run_batch(const Manifest& manifest, const std::filesystem::path& out_dir, Shard shard,
                       std::ostream& progress) {
   std::filesystem::create_directories(out_dir / "jobs");
@@ -138,7 +117,7 @@ BatchTotals run_batch(const Manifest& manifest, const std::filesystem::path& out
     ++totals.jobs;
     if (std::filesystem::exists(outcome_file)) {
       ++totals.skipped;
-      if (read_json(outcome_file).value("outcome", "") != "ok") ++totals.failed;
+      if (read_json_file(outcome_file).value("outcome", "") != "ok") ++totals.failed;
       progress << "job " << i << " " << job.name << ": finished before, skipped\n";
       continue;
     }

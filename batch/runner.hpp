@@ -32,8 +32,4 @@ struct BatchTotals {
 BatchTotals run_batch(const Manifest& manifest, const std::filesystem::path& out_dir, Shard shard,
                       std::ostream& progress);
 
-// Writes `text` to `file` through a temporary beside it and a rename, so that a reader never
-// sees it half written (an outcome.json is what makes a job finished).
-void write_atomically(const std::filesystem::path& file, const std::string& text);
-
 }  // namespace incise::batch
