@@ -20,6 +20,8 @@ grep '^bad_modulus,failed,,' "$summary" | grep -q 'bodies\[0\].material.E' || {
 grep -q '"outcome": "failed"' "$work/all/jobs/bad_modulus/outcome.json"
 [ -f "$work/all/jobs/beam-001/metrics.json" ] && [ -f "$work/all/jobs/beam-001/steps.csv" ] || { echo "a job's metrics are missing"; exit 1; }
 [ ! -d "$work/all/jobs/beam-001/frames" ] || { echo "frames written unasked"; exit 1; }
+[ "$(ls "$work/all/jobs/block/frames" | grep -c '^frame_0000[01][0-9]\.png$')" -eq 3 ] || {
+  echo "the block job's frames (steps 0, 5, 10) are missing:"; ls -R "$work/all/jobs/block"; exit 1; }
 # Different moduli give different states: the overrides reached the scene.
 [ "$(cut -d, -f3 "$summary" | grep -c '^0x')" -eq "$(cut -d, -f3 "$summary" | grep '^0x' | sort -u | wc -l)" ] || {
   echo "two jobs of the grid share a state hash:"; cat "$summary"; exit 1; }
