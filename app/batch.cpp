@@ -43,10 +43,25 @@ int run_shard(const BatchArgs& args, batch::Ranks& ranks) {
   return totals.failed > 0 ? 1 : 0;
 }
 
+// --list: the expanded jobs, one a line, so that a grid can be seen (and a Slurm array sized)
+// before anything runs.
+int list_jobs(const std::string& manifest_file) {
+  const batch::Manifest manifest = batch::read_manifest(manifest_file);
+  for (std::size_t i = 0; i < manifest.jobs.size(); ++i) {
+    const batch::Job& job = manifest.jobs[i];
+    std::string overrides;
+    for (const auto& [key, value] : job.overrides) overrides += " " + key + "=" + value.dump();
+    std::printf("%zu %s %s%s\n", i, job.name.c_str(), job.scene.filename().string().c_str(), overrides.c_str());
+  }
+  std::printf("%s: %zu jobs\n", manifest_file.c_str(), manifest.jobs.size());
+  return 0;
+}
+
 }  // namespace
 
 int batch_run(const BatchArgs& args) {
   if (args.manifest.empty()) throw std::runtime_error("batch: a MANIFEST (or `merge DIR`) is required");
+  if (args.list) return list_jobs(args.manifest);
   batch::Ranks ranks;
   try {
     return run_shard(args, ranks);

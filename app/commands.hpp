@@ -61,6 +61,7 @@ struct BatchArgs {
   std::string manifest;
   std::string out = "out/batch";
   std::string shard;  // "I/N"; empty: every job (or this MPI rank's shard)
+  bool list = false;  // check the manifest and print its jobs; run nothing
 };
 
 int replay(const ReplayArgs& args);

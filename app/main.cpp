@@ -107,6 +107,7 @@ int main(int argc, char** argv) {
   batch_cmd->add_option("manifest", batch.manifest, "Batch manifest (JSON)");
   batch_cmd->add_option("--out", batch.out, "Output folder (jobs/NAME/, jobs.json, summary.csv, summary.png)")->capture_default_str();
   batch_cmd->add_option("--shard", batch.shard, "Run the I-th of N interleaved slices of the jobs, e.g. 0/4");
+  batch_cmd->add_flag("--list", batch.list, "Check the manifest and print its jobs (index, name, overrides); run nothing");
   std::string merge_dir;
   auto* merge_cmd = batch_cmd->add_subcommand("merge", "Gather a batch's outcomes into DIR/summary.csv and summary.png");
   merge_cmd->add_option("dir", merge_dir, "The batch's --out folder")->required();

@@ -7,6 +7,12 @@ incise=$1 manifest=$2 work=$3
 rm -rf "$work"
 source "$(dirname "$0")/summary_columns.sh"
 
+# --list: the expanded jobs, nothing written.
+"$incise" batch "$manifest" --list --out "$work/listed" > "$work.list.log"
+grep -q ': 5 jobs$' "$work.list.log" && grep -q '^2 beam-002 efg_beam.json bodies.0.resolution=0.005 bodies.0.material.E=20000000.0$' "$work.list.log" || {
+  cat "$work.list.log"; exit 1; }
+[ ! -e "$work/listed" ] || { echo "--list wrote into --out"; exit 1; }
+
 # The whole batch: the bad job fails, so the exit code is 1, and the others all ran.
 if "$incise" batch "$manifest" --out "$work/all" 2> "$work.all.log"; then
   echo "a batch with a failed job exited 0"; cat "$work.all.log"; exit 1
