@@ -49,22 +49,37 @@ std::string plot_script(const std::vector<std::pair<std::string, double>>& bars)
 
 }  // namespace
 
+// The incision score's figures, columns of the summary when a job has a score.
+constexpr const char* kScoreKeys[] = {"length_cut_mm",  "deviation_mean_mm", "deviation_max_mm", "depth_mean_mm",
+                                      "depth_range_mm", "outside_band_mm2",  "duration_s",       "force_peak_N",
+                                      "force_mean_N",   "strokes"};
+
 MergeTotals merge_batch(const std::filesystem::path& out_dir, std::ostream& progress) {
   if (!std::filesystem::exists(out_dir / "jobs.json"))
     throw std::runtime_error((out_dir / "jobs.json").string() + ": no such file (is this a batch's --out folder?)");
   const Json jobs_file = read_json_file(out_dir / "jobs.json");
   std::vector<std::string> keys = jobs_file.value("override_keys", std::vector<std::string>{});
+  std::vector<Json> outcomes;
+  bool scored = false;
+  for (const Json& job : jobs_file.at("jobs")) {
+    const std::filesystem::path outcome_file = out_dir / "jobs" / job.at("name").get<std::string>() / "outcome.json";
+    outcomes.push_back(std::filesystem::exists(outcome_file) ? read_json_file(outcome_file) : Json());
+    scored = scored || outcomes.back().contains("score");
+  }
   std::ostringstream csv;
   csv << "job,outcome,state_hash";
   for (const auto& key : keys) csv << "," << field(key);
-  csv << ",scene,steps,wall_s,replay_wall_s,ms_per_step_median,error\n";
+  csv << ",scene,steps,wall_s,replay_wall_s,ms_per_step_median";
+  if (scored)
+    for (const char* key : kScoreKeys) csv << ",score." << key;
+  csv << ",error\n";
   MergeTotals totals;
   std::vector<std::pair<std::string, double>> bars;
-  for (const Json& job : jobs_file.at("jobs")) {
+  for (std::size_t j = 0; j < outcomes.size(); ++j) {
+    const Json& job = jobs_file.at("jobs")[j];
     const std::string name = job.at("name");
-    const std::filesystem::path outcome_file = out_dir / "jobs" / name / "outcome.json";
-    const bool finished = std::filesystem::exists(outcome_file);
-    const Json outcome = finished ? read_json_file(outcome_file) : Json::object();
+    const bool finished = !outcomes[j].is_null();
+    const Json outcome = finished ? outcomes[j] : Json::object();
     const std::string result = finished ? outcome.value("outcome", "failed") : "missing";
     ++totals.jobs;
     result == "ok" ? ++totals.ok : result == "missing" ? ++totals.missing : ++totals.failed;
@@ -73,7 +88,12 @@ MergeTotals merge_batch(const std::filesystem::path& out_dir, std::ostream& prog
     for (const auto& key : keys) csv << "," << (overrides.contains(key) ? field(value_text(overrides[key])) : "");
     csv << "," << field(job.value("scene", "")) << "," << (finished ? outcome.value("steps", Json(0)).dump() : "") << ","
         << number(outcome, "wall_s") << "," << number(outcome, "replay_wall_s") << ","
-        << number(outcome, "ms_per_step_median") << "," << field(outcome.value("error", "")) << "\n";
+        << number(outcome, "ms_per_step_median");
+    if (scored) {
+      const Json score = outcome.value("score", Json::object());
+      for (const char* key : kScoreKeys) csv << "," << number(score, key);
+    }
+    csv << "," << field(outcome.value("error", "")) << "\n";
     bars.emplace_back(name, result == "ok" ? outcome.value("ms_per_step_median", 0.0) : 0.0);
   }
   write_atomically(out_dir / "summary.csv", csv.str());

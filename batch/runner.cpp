@@ -67,6 +67,7 @@ Json run_job(const Job& job, std::size_t index, const std::filesystem::path& dir
     outcome["steps"] = m.value("steps", 0);
     outcome["replay_wall_s"] = m.value("wall_time_s", 0.0);
     outcome["ms_per_step_median"] = m["ms_per_step"].value("median", 0.0);
+    if (m.contains("score")) outcome["score"] = m["score"];  // a scene with a plan (engine/incision_score.hpp)
     if (!result.ok) {
       outcome["outcome"] = "failed";
       outcome["error"] = one_line(m.value("error", "the replay stopped"));

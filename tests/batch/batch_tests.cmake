@@ -5,6 +5,15 @@ add_test(NAME batch_shards
                  ${CMAKE_CURRENT_LIST_DIR}/sweep.json ${CMAKE_CURRENT_BINARY_DIR}/batch_shards)
 set_tests_properties(batch_shards PROPERTIES TIMEOUT 300 LABELS "batch")
 
+# The incision score in a batch's summary (assets/batch/incision.json: four default incisions,
+# 40 s here), in Release only like the other full replays of the default scene.
+if(INCISE_SANITIZE STREQUAL "")
+  add_test(NAME batch_score
+           COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/batch_score.sh $<TARGET_FILE:incise>
+                   ${PROJECT_SOURCE_DIR}/assets/batch/incision.json ${CMAKE_CURRENT_BINARY_DIR}/batch_score)
+  set_tests_properties(batch_score PROPERTIES TIMEOUT 600 LABELS "batch")
+endif()
+
 # mpirun and the single-node Slurm in Release only: OpenMPI's runtime is not clean under the
 # sanitizers (LSan counts what it keeps until exit), and what they add to incise (ranks.cpp,
 # shell scripts) is not code the sanitizers look into; batch_shards runs the batch code there.
