@@ -1,0 +1,11 @@
+# Reliability (issue 35): recordings that survive kill -9. Release only: the test is about the
+# file the process leaves, which instrumentation does not change, and the sanitizer builds run
+# the session several times slower (the trajectory reader and writer run under them in
+# test_trajectory and the fuzz corpora).
+if(INCISE_SANITIZE STREQUAL "")
+  add_test(NAME kill_while_recording
+           COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/kill_while_recording.sh $<TARGET_FILE:incise>
+                   ${PROJECT_SOURCE_DIR}/assets/scenes/haptics_block.json ${CMAKE_CURRENT_BINARY_DIR}/kill_while_recording
+                   20 3 35)
+  set_tests_properties(kill_while_recording PROPERTIES TIMEOUT 600 LABELS "reliability")
+endif()
