@@ -258,6 +258,7 @@ Run soak(const engine::Scene& scene, const SoakOptions& options, std::ostream& p
 
 struct Verdict {
   double warmup_s = 0, warmup_peak_mib = 0, peak_after_mib = 0, growth = 0, slope_mib_per_min = 0;
+  long after_samples = 0;  // rows after the warm-up
   bool flat = false;
 };
 
@@ -271,6 +272,8 @@ Verdict judge(const std::vector<Row>& rows, double seconds, double limit) {
   v.warmup_s = seconds >= 60 ? std::max(0.2 * seconds, 30.0) : 0.2 * seconds;
   const auto rebuilt = std::find_if(rows.begin(), rows.end(), [](const Row& r) { return r.rebuilds > 0; });
   if (rebuilt != rows.end()) v.warmup_s = std::max(v.warmup_s, std::min(rebuilt->t_s + 10, 0.5 * seconds));
+  // The first body's build is not the session: the warm-up holds at least its first row.
+  if (!rows.empty()) v.warmup_s = std::max(v.warmup_s, rows.front().t_s);
   double n = 0, st = 0, sr = 0, stt = 0, str = 0;
   for (const Row& r : rows) {
     if (r.t_s <= v.warmup_s) {
@@ -282,6 +285,7 @@ Verdict judge(const std::vector<Row>& rows, double seconds, double limit) {
   }
   if (n >= 2 && n * stt - st * st > 0) v.slope_mib_per_min = 60 * (n * str - st * sr) / (n * stt - st * st);
   v.growth = v.warmup_peak_mib > 0 ? v.peak_after_mib / v.warmup_peak_mib - 1 : 0;
+  v.after_samples = static_cast<long>(n);
   v.flat = n >= 1 && v.warmup_peak_mib > 0 && v.growth <= limit;
   return v;
 }
@@ -343,6 +347,9 @@ int run_soak_bench(const SoakOptions& options, std::ostream& progress) {
     progress << "report: " << (options.out_dir / "soak.csv").string() << "\n";
     if (!run.error.empty()) throw std::runtime_error("the session stopped after " + std::to_string(end.t_s) + " s: " + run.error);
     if (end.nonfinite != 0) throw std::runtime_error("verdict: FAIL, " + std::to_string(end.nonfinite) + " non-finite values");
+    if (v.after_samples == 0)
+      throw std::runtime_error("verdict: none, no RSS sample after the warm-up (" + std::to_string(v.warmup_s) +
+                               " s): run longer");
     if (!v.flat) {
       char why[160];
       std::snprintf(why, sizeof why, "verdict: FAIL, RSS grew %.1f %% after warm-up (limit %.0f %%)", 100 * v.growth,

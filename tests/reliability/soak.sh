@@ -26,6 +26,7 @@ awk -F, -v seconds="$seconds" '
   END {
     warm = seconds >= 60 ? (0.2 * seconds > 30 ? 0.2 * seconds : 30) : 0.2 * seconds
     if (first_rebuild != "") { w = first_rebuild + 10; if (w > seconds / 2) w = seconds / 2; if (w > warm) warm = w }
+    if (rows > 0 && t[1] > warm) warm = t[1]
     for (i = 1; i <= rows; i++)
       if (t[i] <= warm) { if (rss[i] > peak) peak = rss[i] } else { after++; if (rss[i] > top) top = rss[i] }
     if (rows < seconds / 2) bad = bad "only " rows " rows; "
