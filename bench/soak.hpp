@@ -24,7 +24,7 @@ struct SoakOptions {
 // move to the next stroke. A body is rebuilt (a new session from the scene) after
 // kStrokesPerBody strokes, or sooner when its surface has grown to kSurfaceGrowthLimit times
 // its triangles at build: by then it is cut to pieces. Every sample_every_s: RSS
-// (/proc/self/statm), steps, cut events, guard events, non-finite values, rebuilds and the
+// (/proc/self/statm), the bytes malloc'd and still held (glibc's mallinfo2), steps, cut events, guard events, non-finite values, rebuilds and the
 // current session's haptic period percentiles go to DIR/soak.csv; DIR/soak.png plots RSS and
 // cut events over time. The verdict: after the warm-up (the first 20 % of the run, at least
 // 30 s where the run is a minute or longer, extended to 10 s after the first rebuild but not
