@@ -105,10 +105,10 @@ echo "uninterrupted session: $steps steps in $full_ms ms, $(($(wc -l <"$referenc
 killed=0 torn_by_kill=0 empty=0 torn_checked=0
 for i in $(seq 1 "$kills"); do
   file=$work/kill_$i.traj
-  # Between a sixth and two thirds of the uninterrupted run's time (before, the world is still
-  # being built and the file holds its header alone; later, a run on a quieter machine than
-  # the reference's may have finished).
-  delay=$((full_ms / 6 + RANDOM % (full_ms / 2 + 1)))
+  # Between a quarter and five sixths of the uninterrupted run's time (before, the world is
+  # still being built and the file holds its header alone; later, a run on a quieter machine
+  # than the reference's may have finished).
+  delay=$((full_ms / 4 + RANDOM % (full_ms * 7 / 12 + 1)))
   "$incise" session "$scene" --steps "$steps" --record "$file" --out "$work/out_$i" --quiet >/dev/null 2>&1 &
   pid=$!
   sleep "$(awk -v ms="$delay" 'BEGIN { printf "%.3f", ms / 1000 }')"
