@@ -165,8 +165,17 @@ int trajectory_info(const std::string& file) {
     std::printf("%zu CG stops recorded over steps %llu .. %llu (a replay repeats them)\n", trajectory.cg_stops.size(),
                 static_cast<unsigned long long>(trajectory.cg_stops.front().step),
                 static_cast<unsigned long long>(trajectory.cg_stops.back().step));
-  if (!trajectory.report.complete) {
-    std::printf("damaged: %s\n", trajectory.report.problem.c_str());
+  const auto& report = trajectory.report;
+  if (!report.complete) {
+    // A torn tail is what a crash while recording leaves (the chunk being written when the
+    // process died); anything else is damage to bytes that were written whole.
+    if (report.torn_tail)
+      std::printf("torn tail: %zu complete chunks kept; %zu bytes of a torn chunk after byte %llu were dropped\n",
+                  report.chunks_read, report.bytes_discarded, static_cast<unsigned long long>(report.discarded_from));
+    else
+      std::printf("damaged: %zu complete chunks kept; %zu bytes after byte %llu were dropped\n", report.chunks_read,
+                  report.bytes_discarded, static_cast<unsigned long long>(report.discarded_from));
+    std::printf("why: %s\n", report.problem.c_str());
     return 2;
   }
   std::printf("complete\n");

@@ -3,16 +3,53 @@
 #include "bench/accuracy.hpp"
 #include "bench/haptics.hpp"
 #include "bench/performance.hpp"
+#include "bench/soak.hpp"
 #include "bench/stability.hpp"
 
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
 #include <iostream>
+#include <optional>
 
 #ifdef __GLIBC__
 #include <malloc.h>
 #endif
+
+namespace {
+
+// `incise bench soak`: its options, read into SoakOptions once parsed.
+struct SoakCommand {
+  incise::bench::SoakOptions defaults;
+  double minutes = 30;
+  std::optional<double> seconds;
+  std::string scene;
+  double rss_limit_percent = 100 * defaults.rss_growth_limit;
+
+  incise::bench::SoakOptions options() const {
+    incise::bench::SoakOptions o = defaults;
+    o.seconds = seconds ? *seconds : 60 * minutes;
+    o.scene = scene;
+    o.rss_growth_limit = rss_limit_percent / 100;
+    return o;
+  }
+};
+
+CLI::App* add_soak_command(CLI::App& bench, SoakCommand& soak) {
+  auto* command = bench.add_subcommand(
+      "soak", "A long haptic session on the lobe: random strokes cut, lift, cut again, bodies rebuilt; RSS must stay flat");
+  auto* minutes = command->add_option("--minutes", soak.minutes, "How long (fractions allowed)")->capture_default_str();
+  command->add_option("--seconds", soak.seconds, "How long in seconds (instead of --minutes)")->excludes(minutes);
+  command->add_option("--out", soak.defaults.out_dir, "Output folder (soak.csv, soak.png)")->capture_default_str();
+  command->add_option("--scene", soak.scene, "Scene (default assets/scenes/default.json)");
+  command->add_option("--seed", soak.defaults.seed, "Seed of the strokes")->capture_default_str();
+  command->add_option("--rss-limit", soak.rss_limit_percent, "RSS growth after the warm-up that fails the verdict, % of the warm-up's peak")
+      ->check(CLI::Range(0.0, 1000.0))
+      ->capture_default_str();
+  return command;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
 #ifdef __GLIBC__
@@ -148,6 +185,9 @@ int main(int argc, char** argv) {
   haptics_cmd->add_option("--scene", haptics_scene, "Cutting scene (default assets/scenes/haptics_block.json)");
   haptics_cmd->add_option("--spin-us", haptics_bench.spin_us, "Sleep to this long before each deadline, then spin")->capture_default_str();
 
+  SoakCommand soak;
+  CLI::App* soak_cmd = add_soak_command(*bench_cmd, soak);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -165,6 +205,7 @@ int main(int argc, char** argv) {
       haptics_bench.scene = haptics_scene;
       return incise::bench::run_haptics_bench(haptics_bench, std::cerr);
     }
+    if (*soak_cmd) return incise::bench::run_soak_bench(soak.options(), std::cerr);
     if (*export_cmd) return incise::app::trajectory_export(export_file, export_out);
     if (*info_cmd) return incise::app::trajectory_info(info_file);
     if (*import_cmd) return incise::app::trajectory_import(import_file, import_out);

@@ -152,7 +152,8 @@ Body build_body(const BodySpec& spec, const SolverSpec& solver) {
   }
   // A mesh's extent is known only now (parse_scene checked the generated shapes).
   if (auto problem = size_problem(spec, {shape.lo.x(), shape.lo.y(), shape.lo.z()}, {shape.hi.x(), shape.hi.y(), shape.hi.z()}))
-    throw std::runtime_error("body '" + spec.name + "': resolution " + *problem);
+    throw std::runtime_error("body '" + spec.name + "': " + (spec.mesh ? "mesh " + spec.mesh->string() + ": " : "") +
+                             "resolution " + *problem);
   const ModelEntry* model = models().find(spec.model);
   if (!model)
     throw std::runtime_error("body '" + spec.name + "': model '" + spec.model + "' is not registered (registered: " +

@@ -391,6 +391,7 @@ struct ChunkHeader {
   std::uint32_t sample_count = 0;  // records: samples or CG stops
   std::uint32_t payload_bytes = 0;
   std::uint32_t stored_checksum = 0;
+  bool cut_short = false;  // the file ends inside this chunk: a write a crash interrupted
 };
 
 // Reads the header of the chunk that starts `remaining` bytes before the end of the file and
@@ -399,6 +400,7 @@ std::optional<std::string> read_chunk_header(std::FILE* stream, std::uint64_t re
                                              ChunkHeader& header) {
   std::array<std::byte, kChunkHeaderBytes> chunk_header{};
   if (remaining < kChunkHeaderBytes) {
+    header.cut_short = true;
     return "truncated chunk header (" + std::to_string(remaining) + " of " +
            std::to_string(kChunkHeaderBytes) + " bytes present)";
   }
@@ -425,6 +427,7 @@ std::optional<std::string> read_chunk_header(std::FILE* stream, std::uint64_t re
            std::to_string(header.sample_count) + " " + records + " of " + std::to_string(record_bytes) + " bytes";
   }
   if (remaining - kChunkHeaderBytes < header.payload_bytes) {
+    header.cut_short = true;
     return "truncated chunk: its payload needs " + std::to_string(header.payload_bytes) + " bytes, only " +
            std::to_string(remaining - kChunkHeaderBytes) + " present";
   }
@@ -447,6 +450,8 @@ class ChunkReader {
       if (const auto cause = read_chunk(remaining, chunk_bytes)) {
         report.complete = false;
         report.bytes_discarded = static_cast<std::size_t>(remaining);
+        report.discarded_from = offset;
+        report.torn_tail = cut_short_;
         report.problem = "chunk " + std::to_string(chunk) + " at byte " + std::to_string(offset) + ": " + *cause +
                          "; " + std::to_string(remaining) + " bytes discarded (this chunk and everything after it)";
         break;
@@ -461,7 +466,9 @@ class ChunkReader {
   // chunk cannot be taken.
   std::optional<std::string> read_chunk(std::uint64_t remaining, std::uint64_t& chunk_bytes) {
     ChunkHeader header;
-    if (auto problem = read_chunk_header(stream_, remaining, version_, header)) return problem;
+    auto problem = read_chunk_header(stream_, remaining, version_, header);
+    cut_short_ = header.cut_short;
+    if (problem) return problem;
     payload_.resize(header.payload_bytes);
     if (std::fread(payload_.data(), 1, header.payload_bytes, stream_) != header.payload_bytes) {
       return "truncated chunk (read failed: " + system_error_text(errno) + ")";
@@ -521,6 +528,7 @@ class ChunkReader {
   std::FILE* stream_;
   std::uint32_t version_;
   Trajectory& trajectory_;
+  bool cut_short_ = false;  // the last chunk read_chunk looked at runs past the end of the file
   std::vector<CgStop> stops_;  // reused
   std::vector<std::byte> payload_;     // reused
   std::vector<ToolSample> decoded_;    // reused

@@ -53,6 +53,10 @@ struct TrajectoryReadReport {
   std::size_t cg_stops_read = 0;
   bool complete = true;             // false when a damaged or truncated tail was discarded
   std::size_t bytes_discarded = 0;  // from the start of the first bad chunk to the end of the file
+  std::uint64_t discarded_from = 0;  // byte where the first bad chunk starts (the kept part ends)
+  // The bad chunk is the last one and the file ends inside it: a write that a crash (kill -9,
+  // power loss) interrupted, as opposed to bytes that are there but wrong.
+  bool torn_tail = false;
   std::string problem;  // empty when complete; otherwise names the chunk, byte offset and cause
 };
 

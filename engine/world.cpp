@@ -24,7 +24,12 @@ void World::build() {
   bounds_min_ = {1e300, 1e300, 1e300};
   bounds_max_ = {-1e300, -1e300, -1e300};
   for (const auto& spec : scene_.bodies) {
-    bodies_.push_back(build_body(spec, scene_.solver));
+    // A body's refusal (its mesh, its size, its fixed boxes) names the scene file it is in.
+    try {
+      bodies_.push_back(build_body(spec, scene_.solver));
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(scene_.file.string() + ": bodies[" + std::to_string(bodies_.size()) + "]: " + e.what());
+    }
     if (scene_.solver.backend == "gpu") make_gpu_backend(bodies_.back(), bodies_.size() - 1);
     // Particles of a meshless body can lie outside it: frame what is seen.
     const Body& built = bodies_.back();

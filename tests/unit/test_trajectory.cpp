@@ -220,6 +220,8 @@ TEST_F(TrajectoryFile, ChunkCutKeepsTheGoodChunks) {
     EXPECT_EQ(read.report.samples_read, 1200u);
     EXPECT_EQ(read.samples.size(), 1200u);
     EXPECT_EQ(read.report.bytes_discarded, cut - last_chunk);
+    EXPECT_EQ(read.report.discarded_from, last_chunk);
+    EXPECT_TRUE(read.report.torn_tail) << "cut at " << cut;  // what a crash mid-write leaves
     EXPECT_TRUE(contains(read.report.problem, "truncated")) << read.report.problem;
     EXPECT_TRUE(contains(read.report.problem, "chunk 12 at byte " + std::to_string(last_chunk)))
         << read.report.problem;
@@ -257,6 +259,8 @@ TEST_F(TrajectoryFile, FlippedBitStopsAtTheDamagedChunk) {
   const auto original = make_samples(300);
   for (std::size_t i = 0; i < 300; ++i) EXPECT_TRUE(bitwise_equal(read.samples[i], original[i]));
   EXPECT_TRUE(contains(read.report.problem, "checksum mismatch")) << read.report.problem;
+  EXPECT_FALSE(read.report.torn_tail);  // every byte is there: damage, not an interrupted write
+  EXPECT_EQ(read.report.discarded_from, chunk3);
   EXPECT_TRUE(contains(read.report.problem, "chunk 3 at byte " + std::to_string(chunk3)));
   EXPECT_EQ(read.report.bytes_discarded, bytes.size() - chunk3);
   EXPECT_TRUE(contains(read.report.problem, std::to_string(bytes.size() - chunk3) + " bytes"));
