@@ -5,6 +5,7 @@
 #include <array>
 #include <filesystem>
 #include <stdexcept>
+#include <string_view>
 #include <vector>
 
 namespace incise::engine {
@@ -22,7 +23,14 @@ class MeshError : public std::runtime_error {
 // Reads every mesh of the file, merges coincident vertices, scales by `scale`. Throws
 // MeshError naming the file when it cannot be read, holds no triangles, or is not closed
 // (an edge used by other than two triangles: the count and the first such edge are named).
-TriangleSoup import_surface(const std::filesystem::path& file, double scale = 1.0);
+// `up` as turn_up's.
+TriangleSoup import_surface(const std::filesystem::path& file, double scale = 1.0, std::string_view up = "z");
+
+// A file's point in the scene's frame when the file's `up` axis ("x", "y", "z", "-x", "-y" or
+// "-z"; scene key `mesh_up`) is the scene's +z: a rotation, so tetrahedra keep their
+// orientation and surfaces their outside. Y-up files (glTF, most OBJ exporters) need "y".
+// Throws MeshError for another value.
+std::array<double, 3> turn_up(const std::array<double, 3>& p, std::string_view up);
 
 // Generalised winding number (sum of solid angles / 4 pi, Van Oosterom–Strackee): about 1
 // inside a closed surface and 0 outside, whatever its orientation conventions per shell,
