@@ -287,7 +287,7 @@ TEST(Scene, TetrahedralMeshNeedsNoResolutionAndIsCheckedOnReading) {
   scene["bodies"][0]["mesh_up"] = "y";
   const auto parsed = parse_scene(scene.dump(), kSceneFile);
   EXPECT_EQ(parsed.bodies[0].mesh_up, "y");
-  // 8 cells over 140 x 90 x ~60 mm: edges of 8 to 30 mm.
+  // 10 mm cells: Kuhn edges of 10 to 17 mm.
   EXPECT_GT(parsed.bodies[0].resolution, 0.008);
   EXPECT_LT(parsed.bodies[0].resolution, 0.03);
 
