@@ -1,4 +1,5 @@
-// Gmsh .msh, versions 2.x and 4.x, ASCII (gmsh.info/doc/texinfo/gmsh.html#MSH-file-format).
+// Gmsh .msh, versions 2.x and 4.x, ASCII (gmsh.info/doc/texinfo/gmsh.html#MSH-file-format);
+// binary ones are handed to gmsh_binary_reader.cpp after their format line.
 // Only $MeshFormat, $Nodes and $Elements are read; other sections ($PhysicalNames, $Entities,
 // $NodeData, ...) are skipped. Elements are one per line in both versions, so an element type
 // below 3D is skipped without knowing its node count.
@@ -23,11 +24,6 @@ const std::map<long long, std::string>& volume_types() {
   return names;
 }
 
-// Points, lines, triangles and quadrangles of any order: Gmsh's boundary and physical groups.
-bool below_3d(long long type) {
-  return type == 1 || type == 2 || type == 3 || type == 8 || type == 9 || type == 10 || type == 15 || type == 16 ||
-         (type >= 20 && type <= 28) || (type >= 36 && type <= 47);
-}
 
 // Skips to the line after `$End<section>`.
 void skip_section(Lines& lines, std::string_view section) {
@@ -67,20 +63,41 @@ void read_node(Lines& lines, const std::vector<std::string_view>& f, std::size_t
 void read_element(Lines& lines, const std::vector<std::string_view>& f, long long type, std::size_t nodes_at,
                   long long index, RawTets& raw) {
   const std::string name = "element " + std::to_string(index) + " (tag " + std::string(f[0]) + ")";
-  if (below_3d(type)) {
+  if (gmsh_below_3d(type)) {
     ++raw.skipped_elements;
     return;
   }
-  if (type != kTetrahedron) {
-    const auto it = volume_types().find(type);
-    lines.fail(name + " is of type " + std::to_string(type) + (it != volume_types().end() ? " (" + it->second + ")" : "") +
-               "; only 4-node tetrahedra (type 4) are read (Gmsh: Mesh.ElementOrder = 1, no recombination)");
-  }
+  if (type != kTetrahedron) lines.fail(gmsh_volume_problem(name, type));
   if (f.size() != nodes_at + 4) lines.fail(name + " is a tetrahedron with " + std::to_string(f.size() - nodes_at) + " nodes, not 4");
   RawTet tet{{}, name};
   for (int k = 0; k < 4; ++k) tet.nodes[k] = lines.integer(f[nodes_at + k], name + " node " + std::to_string(k));
   raw.tets.push_back(tet);
 }
+
+}  // namespace
+
+// Points, lines, triangles and quadrangles of any order: Gmsh's boundary and physical groups.
+bool gmsh_below_3d(long long type) {
+  return type == 1 || type == 2 || type == 3 || type == 8 || type == 9 || type == 10 || type == 15 || type == 16 ||
+         (type >= 20 && type <= 28) || (type >= 36 && type <= 47);
+}
+
+std::string gmsh_volume_problem(const std::string& element, long long type) {
+  const auto it = volume_types().find(type);
+  return (element + " is of type " + std::to_string(type) + (it != volume_types().end() ? " (" + it->second + ")" : "") +
+             "; only 4-node tetrahedra (type 4) are read (Gmsh: Mesh.ElementOrder = 1, no recombination)");
+}
+
+int gmsh_node_count(long long type) {
+  static const std::map<long long, int> nodes = {
+      {1, 2},   {2, 3},   {3, 4},   {4, 4},   {5, 8},   {6, 6},   {7, 5},   {8, 3},   {9, 6},   {10, 9},  {11, 10},
+      {12, 27}, {13, 18}, {14, 14}, {15, 1},  {16, 8},  {17, 20}, {18, 15}, {19, 13}, {20, 9},  {21, 10}, {22, 12},
+      {23, 15}, {24, 15}, {25, 21}, {26, 4},  {27, 5},  {28, 6},  {29, 20}, {30, 35}, {31, 56}, {92, 64}, {93, 125}};
+  const auto it = nodes.find(type);
+  return it == nodes.end() ? 0 : it->second;
+}
+
+namespace {
 
 void read_v2(Lines& lines, RawTets& raw) {
   while (!lines.done()) {
@@ -152,7 +169,7 @@ void read_v4_elements(Lines& lines, RawTets& raw) {
     for (long long i = 0; i < n; ++i, ++index) {
       const auto& f = lines.next();
       if (f.empty()) lines.fail("the file ends in element block " + std::to_string(b));
-      if (dim < 3 && !below_3d(type)) lines.fail("element block " + std::to_string(b) + " of dimension " + std::to_string(dim) + " has element type " + std::to_string(type));
+      if (dim < 3 && !gmsh_below_3d(type)) lines.fail("element block " + std::to_string(b) + " of dimension " + std::to_string(dim) + " has element type " + std::to_string(type));
       read_element(lines, f, type, 1, index, raw);
     }
   }
@@ -180,12 +197,13 @@ RawTets read_gmsh(Lines& lines) {
   const auto format = lines.next();
   if (format.size() < 3) lines.fail("$MeshFormat needs version file-type data-size");
   const double version = lines.real(format[0], "the version");
+  if (!(version >= 2 && version < 3) && !(version >= 4 && version < 5))
+    lines.fail("MSH version " + std::string(format[0]) + " is not read (versions 2 and 4 are)");
   if (lines.integer(format[1], "the file type") != 0)
-    lines.fail("binary .msh is not read; save it as ASCII (Gmsh: Mesh.Binary = 0, or File > Export with 'Save all' and ASCII)");
+    return read_gmsh_binary(lines, version, lines.integer(format[2], "the data size"));
   expect_end(lines, "$EndMeshFormat");
-  if (version >= 2 && version < 3) read_v2(lines, raw);
-  else if (version >= 4 && version < 5) read_v4(lines, raw);
-  else lines.fail("MSH version " + std::string(format[0]) + " is not read (versions 2 and 4 are)");
+  if (version < 3) read_v2(lines, raw);
+  else read_v4(lines, raw);
   return raw;
 }
 

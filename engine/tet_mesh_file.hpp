@@ -40,6 +40,9 @@ class Lines {
   [[noreturn]] void fail(const std::string& why) const;
   const std::filesystem::path& file() const { return file_; }
   std::size_t bytes() const { return text_.size(); }
+  // Where the next line starts, for the binary readers, which take over from there.
+  const std::string& text() const { return text_; }
+  std::size_t position() const { return at_; }
   bool empty_file() const { return text_.find_first_not_of(" \t\r\n") == std::string::npos; }
 
   // Fields parsed strictly (the whole field, in range), else fail() naming `what`.
@@ -55,6 +58,15 @@ class Lines {
 };
 
 RawTets read_gmsh(Lines& lines);
+// The binary MSH after its format line, version 2.x or 4.x (gmsh_binary_reader.cpp).
+RawTets read_gmsh_binary(Lines& lines, double version, long long data_size);
+
+// Gmsh element types (gmsh_reader.cpp): a point, line, triangle or quadrangle, of any order,
+// which the readers skip; why another volume element is refused, naming `element` and its type.
+bool gmsh_below_3d(long long type);
+std::string gmsh_volume_problem(const std::string& element, long long type);
+// Nodes of an element of the type, 0 when unknown (binary files need it to step over elements).
+int gmsh_node_count(long long type);
 RawTets read_vtk(Lines& lines);
 
 }  // namespace incise::engine::tet_file

@@ -1,9 +1,9 @@
 // Tetrahedral meshes from files, through a body's `mesh` key when the extension is one of
-// is_tet_mesh_file's: Gmsh .msh (versions 2 and 4, ASCII) and VTK legacy .vtk (ASCII
+// is_tet_mesh_file's: Gmsh .msh (versions 2 and 4, ASCII or binary) and VTK legacy .vtk (ASCII
 // UNSTRUCTURED_GRID), the formats Gmsh, TetGen, 3D Slicer and SOFA write. The readers are our
-// own (engine/gmsh_reader.cpp, engine/vtk_reader.cpp): the Gmsh API in libgmsh-dev would bring
-// OpenCASCADE and the whole of Gmsh into the build for two plain-text formats, and VTK is
-// larger still.
+// own (engine/gmsh_reader.cpp, gmsh_binary_reader.cpp, vtk_reader.cpp): the Gmsh API in
+// libgmsh-dev would bring OpenCASCADE and the whole of Gmsh into the build for two simple
+// formats, and VTK is larger still.
 #pragma once
 
 #include "engine/mesh_import.hpp"
@@ -26,7 +26,7 @@ bool is_tet_mesh_file(const std::filesystem::path& file);
 // The file's tetrahedra, positively oriented (physics/fem/tet_mesh.hpp), scaled by `scale` and
 // turned so that the file's `up` axis is +z (turn_up). Nodes keep the file's order; those no
 // tetrahedron uses are dropped. Throws MeshError naming the file, and the element or node and
-// why, for: an empty file or no tetrahedra, another volume element (hexahedra, prisms,
+// why (and the line, or the byte in a binary file), for: an empty file or no tetrahedra, another volume element (hexahedra, prisms,
 // pyramids, 10-node tetrahedra), a node id missing from the nodes or an index out of range, a
 // coordinate that is not finite, a number that does not fit, a degenerate tetrahedron (|volume|
 // under 1e-12 of the mean) and an inverted one (its sign against the file's other tetrahedra;
