@@ -68,5 +68,11 @@ std::string gmsh_volume_problem(const std::string& element, long long type);
 // Nodes of an element of the type, 0 when unknown (binary files need it to step over elements).
 int gmsh_node_count(long long type);
 RawTets read_vtk(Lines& lines);
+RawTets read_vtu(const std::filesystem::path& file, std::string text);  // vtu_reader.cpp
+
+// The tetrahedra among VTK cells (point indices and cell types), the cells below 3D counted as
+// skipped, another volume cell refused naming the file, the cell and its type (vtk_reader.cpp).
+void keep_vtk_tetrahedra(const std::filesystem::path& file, const std::vector<std::vector<long long>>& cells,
+                         const std::vector<long long>& types, RawTets& raw);
 
 }  // namespace incise::engine::tet_file

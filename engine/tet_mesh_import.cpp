@@ -174,12 +174,11 @@ physics::TetMesh import_tet_mesh(const std::filesystem::path& file, double scale
   if (!std::filesystem::exists(file)) throw MeshError(file.string() + ": file does not exist");
   turn_up({}, up);  // an unknown axis is refused before the file is read
   const std::string extension = lower_extension(file);
-  if (extension == ".vtu")
-    throw MeshError(file.string() + ": VTK XML (.vtu) is not read yet; save the grid as legacy ASCII .vtk "
-                                    "(ParaView: File > Save Data > .vtk, or meshio convert in.vtu out.vtk --ascii)");
   tet_file::Lines lines(file);
   if (lines.empty_file()) throw MeshError(file.string() + ": the file is empty");
-  tet_file::RawTets raw = extension == ".msh" ? tet_file::read_gmsh(lines) : tet_file::read_vtk(lines);
+  tet_file::RawTets raw = extension == ".msh"   ? tet_file::read_gmsh(lines)
+                          : extension == ".vtu" ? tet_file::read_vtu(file, lines.text())
+                                                : tet_file::read_vtk(lines);
   TetImportReport local;
   TetImportReport& out = report ? *report : local;
   out = {};

@@ -1,7 +1,8 @@
 // Tetrahedral meshes from files, through a body's `mesh` key when the extension is one of
-// is_tet_mesh_file's: Gmsh .msh (versions 2 and 4, ASCII or binary) and VTK legacy .vtk (ASCII
-// UNSTRUCTURED_GRID), the formats Gmsh, TetGen, 3D Slicer and SOFA write. The readers are our
-// own (engine/gmsh_reader.cpp, gmsh_binary_reader.cpp, vtk_reader.cpp): the Gmsh API in
+// is_tet_mesh_file's: Gmsh .msh (versions 2 and 4, ASCII or binary), VTK legacy .vtk (ASCII
+// UNSTRUCTURED_GRID) and VTK XML .vtu (ascii or base64 DataArrays, uncompressed), the formats
+// Gmsh, TetGen, 3D Slicer and SOFA write. The readers are our own (engine/gmsh_reader.cpp,
+// gmsh_binary_reader.cpp, vtk_reader.cpp, vtu_reader.cpp): the Gmsh API in
 // libgmsh-dev would bring OpenCASCADE and the whole of Gmsh into the build for two simple
 // formats, and VTK is larger still.
 #pragma once

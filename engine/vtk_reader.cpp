@@ -97,8 +97,10 @@ std::vector<std::vector<long long>> read_cells(Fields& f) {
   return cells;
 }
 
-void keep_tetrahedra(Lines& lines, const std::vector<std::vector<long long>>& cells, const std::vector<long long>& types,
-                     RawTets& raw) {
+}  // namespace
+
+void keep_vtk_tetrahedra(const std::filesystem::path& file, const std::vector<std::vector<long long>>& cells,
+                         const std::vector<long long>& types, RawTets& raw) {
   for (std::size_t c = 0; c < cells.size(); ++c) {
     const std::string name = "cell " + std::to_string(c);
     if (below_3d(types[c])) {
@@ -107,20 +109,18 @@ void keep_tetrahedra(Lines& lines, const std::vector<std::vector<long long>>& ce
     }
     if (types[c] != kTetra) {
       const auto it = volume_types().find(types[c]);
-      throw MeshError(lines.file().string() + ": " + name + " is a " +
+      throw MeshError(file.string() + ": " + name + " is a " +
                       (it != volume_types().end() ? it->second + " (type " + std::to_string(types[c]) + ")"
                                                   : "cell of type " + std::to_string(types[c])) +
                       "; only tetrahedra (type 10) are read");
     }
     if (cells[c].size() != 4)
-      throw MeshError(lines.file().string() + ": " + name + " is a tetrahedron with " + std::to_string(cells[c].size()) + " points, not 4");
+      throw MeshError(file.string() + ": " + name + " is a tetrahedron with " + std::to_string(cells[c].size()) + " points, not 4");
     RawTet tet{{}, name};
     for (int k = 0; k < 4; ++k) tet.nodes[k] = cells[c][k];
     raw.tets.push_back(tet);
   }
 }
-
-}  // namespace
 
 RawTets read_vtk(Lines& lines) {
   RawTets raw;
@@ -159,7 +159,7 @@ RawTets read_vtk(Lines& lines) {
   }
   if (!points || !have_cells || types.size() != cells.size())
     lines.fail("the grid needs POINTS, CELLS and CELL_TYPES");
-  keep_tetrahedra(lines, cells, types, raw);
+  keep_vtk_tetrahedra(lines.file(), cells, types, raw);
   return raw;
 }
 

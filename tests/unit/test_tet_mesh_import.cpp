@@ -70,7 +70,7 @@ std::string replaced(std::string text, const std::string& from, const std::strin
 
 }  // namespace
 
-TEST(TetMeshImport, TheLobeReadsTheSameFromMsh2Msh4AndVtkTextAndBinary) {
+TEST(TetMeshImport, TheLobeReadsTheSameFromEveryFormat) {
   TetImportReport report;
   const auto v4 = import_tet_mesh(kMeshes / "lobe_tets.msh", 0.001, "y", &report);
   EXPECT_EQ(report.skipped_elements, 828);  // the boundary triangles
@@ -80,6 +80,8 @@ TEST(TetMeshImport, TheLobeReadsTheSameFromMsh2Msh4AndVtkTextAndBinary) {
   const auto v4_binary = import_tet_mesh(kMeshes / "lobe_tets_binary.msh", 0.001, "y", &report);
   EXPECT_EQ(report.skipped_elements, 828);
   const auto v2_binary = import_tet_mesh(kMeshes / "lobe_tets_v2_binary.msh", 0.001, "y");
+  const auto vtu = import_tet_mesh(kMeshes / "lobe_tets.vtu", 0.001, "y", &report);
+  EXPECT_EQ(report.skipped_elements, 828);
   ASSERT_EQ(v4.tets.size(), 2454u);
   ASSERT_EQ(v4.rest.size(), 3 * 646);
   EXPECT_EQ(v2.tets, v4.tets);
@@ -91,6 +93,8 @@ TEST(TetMeshImport, TheLobeReadsTheSameFromMsh2Msh4AndVtkTextAndBinary) {
   // Text keeps 9 significant digits, binary all 17: the same to a micrometre (in m, 1e-9 of 70 mm).
   EXPECT_LT((v4_binary.rest - v4.rest).lpNorm<Eigen::Infinity>(), 1e-9);
   EXPECT_EQ(v2_binary.rest, v4_binary.rest);
+  EXPECT_EQ(vtu.tets, v4.tets);
+  EXPECT_EQ(vtu.rest, v4_binary.rest);  // its points are base64 doubles
   // mesh_up "y": the file's y is the scene's z, so the lobe rests on z = 0 and is 140 mm long in x (its boundary snapped to within 0.4 mm).
   EXPECT_NEAR(v4.rest.reshaped(3, 646).row(2).minCoeff(), 0.0, 0.004);
   EXPECT_NEAR(v4.rest.reshaped(3, 646).row(0).maxCoeff(), 0.07, 0.001);
@@ -150,7 +154,18 @@ TEST(TetMeshImport, BadTetrahedraAreRefusedNamingFileElementAndWhy) {
                     "CELLS 1 7\n6 0 1 2 3 4 5\nCELL_TYPES 1\n13\n", "cell 0 is a wedge (type 13); only tetrahedra (type 10)"},
       {"index.vtk", "# vtk DataFile Version 3.0\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 float\n0 0 0 1 0 0 0 1 0 0 0 1\n"
                     "CELLS 1 5\n4 0 1 2 4\nCELL_TYPES 1\n10\n", "cell 0 uses node 4, which is not among the file's 4 nodes"},
-      {"grid.vtu", "<VTKFile/>", "VTK XML (.vtu) is not read yet"},
+      {"grid.vtu", "<VTKFile/>", "only VTKFile type=\"UnstructuredGrid\" is read"},
+      {"zlib.vtu", "<VTKFile type=\"UnstructuredGrid\" compressor=\"vtkZLibDataCompressor\">",
+       "compressed data is not read"},
+      {"appended.vtu", "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid><Piece><Points>"
+                       "<DataArray type=\"Float32\" format=\"appended\" offset=\"0\"/></Points>",
+       "Points: format 'appended' is not read"},
+      {"hex.vtu", "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid><Piece><Points><DataArray format=\"ascii\">"
+                  "0 0 0 1 0 0 1 1 0 0 1 0 0 0 1 1 0 1 1 1 1 0 1 1</DataArray></Points><Cells>"
+                  "<DataArray Name=\"connectivity\" format=\"ascii\">0 1 2 3 4 5 6 7</DataArray>"
+                  "<DataArray Name=\"offsets\" format=\"ascii\">8</DataArray>"
+                  "<DataArray Name=\"types\" format=\"ascii\">12</DataArray></Cells></Piece></UnstructuredGrid></VTKFile>",
+       "cell 0 is a hexahedron (type 12)"},
   };
   for (const auto& c : cases) {
     const auto path = files.write(c.name, c.text);
