@@ -108,17 +108,6 @@ const aiScene* read_scene(Assimp::Importer& importer, const std::filesystem::pat
 
 }  // namespace
 
-std::array<double, 3> turn_up(const std::array<double, 3>& p, std::string_view up) {
-  const auto [x, y, z] = p;
-  if (up == "z") return {x, y, z};
-  if (up == "y") return {x, -z, y};
-  if (up == "x") return {y, z, x};
-  if (up == "-z") return {x, -y, -z};
-  if (up == "-y") return {x, z, -y};
-  if (up == "-x") return {z, y, -x};
-  throw MeshError("mesh_up '" + std::string(up) + "' is not an axis: \"x\", \"y\", \"z\", \"-x\", \"-y\" or \"-z\"");
-}
-
 TriangleSoup import_surface(const std::filesystem::path& file, double scale, std::string_view up) {
   turn_up({}, up);  // an unknown axis is refused before the file is read
   if (!std::filesystem::exists(file)) throw MeshError(file.string() + ": file does not exist");

@@ -2,9 +2,10 @@
 // inside test that fills them with elements.
 #pragma once
 
+#include "engine/mesh_up.hpp"
+
 #include <array>
 #include <filesystem>
-#include <stdexcept>
 #include <string_view>
 #include <vector>
 
@@ -16,9 +17,6 @@ struct TriangleSoup {
   std::array<double, 3> min{}, max{};
 };
 
-class MeshError : public std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
 
 // Reads every mesh of the file, merges coincident vertices, scales by `scale`. Throws
 // MeshError naming the file when it cannot be read, holds no triangles, or is not closed
@@ -26,11 +24,6 @@ class MeshError : public std::runtime_error {
 // `up` as turn_up's.
 TriangleSoup import_surface(const std::filesystem::path& file, double scale = 1.0, std::string_view up = "z");
 
-// A file's point in the scene's frame when the file's `up` axis ("x", "y", "z", "-x", "-y" or
-// "-z"; scene key `mesh_up`) is the scene's +z: a rotation, so tetrahedra keep their
-// orientation and surfaces their outside. Y-up files (glTF, most OBJ exporters) need "y".
-// Throws MeshError for another value.
-std::array<double, 3> turn_up(const std::array<double, 3>& p, std::string_view up);
 
 // Generalised winding number (sum of solid angles / 4 pi, Van Oosterom–Strackee): about 1
 // inside a closed surface and 0 outside, whatever its orientation conventions per shell,

@@ -3,7 +3,7 @@
 // import_tet_mesh checks and orients them. Internal to engine/.
 #pragma once
 
-#include "engine/mesh_import.hpp"
+#include "engine/mesh_up.hpp"
 
 #include <array>
 #include <cstdint>

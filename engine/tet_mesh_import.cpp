@@ -150,7 +150,7 @@ void orient(const std::filesystem::path& file, const tet_file::RawTets& raw, phy
   }
   const bool mirrored = 2 * negative > static_cast<long long>(mesh.tets.size());
   for (std::size_t e = 0; e < mesh.tets.size(); ++e) {
-    if (!(std::abs(volume[e]) >= 1e-12 * mean))
+    if (!(std::abs(volume[e]) >= 1e-12 * mean) || volume[e] == 0)
       throw MeshError(file.string() + ": " + raw.tets[e].name + " is degenerate: volume " + number(volume[e]) +
                       " m^3 against a mean of " + number(mean) + " m^3");
     if ((volume[e] < 0) != mirrored)

@@ -7,7 +7,7 @@
 // formats, and VTK is larger still.
 #pragma once
 
-#include "engine/mesh_import.hpp"
+#include "engine/mesh_up.hpp"
 #include "physics/fem/tet_mesh.hpp"
 
 #include <filesystem>
