@@ -24,8 +24,9 @@ class Xml {
 
   // The start of the next element `<name` at or after `from`, npos if none before `before`.
   std::size_t find(std::string_view name, std::size_t from, std::size_t before = std::string::npos) const {
-    for (std::size_t at = text_.find("<" + std::string(name), from); at != std::string::npos && at < before;
-         at = text_.find("<" + std::string(name), at + 1)) {
+    std::string open(1, '<');
+    open.append(name);
+    for (std::size_t at = text_.find(open, from); at != std::string::npos && at < before; at = text_.find(open, at + 1)) {
       const char next = at + 1 + name.size() < text_.size() ? text_[at + 1 + name.size()] : '\0';
       if (next == ' ' || next == '>' || next == '\n' || next == '\t' || next == '/' || next == '\r') return at;
     }
