@@ -2,6 +2,7 @@
 
 #include "engine/mesh_import.hpp"
 #include "engine/mesh_shape.hpp"
+#include "engine/tet_mesh_import.hpp"
 #include "engine/model_registry.hpp"
 #include "physics/core/contact.hpp"
 #include "physics/core/stopwatch.hpp"
@@ -11,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -70,6 +72,31 @@ std::function<bool(const physics::Vec3&)> inside_test(const GeneratorSpec& g) {
   return [g](const physics::Vec3& p) { return inside_organ(g, p); };
 }
 
+}  // namespace
+
+TriangleSoup boundary_surface(const physics::TetMesh& tets) {
+  TriangleSoup soup;
+  soup.triangles = physics::boundary_triangles(tets.tets);
+  std::vector<int> index(tets.rest.size() / 3, -1);
+  for (auto& t : soup.triangles)
+    for (int& v : t) {
+      if (index[v] < 0) {
+        index[v] = static_cast<int>(soup.vertices.size());
+        soup.vertices.push_back({tets.rest[3 * v], tets.rest[3 * v + 1], tets.rest[3 * v + 2]});
+      }
+      v = index[v];
+    }
+  soup.min = soup.max = soup.vertices.front();
+  for (const auto& v : soup.vertices)
+    for (int i = 0; i < 3; ++i) {
+      soup.min[i] = std::min(soup.min[i], v[i]);
+      soup.max[i] = std::max(soup.max[i], v[i]);
+    }
+  return soup;
+}
+
+namespace {
+
 BodyShape body_shape(const BodySpec& spec) {
   BodyShape shape;
   if (spec.generator) {
@@ -79,7 +106,14 @@ BodyShape body_shape(const BodySpec& spec) {
     shape.lo = vec(bounds.min);
     shape.hi = vec(bounds.max);
   } else {
-    const TriangleSoup soup = import_surface(*spec.mesh, spec.mesh_scale);
+    TriangleSoup soup;
+    if (is_tet_mesh_file(*spec.mesh)) {
+      auto tets = std::make_shared<const physics::TetMesh>(import_tet_mesh(*spec.mesh, spec.mesh_scale, spec.mesh_up));
+      soup = boundary_surface(*tets);
+      shape.tets = std::move(tets);
+    } else {
+      soup = import_surface(*spec.mesh, spec.mesh_scale, spec.mesh_up);
+    }
     // The fill, the EFG cells' volumes and the fairing ask "inside?" millions of times: the
     // exact winding number's sum over every triangle made a 4k-triangle organ take minutes.
     auto mesh = std::make_shared<const MeshShape>(soup);
@@ -91,10 +125,34 @@ BodyShape body_shape(const BodySpec& spec) {
   return shape;
 }
 
+// A surface thinner than the resolution everywhere fills no cell: refused here, naming its size
+// and the resolution, rather than by the fill or the EFG's sampling in their own terms. The
+// grid is make_tets_inside's (cell centres at most `resolution` apart); the EFG samples its
+// cubes of side `resolution` alike.
+void check_interior(const BodySpec& spec, const BodyShape& shape) {
+  if (!spec.mesh || (shape.tets && spec.model == "fem")) return;
+  const physics::Vec3 extent = shape.hi - shape.lo;
+  std::array<int, 3> count{};
+  for (int i = 0; i < 3; ++i) count[i] = std::max(1, static_cast<int>(std::ceil(extent[i] / spec.resolution)));
+  for (int k = 0; k < count[2]; ++k)
+    for (int j = 0; j < count[1]; ++j)
+      for (int i = 0; i < count[0]; ++i) {
+        const physics::Vec3 cell((i + 0.5) / count[0], (j + 0.5) / count[1], (k + 0.5) / count[2]);
+        if (shape.inside(shape.lo + extent.cwiseProduct(cell))) return;
+      }
+  std::ostringstream out;
+  out.precision(3);
+  out << "mesh '" << spec.mesh->filename().string() << "' (" << extent.x() << " x " << extent.y() << " x "
+      << extent.z() << " m) has no interior at resolution " << spec.resolution
+      << " m: no cell centre of that grid is inside it (a resolution under its thinnest part fills it)";
+  throw std::runtime_error(out.str());
+}
+
 }  // namespace
 
 physics::TetMesh fill_with_tets(const BodySpec& spec, const BodyShape& shape, double resolution,
                                 physics::SnapReport* snap) {
+  if (shape.tets) return *shape.tets;
   if (spec.generator && spec.generator->type == "box") {
     std::array<int, 3> cells{};
     for (int i = 0; i < 3; ++i)
@@ -154,6 +212,11 @@ Body build_body(const BodySpec& spec, const SolverSpec& solver) {
   if (auto problem = size_problem(spec, {shape.lo.x(), shape.lo.y(), shape.lo.z()}, {shape.hi.x(), shape.hi.y(), shape.hi.z()}))
     throw std::runtime_error("body '" + spec.name + "': " + (spec.mesh ? "mesh " + spec.mesh->string() + ": " : "") +
                              "resolution " + *problem);
+  try {
+    check_interior(spec, shape);
+  } catch (const std::exception& e) {
+    throw std::runtime_error("body '" + spec.name + "': " + e.what());
+  }
   const ModelEntry* model = models().find(spec.model);
   if (!model)
     throw std::runtime_error("body '" + spec.name + "': model '" + spec.model + "' is not registered (registered: " +

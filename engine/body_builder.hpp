@@ -6,6 +6,7 @@
 #pragma once
 
 #include "engine/body.hpp"
+#include "engine/mesh_import.hpp"
 #include "engine/scene.hpp"
 #include "physics/fem/surface_snap.hpp"
 #include "physics/fem/tet_mesh.hpp"
@@ -19,15 +20,21 @@ namespace incise::engine {
 Body build_body(const BodySpec& spec, const SolverSpec& solver);
 
 // What the body occupies: an inside test and its bounding box; for an imported mesh also its
-// sections along lines (engine/mesh_shape.hpp), which the fairing uses.
+// sections along lines (engine/mesh_shape.hpp), which the fairing uses; for a tetrahedral mesh
+// also the tetrahedra (whose boundary is the shape), which a fem body takes as they are.
 struct BodyShape {
   std::function<bool(const physics::Vec3&)> inside;
   physics::LineQuery along;
   physics::Vec3 lo, hi;
+  std::shared_ptr<const physics::TetMesh> tets;
 };
 
-// Tetrahedra filling the shape with cells of about `resolution`: a box exactly, anything
-// else by voxels whose boundary nodes are snapped onto the true surface (reported in `snap`).
+// A tetrahedral mesh's boundary faces on the nodes they use (outward, as boundary_triangles).
+TriangleSoup boundary_surface(const physics::TetMesh& tets);
+
+// Tetrahedra filling the shape with cells of about `resolution`: a box exactly, a tetrahedral
+// mesh as it is, anything else by voxels whose boundary nodes are snapped onto the true surface
+// (reported in `snap`).
 physics::TetMesh fill_with_tets(const BodySpec& spec, const BodyShape& shape, double resolution,
                                 physics::SnapReport* snap);
 // The read-only part every body has: name, kind (the model's name), integrator, gravity.

@@ -108,7 +108,8 @@ const aiScene* read_scene(Assimp::Importer& importer, const std::filesystem::pat
 
 }  // namespace
 
-TriangleSoup import_surface(const std::filesystem::path& file, double scale) {
+TriangleSoup import_surface(const std::filesystem::path& file, double scale, std::string_view up) {
+  turn_up({}, up);  // an unknown axis is refused before the file is read
   if (!std::filesystem::exists(file)) throw MeshError(file.string() + ": file does not exist");
   check_ply(file);
   Assimp::Importer importer;
@@ -124,7 +125,7 @@ TriangleSoup import_surface(const std::filesystem::path& file, double scale) {
     std::vector<int> remap(mesh->mNumVertices);
     for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
       const aiVector3D& p = mesh->mVertices[v];
-      std::array<double, 3> q{p.x * scale, p.y * scale, p.z * scale};
+      std::array<double, 3> q = turn_up({p.x * scale, p.y * scale, p.z * scale}, up);
       if (!std::isfinite(q[0]) || !std::isfinite(q[1]) || !std::isfinite(q[2]))
         throw MeshError(file.string() + ": mesh " + std::to_string(m) + " vertex " +
                         std::to_string(v) + " is not finite");

@@ -2,9 +2,11 @@
 // inside test that fills them with elements.
 #pragma once
 
+#include "engine/mesh_up.hpp"
+
 #include <array>
 #include <filesystem>
-#include <stdexcept>
+#include <string_view>
 #include <vector>
 
 namespace incise::engine {
@@ -15,14 +17,13 @@ struct TriangleSoup {
   std::array<double, 3> min{}, max{};
 };
 
-class MeshError : public std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
 
 // Reads every mesh of the file, merges coincident vertices, scales by `scale`. Throws
 // MeshError naming the file when it cannot be read, holds no triangles, or is not closed
 // (an edge used by other than two triangles: the count and the first such edge are named).
-TriangleSoup import_surface(const std::filesystem::path& file, double scale = 1.0);
+// `up` as turn_up's.
+TriangleSoup import_surface(const std::filesystem::path& file, double scale = 1.0, std::string_view up = "z");
+
 
 // Generalised winding number (sum of solid angles / 4 pi, Van Oosterom–Strackee): about 1
 // inside a closed surface and 0 outside, whatever its orientation conventions per shell,

@@ -2,6 +2,7 @@
 
 #include "engine/model_registry.hpp"
 #include "engine/scene_reader.hpp"
+#include "engine/tet_mesh_import.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -96,6 +97,18 @@ void read_model_settings(Reader& r, BodySpec& b, std::vector<std::string>& error
   }
 }
 
+// A tetrahedral mesh is the body's discretisation; its resolution (the contact's reach and
+// stiffness, an efg body's particle spacing) is its mean edge length. Reading the mesh here
+// also refuses a bad one before any other work, naming the file and the element.
+void tet_mesh_resolution(Reader& r, BodySpec& b) {
+  if (!std::filesystem::exists(*b.mesh) || !(b.mesh_scale > 0)) return;  // refused above
+  try {
+    b.resolution = mean_edge_length(import_tet_mesh(*b.mesh, b.mesh_scale, b.mesh_up));
+  } catch (const MeshError& e) {
+    r.error(r.child("mesh"), e.what());
+  }
+}
+
 BodySpec read_body(const Json& node, const std::string& path, const std::filesystem::path& file,
                    std::vector<std::string>& errors) {
   Reader r(node, path, errors);
@@ -114,10 +127,14 @@ BodySpec read_body(const Json& node, const std::string& path, const std::filesys
     }
   }
   b.mesh_scale = r.number("mesh_scale", false, 1.0, 0, 1e6, true);
+  b.mesh_up = r.text("mesh_up", false, "z", {"x", "y", "z", "-x", "-y", "-z"});
+  if (!b.mesh && r.has("mesh_up")) r.error(r.child("mesh_up"), "only a body with a 'mesh' takes mesh_up");
   if (const Json* g = r.get("generator", false)) b.generator = read_generator(*g, r.child("generator"), errors);
   if (b.mesh && b.generator) r.error(path, "give either 'mesh' or 'generator', not both");
   if (!b.mesh && !b.generator && !r.has("mesh")) r.error(path, "needs a 'mesh' or a 'generator'");
-  b.resolution = r.number("resolution", true, 0.01, 1e-4, 10, false);
+  const bool tetrahedra = b.mesh && is_tet_mesh_file(*b.mesh);
+  b.resolution = r.number("resolution", !tetrahedra, 0.01, 1e-4, 10, false);
+  if (tetrahedra && !r.has("resolution")) tet_mesh_resolution(r, b);
   if (const Json* m = r.get("material", true)) {
     Reader mr(*m, r.child("material"), errors);
     b.material.youngs_modulus = mr.number("E", true, 1e4, 0, 1e12, true);

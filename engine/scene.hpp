@@ -64,10 +64,16 @@ struct EfgSpec {
 struct BodySpec {
   std::string name;
   std::string model;  // a registered model (engine/model_registry.hpp): "fem" (corotational linear tetrahedra), "efg"
-  std::optional<std::filesystem::path> mesh;  // resolved against the scene's folder
+  // Resolved against the scene's folder: a closed surface (anything assimp reads), filled at
+  // `resolution`, or a tetrahedral mesh (engine/tet_mesh_import.hpp: .msh, .vtk), which is the
+  // fem body's discretisation (and an efg body's shape).
+  std::optional<std::filesystem::path> mesh;
   double mesh_scale = 1;
+  std::string mesh_up = "z";  // the file's axis that is the scene's +z (engine::turn_up)
   std::optional<GeneratorSpec> generator;
-  double resolution = 0;  // fem: tetrahedra cell size; efg: integration cube side a (particles 2a apart), m
+  // fem: tetrahedra cell size; efg: integration cube side a (particles 2a apart), m. With a
+  // tetrahedral mesh it may be left out: the mesh's mean edge length.
+  double resolution = 0;
   EfgSpec efg;            // model "efg" only
   std::any settings;      // another registered model's own settings block, as its read_settings left it
   bool cuttable = false;  // models that can be cut only (efg): the blade cuts it (topology graph, CCD, cut surface)

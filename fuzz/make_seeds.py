@@ -67,3 +67,28 @@ write("mesh", "tetra_binary.stl", b"\1" + binary)
 ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"
 write("mesh", "tetra_ascii.ply", b"\2" + ply.encode())
 write("mesh", "open.obj", b"\0" + "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".encode())
+
+# Tetrahedral meshes (first byte: 0 .msh, 1 .vtk, 2 .vtu; 3 and 6 are .msh too): two tetrahedra
+# on five nodes with a triangle to skip and an unused node, in each format the readers take.
+msh2 = ("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Comments\nanything\n$EndComments\n$Nodes\n6\n1 0 0 0\n2 1 0 0\n"
+        "3 0 1 0\n4 0 0 1\n5 1 1 1\n6 9 9 9\n$EndNodes\n$Elements\n3\n1 2 2 0 1 2 3 4\n2 4 2 0 1 1 2 3 4\n"
+        "7 4 2 0 1 5 4 3 2\n$EndElements\n")
+write("tet_mesh", "two_tets_v2.msh", b"\0" + msh2.encode())
+msh4 = ("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 5 1 5\n3 1 0 5\n1\n2\n3\n4\n5\n0 0 0\n1 0 0\n0 1 0\n"
+        "0 0 1\n1 1 1\n$EndNodes\n$Elements\n2 3 1 3\n2 1 2 1\n1 2 3 4\n3 1 4 2\n2 1 2 3 4\n3 5 4 3 2\n$EndElements\n")
+write("tet_mesh", "two_tets_v4.msh", b"\3" + msh4.encode())
+corners = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+msh4_binary = (b"$MeshFormat\n4.1 1 8\n" + struct.pack("<i", 1) + b"\n$EndMeshFormat\n$Nodes\n"
+               + struct.pack("<QQQQ", 1, 4, 1, 4) + struct.pack("<iiiQ", 3, 1, 0, 4)
+               + b"".join(struct.pack("<Q", i + 1) for i in range(4)) + b"".join(struct.pack("<ddd", *p) for p in corners)
+               + b"\n$EndNodes\n$Elements\n" + struct.pack("<QQQQ", 1, 1, 1, 1) + struct.pack("<iiiQ", 3, 1, 4, 1)
+               + struct.pack("<QQQQQ", 1, 1, 2, 3, 4) + b"\n$EndElements\n")
+write("tet_mesh", "tet_binary_v4.msh", b"\6" + msh4_binary)
+vtk = ("# vtk DataFile Version 3.0\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 5 float\n0 0 0 1 0 0 0 1 0 0 0 1\n"
+       "1 1 1\nCELLS 3 14\n4 0 1 2 3\n4 4 3 2 1\n3 1 2 3\nCELL_TYPES 3\n10\n10\n5\n")
+write("tet_mesh", "two_tets.vtk", b"\1" + vtk.encode())
+vtu = ('<VTKFile type="UnstructuredGrid"><UnstructuredGrid><Piece><Points><DataArray format="ascii">'
+       '0 0 0 1 0 0 0 1 0 0 0 1</DataArray></Points><Cells><DataArray Name="connectivity" format="ascii">0 1 2 3'
+       '</DataArray><DataArray Name="offsets" format="ascii">4</DataArray><DataArray Name="types" format="ascii">10'
+       '</DataArray></Cells></Piece></UnstructuredGrid></VTKFile>')
+write("tet_mesh", "tet.vtu", b"\2" + vtu.encode())

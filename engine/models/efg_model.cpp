@@ -46,7 +46,8 @@ void read_efg_settings(Reader& er, BodySpec& b) {
 void make_render_surface(physics::BodyModel& model, physics::BodyData& body, const BodySpec& spec, const BodyShape& shape,
                          physics::Vector& rest_vertices) {
   if (spec.mesh) {
-    const TriangleSoup soup = import_surface(*spec.mesh, spec.mesh_scale);
+    const TriangleSoup soup =
+        shape.tets ? boundary_surface(*shape.tets) : import_surface(*spec.mesh, spec.mesh_scale, spec.mesh_up);
     rest_vertices.resize(3 * static_cast<Eigen::Index>(soup.vertices.size()));
     for (std::size_t v = 0; v < soup.vertices.size(); ++v)
       for (int c = 0; c < 3; ++c) rest_vertices[3 * static_cast<Eigen::Index>(v) + c] = soup.vertices[v][c];

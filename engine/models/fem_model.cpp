@@ -1,5 +1,5 @@
 // The corotational linear tetrahedral model (physics/fem/corotational_fem.hpp): tetrahedra
-// fill the body's shape, its surface is their boundary. It takes no settings block, cannot be
+// fill the body's shape (or are the body's tetrahedral mesh), its surface is their boundary. It takes no settings block, cannot be
 // cut and runs on the CPU only.
 #include "engine/body_builder.hpp"
 #include "engine/model_registry.hpp"

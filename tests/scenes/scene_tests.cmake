@@ -33,6 +33,13 @@ if(INCISE_SANITIZE STREQUAL "")
 endif()
 include(${CMAKE_CURRENT_LIST_DIR}/cut_scenes.cmake)
 
+# A tetrahedral mesh from a file as the FEM body (issue 32): Gmsh MSH 4 in mm with y up, probed
+# for 3 s, its `expect` block checked. A few seconds in Release.
+add_test(NAME replay_probe_tet_mesh
+         COMMAND incise replay ${PROJECT_SOURCE_DIR}/assets/scenes/probe_tet_mesh.json --check --capture-every 0
+                 --quiet --out ${CMAKE_CURRENT_BINARY_DIR}/replay_probe_tet_mesh)
+set_tests_properties(replay_probe_tet_mesh PROPERTIES TIMEOUT 600 LABELS "scenes")
+
 # The GPU backend from the command line (issue 6), on llvmpipe here: cut_organ until its
 # first cuts (step 60; links are first severed at step 55), and the refusal when compute is
 # unavailable. Under the sanitizers a shorter replay (the compute runs uninstrumented in Mesa).

@@ -8,6 +8,7 @@ add_executable(test_engine
   ${CMAKE_CURRENT_LIST_DIR}/test_model_registry.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_publication.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_mesh_import.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_tet_mesh_import.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_surface_queries.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_world.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_world_cut.cpp

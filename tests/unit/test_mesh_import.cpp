@@ -153,3 +153,16 @@ TEST(MeshImport, AnEmptyPlyFaceIsRefusedRatherThanAborting) {
   }
   std::filesystem::remove(path);
 }
+
+// mesh_up "y": the file's y is +z and its z is -y, a rotation (the cube keeps its volume's sign).
+TEST(MeshImport, UpAxisTurnsTheFileSoItsAxisIsZ) {
+  auto path = write_file("incise_cube_up.obj", kCube);
+  const auto soup = import_surface(path, 2.0, "y");
+  EXPECT_DOUBLE_EQ(soup.min[1], -2.0);
+  EXPECT_DOUBLE_EQ(soup.max[1], 0.0);
+  EXPECT_DOUBLE_EQ(soup.max[2], 2.0);
+  EXPECT_NEAR(std::abs(winding_number(soup, {1, -1, 1})), 1.0, 1e-9);
+  EXPECT_EQ(incise::engine::turn_up({1, 2, 3}, "-x"), (std::array<double, 3>{3, 2, -1}));
+  EXPECT_THROW(import_surface(path, 1.0, "w"), MeshError);
+  std::filesystem::remove(path);
+}

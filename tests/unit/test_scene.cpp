@@ -145,6 +145,18 @@ TEST(Scene, BrokenScenesAreRefusedWithTheFieldNamed) {
          s["bodies"][0]["generator"]["max"] = {1, 1, 1};
          s["bodies"][0]["resolution"] = 1e-4;
        }, "bodies[0].resolution: 0.0001 m over the body's 1 x 1 x 1 m bounding box is 1e+12 cells, about 4.1 PB"},
+      {"mesh_up not an axis", [](Json& s) {
+         s["bodies"][0].erase("generator");
+         s["bodies"][0]["mesh"] = "../meshes/lobe_tets.msh";
+         s["bodies"][0]["mesh_up"] = "up";
+       }, "bodies[0].mesh_up: 'up' is not one of: x, y, z, -x, -y, -z"},
+      {"mesh_up without a mesh", [](Json& s) { s["bodies"][0]["mesh_up"] = "y"; },
+       "bodies[0].mesh_up: only a body with a 'mesh' takes mesh_up"},
+      {"surface mesh without resolution", [](Json& s) {
+         s["bodies"][0].erase("generator");
+         s["bodies"][0].erase("resolution");
+         s["bodies"][0]["mesh"] = "../meshes/kidney.obj";
+       }, "bodies[0].resolution: is required"},
   };
   ASSERT_GE(cases.size(), 10u);
   for (const auto& c : cases) {
@@ -262,4 +274,35 @@ TEST(Scene, ShippedScenesAreValid) {
     ++count;
   }
   EXPECT_GE(count, 1);
+}
+
+// A tetrahedral mesh is the discretisation: no resolution needed (its mean edge length stands
+// in), and a bad one is refused while the scene is read, naming the field, the file and the element.
+TEST(Scene, TetrahedralMeshNeedsNoResolutionAndIsCheckedOnReading) {
+  Json scene = good_scene();
+  scene["bodies"][0].erase("generator");
+  scene["bodies"][0].erase("resolution");
+  scene["bodies"][0]["mesh"] = "../meshes/lobe_tets.vtk";
+  scene["bodies"][0]["mesh_scale"] = 0.001;
+  scene["bodies"][0]["mesh_up"] = "y";
+  const auto parsed = parse_scene(scene.dump(), kSceneFile);
+  EXPECT_EQ(parsed.bodies[0].mesh_up, "y");
+  // 10 mm cells: Kuhn edges of 10 to 17 mm.
+  EXPECT_GT(parsed.bodies[0].resolution, 0.008);
+  EXPECT_LT(parsed.bodies[0].resolution, 0.03);
+
+  const auto bad = std::filesystem::temp_directory_path() / (std::to_string(::getpid()) + "_hex.vtk");
+  std::ofstream(bad) << "# vtk DataFile Version 3.0\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 float\n"
+                        "0 0 0 1 0 0 1 1 0 0 1 0 0 0 1 1 0 1 1 1 1 0 1 1\nCELLS 1 9\n8 0 1 2 3 4 5 6 7\n"
+                        "CELL_TYPES 1\n12\n";
+  scene["bodies"][0]["mesh"] = bad.string();
+  try {
+    parse_scene(scene.dump(), kSceneFile);
+    ADD_FAILURE() << "a hexahedral mesh was accepted";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("bodies[0].mesh: " + bad.string() + ": cell 0 is a hexahedron (type 12)"),
+              std::string::npos)
+        << e.what();
+  }
+  std::filesystem::remove(bad);
 }

@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <filesystem>
 #include <string>
 
@@ -272,4 +273,50 @@ TEST(World, ProbePushesAnEfgBodyThroughItsEmbeddedSurface) {
   }
   EXPECT_LT(deepest, 0.02 - 0.001);  // the seen surface is pressed at least 1 mm
   EXPECT_GT(max_up_force, 0.0);      // and pushes the tool back
+}
+
+// A tetrahedral mesh from a file is the fem body's discretisation as it is (issue 32).
+TEST(World, TetrahedralMeshFileIsTheFemBody) {
+  TempDir dir("incise_world_tet_mesh");
+  Json json = block_scene(false);
+  json["bodies"][0].erase("generator");
+  json["bodies"][0].erase("resolution");
+  json["bodies"][0]["mesh"] = (std::filesystem::path(INCISE_SOURCE_DIR) / "assets/meshes/lobe_tets_v2.msh").string();
+  json["bodies"][0]["mesh_scale"] = 0.001;
+  json["bodies"][0]["mesh_up"] = "y";
+  json["bodies"][0]["fixed"] = Json::parse(R"([{"min": [-1, -1, -1], "max": [1, 1, 0.002]}])");
+  const World world(write_scene(dir, json), std::nullopt);
+  const auto& body = world.bodies()[0];
+  EXPECT_EQ(body.data.mechanics->node_count(), 646);
+  EXPECT_EQ(body.model->elements, 2454u);
+  EXPECT_EQ(body.data.surface.size(), 828u);  // the boundary the file's triangles were
+}
+
+// A surface thinner than the resolution everywhere (a 1 mm slab and a speck, at 5 mm) fills
+// nothing: refused with its size and the resolution, for either model.
+TEST(World, ASurfaceWithNoInteriorAtTheResolutionIsRefused) {
+  TempDir dir("incise_world_thin_mesh");
+  std::ofstream(dir.path / "slab.obj") << "v 0 0 0\nv 0.02 0 0\nv 0.02 0.02 0\nv 0 0.02 0\n"
+                                          "v 0 0 0.001\nv 0.02 0 0.001\nv 0.02 0.02 0.001\nv 0 0.02 0.001\n"
+                                          "f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\n"
+                                          "f 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\n"
+                                          // A speck 10 mm above, so that the box is deeper than one cell.
+                                          "v 0.01 0.01 0.01\nv 0.0105 0.01 0.01\nv 0.01 0.0105 0.01\nv 0.01 0.01 0.0105\n"
+                                          "f 9 11 10\nf 9 10 12\nf 9 12 11\nf 10 11 12\n";
+  for (const char* model : {"fem", "efg"}) {
+    Json json = block_scene(false);
+    json["bodies"][0].erase("generator");
+    json["bodies"][0]["model"] = model;
+    json["bodies"][0]["mesh"] = "slab.obj";
+    json["bodies"][0]["resolution"] = 0.005;
+    try {
+      const World world(write_scene(dir, json), std::nullopt);
+      ADD_FAILURE() << model << ": a 1 mm slab was filled at 5 mm";
+    } catch (const std::exception& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find("body 'block': mesh 'slab.obj' (0.02 x 0.02 x 0.0105 m) has no interior at resolution 0.005 m"),
+                std::string::npos)
+          << model << ": " << message;
+    }
+  }
 }
