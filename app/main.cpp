@@ -44,6 +44,7 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"single", "double"}));
   replay_cmd->add_flag("--check", replay.check, "Check the scene's `expect` block; exit 1 when one fails");
   replay_cmd->add_flag("--quiet", replay.quiet, "No progress bar or summary");
+  replay_cmd->add_flag("--report", replay.report, "Write OUT/report.html (and OUT/replay.mp4) at the end, as `incise report OUT`");
 
   std::string check_scene;
   auto* check_cmd = app.add_subcommand("check", "Validate a scene file and build its world; exit non-zero on any error");
@@ -72,6 +73,11 @@ int main(int argc, char** argv) {
   session_cmd->add_option("--out", session.out, "Output folder (session.json)")->capture_default_str();
   session_cmd->add_flag("--no-engage", session.no_engage, "Never engage the blade (the same strokes without cutting)");
   session_cmd->add_flag("--quiet", session.quiet, "No summary");
+  session_cmd->add_flag("--report", session.report, "Write OUT/report.html at the end, as `incise report OUT`");
+
+  std::string report_dir;
+  auto* report_cmd = app.add_subcommand("report", "Write RUN_DIR/report.html: the scene, video, frames, plots, score, expectations and metrics of a run");
+  report_cmd->add_option("run_dir", report_dir, "A replay's or session's output folder (holds metrics.json or session.json)")->required();
 
   auto* trajectory_cmd = app.add_subcommand("trajectory", "Inspect, export or synthesise tool trajectory files");
   trajectory_cmd->require_subcommand(1);
@@ -149,6 +155,7 @@ int main(int argc, char** argv) {
     if (*check_cmd) return incise::app::check(check_scene);
     if (*run_cmd) return incise::app::run(run);
     if (*session_cmd) return incise::app::session(session);
+    if (*report_cmd) return incise::app::report(report_dir);
     if (*haptics_cmd) {
       haptics_bench.scene = haptics_scene;
       return incise::bench::run_haptics_bench(haptics_bench, std::cerr);

@@ -74,6 +74,7 @@ int session(const SessionArgs& args) {
                   args.scene.c_str(), args.record.c_str(), static_cast<unsigned long long>(world.steps_taken()));
     std::printf("report: %s\n", file.c_str());
   }
+  if (args.report) return app::report(args.out);
   return 0;
 }
 

@@ -609,7 +609,8 @@ void write_steps_csv(const std::filesystem::path& file, const std::vector<StepSt
        "cg_residual", "contacts", "tool_force_x", "tool_force_y", "tool_force_z", "elastic_energy_J",
        "kinetic_energy_J", "ms_ccd", "ms_topology", "links_severed", "ms_rest_cut", "ms_reselect",
        "ms_surface_rebuild", "ms_mapping", "ms_checks", "ms_front_cut", "ms_front_wait", "preconditioner",
-       "ms_per_iteration", "preconditioner_age", "preconditioner_build_ms", "preconditioner_wait_ms", "cg_budget_stops"});
+       "ms_per_iteration", "preconditioner_age", "preconditioner_build_ms", "preconditioner_wait_ms", "cg_budget_stops",
+       "cut_event"});
   for (std::size_t k = 0; k < stats.size(); ++k) {
     const auto& s = stats[k];
     steps_csv.row(k + 1, static_cast<double>(k + 1) * dt, s.ms_total, s.ms_tool_input, s.ms_contact,
@@ -618,7 +619,8 @@ void write_steps_csv(const std::filesystem::path& file, const std::vector<StepSt
                   s.links_severed, s.ms_rest_cut, s.ms_reselect, s.ms_surface_rebuild, s.ms_mapping, s.ms_checks,
                   s.ms_front_cut, s.ms_front_wait, s.preconditioner,
                   s.cg_iterations > 0 ? s.ms_solve / s.cg_iterations : 0.0, s.preconditioner_age,
-                  s.preconditioner_build_ms, s.preconditioner_wait_ms, s.cg_budget_stops);
+                  s.preconditioner_build_ms, s.preconditioner_wait_ms, s.cg_budget_stops,
+                  s.cut_event ? 1 : 0);
   }
 }
 
