@@ -56,6 +56,7 @@ int session(const SessionArgs& args) {
   const auto file = std::filesystem::path(args.out) / "session.json";
   std::ofstream out(file);
   out << report.dump(2) << "\n";
+  out.close();  // before --report reads it back
   if (!out) throw std::runtime_error(file.string() + ": cannot write");
   if (!args.record.empty()) engine::write_session_summary(run, args.record + ".json");
   if (!args.quiet) {

@@ -75,8 +75,11 @@ void frames_section(HtmlPage& page, const std::filesystem::path& run_dir, const 
   }
   const double fps = capture_rate(metrics);
   const VideoOutcome video = encode_video(run_dir, frames, fps);
+  // The video and the player side by side (one above the other on a narrow screen).
+  page.raw("<div class=\"media\"><div>");
+  page.heading("Video", 3);
   if (video.made) {
-    page.raw("<p class=\"screen-only\"><video controls preload=\"metadata\" src=\"replay.mp4\"></video></p>");
+    page.raw("<video controls preload=\"metadata\" src=\"replay.mp4\"></video>");
     page.paragraph("replay.mp4: " + std::to_string(frames.size()) + " frames at " +
                    (fps > 0 ? std::to_string(static_cast<int>(std::lround(fps))) : std::string("25")) +
                    " frames per second (the capture rate: real time).");
@@ -84,8 +87,10 @@ void frames_section(HtmlPage& page, const std::filesystem::path& run_dir, const 
     page.note("no video: " + video.problem + ". The frames are in the frames/ folder beside this page.");
     page.raw("<p><a href=\"frames/\">frames/</a></p>");
   }
+  page.raw("</div><div>");
   page.heading("Player", 3);
   page.raw(player_html(frames, fps));
+  page.raw("</div></div>");
   page.heading("Strip", 3);
   page.raw(strip_html(frames));
 }

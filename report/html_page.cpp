@@ -26,9 +26,11 @@ img.plot { display: block; max-width: 100%; height: auto; background: #fff; marg
 .player img { max-width: 100%; border: 1px solid #999; background: #000; }
 .player input[type=range] { width: 60%; vertical-align: middle; }
 video { max-width: 100%; background: #000; }
+.media { display: flex; flex-wrap: wrap; gap: 1.5em; align-items: flex-start; }
+.media > div { flex: 1 1 400px; min-width: 0; }
 @media print {
   body { background: #fff; max-width: none; font-size: 11pt; }
-  .player .controls, video, .screen-only { display: none; }
+  .player .controls, video { display: none; }
   img.plot, table, figure { page-break-inside: avoid; break-inside: avoid; }
   h2 { page-break-after: avoid; break-after: avoid; }
   tr.pass td, tr.fail td, th { -webkit-print-color-adjust: exact; print-color-adjust: exact; }

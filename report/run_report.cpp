@@ -140,9 +140,9 @@ std::filesystem::path write_run_report(const std::filesystem::path& run_dir, std
   if (metrics.contains("error")) page.note("the run stopped on an error: " + scalar_text(metrics["error"]));
   scene_section(page, metrics);
   score_section(page, run_dir);
-  expect_section(page, metrics);
   frames_section(page, run_dir, metrics);
   plots_section(page, run_dir, progress);
+  expect_section(page, metrics);
   page.heading("Metrics");
   std::vector<TableRow> rows;
   flatten(metrics, "", rows);

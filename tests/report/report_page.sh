@@ -2,7 +2,8 @@
 # issue 33: a short replay with --report, its page rendered by headless Chromium and checked.
 #   report_page.sh INCISE SCENE WORKDIR SCREENSHOT_CHECK [DOCS_PNG]
 # Asserts: report.html and replay.mp4 (H.264, yuv420p) are written; the page refers to nothing
-# outside the run folder; `incise report` refuses a folder that is not a run; Chromium loads
+# outside the run folder; `incise report` refuses a folder that is not a run and reports a
+# session's; Chromium loads
 # the page with no console error; the screenshot is not uniform and each plot's region holds
 # a plot. With DOCS_PNG, also writes the README's small screenshot there.
 # Exit 77 (skipped) after the checks that need no browser when chromium is not installed.
@@ -38,6 +39,11 @@ if command -v ffprobe > /dev/null; then
   echo "replay.mp4: $probe"
 fi
 
+# A session's folder (session.json, no steps.csv or frames): the page says what is missing.
+"$incise" session "$(dirname "$scene")/haptics_block.json" --steps 20 --out "$work/session" --report --quiet
+grep -q 'Haptic session, 20 steps' "$work/session/report.html" || fail "the session's page does not describe it"
+grep -q 'no steps.csv in the run folder' "$work/session/report.html" || fail "the session's page does not say steps.csv is missing"
+
 # Not a run folder: refused, the missing file named.
 mkdir -p "$work/empty"
 if "$incise" report "$work/empty" 2> "$work/refusal.txt"; then fail "incise report accepted $work/empty"; fi
@@ -66,7 +72,7 @@ cat "$work/layout.txt"
 
 if [ -n "$docs_png" ]; then
   # The README's picture: the top of the page at half scale, kept small.
-  timeout 120 "${headless[@]/--window-size=1200,3600/--window-size=1100,1700}" --force-device-scale-factor=0.5 \
+  timeout 120 "${headless[@]/--window-size=1200,3600/--window-size=1100,1900}" --force-device-scale-factor=0.5 \
     --screenshot="$docs_png" "file://$page" > /dev/null 2>&1
   size=$(stat -c %s "$docs_png")
   [ "$size" -lt 153600 ] || fail "$docs_png is $size bytes (keep it under 150 KB)"
