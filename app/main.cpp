@@ -3,6 +3,7 @@
 #include "bench/accuracy.hpp"
 #include "bench/haptics.hpp"
 #include "bench/performance.hpp"
+#include "bench/performance_report.hpp"
 #include "bench/stability.hpp"
 
 #include <CLI/CLI.hpp>
@@ -131,6 +132,9 @@ int main(int argc, char** argv) {
                               "CG's preconditioner: all side by side, or two_level, warped_cholesky or jacobi (the Jacobi CG) alone")
       ->check(CLI::IsMember({"all", "two_level", "warped_cholesky", "jacobi"}))
       ->capture_default_str();
+  bool performance_report_only = false;
+  performance_cmd->add_flag("--report-only", performance_report_only,
+                            "Run nothing: write OUT/report.html from the OUT/performance.csv already there");
   std::string performance_backend = "cpu";
   performance_cmd->add_option("--backend", performance_backend, "gpu: also run every size on the GPU backend")
       ->check(CLI::IsMember({"cpu", "gpu"}))
@@ -166,6 +170,10 @@ int main(int argc, char** argv) {
     if (*synth_cmd) return incise::app::trajectory_synth(synth);
     if (*accuracy_cmd) return incise::bench::run_accuracy_bench(accuracy_quick, accuracy_out, std::cerr);
     if (*stability_cmd) return incise::bench::run_stability_bench(stability_quick, stability_out, std::cerr, stability_resume);
+    if (*performance_cmd && performance_report_only) {
+      std::printf("report: %s\n", incise::bench::write_performance_report(performance_out, std::cerr).c_str());
+      return 0;
+    }
     if (*performance_cmd) return incise::bench::run_performance_bench(performance_quick, performance_out, std::cerr, performance_backend,
                                                                      performance_preconditioner);
   } catch (const std::exception& e) {

@@ -2,6 +2,7 @@
 
 #include "bench/plot.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
@@ -60,7 +61,7 @@ std::string cut_shading(const std::vector<double>& time, const std::vector<doubl
 
 // 1 for each step that cut (changed the topology, or severed links in an older steps.csv
 // without cut_event), else 0.
-std::vector<double> cut_steps(const StepsTable& steps) {
+std::vector<double> cut_steps(const CsvTable& steps) {
   const auto events = steps.column("cut_event"), severed = steps.column("links_severed");
   std::vector<double> cut(steps.rows.size(), 0.0);
   for (std::size_t k = 0; k < cut.size(); ++k)
@@ -69,7 +70,7 @@ std::vector<double> cut_steps(const StepsTable& steps) {
 }
 
 struct Context {
-  const StepsTable& steps;
+  const CsvTable& steps;
   std::filesystem::path out_dir;
   std::ostream& progress;
   std::vector<double> time;
@@ -113,7 +114,9 @@ void phases_plot(Context& c) {
     const auto v = c.steps.column(p);
     for (std::size_t k = 0; k < sum.size(); ++k) sum[k] += std::isfinite(v[k]) ? v[k] : 0.0;
     columns.push_back(sum);
-    names.push_back(p.substr(3));
+    std::string name = p.substr(3);
+    std::replace(name.begin(), name.end(), '_', ' ');  // gnuplot would read _ as a subscript
+    names.push_back(name);
   }
   if (names.empty()) {
     c.result.notes.push_back("Step time per phase: not drawn (steps.csv has no ms_* phase column)");
@@ -190,7 +193,7 @@ void tool_path_plot(Context& c) {
 
 bool gnuplot_installed() { return std::system("command -v gnuplot > /dev/null 2>&1") == 0; }
 
-RunPlots draw_run_plots(const StepsTable& steps, const std::filesystem::path& out_dir, std::ostream& progress) {
+RunPlots draw_run_plots(const CsvTable& steps, const std::filesystem::path& out_dir, std::ostream& progress) {
   std::filesystem::create_directories(out_dir);
   Context c{steps, out_dir, progress, {}, {}, {}};
   c.time = steps.has("time_s") ? steps.column("time_s") : steps.column("step");

@@ -4,7 +4,7 @@
 // time axis.
 #pragma once
 
-#include "report/steps_table.hpp"
+#include "report/csv_table.hpp"
 
 #include <filesystem>
 #include <ostream>
@@ -25,7 +25,7 @@ struct RunPlots {
 };
 
 // Writes one gnuplot script per plot (data inline) into out_dir and draws each PNG there.
-RunPlots draw_run_plots(const StepsTable& steps, const std::filesystem::path& out_dir, std::ostream& progress);
+RunPlots draw_run_plots(const CsvTable& steps, const std::filesystem::path& out_dir, std::ostream& progress);
 
 bool gnuplot_installed();
 

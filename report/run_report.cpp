@@ -3,7 +3,7 @@
 #include "report/frames_player.hpp"
 #include "report/html_page.hpp"
 #include "report/run_plots.hpp"
-#include "report/steps_table.hpp"
+#include "report/csv_table.hpp"
 #include "report/video.hpp"
 
 #include <nlohmann/json.hpp>
@@ -117,7 +117,7 @@ void plots_section(HtmlPage& page, const std::filesystem::path& run_dir, std::os
     return;
   }
   if (!gnuplot_installed()) page.note("gnuplot is not installed: the plots are not drawn (their scripts are in report/)");
-  const RunPlots plots = draw_run_plots(read_steps_csv(file), run_dir / "report", progress);
+  const RunPlots plots = draw_run_plots(read_csv_table(file), run_dir / "report", progress);
   for (const auto& p : plots.plots) page.embedded_png(p.png, p.title, p.id);
   for (const auto& n : plots.notes) page.note(n);
 }

@@ -5,3 +5,11 @@ add_test(NAME report_page
                  ${PROJECT_SOURCE_DIR}/assets/scenes/default.json ${CMAKE_CURRENT_BINARY_DIR}/report_page
                  $<TARGET_FILE:report_screenshot_check>)
 set_tests_properties(report_page PROPERTIES TIMEOUT 600 SKIP_RETURN_CODE 77 LABELS "report")
+
+# `bench performance` writes a page of its own (issue 33); checked on a recorded CSV, since
+# the bench itself takes minutes.
+add_test(NAME report_bench_performance
+         COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/performance_report.sh $<TARGET_FILE:incise>
+                 ${CMAKE_CURRENT_LIST_DIR}/performance_sample.csv ${CMAKE_CURRENT_BINARY_DIR}/report_bench_performance
+                 $<TARGET_FILE:report_screenshot_check>)
+set_tests_properties(report_bench_performance PROPERTIES TIMEOUT 300 SKIP_RETURN_CODE 77 LABELS "report")

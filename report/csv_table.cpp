@@ -1,10 +1,9 @@
-#include "report/steps_table.hpp"
+#include "report/csv_table.hpp"
 
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <limits>
-#include <sstream>
 #include <stdexcept>
 
 namespace incise::report {
@@ -12,11 +11,21 @@ namespace incise::report {
 namespace {
 
 std::vector<std::string> split_fields(const std::string& line) {
-  std::vector<std::string> fields;
-  std::stringstream in(line);
-  std::string field;
-  while (std::getline(in, field, ',')) fields.push_back(field);
-  if (!line.empty() && line.back() == ',') fields.emplace_back();
+  std::vector<std::string> fields(1);
+  bool quoted = false;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (c == '"' && quoted && i + 1 < line.size() && line[i + 1] == '"') {
+      fields.back() += '"';
+      ++i;
+    } else if (c == '"') {
+      quoted = !quoted;
+    } else if (c == ',' && !quoted) {
+      fields.emplace_back();
+    } else {
+      fields.back() += c;
+    }
+  }
   return fields;
 }
 
@@ -28,13 +37,13 @@ double number_or_nan(const std::string& field) {
 
 }  // namespace
 
-std::optional<std::size_t> StepsTable::index(const std::string& column) const {
+std::optional<std::size_t> CsvTable::index(const std::string& column) const {
   for (std::size_t i = 0; i < columns.size(); ++i)
     if (columns[i] == column) return i;
   return std::nullopt;
 }
 
-std::vector<double> StepsTable::column(const std::string& name) const {
+std::vector<double> CsvTable::column(const std::string& name) const {
   std::vector<double> values;
   const auto i = index(name);
   if (!i) return values;
@@ -43,10 +52,10 @@ std::vector<double> StepsTable::column(const std::string& name) const {
   return values;
 }
 
-StepsTable read_steps_csv(const std::filesystem::path& file) {
+CsvTable read_csv_table(const std::filesystem::path& file) {
   std::ifstream in(file);
   if (!in) throw std::runtime_error(file.string() + ": cannot read");
-  StepsTable table;
+  CsvTable table;
   std::string line;
   if (!std::getline(in, line) || line.empty()) throw std::runtime_error(file.string() + ": no header line");
   if (line.back() == '\r') line.pop_back();
@@ -54,9 +63,11 @@ StepsTable read_steps_csv(const std::filesystem::path& file) {
   while (std::getline(in, line)) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.empty()) continue;
+    std::vector<std::string> fields = split_fields(line);
     std::vector<double> row;
-    for (const auto& field : split_fields(line)) row.push_back(number_or_nan(field));
+    for (const auto& field : fields) row.push_back(number_or_nan(field));
     table.rows.push_back(std::move(row));
+    table.text.push_back(std::move(fields));
   }
   return table;
 }

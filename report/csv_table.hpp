@@ -1,6 +1,7 @@
-// A run's steps.csv read back by column name: the report plots whichever columns the run
-// wrote, so a column added or missing (tool positions, a newer phase) changes a plot, not
-// whether the page is made.
+// A CSV report read back by column name (a run's steps.csv, a benchmark's table): the report
+// plots whichever columns were written, so a column added or missing (tool positions, a newer
+// phase) changes a plot, not whether the page is made. Fields may be double-quoted (a GPU's
+// name holds commas).
 #pragma once
 
 #include <filesystem>
@@ -10,9 +11,10 @@
 
 namespace incise::report {
 
-struct StepsTable {
+struct CsvTable {
   std::vector<std::string> columns;
   std::vector<std::vector<double>> rows;  // a field that is not a number reads as NaN
+  std::vector<std::vector<std::string>> text;  // the same fields as written, quotes removed
 
   std::optional<std::size_t> index(const std::string& column) const;
   bool has(const std::string& column) const { return index(column).has_value(); }
@@ -21,6 +23,6 @@ struct StepsTable {
 };
 
 // Throws std::runtime_error naming the file if it cannot be read or has no header.
-StepsTable read_steps_csv(const std::filesystem::path& file);
+CsvTable read_csv_table(const std::filesystem::path& file);
 
 }  // namespace incise::report
