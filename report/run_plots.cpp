@@ -21,11 +21,11 @@ std::string script_head(const std::string& png, const std::string& title, const 
          "'\nset grid lc rgb '#dddddd'\nset key outside right top\nset border lw 1.2\n";
 }
 
-// `$data` with one row per step, the columns given (NaN where unknown).
-std::string inline_data(const Columns& columns) {
+// A gnuplot datablock (`$data` unless named) with one row per step, the columns given (NaN where unknown).
+std::string inline_data(const Columns& columns, const std::string& name = "$data") {
   std::ostringstream data;
   data.precision(9);
-  data << "$data << EOD\n";
+  data << name << " << EOD\n";
   const std::size_t rows = columns.empty() ? 0 : columns.front().size();
   for (std::size_t r = 0; r < rows; ++r) {
     for (std::size_t c = 0; c < columns.size(); ++c) {
@@ -169,31 +169,48 @@ void cuts_plot(Context& c) {
              "'' using 1:3 axes x1y2 with points pt 7 ps 0.5 lc rgb '#404040' title 'links severed'\n");
 }
 
-// The tool's tip from above (x-y, mm), coloured by time, the steps that cut in red.
-void tool_path_plot(Context& c) {
-  if (!c.need({"tool_x", "tool_y"}, "Tool path from above")) return;
-  auto x = c.steps.column("tool_x"), y = c.steps.column("tool_y");
-  for (auto& v : x) v *= 1000.0;
-  for (auto& v : y) v *= 1000.0;
-  std::vector<double> cut_x(x.size(), NAN), cut_y(y.size(), NAN);
-  const auto cutting = cut_steps(c.steps);
-  for (std::size_t k = 0; k < cutting.size() && k < x.size(); ++k)
-    if (cutting[k] > 0) cut_x[k] = x[k], cut_y[k] = y[k];
-  c.draw("tool_path", "Tool path from above",
-         "set terminal pngcairo size 960,520 font ',10' background rgb '#ffffff'\nset output 'tool_path.png'\n"
-         "set title 'Tool tip seen from above (colour: time; red: steps that cut)'\nset xlabel 'x (mm)'\n"
-         "set ylabel 'y (mm)'\nset size ratio -1\nset grid lc rgb '#dddddd'\nset cblabel 'time (s)'\n"
-         "set palette defined (0 '#2040a0', 1 '#20a0a0', 2 '#a0a020')\n" +
-             inline_data({c.time, x, y, cut_x, cut_y}) +
-             "plot $data using 2:3:1 with lines lw 2 lc palette title 'tool tip', "
-             "'' using 4:5 with points pt 7 ps 0.6 lc rgb '#cc0000' title 'cutting'\n");
+// The organ at rest from above (its surface, grey) under the tool tip's path (x-y, mm),
+// coloured by time, the steps that cut in red.
+void top_view_plot(Context& c, const CsvTable* rest_top) {
+  const bool path = c.steps.has("tool_x") && c.steps.has("tool_y");
+  const bool organ = rest_top && rest_top->has("x") && rest_top->has("y") && !rest_top->rows.empty();
+  if (!path) c.result.notes.push_back("Cut path from above: not drawn (steps.csv has no tool_x, tool_y columns)");
+  if (!organ && !path) return;
+  std::string data, plot;
+  if (organ) {
+    auto x = rest_top->column("x"), y = rest_top->column("y");
+    for (auto& v : x) v *= 1000.0;
+    for (auto& v : y) v *= 1000.0;
+    data += inline_data({x, y}, "$rest");
+    plot += "$rest using 1:2 with points pt 7 ps 0.35 lc rgb '#c8c8c8' title 'organ at rest'";
+  }
+  if (path) {
+    auto x = c.steps.column("tool_x"), y = c.steps.column("tool_y");
+    for (auto& v : x) v *= 1000.0;
+    for (auto& v : y) v *= 1000.0;
+    std::vector<double> cut_x(x.size(), NAN), cut_y(y.size(), NAN);
+    const auto cutting = cut_steps(c.steps);
+    for (std::size_t k = 0; k < cutting.size() && k < x.size(); ++k)
+      if (cutting[k] > 0) cut_x[k] = x[k], cut_y[k] = y[k];
+    data += inline_data({c.time, x, y, cut_x, cut_y});
+    plot += std::string(organ ? ", " : "") + "$data using 2:3:1 with lines lw 2 lc palette title 'tool tip', "
+            "'' using 4:5 with points pt 7 ps 0.6 lc rgb '#cc0000' title 'cutting'";
+  }
+  c.draw("top_view", "From above: the organ at rest and the cut path",
+         "set terminal pngcairo size 960,520 font ',10' background rgb '#ffffff'\nset output 'top_view.png'\n"
+         "set title 'From above: the organ at rest" + std::string(path ? ", the tool tip (colour: time; red: steps that cut)" : "") +
+             "'\nset xlabel 'x (mm)'\nset ylabel 'y (mm)'\nset size ratio -1\nset grid lc rgb '#dddddd'\n"
+             "set key outside right top\nset cblabel 'time (s)'\n"
+             "set palette defined (0 '#2040a0', 1 '#20a0a0', 2 '#a0a020')\n" +
+             data + "plot " + plot + "\n");
 }
 
 }  // namespace
 
 bool gnuplot_installed() { return std::system("command -v gnuplot > /dev/null 2>&1") == 0; }
 
-RunPlots draw_run_plots(const CsvTable& steps, const std::filesystem::path& out_dir, std::ostream& progress) {
+RunPlots draw_run_plots(const CsvTable& steps, const CsvTable* rest_top, const std::filesystem::path& out_dir,
+                        std::ostream& progress) {
   std::filesystem::create_directories(out_dir);
   Context c{steps, out_dir, progress, {}, {}, {}};
   c.time = steps.has("time_s") ? steps.column("time_s") : steps.column("step");
@@ -207,7 +224,7 @@ RunPlots draw_run_plots(const CsvTable& steps, const std::filesystem::path& out_
   single_series_plot(c, "energy", "Energy", "energy (J)",
                      {{"elastic_energy_J", "elastic"}, {"kinetic_energy_J", "kinetic"}});
   cuts_plot(c);
-  tool_path_plot(c);
+  top_view_plot(c, rest_top);
   return std::move(c.result);
 }
 

@@ -1,6 +1,6 @@
 // The plots of one run, drawn by gnuplot from steps.csv: tool force, step time per phase,
-// CG iterations, energy, cut events and (when steps.csv has tool_x, tool_y) the tool's path
-// seen from above. Steps that cut (steps.csv cut_event, or links_severed) are shaded on every
+// CG iterations, energy, cut events, and the organ at rest from above (rest_top.csv) under
+// the tool's path (when steps.csv has tool_x, tool_y). Steps that cut (steps.csv cut_event, or links_severed) are shaded on every
 // time axis.
 #pragma once
 
@@ -25,7 +25,9 @@ struct RunPlots {
 };
 
 // Writes one gnuplot script per plot (data inline) into out_dir and draws each PNG there.
-RunPlots draw_run_plots(const CsvTable& steps, const std::filesystem::path& out_dir, std::ostream& progress);
+// rest_top (the run's rest_top.csv: x,y of the surface at rest) may be null.
+RunPlots draw_run_plots(const CsvTable& steps, const CsvTable* rest_top, const std::filesystem::path& out_dir,
+                        std::ostream& progress);
 
 bool gnuplot_installed();
 

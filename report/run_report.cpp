@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -117,7 +118,9 @@ void plots_section(HtmlPage& page, const std::filesystem::path& run_dir, std::os
     return;
   }
   if (!gnuplot_installed()) page.note("gnuplot is not installed: the plots are not drawn (their scripts are in report/)");
-  const RunPlots plots = draw_run_plots(read_csv_table(file), run_dir / "report", progress);
+  std::optional<CsvTable> rest_top;
+  if (std::filesystem::exists(run_dir / "rest_top.csv")) rest_top = read_csv_table(run_dir / "rest_top.csv");
+  const RunPlots plots = draw_run_plots(read_csv_table(file), rest_top ? &*rest_top : nullptr, run_dir / "report", progress);
   for (const auto& p : plots.plots) page.embedded_png(p.png, p.title, p.id);
   for (const auto& n : plots.notes) page.note(n);
 }

@@ -13,3 +13,10 @@ add_test(NAME report_bench_performance
                  ${CMAKE_CURRENT_LIST_DIR}/performance_sample.csv ${CMAKE_CURRENT_BINARY_DIR}/report_bench_performance
                  $<TARGET_FILE:report_screenshot_check>)
 set_tests_properties(report_bench_performance PROPERTIES TIMEOUT 300 SKIP_RETURN_CODE 77 LABELS "report")
+
+# A hand-written run folder: tool positions in steps.csv (the cut path over the organ from
+# above), a score.json, a failed expectation, no frames.
+add_test(NAME report_synthetic_run
+         COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/report_synthetic.sh $<TARGET_FILE:incise>
+                 ${CMAKE_CURRENT_BINARY_DIR}/report_synthetic_run)
+set_tests_properties(report_synthetic_run PROPERTIES TIMEOUT 120 SKIP_RETURN_CODE 77 LABELS "report")
