@@ -19,6 +19,7 @@ th { background: #e4e2dc; }
 tr.pass td { background: #d9f2d9; }
 tr.fail td { background: #f8d0d0; font-weight: bold; }
 img.plot { display: block; max-width: 100%; height: auto; background: #fff; margin: 0.6em 0; border: 1px solid #ccc; }
+pre { background: #fff; border: 1px solid #ccc; padding: 0.5em; font-size: 0.85em; white-space: pre-wrap; }
 .note { background: #fff6d5; border-left: 4px solid #d9a400; padding: 0.3em 0.7em; }
 .strip { display: flex; flex-wrap: wrap; gap: 4px; }
 .strip figure { margin: 0; font-size: 0.8em; text-align: center; }
@@ -83,6 +84,8 @@ void HtmlPage::heading(const std::string& text, int level) {
 }
 
 void HtmlPage::paragraph(const std::string& text) { body_ += "<p>" + html_escaped(text) + "</p>\n"; }
+
+void HtmlPage::preformatted(const std::string& text) { body_ += "<pre>" + html_escaped(text) + "</pre>\n"; }
 
 void HtmlPage::note(const std::string& text) { body_ += "<p class=\"note\">" + html_escaped(text) + "</p>\n"; }
 

@@ -27,6 +27,8 @@ class HtmlPage {
 
   void heading(const std::string& text, int level = 2);
   void paragraph(const std::string& text);
+  // Text laid out by its writer (a benchmark's summary), kept as is in a monospaced block.
+  void preformatted(const std::string& text);
   // A notice of something missing (no gnuplot, no frames): said on the page, not an error.
   void note(const std::string& text);
   // Trusted markup written as is (the player, the video tag).

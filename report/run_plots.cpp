@@ -18,7 +18,8 @@ std::string script_head(const std::string& png, const std::string& title, const 
                         const std::string& ylabel) {
   return "set terminal pngcairo size 960,340 font ',10' background rgb '#ffffff'\n"
          "set output '" + png + "'\nset title '" + title + "'\nset xlabel '" + xlabel + "'\nset ylabel '" + ylabel +
-         "'\nset grid lc rgb '#dddddd'\nset key outside right top\nset border lw 1.2\n";
+         "'\nset grid lc rgb '#dddddd'\nset key outside right top\nset border lw 1.2\n"
+         "set autoscale xfix\n";  // every time axis spans the run exactly, so the plots line up
 }
 
 // A gnuplot datablock (`$data` unless named) with one row per step, the columns given (NaN where unknown).

@@ -28,7 +28,7 @@ while read -r ref; do
   [ -e "$run/$ref" ] || fail "the page refers to $ref, which is not in $run"
 done <<< "$refs"
 plots=$(grep -c '<img class="plot"' "$page")
-[ "$plots" -ge 5 ] || fail "expected at least 5 plots on the page, found $plots"
+[ "$plots" -ge 6 ] || fail "expected at least 6 plots on the page, found $plots"
 grep -q '<tr class="pass">' "$page" || fail "no passed expectation on the page"
 
 # The video: H.264 in yuv420p from the 7 frames (steps 0, 10, ..., 60).
@@ -68,7 +68,7 @@ timeout 120 "${headless[@]}" --dump-dom "file://$page#layout" > "$work/dom.html"
 sed -n '/<pre id="layout">/,/<\/pre>/p' "$work/dom.html" | sed -E 's/<[^>]*>//g' > "$work/layout.txt"
 echo "plots on the page (id x y width height):"
 cat "$work/layout.txt"
-"$check" "$work/shot.png" "$work/layout.txt" 5
+"$check" "$work/shot.png" "$work/layout.txt" 6
 
 if [ -n "$docs_png" ]; then
   # The README's picture: the top of the page at half scale, kept small.
