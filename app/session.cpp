@@ -5,6 +5,7 @@
 #include "app/commands.hpp"
 
 #include "engine/haptic_session.hpp"
+#include "engine/replay.hpp"
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
 #include "haptics/virtual_device.hpp"
@@ -45,7 +46,9 @@ int session(const SessionArgs& args) {
     device.set_pose(pose);
   };
   engine::HapticSession run(scene, device, options);
-  for (long k = 0; k < steps; ++k) run.step();
+  std::vector<engine::StepStats> stats;
+  stats.reserve(static_cast<std::size_t>(steps));
+  for (long k = 0; k < steps; ++k) stats.push_back(run.step());
   run.stop();
 
   const auto& world = run.world();
@@ -58,6 +61,8 @@ int session(const SessionArgs& args) {
   out << report.dump(2) << "\n";
   out.close();  // before --report reads it back
   if (!out) throw std::runtime_error(file.string() + ": cannot write");
+  // The same per-step table as a replay's, for the report's plots.
+  engine::write_steps_csv(std::filesystem::path(args.out) / "steps.csv", stats, scene.solver.dt);
   if (!args.record.empty()) engine::write_session_summary(run, args.record + ".json");
   if (!args.quiet) {
     std::printf("session %s: %llu steps, %zu ticks, %ld cut events, %s triangles, max |F| %.3f N\n", scene.name.c_str(),

@@ -602,29 +602,6 @@ Json expect_json(const Scene& scene, const Json& metrics) {
   return expect;
 }
 
-// steps.csv, one row per step for plots and review: where time went and what the tool felt.
-void write_steps_csv(const std::filesystem::path& file, const std::vector<StepStats>& stats, double dt) {
-  common::CsvWriter steps_csv(
-      file,
-      {"step", "time_s", "ms_total", "ms_tool_input", "ms_contact", "ms_solve", "ms_surface", "cg_iterations",
-       "cg_residual", "contacts", "tool_force_x", "tool_force_y", "tool_force_z", "elastic_energy_J",
-       "kinetic_energy_J", "ms_ccd", "ms_topology", "links_severed", "ms_rest_cut", "ms_reselect",
-       "ms_surface_rebuild", "ms_mapping", "ms_checks", "ms_front_cut", "ms_front_wait", "preconditioner",
-       "ms_per_iteration", "preconditioner_age", "preconditioner_build_ms", "preconditioner_wait_ms", "cg_budget_stops",
-       "cut_event"});
-  for (std::size_t k = 0; k < stats.size(); ++k) {
-    const auto& s = stats[k];
-    steps_csv.row(k + 1, static_cast<double>(k + 1) * dt, s.ms_total, s.ms_tool_input, s.ms_contact,
-                  s.ms_solve, s.ms_surface, s.cg_iterations, s.cg_residual, s.contacts, s.tool_force[0],
-                  s.tool_force[1], s.tool_force[2], s.elastic_energy, s.kinetic_energy, s.ms_ccd, s.ms_topology,
-                  s.links_severed, s.ms_rest_cut, s.ms_reselect, s.ms_surface_rebuild, s.ms_mapping, s.ms_checks,
-                  s.ms_front_cut, s.ms_front_wait, s.preconditioner,
-                  s.cg_iterations > 0 ? s.ms_solve / s.cg_iterations : 0.0, s.preconditioner_age,
-                  s.preconditioner_build_ms, s.preconditioner_wait_ms, s.cg_budget_stops,
-                  s.cut_event ? 1 : 0);
-  }
-}
-
 // rest_top.csv: the organ at rest seen from above for the report (its surface's vertices
 // before the first step, x and y, one per 0.5 mm cell so a fine surface stays a small file).
 void write_rest_top_csv(const std::filesystem::path& file, const World& world) {
@@ -651,6 +628,29 @@ void write_metrics_json(const std::filesystem::path& file, const Json& metrics) 
 }
 
 }  // namespace
+
+// steps.csv, one row per step for plots and review: where time went and what the tool felt.
+void write_steps_csv(const std::filesystem::path& file, const std::vector<StepStats>& stats, double dt) {
+  common::CsvWriter steps_csv(
+      file,
+      {"step", "time_s", "ms_total", "ms_tool_input", "ms_contact", "ms_solve", "ms_surface", "cg_iterations",
+       "cg_residual", "contacts", "tool_force_x", "tool_force_y", "tool_force_z", "elastic_energy_J",
+       "kinetic_energy_J", "ms_ccd", "ms_topology", "links_severed", "ms_rest_cut", "ms_reselect",
+       "ms_surface_rebuild", "ms_mapping", "ms_checks", "ms_front_cut", "ms_front_wait", "preconditioner",
+       "ms_per_iteration", "preconditioner_age", "preconditioner_build_ms", "preconditioner_wait_ms", "cg_budget_stops",
+       "cut_event"});
+  for (std::size_t k = 0; k < stats.size(); ++k) {
+    const auto& s = stats[k];
+    steps_csv.row(k + 1, static_cast<double>(k + 1) * dt, s.ms_total, s.ms_tool_input, s.ms_contact,
+                  s.ms_solve, s.ms_surface, s.cg_iterations, s.cg_residual, s.contacts, s.tool_force[0],
+                  s.tool_force[1], s.tool_force[2], s.elastic_energy, s.kinetic_energy, s.ms_ccd, s.ms_topology,
+                  s.links_severed, s.ms_rest_cut, s.ms_reselect, s.ms_surface_rebuild, s.ms_mapping, s.ms_checks,
+                  s.ms_front_cut, s.ms_front_wait, s.preconditioner,
+                  s.cg_iterations > 0 ? s.ms_solve / s.cg_iterations : 0.0, s.preconditioner_age,
+                  s.preconditioner_build_ms, s.preconditioner_wait_ms, s.cg_budget_stops,
+                  s.cut_event ? 1 : 0);
+  }
+}
 
 ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
   Json trajectory_json;

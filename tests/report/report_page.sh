@@ -2,7 +2,7 @@
 # issue 33: a short replay with --report, its page rendered by headless Chromium and checked.
 #   report_page.sh INCISE SCENE WORKDIR SCREENSHOT_CHECK [DOCS_PNG]
 # Asserts: report.html and replay.mp4 (H.264, yuv420p) are written; the page refers to nothing
-# outside the run folder; `incise report` refuses a folder that is not a run and reports a
+# outside the run folder; `incise report` refuses a folder that is not a run and plots a
 # session's; Chromium loads
 # the page with no console error; the screenshot is not uniform and each plot's region holds
 # a plot. With DOCS_PNG, also writes the README's small screenshot there.
@@ -39,10 +39,13 @@ if command -v ffprobe > /dev/null; then
   echo "replay.mp4: $probe"
 fi
 
-# A session's folder (session.json, no steps.csv or frames): the page says what is missing.
+# A session's folder (session.json and steps.csv, no frames): plotted, the frames said missing.
 "$incise" session "$(dirname "$scene")/haptics_block.json" --steps 20 --out "$work/session" --report --quiet
 grep -q 'Haptic session, 20 steps' "$work/session/report.html" || fail "the session's page does not describe it"
-grep -q 'no steps.csv in the run folder' "$work/session/report.html" || fail "the session's page does not say steps.csv is missing"
+[ "$(wc -l < "$work/session/steps.csv")" -eq 21 ] || fail "the session's steps.csv has not 20 rows"
+session_plots=$(grep -c '<img class="plot"' "$work/session/report.html")
+[ "$session_plots" -ge 5 ] || fail "the session's page has $session_plots plots"
+grep -q 'no frames were captured' "$work/session/report.html" || fail "the session's page does not say it has no frames"
 
 # Not a run folder: refused, the missing file named.
 mkdir -p "$work/empty"
