@@ -59,8 +59,8 @@ void flatten(const Json& value, const std::string& name, std::vector<TableRow>& 
   }
 }
 
-// The scene's own words. scene_file is as the run was given it (relative to where it ran),
-// so it is tried as written and then beside the run folder's parent.
+// The scene's own words. scene_file is as the run was given it (relative to where it ran):
+// `incise report` run from elsewhere may not find it, and the page then says so.
 void scene_section(HtmlPage& page, const Json& metrics) {
   const std::string name = metrics.value("scene", std::string("(unnamed)"));
   const std::string file = metrics.value("scene_file", std::string());
