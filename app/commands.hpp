@@ -58,7 +58,17 @@ struct SynthArgs {
   double approach_height = 0.04;  // m above the contact point
 };
 
+// `incise batch`: a manifest's jobs, this process's shard of them (app/batch.cpp).
+struct BatchArgs {
+  std::string manifest;
+  std::string out = "out/batch";
+  std::string shard;  // "I/N"; empty: every job (or this MPI rank's shard)
+  bool list = false;  // check the manifest and print its jobs; run nothing
+};
+
 int replay(const ReplayArgs& args);
+int batch_run(const BatchArgs& args);
+int batch_merge(const std::string& dir);
 int check(const std::string& scene_file);
 int run(const RunArgs& args);
 int session(const SessionArgs& args);

@@ -109,6 +109,16 @@ int main(int argc, char** argv) {
   synth_cmd->add_option("--stroke-seconds", synth.stroke_seconds, "Duration of the stroke")->capture_default_str();
   synth_cmd->add_option("--release-seconds", synth.release_seconds, "Duration of the release")->capture_default_str();
 
+  incise::app::BatchArgs batch;
+  auto* batch_cmd = app.add_subcommand("batch", "Run a manifest's jobs (replays, sweeps of scene overrides) as shards or MPI ranks; see docs/batch.md");
+  batch_cmd->add_option("manifest", batch.manifest, "Batch manifest (JSON)");
+  batch_cmd->add_option("--out", batch.out, "Output folder (jobs/NAME/, jobs.json, summary.csv, summary.png)")->capture_default_str();
+  batch_cmd->add_option("--shard", batch.shard, "Run the I-th of N interleaved slices of the jobs, e.g. 0/4");
+  batch_cmd->add_flag("--list", batch.list, "Check the manifest and print its jobs (index, name, overrides); run nothing");
+  std::string merge_dir;
+  auto* merge_cmd = batch_cmd->add_subcommand("merge", "Gather a batch's outcomes into DIR/summary.csv and summary.png");
+  merge_cmd->add_option("dir", merge_dir, "The batch's --out folder")->required();
+
   auto* bench_cmd = app.add_subcommand("bench", "Benchmarks that print figures and write reports (CSV, PNG)");
   bench_cmd->require_subcommand(1);
   bool accuracy_quick = false, stability_quick = false, stability_resume = false;
@@ -156,6 +166,8 @@ int main(int argc, char** argv) {
 
   try {
     if (*replay_cmd) return incise::app::replay(replay);
+    if (*merge_cmd) return incise::app::batch_merge(merge_dir);
+    if (*batch_cmd) return incise::app::batch_run(batch);
     if (*check_cmd) return incise::app::check(check_scene);
     if (*run_cmd) return incise::app::run(run);
     if (*session_cmd) return incise::app::session(session);

@@ -11,6 +11,7 @@
 // from the scene's initial state on the physics thread, so every recording starts at t = 0
 // and replays headless to the same state (its summary FILE.json says how many steps).
 #include "app/commands.hpp"
+#include "app/window_physics.hpp"
 
 #include "engine/haptic_session.hpp"
 #include "engine/publication.hpp"
@@ -27,14 +28,12 @@
 #include "render/window.hpp"
 
 #include <imgui.h>
-#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <thread>
 
 namespace incise::app {
@@ -42,43 +41,6 @@ namespace incise::app {
 namespace {
 
 using SteadyClock = std::chrono::steady_clock;
-
-struct LiveSnapshot {
-  render::Frame frame;
-  engine::StepStats stats;
-  double time = 0;
-  std::uint64_t step = 0;
-  double real_time_factor = 0;
-  long cut_events = 0;
-  std::size_t triangles = 0;
-  bool recording = false;
-  std::string recording_file;
-  int session = 0;  // counts restarts
-  // Where physics' time went since the session (re)started: sums over its steps, in ms, of the
-  // cut (CCD and topology), contact, solve and surface phases and the whole step; CG
-  // iterations; steps whose CG the real-time budget stopped.
-  struct Totals {
-    double ms_cut = 0, ms_contact = 0, ms_solve = 0, ms_surface = 0, ms_step = 0, cg_iterations = 0;
-    std::uint64_t steps = 0, over_budget = 0;
-    void add(const engine::StepStats& stats) {
-      ms_cut += stats.ms_ccd + stats.ms_topology;
-      ms_contact += stats.ms_contact;
-      ms_solve += stats.ms_solve;
-      ms_surface += stats.ms_surface;
-      ms_step += stats.ms_total;
-      cg_iterations += stats.cg_iterations;
-      over_budget += stats.cg_budget_stops > 0 ? 1 : 0;
-      ++steps;
-    }
-  } totals;
-};
-
-// Requests from the panels to the physics thread (plain values: the queue never allocates).
-struct Request {
-  enum class Kind { apply_parameters, record_start, record_stop } kind = Kind::apply_parameters;
-  double youngs_modulus = 0, poisson_ratio = 0, tolerance = 0;
-  int max_iterations = 0;
-};
 
 // A history for ImGui::PlotLines.
 struct Plot {
@@ -126,35 +88,25 @@ std::optional<haptics::Vector3> cursor_on_plane(const render::Camera& camera, in
   return haptics::Vector3{camera.eye[0] + s * dir[0], camera.eye[1] + s * dir[1], plane_z};
 }
 
-std::filesystem::path numbered(const std::filesystem::path& base, int k) {
-  if (k <= 1) return base;
-  return base.parent_path() / (base.stem().string() + "_" + std::to_string(k) + base.extension().string());
-}
 
-}  // namespace
-
-int run(const RunArgs& args) {
-  engine::Scene scene = engine::load_scene(args.scene);
-  if (!scene.tool) throw std::runtime_error(args.scene + ": the window drives the scene's tool; this scene has none");
-  render::Window window(scene.render.width, scene.render.height, "incise - " + scene.name);
-  const int width = window.framebuffer_width(), height = window.framebuffer_height();
-
-  // The devices. The workspace covers the scene with a margin.
-  haptics::DeviceLimits limits;
+// The device the window reads: the mouse (a VirtualDevice), a recorded trajectory, or a UDP
+// bridge. The workspace covers the scene with a margin: bounds from a throwaway world would
+// cost a build; a generous box around the origin is enough.
+struct Devices {
   std::unique_ptr<haptics::Device> device;
   haptics::VirtualDevice* mouse = nullptr;
   haptics::UdpDevice* udp = nullptr;
-  double top = 0;
-  {
-    // Bounds from a throwaway world would cost a build; the scene's camera target and the
-    // generators are enough for the workspace: take a generous box around the origin.
-    limits.workspace_min = {-0.25, -0.25, -0.05};
-    limits.workspace_max = {0.25, 0.25, 0.3};
-  }
+};
+
+Devices open_device(const RunArgs& args) {
+  haptics::DeviceLimits limits;
+  limits.workspace_min = {-0.25, -0.25, -0.05};
+  limits.workspace_max = {0.25, 0.25, 0.3};
+  Devices d;
   if (args.device == "virtual") {
     auto v = std::make_unique<haptics::VirtualDevice>(limits);
-    mouse = v.get();
-    device = std::move(v);
+    d.mouse = v.get();
+    d.device = std::move(v);
   } else if (args.device == "replay") {
     if (args.play.empty()) throw std::runtime_error("--device replay needs --play FILE");
     const engine::Trajectory played = engine::read_trajectory(args.play);
@@ -164,7 +116,7 @@ int run(const RunArgs& args) {
       poses.push_back({s.time, {s.position, s.orientation, s.buttons & engine::kToolButtonEngaged}});
     }
     if (poses.empty()) throw std::runtime_error(args.play + ": holds no sample");
-    device = std::make_unique<haptics::ReplayDevice>(std::move(poses), limits);
+    d.device = std::make_unique<haptics::ReplayDevice>(std::move(poses), limits);
   } else {
     haptics::UdpDeviceConfig config;
     config.address = args.udp_bind;
@@ -172,311 +124,258 @@ int run(const RunArgs& args) {
     config.port = static_cast<std::uint16_t>(args.udp_port);
     config.limits = limits;
     auto u = std::make_unique<haptics::UdpDevice>(config);
-    udp = u.get();
-    device = std::move(u);
+    d.udp = u.get();
+    d.device = std::move(u);
   }
+  return d;
+}
 
-  std::optional<std::array<int, 4>> drag;
-  double drag_depth = 0;
-  if (!args.script_drag.empty()) {
+// Turns the cursor (or a scripted drag, for tests) into the virtual device's pose: the point
+// under the cursor on a horizontal plane, first 5 mm above the body's top, moved by the wheel.
+class MouseDriver {
+ public:
+  MouseDriver(const RunArgs& args, bool mouse) : span_(args.frames) {
+    if (args.script_drag.empty()) return;
     if (!mouse) throw std::runtime_error("--script-drag drives the virtual device: use --device virtual");
-    drag = parse_drag(args.script_drag, drag_depth);
+    drag_ = parse_drag(args.script_drag, drag_depth_);
     if (args.frames <= 0) throw std::runtime_error("--script-drag needs --frames N (the drag spans them)");
   }
 
-  engine::SessionOptions options;
-  options.budget = scene.solver.realtime;
-  options.clock = engine::SessionOptions::Clock::realtime;
-  options.loop.spin_ns = 300'000;  // spins away the sleep's late wake-ups (physics-choices.md)
-  const std::filesystem::path record_base = args.record.empty() ? "recording.traj" : args.record;
-  int recordings = 0;
-
-  engine::LatestValue<LiveSnapshot> latest;
-  haptics::SpscRing<Request> requests(64);
-  std::atomic<bool> stop{false};
-  std::atomic<bool> ready{false};
-  std::atomic<haptics::HapticLoop*> loop_view{nullptr};  // the panels read the loop's statistics
-  std::string physics_error;
-  std::size_t triangles_at_start = 0;
-  std::string last_recording;
-
-  std::thread physics([&] {
-    engine::Scene current = scene;
-    std::unique_ptr<engine::HapticSession> session;
-    int session_count = 0;
-    bool recording = false;
-    std::filesystem::path record_file;
-    const auto begin = [&](bool record) {
-      if (session) {
-        loop_view.store(nullptr, std::memory_order_release);
-        session->stop();
-        if (recording) engine::write_session_summary(*session, record_file.string() + ".json");
-        session.reset();
-      }
-      engine::SessionOptions o = options;
-      recording = record;
-      if (record) {
-        record_file = numbered(record_base, ++recordings);
-        o.record = record_file;
-        last_recording = record_file.string();
-      }
-      session = std::make_unique<engine::HapticSession>(current, *device, o);
-      loop_view.store(&session->loop(), std::memory_order_release);
-      ++session_count;
-      if (udp) {
-        std::printf("udp device: listening on %s:%u (e.g. incise-bridge --device %s:%u)\n", args.udp_bind.c_str(),
-                    static_cast<unsigned>(udp->bound_port()), args.udp_bind.c_str(),
-                    static_cast<unsigned>(udp->bound_port()));
-        std::fflush(stdout);
-      }
-    };
-    try {
-      begin(!args.record.empty());
-      const auto& w0 = session->world();
-      for (const auto& body : w0.bodies()) triangles_at_start += body.data.surface.size();
-      LiveSnapshot::Totals totals;
-      int totals_session = -1;
-      auto publish = [&](const engine::StepStats& stats, double rtf) {
-        const engine::World& world = session->world();
-        auto& s = latest.back();
-        world.fill_frame(s.frame, width, height);
-        s.stats = stats;
-        s.time = world.time();
-        s.step = world.steps_taken();
-        s.real_time_factor = rtf;
-        s.cut_events = world.cut_totals().events;
-        s.triangles = 0;
-        for (const auto& body : world.bodies()) s.triangles += body.data.surface.size();
-        s.recording = recording;
-        s.recording_file = recording ? record_file.string() : std::string();
-        if (totals_session != session_count) totals = {}, totals_session = session_count;
-        if (stats.ms_total > 0) totals.add(stats);
-        s.session = session_count;
-        s.totals = totals;
-        latest.publish();
-      };
-      publish({}, 0);
-      ready.store(true, std::memory_order_release);
-      while (!stop.load(std::memory_order_acquire)) {
-        Request r;
-        while (requests.try_pop(r)) {
-          if (r.kind == Request::Kind::apply_parameters) {
-            for (auto& body : current.bodies) {
-              body.material.youngs_modulus = r.youngs_modulus;
-              body.material.poisson_ratio = r.poisson_ratio;
-            }
-            current.solver.tolerance = r.tolerance;
-            current.solver.max_iterations = r.max_iterations;
-            begin(false);
-          } else {
-            begin(r.kind == Request::Kind::record_start);
-          }
-        }
-        // step() waits for the haptic tick after the step's end: physics keeps to the hand's
-        // time; in real time (solver.realtime) its CG stops when the hand is a step further,
-        // otherwise it falls behind when a step takes longer than dt.
-        const engine::StepStats stats = session->step();
-        // Against the hand's clock, which starts before the world is built (t0 of the session).
-        const double wall = 1e-9 * static_cast<double>(haptics::monotonic_now_ns() - session->t0_ns());
-        publish(stats, wall > 0 ? session->world().time() / wall : 0);
-      }
-      loop_view.store(nullptr, std::memory_order_release);
-      session->stop();
-      if (recording) engine::write_session_summary(*session, record_file.string() + ".json");
-    } catch (const std::exception& e) {
-      physics_error = e.what();
-      loop_view.store(nullptr, std::memory_order_release);
-      if (session) {
-        try {
-          session->stop();
-        } catch (const std::exception&) {
-        }
-      }
-    }
-    stop.store(true, std::memory_order_release);
-  });
-
-  // Panel state (the UI's own, not the simulation's).
-  const engine::BodySpec& first_body = scene.bodies.front();
-  float youngs_kpa = static_cast<float>(first_body.material.youngs_modulus / 1000);
-  float poisson = static_cast<float>(first_body.material.poisson_ratio);
-  float tolerance_log = static_cast<float>(std::log10(scene.solver.tolerance));
-  int max_iterations = scene.solver.max_iterations;
-  Plot period_plot, force_plot, cut_plot, solve_plot, surface_plot, contact_plot;
-  std::uint64_t last_ticks = 0;
-  auto last_frame_time = SteadyClock::now();
-  std::uint64_t last_step_plotted = 0;
-  double plane_z = 0;
-  bool plane_set = false;
-  long frames = 0;
-  double draw_ms = 0;  // drawing and presenting the frames (llvmpipe draws on the CPUs physics uses)
-  double drag_end_sim_time = -1;
-  const auto session_start = SteadyClock::now();
-
-  while (!ready.load(std::memory_order_acquire) && !stop.load(std::memory_order_acquire))
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  bool drag_done = false;
-  for (;;) {
-    if (window.should_close() || stop.load(std::memory_order_acquire)) break;
-    if (args.frames > 0 && frames >= args.frames) {
-      // A scripted drag: keep drawing until physics has caught up with the end of the drag.
-      if (!drag || drag_done) break;
-    }
-    latest.take();
-    const LiveSnapshot& s = latest.front();
-    if (!plane_set && !s.frame.meshes.empty()) {
+  // Once per frame, before drawing it.
+  void update(const LiveSnapshot& s, render::Window& window, haptics::VirtualDevice* mouse, long frames, int width,
+              int height) {
+    if (!plane_set_ && !s.frame.meshes.empty()) {
       float zmax = -1e30f;
       for (const auto& mesh : s.frame.meshes)
         for (std::size_t i = 2; i < mesh.positions.size(); i += 3) zmax = std::max(zmax, mesh.positions[i]);
-      top = zmax;
-      plane_z = top + 0.005;
-      plane_set = true;
+      top_ = zmax;
+      plane_z_ = top_ + 0.005;
+      plane_set_ = true;
     }
-
-    // The mouse (or the scripted drag) moves the virtual device.
     if (mouse) {
       std::array<double, 2> cursor = window.cursor_position();
       bool engage = false;
-      if (drag) {
-        const long span = args.frames;
-        const double f = static_cast<double>(std::min(frames, span)) / static_cast<double>(span);
-        const auto& d = *drag;
-        double u = 0;
-        if (f < 0.2) {
-          plane_z = top + 0.005 - (0.005 + drag_depth) * (f / 0.2);
-          engage = true;
-        } else if (f < 0.8) {
-          u = (f - 0.2) / 0.6;
-          plane_z = top - drag_depth;
-          engage = true;
-        } else {
-          u = 1;
-          plane_z = top + 0.01;
-        }
-        cursor = {d[0] + u * (d[2] - d[0]), d[1] + u * (d[3] - d[1])};
-        if (frames >= span && drag_end_sim_time < 0)
-          drag_end_sim_time = std::chrono::duration<double>(SteadyClock::now() - session_start).count();
+      if (drag_) {
+        cursor = scripted(frames, engage);
       } else if (!window.gui_wants_mouse()) {
-        plane_z += 0.002 * window.scroll_delta()[1];
+        plane_z_ += 0.002 * window.scroll_delta()[1];
         engage = window.mouse_button_down(render::MouseButton::left);
       }
       if (!window.gui_wants_keyboard() && window.key_down(render::keys::space)) engage = true;
-      if (auto p = cursor_on_plane(s.frame.camera, width, height, cursor[0], cursor[1], plane_z)) {
+      if (auto p = cursor_on_plane(s.frame.camera, width, height, cursor[0], cursor[1], plane_z_)) {
         haptics::DevicePose pose;
         pose.position = *p;
         pose.buttons = engage ? haptics::kButtonEngage : 0;
         mouse->set_pose(pose);
       }
     }
-    if (drag && drag_end_sim_time >= 0 && s.time >= drag_end_sim_time + 0.05) drag_done = true;
-    if (drag && drag_end_sim_time >= 0 &&
-        std::chrono::duration<double>(SteadyClock::now() - session_start).count() > drag_end_sim_time + 300)
-      drag_done = true;  // physics far too slow: give up waiting, the report says how far it got
+    const double since_start = std::chrono::duration<double>(SteadyClock::now() - start_).count();
+    if (drag_ && drag_end_time_ >= 0 && s.time >= drag_end_time_ + 0.05) drag_done_ = true;
+    // Physics far too slow: give up waiting, the summary says how far it got.
+    if (drag_ && drag_end_time_ >= 0 && since_start > drag_end_time_ + 300) drag_done_ = true;
+  }
 
-    // Plots: per frame, the mean haptic period since the last frame and the force now; per
-    // physics step, its phases.
-    haptics::HapticLoop* loop = loop_view.load(std::memory_order_acquire);
-    haptics::TickSample tick{};
-    haptics::PeriodStatistics periods{};
-    bool realtime = false;
+  // With --frames: a scripted drag keeps drawing until physics has caught up with its end.
+  bool done(long frames) const { return span_ > 0 && frames >= span_ && (!drag_ || drag_done_); }
+  double depth_mm() const { return 1000 * (top_ - plane_z_); }
+
+ private:
+  // Down to the drag's depth over the first fifth of the frames, across over the next three,
+  // lifted out for the last; the end's wall time marks when physics has to reach.
+  std::array<double, 2> scripted(long frames, bool& engage) {
+    const double f = static_cast<double>(std::min(frames, span_)) / static_cast<double>(span_);
+    const auto& d = *drag_;
+    double u = 0;
+    if (f < 0.2) {
+      plane_z_ = top_ + 0.005 - (0.005 + drag_depth_) * (f / 0.2);
+      engage = true;
+    } else if (f < 0.8) {
+      u = (f - 0.2) / 0.6;
+      plane_z_ = top_ - drag_depth_;
+      engage = true;
+    } else {
+      u = 1;
+      plane_z_ = top_ + 0.01;
+    }
+    if (frames >= span_ && drag_end_time_ < 0)
+      drag_end_time_ = std::chrono::duration<double>(SteadyClock::now() - start_).count();
+    return {d[0] + u * (d[2] - d[0]), d[1] + u * (d[3] - d[1])};
+  }
+
+  long span_ = 0;
+  std::optional<std::array<int, 4>> drag_;
+  double drag_depth_ = 0;
+  double drag_end_time_ = -1;  // s since start_ when the drag ended
+  bool drag_done_ = false;
+  double top_ = 0, plane_z_ = 0;
+  bool plane_set_ = false;
+  const SteadyClock::time_point start_ = SteadyClock::now();
+};
+
+// The panel: what the simulation is doing, the haptic loop's period and force, the step's
+// phases, and the requests (material and solver, record/stop). Its sliders are the UI's own
+// state, not the simulation's.
+class Panel {
+ public:
+  Panel(const engine::Scene& scene, const RunArgs& args)
+      : device_(args.device),
+        youngs_kpa_(static_cast<float>(scene.bodies.front().material.youngs_modulus / 1000)),
+        poisson_(static_cast<float>(scene.bodies.front().material.poisson_ratio)),
+        tolerance_log_(static_cast<float>(std::log10(scene.solver.tolerance))),
+        max_iterations_(scene.solver.max_iterations) {}
+
+  // Per frame, the mean haptic period since the last frame and the force now; per physics
+  // step, its phases.
+  void sample(const LiveSnapshot& s, haptics::HapticLoop* loop) {
+    tick_ = {};
+    periods_ = {};
+    realtime_ = false;
     if (loop) {
-      tick = loop->latest();
-      periods = loop->period_statistics();
-      realtime = loop->realtime();
+      tick_ = loop->latest();
+      periods_ = loop->period_statistics();
+      realtime_ = loop->realtime();
       const std::uint64_t ticks = loop->ticks();
       const auto now = SteadyClock::now();
-      const double us = std::chrono::duration<double, std::micro>(now - last_frame_time).count();
-      if (ticks > last_ticks && last_ticks > 0) period_plot.push(static_cast<float>(us / static_cast<double>(ticks - last_ticks)));
-      last_ticks = ticks;
-      last_frame_time = now;
-      force_plot.push(static_cast<float>(std::hypot(tick.force[0], tick.force[1], tick.force[2])));
+      const double us = std::chrono::duration<double, std::micro>(now - last_frame_time_).count();
+      if (ticks > last_ticks_ && last_ticks_ > 0) period_plot_.push(static_cast<float>(us / static_cast<double>(ticks - last_ticks_)));
+      last_ticks_ = ticks;
+      last_frame_time_ = now;
+      force_plot_.push(static_cast<float>(std::hypot(tick_.force[0], tick_.force[1], tick_.force[2])));
     }
-    if (s.step != last_step_plotted) {
-      last_step_plotted = s.step;
-      cut_plot.push(static_cast<float>(s.stats.ms_ccd + s.stats.ms_topology));
-      contact_plot.push(static_cast<float>(s.stats.ms_contact));
-      solve_plot.push(static_cast<float>(s.stats.ms_solve));
-      surface_plot.push(static_cast<float>(s.stats.ms_surface));
+    if (s.step != last_step_plotted_) {
+      last_step_plotted_ = s.step;
+      cut_plot_.push(static_cast<float>(s.stats.ms_ccd + s.stats.ms_topology));
+      contact_plot_.push(static_cast<float>(s.stats.ms_contact));
+      solve_plot_.push(static_cast<float>(s.stats.ms_solve));
+      surface_plot_.push(static_cast<float>(s.stats.ms_surface));
     }
+  }
 
+  void draw(const LiveSnapshot& s, double depth_mm, haptics::SpscRing<Request>& requests) {
+    ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_Always);
+    ImGui::SetNextWindowSize(ImVec2(300, 0), ImGuiCond_Always);
+    ImGui::SetNextWindowCollapsed(false, ImGuiCond_Once);
+    ImGui::SetNextWindowBgAlpha(1.0f);
+    ImGui::Begin("incise", nullptr, ImGuiWindowFlags_NoMove);
+    ImGui::Text("t = %.2f s  step %llu  x%.2f real time", s.time, static_cast<unsigned long long>(s.step), s.real_time_factor);
+    ImGui::Text("%s %s  blade %s  depth %.1f mm", device_.c_str(), haptics::to_string(tick_.state),
+                (tick_.pose.buttons & haptics::kButtonEngage) ? "ENGAGED" : "off", depth_mm);
+    ImGui::Text("cuts %ld  triangles %zu", s.cut_events, s.triangles);
+    ImGui::Text("CG %d it  r %.1e  %llu over budget", s.stats.cg_iterations, s.stats.cg_residual,
+                static_cast<unsigned long long>(s.totals.over_budget));
+    if (ImGui::CollapsingHeader("haptic loop", ImGuiTreeNodeFlags_DefaultOpen)) {
+      ImGui::Text("p50 %.0f p99 %.0f max %.0f us >2ms %llu", periods_.p50_us, periods_.p99_us, periods_.max_us,
+                  static_cast<unsigned long long>(periods_.over_2ms));
+      ImGui::Text("%s", realtime_ ? "SCHED_FIFO" : "normal priority");
+      period_plot_.draw("period", "us", 800, 1400);
+      force_plot_.draw("|F|", "N", 0, 1);
+    }
+    if (ImGui::CollapsingHeader("step time (ms)", ImGuiTreeNodeFlags_DefaultOpen)) {
+      cut_plot_.draw("cut", "ms", 0, 50);
+      contact_plot_.draw("contact", "ms", 0, 5);
+      solve_plot_.draw("solve", "ms", 0, 100);
+      surface_plot_.draw("surface", "ms", 0, 10);
+    }
+    if (ImGui::CollapsingHeader("material and solver")) draw_parameters(requests);
+    if (s.recording) {
+      ImGui::TextColored(ImVec4(1, 0.3f, 0.3f, 1), "recording %s", s.recording_file.c_str());
+      if (ImGui::Button("stop")) requests.try_push(Request{Request::Kind::record_stop});
+    } else if (ImGui::Button("record (restarts the scene)")) {
+      requests.try_push(Request{Request::Kind::record_start});
+    }
+    ImGui::TextDisabled("mouse: blade; wheel: depth");
+    ImGui::TextDisabled("left button or space: engage");
+    ImGui::End();
+  }
+
+ private:
+  void draw_parameters(haptics::SpscRing<Request>& requests) {
+    ImGui::SliderFloat("E (kPa)", &youngs_kpa_, 0.5f, 100.0f, "%.1f");
+    ImGui::SliderFloat("nu", &poisson_, 0.0f, 0.49f, "%.2f");
+    ImGui::SliderFloat("log10 tolerance", &tolerance_log_, -9.0f, -3.0f, "%.1f");
+    ImGui::SliderInt("max CG iterations", &max_iterations_, 10, 2000);
+    if (!ImGui::Button("apply (restarts the scene)")) return;
+    Request r;
+    r.kind = Request::Kind::apply_parameters;
+    r.youngs_modulus = 1000.0 * youngs_kpa_;
+    r.poisson_ratio = poisson_;
+    r.tolerance = std::pow(10.0, tolerance_log_);
+    r.max_iterations = max_iterations_;
+    requests.try_push(r);
+  }
+
+  std::string device_;
+  float youngs_kpa_, poisson_, tolerance_log_;
+  int max_iterations_;
+  Plot period_plot_, force_plot_, cut_plot_, solve_plot_, surface_plot_, contact_plot_;
+  std::uint64_t last_ticks_ = 0, last_step_plotted_ = 0;
+  SteadyClock::time_point last_frame_time_ = SteadyClock::now();
+  haptics::TickSample tick_{};
+  haptics::PeriodStatistics periods_{};
+  bool realtime_ = false;
+};
+
+// Where the time went: the real-time factor, physics' phases per step, the frames' drawing.
+void print_summary(const LiveSnapshot& last, const WindowShared& shared, long frames, double draw_ms) {
+  std::printf("window: %ld frames, physics t = %.3f s, %ld cut events, triangles %zu -> %zu\n", frames, last.time,
+              last.cut_events, shared.triangles_at_start, last.triangles);
+  const LiveSnapshot::Totals& t = last.totals;
+  const double n = std::max<double>(1, static_cast<double>(t.steps));
+  std::printf("physics: x%.2f real time, %llu steps, per step %.1f ms (cut %.1f, contact %.1f, solve %.1f with %.1f CG "
+              "iterations, surface %.1f), %llu over budget; frames: %.1f ms each to draw\n",
+              last.real_time_factor, static_cast<unsigned long long>(t.steps), t.ms_step / n, t.ms_cut / n,
+              t.ms_contact / n, t.ms_solve / n, t.cg_iterations / n, t.ms_surface / n,
+              static_cast<unsigned long long>(t.over_budget), frames > 0 ? draw_ms / static_cast<double>(frames) : 0.0);
+  if (!shared.last_recording.empty())
+    std::printf("recorded %s (summary %s.json)\n", shared.last_recording.c_str(), shared.last_recording.c_str());
+}
+
+}  // namespace
+
+int run(const RunArgs& args) {
+  engine::Scene scene = engine::load_scene(args.scene);
+  if (!scene.tool) throw std::runtime_error(args.scene + ": the window drives the scene's tool; this scene has none");
+  render::Window window(scene.render.width, scene.render.height, "incise - " + scene.name);
+  const int width = window.framebuffer_width(), height = window.framebuffer_height();
+  Devices devices = open_device(args);
+  MouseDriver driver(args, devices.mouse != nullptr);
+  Panel panel(scene, args);
+
+  WindowPhysicsSettings settings;
+  settings.options.budget = scene.solver.realtime;
+  settings.options.clock = engine::SessionOptions::Clock::realtime;
+  settings.options.loop.spin_ns = 300'000;  // spins away the sleep's late wake-ups (physics-choices.md)
+  settings.record_base = args.record.empty() ? "recording.traj" : args.record;
+  settings.record_at_start = !args.record.empty();
+  settings.width = width;
+  settings.height = height;
+  settings.udp = devices.udp;
+  settings.udp_bind = args.udp_bind;
+  WindowShared shared;
+  std::thread physics([&] { run_window_physics(scene, *devices.device, settings, shared); });
+
+  while (!shared.ready.load(std::memory_order_acquire) && !shared.stop.load(std::memory_order_acquire))
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  long frames = 0;
+  double draw_ms = 0;  // drawing and presenting the frames (llvmpipe draws on the CPUs physics uses)
+  while (!window.should_close() && !shared.stop.load(std::memory_order_acquire) && !driver.done(frames)) {
+    shared.latest.take();
+    const LiveSnapshot& s = shared.latest.front();
+    driver.update(s, window, devices.mouse, frames, width, height);
+    panel.sample(s, shared.loop_view.load(std::memory_order_acquire));
     const auto draw_start = SteadyClock::now();
-    window.draw(s.frame, [&] {
-      ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_Always);
-      ImGui::SetNextWindowSize(ImVec2(300, 0), ImGuiCond_Always);
-      ImGui::SetNextWindowCollapsed(false, ImGuiCond_Once);
-      ImGui::SetNextWindowBgAlpha(1.0f);
-      ImGui::Begin("incise", nullptr, ImGuiWindowFlags_NoMove);
-      ImGui::Text("t = %.2f s  step %llu  x%.2f real time", s.time, static_cast<unsigned long long>(s.step),
-                  s.real_time_factor);
-      ImGui::Text("%s %s  blade %s  depth %.1f mm", args.device.c_str(), haptics::to_string(tick.state),
-                  (tick.pose.buttons & haptics::kButtonEngage) ? "ENGAGED" : "off", 1000 * (top - plane_z));
-      ImGui::Text("cuts %ld  triangles %zu", s.cut_events, s.triangles);
-      ImGui::Text("CG %d it  r %.1e  %llu over budget", s.stats.cg_iterations, s.stats.cg_residual,
-                  static_cast<unsigned long long>(s.totals.over_budget));
-      if (ImGui::CollapsingHeader("haptic loop", ImGuiTreeNodeFlags_DefaultOpen)) {
-        ImGui::Text("p50 %.0f p99 %.0f max %.0f us >2ms %llu", periods.p50_us, periods.p99_us, periods.max_us,
-                    static_cast<unsigned long long>(periods.over_2ms));
-        ImGui::Text("%s", realtime ? "SCHED_FIFO" : "normal priority");
-        period_plot.draw("period", "us", 800, 1400);
-        force_plot.draw("|F|", "N", 0, 1);
-      }
-      if (ImGui::CollapsingHeader("step time (ms)", ImGuiTreeNodeFlags_DefaultOpen)) {
-        cut_plot.draw("cut", "ms", 0, 50);
-        contact_plot.draw("contact", "ms", 0, 5);
-        solve_plot.draw("solve", "ms", 0, 100);
-        surface_plot.draw("surface", "ms", 0, 10);
-      }
-      if (ImGui::CollapsingHeader("material and solver")) {
-        ImGui::SliderFloat("E (kPa)", &youngs_kpa, 0.5f, 100.0f, "%.1f");
-        ImGui::SliderFloat("nu", &poisson, 0.0f, 0.49f, "%.2f");
-        ImGui::SliderFloat("log10 tolerance", &tolerance_log, -9.0f, -3.0f, "%.1f");
-        ImGui::SliderInt("max CG iterations", &max_iterations, 10, 2000);
-        if (ImGui::Button("apply (restarts the scene)")) {
-          Request r;
-          r.kind = Request::Kind::apply_parameters;
-          r.youngs_modulus = 1000.0 * youngs_kpa;
-          r.poisson_ratio = poisson;
-          r.tolerance = std::pow(10.0, tolerance_log);
-          r.max_iterations = max_iterations;
-          requests.try_push(r);
-        }
-      }
-      if (s.recording) {
-        ImGui::TextColored(ImVec4(1, 0.3f, 0.3f, 1), "recording %s", s.recording_file.c_str());
-        if (ImGui::Button("stop")) requests.try_push(Request{Request::Kind::record_stop});
-      } else if (ImGui::Button("record (restarts the scene)")) {
-        requests.try_push(Request{Request::Kind::record_start});
-      }
-      ImGui::TextDisabled("mouse: blade; wheel: depth");
-      ImGui::TextDisabled("left button or space: engage");
-      ImGui::End();
-    });
+    window.draw(s.frame, [&] { panel.draw(s, driver.depth_mm(), shared.requests); });
     draw_ms += std::chrono::duration<double, std::milli>(SteadyClock::now() - draw_start).count();
     ++frames;
   }
   render::Image shot;
-  const bool want_shot = !args.screenshot.empty();
-  if (want_shot) shot = window.save_screenshot();
-  const LiveSnapshot& final_snapshot = latest.front();
-  const double sim_time = final_snapshot.time;
-  const long cuts = final_snapshot.cut_events;
-  const std::size_t triangles = final_snapshot.triangles;
-  stop.store(true, std::memory_order_release);
+  if (!args.screenshot.empty()) shot = window.save_screenshot();
+  shared.stop.store(true, std::memory_order_release);
   physics.join();
-  if (want_shot) render::write_png(args.screenshot, shot);
-  std::printf("window: %ld frames, physics t = %.3f s, %ld cut events, triangles %zu -> %zu\n", frames, sim_time, cuts,
-              triangles_at_start, triangles);
-  // Where the time went: the real-time factor, physics' phases per step, the frames' drawing.
-  const LiveSnapshot::Totals& t = final_snapshot.totals;
-  const double n = std::max<double>(1, static_cast<double>(t.steps));
-  std::printf("physics: x%.2f real time, %llu steps, per step %.1f ms (cut %.1f, contact %.1f, solve %.1f with %.1f CG "
-              "iterations, surface %.1f), %llu over budget; frames: %.1f ms each to draw\n",
-              final_snapshot.real_time_factor, static_cast<unsigned long long>(t.steps), t.ms_step / n, t.ms_cut / n,
-              t.ms_contact / n, t.ms_solve / n, t.cg_iterations / n, t.ms_surface / n,
-              static_cast<unsigned long long>(t.over_budget), frames > 0 ? draw_ms / static_cast<double>(frames) : 0.0);
-  if (!last_recording.empty()) std::printf("recorded %s (summary %s.json)\n", last_recording.c_str(), last_recording.c_str());
-  if (!physics_error.empty()) {
-    std::fprintf(stderr, "incise: physics stopped: %s\n", physics_error.c_str());
+  if (!args.screenshot.empty()) render::write_png(args.screenshot, shot);
+  print_summary(shared.latest.front(), shared, frames, draw_ms);
+  if (!shared.physics_error.empty()) {
+    std::fprintf(stderr, "incise: physics stopped: %s\n", shared.physics_error.c_str());
     return 1;
   }
   return 0;

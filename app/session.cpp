@@ -6,12 +6,14 @@
 
 #include "engine/haptic_session.hpp"
 #include "engine/replay.hpp"
+#include "engine/incision_score.hpp"
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
 #include "haptics/virtual_device.hpp"
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -46,9 +48,9 @@ int session(const SessionArgs& args) {
     device.set_pose(pose);
   };
   engine::HapticSession run(scene, device, options);
-  std::vector<engine::StepStats> stats;
-  stats.reserve(static_cast<std::size_t>(steps));
-  for (long k = 0; k < steps; ++k) stats.push_back(run.step());
+  std::vector<engine::StepStats> step_stats;
+  step_stats.reserve(static_cast<std::size_t>(std::max(0L, steps)));
+  for (long k = 0; k < steps; ++k) step_stats.push_back(run.step());
   run.stop();
 
   const auto& world = run.world();
@@ -56,13 +58,19 @@ int session(const SessionArgs& args) {
   report["script"] = script_file.string();
   report["record"] = args.record;
   std::filesystem::create_directories(args.out);
+  if (scene.plan) {
+    report["score"] = engine::score_json(engine::score_incision(*scene.plan, world, step_stats, scene.solver.dt));
+    std::ofstream score(std::filesystem::path(args.out) / "score.json");
+    score << report["score"].dump(2) << "\n";
+    if (!score) throw std::runtime_error((std::filesystem::path(args.out) / "score.json").string() + ": cannot write");
+  }
   const auto file = std::filesystem::path(args.out) / "session.json";
   std::ofstream out(file);
   out << report.dump(2) << "\n";
   out.close();  // before --report reads it back
   if (!out) throw std::runtime_error(file.string() + ": cannot write");
   // The same per-step table as a replay's, for the report's plots.
-  engine::write_steps_csv(std::filesystem::path(args.out) / "steps.csv", stats, scene.solver.dt);
+  engine::write_steps_csv(std::filesystem::path(args.out) / "steps.csv", step_stats, scene.solver.dt);
   if (!args.record.empty()) engine::write_session_summary(run, args.record + ".json");
   if (!args.quiet) {
     std::printf("session %s: %llu steps, %zu ticks, %ld cut events, %s triangles, max |F| %.3f N\n", scene.name.c_str(),

@@ -3,6 +3,7 @@
 #include "common/csv.hpp"
 #include "common/percentile.hpp"
 #include "common/progress_bar.hpp"
+#include "engine/incision_score.hpp"
 #include "engine/publication.hpp"
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
@@ -638,7 +639,7 @@ void write_steps_csv(const std::filesystem::path& file, const std::vector<StepSt
        "kinetic_energy_J", "ms_ccd", "ms_topology", "links_severed", "ms_rest_cut", "ms_reselect",
        "ms_surface_rebuild", "ms_mapping", "ms_checks", "ms_front_cut", "ms_front_wait", "preconditioner",
        "ms_per_iteration", "preconditioner_age", "preconditioner_build_ms", "preconditioner_wait_ms", "cg_budget_stops",
-       "cut_event"});
+       "tool_x", "tool_y", "tool_z", "blade_engaged", "cut_event"});
   for (std::size_t k = 0; k < stats.size(); ++k) {
     const auto& s = stats[k];
     steps_csv.row(k + 1, static_cast<double>(k + 1) * dt, s.ms_total, s.ms_tool_input, s.ms_contact,
@@ -647,8 +648,8 @@ void write_steps_csv(const std::filesystem::path& file, const std::vector<StepSt
                   s.links_severed, s.ms_rest_cut, s.ms_reselect, s.ms_surface_rebuild, s.ms_mapping, s.ms_checks,
                   s.ms_front_cut, s.ms_front_wait, s.preconditioner,
                   s.cg_iterations > 0 ? s.ms_solve / s.cg_iterations : 0.0, s.preconditioner_age,
-                  s.preconditioner_build_ms, s.preconditioner_wait_ms, s.cg_budget_stops,
-                  s.cut_event ? 1 : 0);
+                  s.preconditioner_build_ms, s.preconditioner_wait_ms, s.cg_budget_stops, s.tool_tip[0], s.tool_tip[1],
+                  s.tool_tip[2], s.blade_engaged ? 1 : 0, s.cut_event ? 1 : 0);
   }
 }
 
@@ -678,7 +679,16 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     metrics["surface"] = surface_json(world, totals);
     metrics["mapping"] = mapping_json(totals);
   }
-  // After every other metric: an expectation may name any of them (the cut's too).
+  if (scene.plan) {
+    try {
+      metrics["score"] = score_json(score_incision(*scene.plan, world, run.stats, scene.solver.dt));
+      write_metrics_json(options.out_dir / "score.json", metrics["score"]);
+    } catch (const std::exception& e) {
+      metrics["score_error"] = e.what();
+      result.ok = false;
+    }
+  }
+  // After every other metric: an expectation may name any of them (the cut's and the score's too).
   if (!scene.expect.empty()) metrics["expect"] = expect_json(scene, metrics);
   write_steps_csv(options.out_dir / "steps.csv", run.stats, scene.solver.dt);
   write_metrics_json(options.out_dir / "metrics.json", metrics);

@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <optional>
@@ -299,6 +300,58 @@ void read_render(const Json& render, RenderSpec& s, std::vector<std::string>& er
   s.floor_z = rr.number("floor_z", false, 0, -1e6, 1e6);
 }
 
+// `plan`: the planned incision (PlanSpec).
+PlanSpec read_plan(const Json& node, const std::vector<BodySpec>& bodies, std::vector<std::string>& errors) {
+  Reader r(node, "plan", errors);
+  PlanSpec plan;
+  const auto cuttable = std::find_if(bodies.begin(), bodies.end(), [](const BodySpec& b) { return b.cuttable; });
+  plan.body = r.text("body", false, cuttable != bodies.end() ? cuttable->name : "");
+  const auto named = std::find_if(bodies.begin(), bodies.end(), [&](const BodySpec& b) { return b.name == plan.body; });
+  if (named == bodies.end())
+    r.error("plan.body", plan.body.empty() ? "no body is cuttable: a plan needs one" : "no body is named '" + plan.body + "'");
+  else if (!named->cuttable)
+    r.error("plan.body", "'" + plan.body + "' is not cuttable");
+  if (const Json* path = r.get("path", true)) {
+    if (!path->is_array() || path->size() < 2 || path->size() > 1000) {
+      r.error("plan.path", "must be an array of 2 to 1000 points [x, y, z] (m, at rest), not " + kind_of(*path));
+    } else {
+      for (std::size_t i = 0; i < path->size(); ++i) {
+        const Json& p = (*path)[i];
+        bool ok = p.is_array() && p.size() == 3;
+        for (std::size_t c = 0; ok && c < 3; ++c)
+          ok = p[c].is_number() && std::isfinite(p[c].get<double>()) && std::abs(p[c].get<double>()) <= 10;
+        if (!ok) {
+          r.error("plan.path[" + std::to_string(i) + "]", "must be an array of 3 finite numbers within [-10, 10] m");
+          continue;
+        }
+        plan.path.push_back({p[0].get<double>(), p[1].get<double>(), p[2].get<double>()});
+      }
+    }
+  }
+  plan.depth = r.number("depth", true, 0, 0, 1, true);
+  plan.band = r.number("band", true, 0, 0, 1, true);
+  plan.direction = r.point("direction", false, plan.direction, -1e6, 1e6);
+  const double norm = std::sqrt(plan.direction[0] * plan.direction[0] + plan.direction[1] * plan.direction[1] +
+                                plan.direction[2] * plan.direction[2]);
+  if (!(norm > 1e-9)) {
+    r.error("plan.direction", "must not be the zero vector");
+  } else {
+    for (double& c : plan.direction) c /= norm;
+  }
+  // Lengths across the direction: a path along it has none to follow.
+  for (std::size_t i = 1; i < plan.path.size(); ++i) {
+    double along = 0, length = 0;
+    for (int c = 0; c < 3; ++c) {
+      const double d = plan.path[i][c] - plan.path[i - 1][c];
+      along += d * plan.direction[c];
+      length += d * d;
+    }
+    if (!(length - along * along > 1e-12))
+      r.error("plan.path[" + std::to_string(i) + "]", "repeats the point before it, seen along plan.direction");
+  }
+  return plan;
+}
+
 // `expect`: per metric path, a min, a max or both.
 void read_expect(Reader& r, const Json& expect, std::vector<Expectation>& out, std::vector<std::string>& errors) {
   if (!expect.is_object()) {
@@ -419,6 +472,7 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
     if (const Json* loads = r.get("loads", false)) read_loads(r, *loads, scene.bodies, scene.loads, errors);
     if (const Json* render = r.get("render", false)) read_render(*render, scene.render, errors);
     if (const Json* expect = r.get("expect", false)) read_expect(r, *expect, scene.expect, errors);
+    if (const Json* plan = r.get("plan", false)) scene.plan = read_plan(*plan, scene.bodies, errors);
   }
   if (!errors.empty()) throw SceneError(name, errors);
   return scene;

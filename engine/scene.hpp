@@ -146,6 +146,16 @@ struct Expectation {
   std::optional<double> max;
 };
 
+// A planned incision (`plan`): the line the trainee should cut along on the organ's surface at
+// rest, how deep, and the tolerance band; engine/incision_score.hpp scores the cut against it.
+struct PlanSpec {
+  std::string body;          // the cuttable body it is drawn on (default: the first cuttable one)
+  std::vector<Point> path;   // >= 2 points at rest, m; projected onto the surface along `direction`
+  double depth = 0;          // target depth below the surface along `direction`, m
+  double band = 0;           // half-width of the tolerance band, m (also the depth tolerance)
+  Point direction{0, 0, -1}; // the blade's way into the tissue (unit)
+};
+
 struct Scene {
   std::filesystem::path file;
   std::string name;
@@ -156,6 +166,7 @@ struct Scene {
   std::vector<LoadSpec> loads;
   RenderSpec render;
   std::vector<Expectation> expect;
+  std::optional<PlanSpec> plan;
 };
 
 // The axis-aligned box a generated shape fills.

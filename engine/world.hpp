@@ -57,6 +57,8 @@ struct StepStats {
   int energy_growth_events = 0;
   int contacts = 0;
   std::array<double, 3> tool_force{};  // force of the tissue on the tool, N
+  std::array<double, 3> tool_tip{};    // the tool's position at the end of the step, m
+  bool blade_engaged = false;          // the blade's button was held during the step
   // Cutting (blade tools and cuttable bodies).
   bool cut_tested = false;   // the blade was engaged near a cuttable body: CCD ran
   bool cut_event = false;    // the topology changed this step

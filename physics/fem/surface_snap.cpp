@@ -152,10 +152,219 @@ SnapReport snap_boundary_to_surface(TetMesh& mesh, const std::function<bool(cons
 }
 
 
+namespace {
+
+// fair_surface_onto_shape's state: the surface, its adjacency in compressed rows (per vertex
+// its triangles and its one-ring's vertices), and per vertex whether its boundary crossing was
+// found, whether it sits on the shape, and whether it is on a crease.
+class SurfaceFairing {
+ public:
+  SurfaceFairing(std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                 const std::function<bool(const Vec3&)>& inside, double cell, const LineQuery& along)
+      : vertices_(vertices), triangles_(triangles), inside_(inside), along_(along), cell_(cell),
+        n_(static_cast<int>(vertices.size())), crease_(static_cast<std::size_t>(n_), 0),
+        found_(static_cast<std::size_t>(n_), 0), on_shape_(static_cast<std::size_t>(n_), 0) {
+    build_adjacency();
+  }
+
+  // Onto the boundary, every vertex along its normal.
+  void project(FairReport& report) {
+    report.vertices = 0;
+    for (int v = 0; v < n_; ++v) {
+      if (tri_start_[at(v)] == tri_start_[at(v) + 1]) continue;  // on no triangle
+      ++report.vertices;
+      const Vec3 normal = normal_at(v);
+      const Vec3 p = vertices_[at(v)];
+      const auto s = normal.isZero() ? std::nullopt : crossing(inside_, p, normal, 1.5 * cell_, kSteps, kBisections, along_);
+      if (!s) {
+        ++report.not_found;
+        continue;
+      }
+      found_[at(v)] = 1;
+      if (move_to(v, p + *s * normal)) {
+        ++report.projected;
+        on_shape_[at(v)] = 1;
+      }
+    }
+    // A vertex that could not go straight onto the boundary (the tip of a bump where the voxel
+    // build filled a pinch: going in along its normal would turn its triangles over) goes to
+    // its one-ring's centroid first, then onto the boundary.
+    for (int v = 0; v < n_; ++v)
+      if (found_[at(v)] && !on_shape_[at(v)] && onto_shape_from_centroid(v)) {
+        on_shape_[at(v)] = 1;
+        ++report.projected;
+      }
+  }
+
+  // Creases: the boundary half a cell away leaves the tangent plane by more than cell / 8.
+  void mark_creases(FairReport& report) {
+    const double r = 0.5 * cell_;
+    for (int v = 0; v < n_; ++v) {
+      if (!found_[at(v)]) continue;
+      const Vec3 normal = normal_at(v);
+      if (normal.isZero()) {
+        crease_[at(v)] = 1;
+        continue;
+      }
+      const Vec3 t1 = normal.unitOrthogonal(), t2 = normal.cross(t1);
+      const Vec3& p = vertices_[at(v)];
+      for (int k = 0; k < 8 && !crease_[at(v)]; ++k) {
+        const double angle = k * std::numbers::pi / 4;
+        const Vec3 q = p + r * (std::cos(angle) * t1 + std::sin(angle) * t2);
+        const auto s = crossing(inside_, q, normal, r, 8, 24, along_);
+        if (!s || std::abs(*s) > 0.25 * r) crease_[at(v)] = 1;
+      }
+      report.creases += crease_[at(v)];
+    }
+  }
+
+  // One pass: each vertex off a crease slides half way to its one-ring's centroid in its
+  // tangent plane, then back onto the boundary; one still off the shape tries again.
+  void slide(FairReport& report) {
+    for (int v = 0; v < n_; ++v) {
+      if (!found_[at(v)]) continue;
+      if (!on_shape_[at(v)]) {
+        if (onto_shape_from_centroid(v)) {
+          on_shape_[at(v)] = 1;
+          ++report.projected;
+        }
+        continue;
+      }
+      if (crease_[at(v)]) continue;
+      const int first = ring_start_[at(v)], last = ring_start_[at(v) + 1];
+      if (last == first) continue;
+      Vec3 centroid = Vec3::Zero();
+      for (int k = first; k < last; ++k) centroid += vertices_[at(ring_[at(k)])];
+      centroid /= last - first;
+      const Vec3 normal = normal_at(v);
+      if (normal.isZero()) continue;
+      const Vec3& p = vertices_[at(v)];
+      Vec3 step = 0.5 * (centroid - p);
+      step -= normal.dot(step) * normal;
+      const Vec3 q = p + step;
+      const auto s = crossing(inside_, q, normal, cell_, kSteps, kBisections, along_);
+      if (s && move_to(v, q + *s * normal))
+        ++report.slid;
+      else
+        ++report.refused;
+    }
+  }
+
+  int off_shape() const {
+    int count = 0;
+    for (int v = 0; v < n_; ++v) count += found_[at(v)] && !on_shape_[at(v)];
+    return count;
+  }
+
+ private:
+  static constexpr int kSteps = 12, kBisections = 40;
+  static std::size_t at(int i) { return static_cast<std::size_t>(i); }
+
+  void build_adjacency() {
+    tri_start_.assign(at(n_) + 1, 0);
+    for (const auto& t : triangles_)
+      for (const int v : t) ++tri_start_[at(v) + 1];
+    for (int v = 0; v < n_; ++v) tri_start_[at(v) + 1] += tri_start_[at(v)];
+    tris_.resize(at(tri_start_.back()));
+    std::vector<int> fill(tri_start_.begin(), tri_start_.end() - 1);
+    for (std::size_t t = 0; t < triangles_.size(); ++t)
+      for (const int v : triangles_[t]) tris_[at(fill[at(v)]++)] = static_cast<int>(t);
+    ring_start_.assign(at(n_) + 1, 0);
+    for (int v = 0; v < n_; ++v) {
+      std::vector<int> around;
+      for (const int t : triangles_of(v))
+        for (const int u : triangles_[at(t)])
+          if (u != v) around.push_back(u);
+      std::sort(around.begin(), around.end());
+      around.erase(std::unique(around.begin(), around.end()), around.end());
+      ring_.insert(ring_.end(), around.begin(), around.end());
+      ring_start_[at(v) + 1] = static_cast<int>(ring_.size());
+    }
+  }
+
+  std::span<const int> triangles_of(int v) const {
+    return std::span<const int>(tris_.data() + tri_start_[at(v)], tris_.data() + tri_start_[at(v) + 1]);
+  }
+
+  Vec3 area_normal(int t) const {
+    const auto& c = triangles_[at(t)];
+    const Vec3& a = vertices_[at(c[0])];
+    return Vec3((vertices_[at(c[1])] - a).cross(vertices_[at(c[2])] - a));
+  }
+
+  // The angle-weighted normal at v (zero when its triangles are degenerate).
+  Vec3 normal_at(int v) const {
+    Vec3 sum = Vec3::Zero();
+    for (const int t : triangles_of(v)) {
+      const auto& c = triangles_[at(t)];
+      const int corner = c[0] == v ? 0 : c[1] == v ? 1 : 2;
+      const Vec3& p = vertices_[at(v)];
+      const Vec3 e1 = vertices_[at(c[at((corner + 1) % 3)])] - p;
+      const Vec3 e2 = vertices_[at(c[at((corner + 2) % 3)])] - p;
+      const Vec3 face = e1.cross(e2);
+      const double length = face.norm();
+      if (!(length > 0)) continue;
+      sum += std::atan2(length, e1.dot(e2)) * face / length;
+    }
+    const double length = sum.norm();
+    return length > 0 ? Vec3(sum / length) : Vec3::Zero();
+  }
+
+  // Moves v to `to` unless that turns one of its triangles over or collapses one; says
+  // whether it did. Over is judged against the vector area of v's one-ring, which does not
+  // depend on where v is: a star folded already (the snap can leave one) may unfold.
+  bool move_to(int v, const Vec3& to) {
+    Vec3 ring_area = Vec3::Zero();
+    for (const int t : triangles_of(v)) ring_area += area_normal(t);
+    const auto over = [&] {
+      int count = 0;
+      for (const int t : triangles_of(v)) count += !(area_normal(t).dot(ring_area) > 0);
+      return count;
+    };
+    const int over_before = over();
+    const Vec3 from = vertices_[at(v)];
+    vertices_[at(v)] = to;
+    bool collapsed = false;
+    for (const int t : triangles_of(v)) collapsed = collapsed || !(area_normal(t).squaredNorm() > 1e-12 * ring_area.squaredNorm());
+    if (collapsed || over() > over_before) {
+      vertices_[at(v)] = from;
+      return false;
+    }
+    return true;
+  }
+
+  Vec3 centroid_of(int v) const {
+    const int first = ring_start_[at(v)], last = ring_start_[at(v) + 1];
+    Vec3 centroid = Vec3::Zero();
+    for (int k = first; k < last; ++k) centroid += vertices_[at(ring_[at(k)])];
+    return last > first ? Vec3(centroid / (last - first)) : vertices_[at(v)];
+  }
+
+  bool onto_shape_from_centroid(int v) {
+    const Vec3 from = vertices_[at(v)];
+    vertices_[at(v)] = centroid_of(v);
+    const Vec3 normal = normal_at(v);
+    const Vec3 q = vertices_[at(v)];
+    vertices_[at(v)] = from;
+    const auto s = normal.isZero() ? std::nullopt : crossing(inside_, q, normal, 1.5 * cell_, kSteps, kBisections, along_);
+    return s && move_to(v, q + *s * normal);
+  }
+
+  std::vector<Vec3>& vertices_;
+  const std::vector<std::array<int, 3>>& triangles_;
+  const std::function<bool(const Vec3&)>& inside_;
+  const LineQuery& along_;
+  double cell_;
+  int n_;
+  std::vector<int> tri_start_, tris_, ring_start_, ring_;
+  std::vector<std::uint8_t> crease_, found_, on_shape_;
+};
+
+}  // namespace
+
 FairReport fair_surface_onto_shape(std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
                                    const std::function<bool(const Vec3&)>& inside, double cell, int passes,
                                    const LineQuery& along) {
-  FairReport report;
   const int n = static_cast<int>(vertices.size());
   if (!(cell > 0) || !std::isfinite(cell))
     throw std::invalid_argument("fair_surface_onto_shape: cell " + std::to_string(cell) + " is not a positive number");
@@ -168,170 +377,12 @@ FairReport fair_surface_onto_shape(std::vector<Vec3>& vertices, const std::vecto
       if (!vertices[static_cast<std::size_t>(v)].allFinite())
         throw std::invalid_argument("fair_surface_onto_shape: vertex " + std::to_string(v) + " is not finite");
     }
-  // Per vertex its triangles and its one-ring's vertices, in compressed rows.
-  std::vector<int> tri_start(static_cast<std::size_t>(n) + 1, 0), tris;
-  for (const auto& t : triangles)
-    for (const int v : t) ++tri_start[static_cast<std::size_t>(v) + 1];
-  for (int v = 0; v < n; ++v) tri_start[static_cast<std::size_t>(v) + 1] += tri_start[static_cast<std::size_t>(v)];
-  tris.resize(static_cast<std::size_t>(tri_start.back()));
-  {
-    std::vector<int> fill(tri_start.begin(), tri_start.end() - 1);
-    for (std::size_t t = 0; t < triangles.size(); ++t)
-      for (const int v : triangles[t]) tris[static_cast<std::size_t>(fill[static_cast<std::size_t>(v)]++)] = static_cast<int>(t);
-  }
-  std::vector<int> ring_start(static_cast<std::size_t>(n) + 1, 0), ring;
-  for (int v = 0; v < n; ++v) {
-    std::vector<int> around;
-    for (int k = tri_start[static_cast<std::size_t>(v)]; k < tri_start[static_cast<std::size_t>(v) + 1]; ++k)
-      for (const int u : triangles[static_cast<std::size_t>(tris[static_cast<std::size_t>(k)])])
-        if (u != v) around.push_back(u);
-    std::sort(around.begin(), around.end());
-    around.erase(std::unique(around.begin(), around.end()), around.end());
-    ring.insert(ring.end(), around.begin(), around.end());
-    ring_start[static_cast<std::size_t>(v) + 1] = static_cast<int>(ring.size());
-  }
-  const auto triangles_of = [&](int v) {
-    return std::span<const int>(tris.data() + tri_start[static_cast<std::size_t>(v)],
-                                tris.data() + tri_start[static_cast<std::size_t>(v) + 1]);
-  };
-  const auto area_normal = [&](int t) {
-    const auto& c = triangles[static_cast<std::size_t>(t)];
-    const Vec3& a = vertices[static_cast<std::size_t>(c[0])];
-    return Vec3((vertices[static_cast<std::size_t>(c[1])] - a).cross(vertices[static_cast<std::size_t>(c[2])] - a));
-  };
-  // The angle-weighted normal at v (zero when its triangles are degenerate).
-  const auto normal_at = [&](int v) {
-    Vec3 sum = Vec3::Zero();
-    for (const int t : triangles_of(v)) {
-      const auto& c = triangles[static_cast<std::size_t>(t)];
-      const int at = c[0] == v ? 0 : c[1] == v ? 1 : 2;
-      const Vec3& p = vertices[static_cast<std::size_t>(v)];
-      const Vec3 e1 = vertices[static_cast<std::size_t>(c[static_cast<std::size_t>((at + 1) % 3)])] - p;
-      const Vec3 e2 = vertices[static_cast<std::size_t>(c[static_cast<std::size_t>((at + 2) % 3)])] - p;
-      const Vec3 face = e1.cross(e2);
-      const double length = face.norm();
-      if (!(length > 0)) continue;
-      sum += std::atan2(length, e1.dot(e2)) * face / length;
-    }
-    const double length = sum.norm();
-    return length > 0 ? Vec3(sum / length) : Vec3::Zero();
-  };
-  const int steps = 12, bisections = 40;
-  // Moves v to `to` unless that turns one of its triangles over or collapses one; says
-  // whether it did. Over is judged against the vector area of v's one-ring, which does not
-  // depend on where v is: a star folded already (the snap can leave one) may unfold.
-  const auto move_to = [&](int v, const Vec3& to) {
-    Vec3 ring_area = Vec3::Zero();
-    for (const int t : triangles_of(v)) ring_area += area_normal(t);
-    const auto over = [&] {
-      int count = 0;
-      for (const int t : triangles_of(v)) count += !(area_normal(t).dot(ring_area) > 0);
-      return count;
-    };
-    const int over_before = over();
-    const Vec3 from = vertices[static_cast<std::size_t>(v)];
-    vertices[static_cast<std::size_t>(v)] = to;
-    bool collapsed = false;
-    for (const int t : triangles_of(v)) collapsed = collapsed || !(area_normal(t).squaredNorm() > 1e-12 * ring_area.squaredNorm());
-    if (collapsed || over() > over_before) {
-      vertices[static_cast<std::size_t>(v)] = from;
-      return false;
-    }
-    return true;
-  };
-  // Onto the boundary, every vertex.
-  std::vector<std::uint8_t> crease(static_cast<std::size_t>(n), 0), found(static_cast<std::size_t>(n), 0),
-      on_shape(static_cast<std::size_t>(n), 0);
-  report.vertices = 0;
-  for (int v = 0; v < n; ++v) {
-    if (tri_start[static_cast<std::size_t>(v)] == tri_start[static_cast<std::size_t>(v) + 1]) continue;  // on no triangle
-    ++report.vertices;
-    const Vec3 normal = normal_at(v);
-    const Vec3 p = vertices[static_cast<std::size_t>(v)];
-    const auto s = normal.isZero() ? std::nullopt : crossing(inside, p, normal, 1.5 * cell, steps, bisections, along);
-    if (!s) {
-      ++report.not_found;
-      continue;
-    }
-    found[static_cast<std::size_t>(v)] = 1;
-    if (move_to(v, p + *s * normal)) {
-      ++report.projected;
-      on_shape[static_cast<std::size_t>(v)] = 1;
-    }
-  }
-  // A vertex that could not go straight onto the boundary (the tip of a bump where the voxel
-  // build filled a pinch: going in along its normal would turn its triangles over) goes to
-  // its one-ring's centroid first, then onto the boundary.
-  const auto centroid_of = [&](int v) {
-    const int first = ring_start[static_cast<std::size_t>(v)], last = ring_start[static_cast<std::size_t>(v) + 1];
-    Vec3 centroid = Vec3::Zero();
-    for (int k = first; k < last; ++k) centroid += vertices[static_cast<std::size_t>(ring[static_cast<std::size_t>(k)])];
-    return last > first ? Vec3(centroid / (last - first)) : vertices[static_cast<std::size_t>(v)];
-  };
-  const auto onto_shape_from_centroid = [&](int v) {
-    const Vec3 from = vertices[static_cast<std::size_t>(v)];
-    vertices[static_cast<std::size_t>(v)] = centroid_of(v);
-    const Vec3 normal = normal_at(v);
-    const Vec3 q = vertices[static_cast<std::size_t>(v)];
-    vertices[static_cast<std::size_t>(v)] = from;
-    const auto s = normal.isZero() ? std::nullopt : crossing(inside, q, normal, 1.5 * cell, steps, bisections, along);
-    return s && move_to(v, q + *s * normal);
-  };
-  for (int v = 0; v < n; ++v)
-    if (found[static_cast<std::size_t>(v)] && !on_shape[static_cast<std::size_t>(v)] && onto_shape_from_centroid(v)) {
-      on_shape[static_cast<std::size_t>(v)] = 1;
-      ++report.projected;
-    }
-  // Creases: the boundary half a cell away leaves the tangent plane by more than cell / 8.
-  const double r = 0.5 * cell;
-  for (int v = 0; v < n; ++v) {
-    if (!found[static_cast<std::size_t>(v)]) continue;
-    const Vec3 normal = normal_at(v);
-    if (normal.isZero()) {
-      crease[static_cast<std::size_t>(v)] = 1;
-      continue;
-    }
-    const Vec3 t1 = normal.unitOrthogonal(), t2 = normal.cross(t1);
-    const Vec3& p = vertices[static_cast<std::size_t>(v)];
-    for (int k = 0; k < 8 && !crease[static_cast<std::size_t>(v)]; ++k) {
-      const double angle = k * std::numbers::pi / 4;
-      const Vec3 q = p + r * (std::cos(angle) * t1 + std::sin(angle) * t2);
-      const auto s = crossing(inside, q, normal, r, 8, 24, along);
-      if (!s || std::abs(*s) > 0.25 * r) crease[static_cast<std::size_t>(v)] = 1;
-    }
-    report.creases += crease[static_cast<std::size_t>(v)];
-  }
-  // Slide towards the one-ring's centroid in the tangent plane, back onto the boundary.
-  for (int pass = 0; pass < passes; ++pass) {
-    for (int v = 0; v < n; ++v) {
-      if (!found[static_cast<std::size_t>(v)]) continue;
-      if (!on_shape[static_cast<std::size_t>(v)]) {
-        if (onto_shape_from_centroid(v)) {
-          on_shape[static_cast<std::size_t>(v)] = 1;
-          ++report.projected;
-        }
-        continue;
-      }
-      if (crease[static_cast<std::size_t>(v)]) continue;
-      const int first = ring_start[static_cast<std::size_t>(v)], last = ring_start[static_cast<std::size_t>(v) + 1];
-      if (last == first) continue;
-      Vec3 centroid = Vec3::Zero();
-      for (int k = first; k < last; ++k) centroid += vertices[static_cast<std::size_t>(ring[static_cast<std::size_t>(k)])];
-      centroid /= last - first;
-      const Vec3 normal = normal_at(v);
-      if (normal.isZero()) continue;
-      const Vec3& p = vertices[static_cast<std::size_t>(v)];
-      Vec3 slide = 0.5 * (centroid - p);
-      slide -= normal.dot(slide) * normal;
-      const Vec3 q = p + slide;
-      const auto s = crossing(inside, q, normal, cell, steps, bisections, along);
-      if (s && move_to(v, q + *s * normal))
-        ++report.slid;
-      else
-        ++report.refused;
-    }
-  }
-  for (int v = 0; v < n; ++v) report.off_shape += found[static_cast<std::size_t>(v)] && !on_shape[static_cast<std::size_t>(v)];
+  FairReport report;
+  SurfaceFairing fairing(vertices, triangles, inside, cell, along);
+  fairing.project(report);
+  fairing.mark_creases(report);
+  for (int pass = 0; pass < passes; ++pass) fairing.slide(report);
+  report.off_shape = fairing.off_shape();
   return report;
 }
 

@@ -617,10 +617,10 @@ long long EfgStep::full_row_bytes() const {
          static_cast<long long>(s.surface_vertices) * s.surface_row_bytes();
 }
 
-StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector<uint8_t>& fixed_nodes,
-                         const Vector& external_forces, std::span<const NodalSpring> springs,
-                         const ImplicitEulerSettings& settings, Vector* velocity_change_guess) {
-  Impl& s = *impl_;
+void EfgStep::check_arguments(const CorotationalEfg& model, const State& state, const std::vector<uint8_t>& fixed_nodes,
+                              const Vector& external_forces, std::span<const NodalSpring> springs,
+                              const ImplicitEulerSettings& settings) const {
+  const Impl& s = *impl_;
   const int nodes = model.node_count();
   const Index size = 3 * static_cast<Index>(nodes);
   if (nodes != s.nodes || model.element_count() != s.elements)
@@ -637,72 +637,110 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
       throw std::invalid_argument("EfgStep::step: spring node " + std::to_string(spring.node) + " outside [0, " +
                                   std::to_string(nodes) + ")");
   if (!(settings.dt > 0.0)) throw std::invalid_argument("EfgStep::step: dt must be positive");
+}
 
+StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector<uint8_t>& fixed_nodes,
+                         const Vector& external_forces, std::span<const NodalSpring> springs,
+                         const ImplicitEulerSettings& settings, Vector* velocity_change_guess) {
+  check_arguments(model, state, fixed_nodes, external_forces, springs, settings);
   CurrentScope current(*context_);
   StepReport report;
-  const double dt = settings.dt;
-  const double alpha = settings.rayleigh_mass, beta = settings.rayleigh_stiffness;
-  const double mass_coefficient = 1.0 + dt * alpha;
-  const double stiffness_coefficient = dt * beta + dt * dt;
+  std::vector<std::uint8_t> fixed = fixed_nodes;
+  fixed.resize(static_cast<size_t>(model.node_count()), 0);
+  upload_step(model, state, fixed, external_forces, springs, settings, velocity_change_guess);
+  if (!solve_velocity_change(settings, report.cg) || !integrate(model, state, fixed, velocity_change_guess)) {
+    report.nonfinite = true;
+    return report;
+  }
+  report.elastic_energy = model.elastic_energy(state.positions);
+  report.kinetic_energy = kinetic_energy(model.lumped_masses(), state.velocities);
+  return report;
+}
 
+void EfgStep::upload_cpu_rotations(CorotationalEfg& model, const State& state) {
+  Impl& s = *impl_;
+  model.update_rotations(state.positions);
+  const auto& rotations = model.rotations();
+  std::vector<double> offsets(9 * static_cast<size_t>(s.elements));
+  for (int e = 0; e < s.elements; ++e)
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) offsets[9 * static_cast<size_t>(e) + 3 * i + j] = rotations[e](i, j) - (i == j ? 1.0 : 0.0);
+  counters_.rotation_bytes += s.state_upload(s.rotations, offsets.data(), static_cast<long long>(offsets.size()));
+}
+
+// Springs summed per node (several contact springs may share a particle), in order.
+void EfgStep::upload_springs(std::span<const NodalSpring> springs) {
+  Impl& s = *impl_;
+  if (springs.empty() && !s.springs_uploaded) return;
+  std::map<int, int> slot_of;
+  for (const NodalSpring& spring : springs) slot_of.emplace(spring.node, static_cast<int>(slot_of.size()));
+  const int count = static_cast<int>(slot_of.size());
+  std::vector<double> force(3 * static_cast<size_t>(std::max(count, 1)), 0.0), stiffness(9 * static_cast<size_t>(std::max(count, 1)), 0.0);
+  for (const NodalSpring& spring : springs) {
+    const int slot = slot_of[spring.node];
+    for (int i = 0; i < 3; ++i) {
+      force[3 * slot + i] += spring.force[i];
+      for (int j = 0; j < 3; ++j) stiffness[9 * slot + 3 * i + j] += spring.stiffness(i, j);
+    }
+  }
+  std::vector<int> index(static_cast<size_t>(s.nodes), -1);
+  for (const auto& [node, slot] : slot_of) index[node] = slot;
+  if (count > s.spring_capacity) {
+    s.spring_capacity = 2 * count;
+    s.allocate_reals(s.spring_force, 3LL * s.spring_capacity);
+    s.allocate_reals(s.spring_stiffness, 9LL * s.spring_capacity);
+    s.bind(spring_force_binding, s.spring_force);
+    s.bind(spring_stiffness_binding, s.spring_stiffness);
+  }
+  counters_.state_bytes += s.upload_ints(s.spring_index, 0, index.data(), s.nodes);
+  s.state_upload(s.spring_force, force.data(), 3LL * count);
+  s.state_upload(s.spring_stiffness, stiffness.data(), 9LL * count);
+  s.springs_uploaded = !springs.empty();
+}
+
+void EfgStep::upload_rotations(CorotationalEfg& model, const State& state) {
+  Impl& s = *impl_;
+  const int clear = 0;
+  counters_.state_bytes += s.upload_ints(s.flags, 0, &clear, 1);
+  s.run(Kernel::element_rotation, s.elements, {{a_binding, &s.u}});
+  int unsettled = 0;
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  glGetNamedBufferSubData(s.flags.id, 0, 4, &unsettled);
+  if (unsettled != 0) {
+    // An element's Newton steps did not settle (a strongly inverted or degenerate one):
+    // this step takes the CPU's rotations, which fall back to the SVD polar.
+    counters_.rotation_fallbacks++;
+    upload_cpu_rotations(model, state);
+  }
+}
+
+void EfgStep::upload_step(CorotationalEfg& model, const State& state, const std::vector<uint8_t>& fixed,
+                          const Vector& external_forces, std::span<const NodalSpring> springs,
+                          const ImplicitEulerSettings& settings, const Vector* velocity_change_guess) {
+  Impl& s = *impl_;
+  const int nodes = model.node_count();
+  const Index size = 3 * static_cast<Index>(nodes);
+  const double dt = settings.dt, alpha = settings.rayleigh_mass, beta = settings.rayleigh_stiffness;
   // Topology (only the changed batches), then this step's state.
   s.sync_rows(model);
   s.bind_fixed();
-  const auto upload_cpu_rotations = [&] {
-    model.update_rotations(state.positions);
-    const auto& rotations = model.rotations();
-    std::vector<double> offsets(9 * static_cast<size_t>(s.elements));
-    for (int e = 0; e < s.elements; ++e)
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) offsets[9 * static_cast<size_t>(e) + 3 * i + j] = rotations[e](i, j) - (i == j ? 1.0 : 0.0);
-    const long long bytes = s.state_upload(s.rotations, offsets.data(), static_cast<long long>(offsets.size()));
-    counters_.rotation_bytes += bytes;
-  };
   const bool gpu_rotations = rotations_on_gpu(model);
-  if (!gpu_rotations) upload_cpu_rotations();
+  if (!gpu_rotations) upload_cpu_rotations(model, state);
   const double parameters[8] = {lame_lambda(model.material()), lame_mu(model.material()), dt, alpha, beta,
-                                mass_coefficient, stiffness_coefficient, 0};
+                                1.0 + dt * alpha, dt * beta + dt * dt, 0};
   s.state_upload(s.parameters, parameters, 8);
   if (s.shadow_masses.size() != static_cast<size_t>(nodes) ||
       !std::equal(s.shadow_masses.begin(), s.shadow_masses.end(), model.lumped_masses().data())) {
     s.state_upload(s.masses, model.lumped_masses().data(), nodes);
     s.shadow_masses.assign(model.lumped_masses().data(), model.lumped_masses().data() + nodes);
   }
-  std::vector<std::uint8_t> fixed = fixed_nodes;
-  fixed.resize(static_cast<size_t>(nodes), 0);
   if (fixed != s.shadow_fixed) {
     std::vector<double> free(static_cast<size_t>(nodes));
     for (int n = 0; n < nodes; ++n) free[n] = fixed[n] ? 0.0 : 1.0;
     s.state_upload(s.free, free.data(), nodes);
     s.shadow_fixed = fixed;
   }
-  if (!springs.empty() || s.springs_uploaded) {
-    // Springs summed per node (several contact springs may share a particle), in order.
-    std::map<int, int> slot_of;
-    for (const NodalSpring& spring : springs) slot_of.emplace(spring.node, static_cast<int>(slot_of.size()));
-    const int count = static_cast<int>(slot_of.size());
-    std::vector<double> force(3 * static_cast<size_t>(std::max(count, 1)), 0.0), stiffness(9 * static_cast<size_t>(std::max(count, 1)), 0.0);
-    for (const NodalSpring& spring : springs) {
-      const int slot = slot_of[spring.node];
-      for (int i = 0; i < 3; ++i) {
-        force[3 * slot + i] += spring.force[i];
-        for (int j = 0; j < 3; ++j) stiffness[9 * slot + 3 * i + j] += spring.stiffness(i, j);
-      }
-    }
-    std::vector<int> index(static_cast<size_t>(nodes), -1);
-    for (const auto& [node, slot] : slot_of) index[node] = slot;
-    if (count > s.spring_capacity) {
-      s.spring_capacity = 2 * count;
-      s.allocate_reals(s.spring_force, 3LL * s.spring_capacity);
-      s.allocate_reals(s.spring_stiffness, 9LL * s.spring_capacity);
-      s.bind(spring_force_binding, s.spring_force);
-      s.bind(spring_stiffness_binding, s.spring_stiffness);
-    }
-    counters_.state_bytes += s.upload_ints(s.spring_index, 0, index.data(), nodes);
-    s.state_upload(s.spring_force, force.data(), 3LL * count);
-    s.state_upload(s.spring_stiffness, stiffness.data(), 9LL * count);
-    s.springs_uploaded = !springs.empty();
-  }
+  upload_springs(springs);
   Vector displacement = state.positions - model.rest_positions();
   s.state_upload(s.u, displacement.data(), size);
   s.state_upload(s.v, state.velocities.data(), size);
@@ -714,21 +752,13 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
     if (fixed[n]) guess.segment<3>(3 * n).setZero();
   s.state_upload(s.dv, guess.data(), size);
   check_gl("uploading the state");
-  if (gpu_rotations) {
-    const int clear = 0;
-    counters_.state_bytes += s.upload_ints(s.flags, 0, &clear, 1);
-    s.run(Kernel::element_rotation, s.elements, {{a_binding, &s.u}});
-    int unsettled = 0;
-    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-    glGetNamedBufferSubData(s.flags.id, 0, 4, &unsettled);
-    if (unsettled != 0) {
-      // An element's Newton steps did not settle (a strongly inverted or degenerate one):
-      // this step takes the CPU's rotations, which fall back to the SVD polar.
-      counters_.rotation_fallbacks++;
-      upload_cpu_rotations();
-    }
-  }
+  if (gpu_rotations) upload_rotations(model, state);
+}
 
+bool EfgStep::solve_velocity_change(const ImplicitEulerSettings& settings, CgResult& cg) {
+  Impl& s = *impl_;
+  const int nodes = s.nodes;
+  const Index size = 3 * static_cast<Index>(nodes);
   // Right-hand side dt [f(x) - (dt + beta) K v - alpha M v], free entries only.
   s.run(Kernel::element_stress, s.elements, {{a_binding, &s.u}}, 0);
   s.run(Kernel::node_gather, nodes, {{a_binding, &s.u}, {b_binding, &s.external}, {c_binding, &s.forces}}, 0);
@@ -753,11 +783,9 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
     }
     b_norm = std::sqrt(values[0]);
   }
-  CgResult& cg = report.cg;
   bool solved = false;
   if (!std::isfinite(b_norm)) {
-    report.nonfinite = true;
-    return report;
+    return false;
   }
   if (b_norm == 0.0) {
     const std::vector<double> zeros(static_cast<size_t>(size), 0.0);
@@ -776,8 +804,7 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
     s.dot(dofs, s.r, s.r, residual_slot, &s.r, &s.z, rz_current);
     const double residual_norm = std::sqrt(s.read_scalars(curvature_slot)[1]);
     if (!std::isfinite(residual_norm)) {
-      report.nonfinite = true;
-      return report;
+      return false;
     }
     cg.relative_residual = residual_norm / b_norm;
     if (cg.relative_residual <= settings.cg.tolerance) cg.converged = true;
@@ -816,13 +843,19 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
       s.run(Kernel::cg_direction, dofs, {{a_binding, &s.z}, {b_binding, &s.p}}, 0, rz_current, rz_next);
       std::swap(rz_current, rz_next);
     }
-    if (cg.nonfinite) {
-      report.nonfinite = true;
-      return report;
-    }
+    if (cg.nonfinite) return false;
   }
 
-  // v += dv, x += dt v (fixed: v = 0, x kept), read back.
+  return true;
+}
+
+// v += dv, x += dt v on the GPU, read back; the fixed nodes keep their positions.
+bool EfgStep::integrate(const CorotationalEfg& model, State& state, const std::vector<uint8_t>& fixed,
+                        Vector* velocity_change_guess) {
+  Impl& s = *impl_;
+  const int nodes = s.nodes;
+  const Index size = 3 * static_cast<Index>(nodes);
+  const int dofs = static_cast<int>(size);
   s.run(Kernel::integrate, dofs,
         {{a_binding, &s.u}, {b_binding, &s.v}, {c_binding, &s.v_next}, {d_binding, &s.dv}, {e_binding, &s.u_next}});
   Vector velocities(size), next_displacement(size), velocity_change(size);
@@ -836,18 +869,13 @@ StepReport EfgStep::step(CorotationalEfg& model, State& state, const std::vector
     velocities.segment<3>(3 * n).setZero();
     positions.segment<3>(3 * n) = state.positions.segment<3>(3 * n);
   }
-  if (!velocities.allFinite() || !positions.allFinite() || !velocity_change.allFinite()) {
-    report.nonfinite = true;
-    return report;
-  }
+  if (!velocities.allFinite() || !positions.allFinite() || !velocity_change.allFinite()) return false;
   std::swap(s.u, s.u_next);
   std::swap(s.v, s.v_next);
   if (velocity_change_guess) *velocity_change_guess = velocity_change;
   state.positions.swap(positions);
   state.velocities.swap(velocities);
-  report.elastic_energy = model.elastic_energy(state.positions);
-  report.kinetic_energy = kinetic_energy(model.lumped_masses(), state.velocities);
-  return report;
+  return true;
 }
 
 void EfgStep::upload_surface(const SurfaceEmbedding& embedding) {

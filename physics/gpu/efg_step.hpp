@@ -126,6 +126,23 @@ class EfgStep {
   int real_bytes() const { return settings_.precision == Precision::single ? 4 : 8; }
 
  private:
+  // step()'s stages, in order: its arguments checked (std::invalid_argument), this step's
+  // state uploaded (changed rows, parameters, masses, fixed nodes, springs, u, v, the loads,
+  // the warm start, the rotations), the right-hand side and CG on the GPU (false: a non-finite
+  // value), and the integration read back into `state` (false: a non-finite value).
+  void check_arguments(const CorotationalEfg& model, const State& state, const std::vector<uint8_t>& fixed_nodes,
+                       const Vector& external_forces, std::span<const NodalSpring> springs,
+                       const ImplicitEulerSettings& settings) const;
+  void upload_step(CorotationalEfg& model, const State& state, const std::vector<uint8_t>& fixed,
+                   const Vector& external_forces, std::span<const NodalSpring> springs,
+                   const ImplicitEulerSettings& settings, const Vector* velocity_change_guess);
+  void upload_springs(std::span<const NodalSpring> springs);
+  void upload_cpu_rotations(CorotationalEfg& model, const State& state);
+  void upload_rotations(CorotationalEfg& model, const State& state);
+  bool solve_velocity_change(const ImplicitEulerSettings& settings, CgResult& cg);
+  bool integrate(const CorotationalEfg& model, State& state, const std::vector<uint8_t>& fixed,
+                 Vector* velocity_change_guess);
+
   struct Impl;
   std::unique_ptr<ComputeContext> context_;
   GpuSettings settings_;

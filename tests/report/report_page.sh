@@ -58,7 +58,7 @@ if [ -z "$browser" ]; then
   exit 77
 fi
 headless=("$browser" --headless --no-sandbox --disable-gpu --hide-scrollbars --no-first-run
-          --user-data-dir="$work/profile" --window-size=1200,3600)
+          --user-data-dir="$work/profile" --window-size=1200,4200)
 timeout 120 "${headless[@]}" --enable-logging=stderr --v=0 --screenshot="$work/shot.png" "file://$page" \
   > "$work/chromium.log" 2>&1 || fail "chromium failed: $(tail -5 "$work/chromium.log")"
 # Console messages come as ":INFO:CONSOLE(line)] "text"": an exception, a failed load or an
@@ -75,7 +75,7 @@ cat "$work/layout.txt"
 
 if [ -n "$docs_png" ]; then
   # The README's picture: the top of the page at half scale, kept small.
-  timeout 120 "${headless[@]/--window-size=1200,3600/--window-size=1100,1900}" --force-device-scale-factor=0.5 \
+  timeout 120 "${headless[@]/--window-size=1200,4200/--window-size=1100,1900}" --force-device-scale-factor=0.5 \
     --screenshot="$docs_png" "file://$page" > /dev/null 2>&1
   size=$(stat -c %s "$docs_png")
   [ "$size" -lt 153600 ] || fail "$docs_png is $size bytes (keep it under 150 KB)"

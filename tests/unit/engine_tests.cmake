@@ -12,6 +12,7 @@ add_executable(test_engine
   ${CMAKE_CURRENT_LIST_DIR}/test_world.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_world_cut.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_world_copy.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_incision_score.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_surface_snap.cpp)
 target_link_libraries(test_engine PRIVATE incise_engine GTest::gtest_main)
 target_compile_definitions(test_engine PRIVATE INCISE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")

@@ -1,0 +1,17 @@
+# Runs `incise batch MANIFEST --out OUT`; passes only when it exits non-zero, prints EXPECTED
+# and the manifest's file name, and ran nothing (no OUT/jobs.json).
+file(REMOVE_RECURSE ${OUT})
+execute_process(COMMAND ${INCISE} batch ${MANIFEST} --out ${OUT} RESULT_VARIABLE code OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(code EQUAL 0)
+  message(FATAL_ERROR "incise batch accepted ${MANIFEST}:\n${out}${err}")
+endif()
+get_filename_component(name ${MANIFEST} NAME)
+foreach(text "${EXPECTED}" "${name}: ")
+  string(FIND "${out}${err}" "${text}" at)
+  if(at EQUAL -1)
+    message(FATAL_ERROR "expected '${text}' in:\n${out}${err}")
+  endif()
+endforeach()
+if(EXISTS ${OUT}/jobs.json)
+  message(FATAL_ERROR "a refused manifest started a batch: ${OUT}/jobs.json exists")
+endif()
