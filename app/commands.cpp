@@ -6,6 +6,7 @@
 #include "engine/trajectory.hpp"
 #include "engine/trajectory_synth.hpp"
 #include "engine/world.hpp"
+#include "report/run_report.hpp"
 
 #include <cstdio>
 #include <fstream>
@@ -74,6 +75,8 @@ int replay(const ReplayArgs& args) {
       std::fprintf(stderr, "warning: trajectory damaged: %s\n",
                    m["trajectory"]["problem"].get<std::string>().c_str());
   }
+  // Also after a failed run: the page shows what was recorded and the error.
+  if (args.report) report(options.out_dir.string());
   if (!result.ok) {
     std::fprintf(stderr, "incise: replay stopped: %s (metrics kept in %s)\n",
                  m["error"].get<std::string>().c_str(), (options.out_dir / "metrics.json").string().c_str());
@@ -94,6 +97,12 @@ int replay(const ReplayArgs& args) {
       return 1;
     }
   }
+  return 0;
+}
+
+int report(const std::string& run_dir) {
+  const auto page = report::write_run_report(run_dir, std::cerr);
+  std::printf("report: %s\n", page.string().c_str());
   return 0;
 }
 

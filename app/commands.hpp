@@ -19,6 +19,7 @@ struct ReplayArgs {
   std::string precision;  // overrides solver.precision
   bool check = false;
   bool quiet = false;
+  bool report = false;  // write out/report.html at the end (incise report)
 };
 
 struct RunArgs {
@@ -43,6 +44,7 @@ struct SessionArgs {
   std::string out = "out/session";
   bool no_engage = false;
   bool quiet = false;
+  bool report = false;  // write out/report.html at the end (incise report)
 };
 
 struct SynthArgs {
@@ -70,6 +72,8 @@ int batch_merge(const std::string& dir);
 int check(const std::string& scene_file);
 int run(const RunArgs& args);
 int session(const SessionArgs& args);
+// `incise report RUN_DIR`: writes RUN_DIR/report.html and prints its path.
+int report(const std::string& run_dir);
 int trajectory_export(const std::string& file, const std::string& out);
 int trajectory_info(const std::string& file);
 int trajectory_import(const std::string& csv, const std::string& out);

@@ -3,6 +3,7 @@
 #include "bench/accuracy.hpp"
 #include "bench/haptics.hpp"
 #include "bench/performance.hpp"
+#include "bench/performance_report.hpp"
 #include "bench/soak.hpp"
 #include "bench/stability.hpp"
 
@@ -81,6 +82,7 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"single", "double"}));
   replay_cmd->add_flag("--check", replay.check, "Check the scene's `expect` block; exit 1 when one fails");
   replay_cmd->add_flag("--quiet", replay.quiet, "No progress bar or summary");
+  replay_cmd->add_flag("--report", replay.report, "Write OUT/report.html (and OUT/replay.mp4) at the end, as `incise report OUT`");
 
   std::string check_scene;
   auto* check_cmd = app.add_subcommand("check", "Validate a scene file and build its world; exit non-zero on any error");
@@ -109,6 +111,11 @@ int main(int argc, char** argv) {
   session_cmd->add_option("--out", session.out, "Output folder (session.json)")->capture_default_str();
   session_cmd->add_flag("--no-engage", session.no_engage, "Never engage the blade (the same strokes without cutting)");
   session_cmd->add_flag("--quiet", session.quiet, "No summary");
+  session_cmd->add_flag("--report", session.report, "Write OUT/report.html at the end, as `incise report OUT`");
+
+  std::string report_dir;
+  auto* report_cmd = app.add_subcommand("report", "Write RUN_DIR/report.html: the scene, video, frames, plots, score, expectations and metrics of a run");
+  report_cmd->add_option("run_dir", report_dir, "A replay's or session's output folder (holds metrics.json or session.json)")->required();
 
   auto* trajectory_cmd = app.add_subcommand("trajectory", "Inspect, export or synthesise tool trajectory files");
   trajectory_cmd->require_subcommand(1);
@@ -172,6 +179,9 @@ int main(int argc, char** argv) {
                               "CG's preconditioner: all side by side, or two_level, warped_cholesky or jacobi (the Jacobi CG) alone")
       ->check(CLI::IsMember({"all", "two_level", "warped_cholesky", "jacobi"}))
       ->capture_default_str();
+  bool performance_report_only = false;
+  performance_cmd->add_flag("--report-only", performance_report_only,
+                            "Run nothing: write OUT/report.html from the OUT/performance.csv already there");
   std::string performance_backend = "cpu";
   performance_cmd->add_option("--backend", performance_backend, "gpu: also run every size on the GPU backend")
       ->check(CLI::IsMember({"cpu", "gpu"}))
@@ -201,6 +211,7 @@ int main(int argc, char** argv) {
     if (*check_cmd) return incise::app::check(check_scene);
     if (*run_cmd) return incise::app::run(run);
     if (*session_cmd) return incise::app::session(session);
+    if (*report_cmd) return incise::app::report(report_dir);
     if (*haptics_cmd) {
       haptics_bench.scene = haptics_scene;
       return incise::bench::run_haptics_bench(haptics_bench, std::cerr);
@@ -212,6 +223,10 @@ int main(int argc, char** argv) {
     if (*synth_cmd) return incise::app::trajectory_synth(synth);
     if (*accuracy_cmd) return incise::bench::run_accuracy_bench(accuracy_quick, accuracy_out, std::cerr);
     if (*stability_cmd) return incise::bench::run_stability_bench(stability_quick, stability_out, std::cerr, stability_resume);
+    if (*performance_cmd && performance_report_only) {
+      std::printf("report: %s\n", incise::bench::write_performance_report(performance_out, std::cerr).c_str());
+      return 0;
+    }
     if (*performance_cmd) return incise::bench::run_performance_bench(performance_quick, performance_out, std::cerr, performance_backend,
                                                                      performance_preconditioner);
   } catch (const std::exception& e) {

@@ -5,6 +5,7 @@
 #include "app/commands.hpp"
 
 #include "engine/haptic_session.hpp"
+#include "engine/replay.hpp"
 #include "engine/incision_score.hpp"
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
@@ -66,7 +67,10 @@ int session(const SessionArgs& args) {
   const auto file = std::filesystem::path(args.out) / "session.json";
   std::ofstream out(file);
   out << report.dump(2) << "\n";
+  out.close();  // before --report reads it back
   if (!out) throw std::runtime_error(file.string() + ": cannot write");
+  // The same per-step table as a replay's, for the report's plots.
+  engine::write_steps_csv(std::filesystem::path(args.out) / "steps.csv", step_stats, scene.solver.dt);
   if (!args.record.empty()) engine::write_session_summary(run, args.record + ".json");
   if (!args.quiet) {
     std::printf("session %s: %llu steps, %zu ticks, %ld cut events, %s triangles, max |F| %.3f N\n", scene.name.c_str(),
@@ -84,6 +88,7 @@ int session(const SessionArgs& args) {
                   args.scene.c_str(), args.record.c_str(), static_cast<unsigned long long>(world.steps_taken()));
     std::printf("report: %s\n", file.c_str());
   }
+  if (args.report) return app::report(args.out);
   return 0;
 }
 

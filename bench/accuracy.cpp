@@ -63,6 +63,7 @@
 // with the scene-like CG (tolerance 1e-6, Jacobi preconditioner, at most 2000 iterations);
 // cg_iterations is their mean iteration count.
 #include "bench/accuracy.hpp"
+#include "bench/bench_page.hpp"
 #include "bench/plot.hpp"
 
 #include "common/csv.hpp"
@@ -1160,6 +1161,14 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
     const std::chrono::duration<double> elapsed = Clock::now() - bench_start;
     progress_stream << "wrote " << (out_dir / "accuracy.csv").string() << " (" << rows.size()
                     << " rows), references.json and accuracy.png in " << format(elapsed.count(), 3) << " s\n";
+    progress_stream << "report: "
+                    << write_bench_page(out_dir, {"incise bench accuracy" + std::string(quick ? " --quick" : ""),
+                                                  "Error against run time per step, per model, variant and "
+                                                  "resolution, against converged references (bench/accuracy.cpp).",
+                                                  {{"accuracy.png", "Error against time per step"}}, "",
+                                                  "accuracy.csv"})
+                           .string()
+                    << "\n";
     return 0;
   } catch (const std::exception& error) {
     progress_stream << "\nbench accuracy failed: " << error.what() << "\n";

@@ -29,6 +29,7 @@
 // surface was removed). With --backend gpu each row gets a gpu row.
 // Timings are this machine's (2 shared cores): figures to read, never to assert.
 #include "bench/performance.hpp"
+#include "bench/performance_report.hpp"
 #include "bench/repo_files.hpp"
 
 #include "common/csv.hpp"
@@ -192,6 +193,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
     }
     }
     progress << "wrote " << (out_dir / "performance.csv").string() << "\n";
+    progress << "report: " << write_performance_report(out_dir, progress).string() << "\n";
     return 0;
   } catch (const std::exception& error) {
     progress << "\nbench performance failed: " << error.what() << "\n";

@@ -56,6 +56,7 @@
 // Runs are T = 1 s (beam) or 0.5 s (cubes) of simulated time; 0.25 s in quick mode.
 // Quick sweep: 3 E x 3 nu x 2 dt, 414 runs. The sweeps' outcomes: docs/status.md, "Benchmarks".
 #include "bench/stability.hpp"
+#include "bench/bench_page.hpp"
 #include "bench/plot.hpp"
 
 #include "common/csv.hpp"
@@ -1089,6 +1090,14 @@ int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::o
     draw_with_gnuplot(out_dir, "stability.gnuplot", plot_script("stability.png", quick, sweep, kinds, runs),
                       "stability.png", progress_stream);
     progress_stream << "wrote " << (out_dir / "stability.csv").string() << "\n";
+    progress_stream << "report: "
+                    << write_bench_page(out_dir, {"incise bench stability" + std::string(quick ? " --quick" : ""),
+                                                  "Stiff and extreme cases: the outcome of each model, integrator, "
+                                                  "case, E, nu and dt (bench/stability.cpp says what each case is).",
+                                                  {{"stability.png", "Outcome map"}}, "stability_summary.txt",
+                                                  "stability.csv"})
+                           .string()
+                    << "\n";
     return 0;
   } catch (const std::exception& error) {
     progress_stream << "\nstability bench failed: " << error.what() << "\n";

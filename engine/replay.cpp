@@ -12,6 +12,7 @@
 #include "render/offscreen.hpp"
 
 #include <algorithm>
+#include <set>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -602,6 +603,33 @@ Json expect_json(const Scene& scene, const Json& metrics) {
   return expect;
 }
 
+// rest_top.csv: the organ at rest seen from above for the report (its surface's vertices
+// before the first step, x and y, one per 0.5 mm cell so a fine surface stays a small file).
+void write_rest_top_csv(const std::filesystem::path& file, const World& world) {
+  common::CsvWriter csv(file, {"x", "y"});
+  std::set<std::pair<long, long>> cells;
+  auto add = [&](double x, double y) {
+    if (cells.insert({std::lround(x / 5e-4), std::lround(y / 5e-4)}).second) csv.row(x, y);
+  };
+  for (const auto& body : world.bodies()) {
+    if (body.data.embedding) {
+      const auto& p = body.data.surface_positions;
+      for (Eigen::Index i = 0; i + 2 < p.size(); i += 3) add(p[i], p[i + 1]);
+    } else {
+      const auto& rest = body.data.mechanics->rest_positions();
+      for (int n : body.model->surface_nodes) add(rest[3 * n], rest[3 * n + 1]);
+    }
+  }
+}
+
+void write_metrics_json(const std::filesystem::path& file, const Json& metrics) {
+  std::ofstream out(file);
+  out << metrics.dump(2) << "\n";
+  if (!out) throw std::runtime_error(file.string() + ": cannot write");
+}
+
+}  // namespace
+
 // steps.csv, one row per step for plots and review: where time went and what the tool felt.
 void write_steps_csv(const std::filesystem::path& file, const std::vector<StepStats>& stats, double dt) {
   common::CsvWriter steps_csv(
@@ -625,14 +653,6 @@ void write_steps_csv(const std::filesystem::path& file, const std::vector<StepSt
   }
 }
 
-void write_metrics_json(const std::filesystem::path& file, const Json& metrics) {
-  std::ofstream out(file);
-  out << metrics.dump(2) << "\n";
-  if (!out) throw std::runtime_error(file.string() + ": cannot write");
-}
-
-}  // namespace
-
 ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
   Json trajectory_json;
   std::optional<Trajectory> trajectory = load_trajectory(scene, options, trajectory_json);
@@ -642,6 +662,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
 
   std::filesystem::create_directories(options.out_dir);
   std::unique_ptr<Capture> capture = start_capture(plan);
+  write_rest_top_csv(options.out_dir / "rest_top.csv", world);
   RunOutcome run = run_steps(world, scene, options, plan, capture.get());
 
   Json metrics = run_metrics(scene, world, run, plan, dofs_initial, trajectory_json);

@@ -8,6 +8,7 @@
 #pragma once
 
 #include "engine/scene.hpp"
+#include "engine/world.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -43,6 +44,10 @@ struct ExpectationResult {
   std::optional<double> min, max;
   bool passed = false;
 };
+
+// steps.csv: one row per step (phase times, CG, tool force, energies, cut figures) for plots
+// and review; a replay and a session both write it. Throws std::runtime_error naming the file.
+void write_steps_csv(const std::filesystem::path& file, const std::vector<StepStats>& stats, double dt);
 
 // Checks the scene's `expect` block against metrics.
 std::vector<ExpectationResult> check_expectations(const Scene& scene, const nlohmann::json& metrics);

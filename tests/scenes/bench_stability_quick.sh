@@ -46,5 +46,12 @@ head -c -20 "$work.complete.csv" > "$csv"
 "$incise" bench stability --quick --resume --out "$work" 2> "$work.resume.log" || { cat "$work.resume.log"; exit 1; }
 grep -q "runs kept from the earlier sweep" "$work.resume.log" || { echo "--resume kept nothing"; cat "$work.resume.log"; exit 1; }
 cmp -s "$csv" "$work.complete.csv" || { echo "the resumed sweep differs:"; diff "$work.complete.csv" "$csv" | head; exit 1; }
+# Its page (issue 33): the outcome map embedded and every row in the table.
+page="$work/report.html"
+[ -s "$page" ] || { echo "no $page"; exit 1; }
+grep -q '<img class="plot" id="figure0" alt="Outcome map" src="data:image/png;base64,' "$page" || { echo "no outcome map on $page"; exit 1; }
+page_rows=$(grep -c '^<tr><td>' "$page")
+shown=$((rows < 400 ? rows : 400))  # the page shows the first 400 and says how many more
+[ "$page_rows" -eq "$shown" ] || { echo "$page: $page_rows table rows, the CSV has $rows"; exit 1; }
 echo "ok: $rows runs, $inside implicit runs inside the target all stable; a cut-short sweep resumed to the same CSV"
 awk -F, 'NR > 1 { n[$1 "/" $2 " " $7]++ } END { for (k in n) print "  " k, n[k] }' "$csv" | sort

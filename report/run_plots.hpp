@@ -1,0 +1,34 @@
+// The plots of one run, drawn by gnuplot from steps.csv: tool force, step time per phase,
+// CG iterations, energy, cut events, and the organ at rest from above (rest_top.csv) under
+// the tool's path (when steps.csv has tool_x, tool_y). Steps that cut (steps.csv cut_event, or links_severed) are shaded on every
+// time axis.
+#pragma once
+
+#include "report/csv_table.hpp"
+
+#include <filesystem>
+#include <ostream>
+#include <string>
+#include <vector>
+
+namespace incise::report {
+
+struct Plot {
+  std::filesystem::path png;  // may be missing when gnuplot is not installed or failed
+  std::string title;
+  std::string id;  // the <img> id on the page
+};
+
+struct RunPlots {
+  std::vector<Plot> plots;
+  std::vector<std::string> notes;  // a plot skipped and why (a column missing)
+};
+
+// Writes one gnuplot script per plot (data inline) into out_dir and draws each PNG there.
+// rest_top (the run's rest_top.csv: x,y of the surface at rest) may be null.
+RunPlots draw_run_plots(const CsvTable& steps, const CsvTable* rest_top, const std::filesystem::path& out_dir,
+                        std::ostream& progress);
+
+bool gnuplot_installed();
+
+}  // namespace incise::report
