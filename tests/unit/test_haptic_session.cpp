@@ -126,7 +126,9 @@ TEST(HapticSession, CgStopsOfARealTimeSessionAreRecordedAndReplayedBitForBit) {
     for (int k = 0; k < steps; ++k) {
       const StepStats stats = session.step();
       // One body, no retries: a stopped CG did exactly the minimum.
-      if (stats.cg_budget_stops > 0) EXPECT_EQ(stats.cg_iterations, scene.solver.realtime_min_iterations);
+      if (stats.cg_budget_stops > 0) {
+        EXPECT_EQ(stats.cg_iterations, scene.solver.realtime_min_iterations);
+      }
     }
     session.stop();
     hash = hex64(session.world().state_hash());
