@@ -1,21 +1,14 @@
 #include "bench/plot.hpp"
 
+#include "common/shell_quoted.hpp"
+
 #include <cstdlib>
 #include <fstream>
 #include <stdexcept>
 
 namespace incise::bench {
 
-namespace {
-
-// `text` inside single quotes for the shell: each ' becomes '\'' (close, escaped quote, reopen).
-std::string shell_quoted(const std::string& text) {
-  std::string quoted = "'";
-  for (char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return quoted + "'";
-}
-
-}  // namespace
+using common::shell_quoted;
 
 void draw_with_gnuplot(const std::filesystem::path& out_dir, const std::string& script_name, const std::string& script,
                        const std::string& png_name, std::ostream& progress) {

@@ -86,12 +86,7 @@ TriangleSoup boundary_surface(const physics::TetMesh& tets) {
       }
       v = index[v];
     }
-  soup.min = soup.max = soup.vertices.front();
-  for (const auto& v : soup.vertices)
-    for (int i = 0; i < 3; ++i) {
-      soup.min[i] = std::min(soup.min[i], v[i]);
-      soup.max[i] = std::max(soup.max[i], v[i]);
-    }
+  fit_bounds(soup);
   return soup;
 }
 

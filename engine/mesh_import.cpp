@@ -108,6 +108,15 @@ const aiScene* read_scene(Assimp::Importer& importer, const std::filesystem::pat
 
 }  // namespace
 
+void fit_bounds(TriangleSoup& soup) {
+  soup.min = soup.max = soup.vertices.front();
+  for (const auto& v : soup.vertices)
+    for (int i = 0; i < 3; ++i) {
+      soup.min[i] = std::min(soup.min[i], v[i]);
+      soup.max[i] = std::max(soup.max[i], v[i]);
+    }
+}
+
 TriangleSoup import_surface(const std::filesystem::path& file, double scale, std::string_view up) {
   turn_up({}, up);  // an unknown axis is refused before the file is read
   if (!std::filesystem::exists(file)) throw MeshError(file.string() + ": file does not exist");
@@ -160,12 +169,7 @@ TriangleSoup import_surface(const std::filesystem::path& file, double scale, std
                     ", " + std::to_string(a[1]) + ", " + std::to_string(a[2]) + ")-(" +
                     std::to_string(b[0]) + ", " + std::to_string(b[1]) + ", " + std::to_string(b[2]) + ")");
   }
-  soup.min = soup.max = soup.vertices.front();
-  for (const auto& v : soup.vertices)
-    for (int i = 0; i < 3; ++i) {
-      soup.min[i] = std::min(soup.min[i], v[i]);
-      soup.max[i] = std::max(soup.max[i], v[i]);
-    }
+  fit_bounds(soup);
   return soup;
 }
 

@@ -18,6 +18,9 @@ struct TriangleSoup {
 };
 
 
+// Sets the soup's box to its vertices' (which must not be empty).
+void fit_bounds(TriangleSoup& soup);
+
 // Reads every mesh of the file, merges coincident vertices, scales by `scale`. Throws
 // MeshError naming the file when it cannot be read, holds no triangles, or is not closed
 // (an edge used by other than two triangles: the count and the first such edge are named).

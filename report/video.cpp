@@ -1,19 +1,13 @@
 #include "report/video.hpp"
 
+#include "common/shell_quoted.hpp"
+
 #include <cstdio>
 #include <cstdlib>
 
 namespace incise::report {
 
-namespace {
-
-std::string shell_quoted(const std::string& text) {
-  std::string quoted = "'";
-  for (char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return quoted + "'";
-}
-
-}  // namespace
+using common::shell_quoted;
 
 VideoOutcome encode_video(const std::filesystem::path& run_dir, const std::vector<std::filesystem::path>& frames,
                           double fps) {
