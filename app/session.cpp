@@ -59,10 +59,9 @@ int session(const SessionArgs& args) {
   report["record"] = args.record;
   std::filesystem::create_directories(args.out);
   if (scene.plan) {
-    report["score"] = engine::score_json(engine::score_incision(*scene.plan, world, step_stats, scene.solver.dt));
-    std::ofstream score(std::filesystem::path(args.out) / "score.json");
-    score << report["score"].dump(2) << "\n";
-    if (!score) throw std::runtime_error((std::filesystem::path(args.out) / "score.json").string() + ": cannot write");
+    const engine::IncisionScore score = engine::score_incision(*scene.plan, world, step_stats, scene.solver.dt);
+    report["score"] = engine::score_json(score);
+    engine::write_score_files(args.out, *scene.plan, score);
   }
   const auto file = std::filesystem::path(args.out) / "session.json";
   std::ofstream out(file);

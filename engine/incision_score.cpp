@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <limits>
+#include <sstream>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -168,6 +170,7 @@ void score_mouth(const Frame& frame, const Track& track, const std::vector<Vec3>
   for (const auto& [key, count] : sides) {
     if (count[0] == 0 || count[1] == 0) continue;
     const Vec3 a = vertices[key >> 32], b = vertices[key & 0xffffffffu];
+    score.mouth.push_back({a.x(), a.y(), a.z(), b.x(), b.y(), b.z()});
     const int n = std::max(1, static_cast<int>(std::ceil((b - a).norm() / kMouthStep)));
     for (int k = 0; k < n; ++k) {
       const double distance = see(track, frame.lateral(a + (k + 0.5) / n * (b - a))).distance;
@@ -272,6 +275,27 @@ nlohmann::json score_json(const IncisionScore& s) {
           {"depth_target_mm", s.depth_target_mm},   {"depth_min_mm", s.depth_min_mm},
           {"depth_max_mm", s.depth_max_mm},         {"band_mm", s.band_mm},
           {"cut_area_mm2", s.cut_area_mm2}};
+}
+
+void write_score_files(const std::filesystem::path& dir, const PlanSpec& plan, const IncisionScore& score) {
+  const auto write = [&dir](const char* name, const std::string& text) {
+    std::ofstream out(dir / name);
+    out << text;
+    if (!out) throw std::runtime_error((dir / name).string() + ": cannot write");
+  };
+  write("score.json", score_json(score).dump(2) + "\n");
+  std::ostringstream plan_csv, mouth_csv;
+  plan_csv.precision(9);
+  mouth_csv.precision(9);
+  plan_csv << "x,y,z\n";
+  for (const Point& p : plan.path) plan_csv << p[0] << ',' << p[1] << ',' << p[2] << '\n';
+  mouth_csv << "x0,y0,z0,x1,y1,z1\n";
+  // In the order of the vertex pairs, so that the file is the same on every run.
+  std::vector<std::array<double, 6>> mouth = score.mouth;
+  std::sort(mouth.begin(), mouth.end());
+  for (const auto& m : mouth) mouth_csv << m[0] << ',' << m[1] << ',' << m[2] << ',' << m[3] << ',' << m[4] << ',' << m[5] << '\n';
+  write("plan.csv", plan_csv.str());
+  write("cut_path.csv", mouth_csv.str());
 }
 
 }  // namespace incise::engine

@@ -25,6 +25,7 @@
 
 #include <array>
 #include <cstdint>
+#include <filesystem>
 #include <vector>
 
 namespace incise::engine {
@@ -47,6 +48,8 @@ struct IncisionScore {
   double force_peak_N = 0;      // over the run
   double force_mean_N = 0;      // over the steps the tool touched tissue
   int strokes = 0;              // engagements of the blade that cut
+  // The cut path at rest: the wound's mouth as segments (x0, y0, z0, x1, y1, z1), m.
+  std::vector<std::array<double, 6>> mouth;
 };
 
 // The geometric part, from a cut body's surface at rest: `vertices`, `triangles` and per
@@ -64,5 +67,10 @@ IncisionScore score_incision(const PlanSpec& plan, const World& world, const std
 
 // score.json's object: the keys first, then the context (target, band, areas).
 nlohmann::json score_json(const IncisionScore& score);
+
+// Writes dir/score.json, and for the report's view from above dir/plan.csv (x,y,z of the
+// plan's points) and dir/cut_path.csv (x0,y0,z0,x1,y1,z1 of the mouth's segments), m at rest.
+// Throws std::runtime_error naming a file it cannot write.
+void write_score_files(const std::filesystem::path& dir, const PlanSpec& plan, const IncisionScore& score);
 
 }  // namespace incise::engine

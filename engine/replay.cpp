@@ -681,8 +681,9 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
   }
   if (scene.plan) {
     try {
-      metrics["score"] = score_json(score_incision(*scene.plan, world, run.stats, scene.solver.dt));
-      write_metrics_json(options.out_dir / "score.json", metrics["score"]);
+      const IncisionScore score = score_incision(*scene.plan, world, run.stats, scene.solver.dt);
+      metrics["score"] = score_json(score);
+      write_score_files(options.out_dir, *scene.plan, score);
     } catch (const std::exception& e) {
       metrics["score_error"] = e.what();
       result.ok = false;

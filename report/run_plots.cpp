@@ -170,25 +170,46 @@ void cuts_plot(Context& c) {
              "'' using 1:3 axes x1y2 with points pt 7 ps 0.5 lc rgb '#404040' title 'links severed'\n");
 }
 
+// Millimetres of a column (m).
+std::vector<double> millimetres(const CsvTable& table, const char* column) {
+  auto v = table.column(column);
+  for (auto& x : v) x *= 1000.0;
+  return v;
+}
+
+// The planned incision (a blue line) and the cut path at rest (the wound's mouth, black
+// segments), when the run has them.
+void add_plan_and_cut(const TopView& top, std::string& data, std::string& plot) {
+  if (top.plan && top.plan->has("x") && top.plan->has("y") && !top.plan->rows.empty()) {
+    data += inline_data({millimetres(*top.plan, "x"), millimetres(*top.plan, "y")}, "$plan");
+    plot += std::string(plot.empty() ? "" : ", ") + "$plan using 1:2 with lines lw 3 lc rgb '#3060d0' title 'plan'";
+  }
+  const CsvTable* cut = top.cut_path;
+  if (cut && cut->has("x0") && cut->has("y0") && cut->has("x1") && cut->has("y1") && !cut->rows.empty()) {
+    const auto x0 = millimetres(*cut, "x0"), y0 = millimetres(*cut, "y0"), x1 = millimetres(*cut, "x1"),
+               y1 = millimetres(*cut, "y1");
+    std::vector<double> dx(x0.size()), dy(y0.size());
+    for (std::size_t k = 0; k < x0.size(); ++k) dx[k] = x1[k] - x0[k], dy[k] = y1[k] - y0[k];
+    data += inline_data({x0, y0, dx, dy}, "$cut");
+    plot += std::string(plot.empty() ? "" : ", ") + "$cut using 1:2:3:4 with vectors nohead lw 2 lc rgb '#000000' title 'cut path (at rest)'";
+  }
+}
+
 // The organ at rest from above (its surface, grey) under the tool tip's path (x-y, mm),
-// coloured by time, the steps that cut in red.
-void top_view_plot(Context& c, const CsvTable* rest_top) {
+// coloured by time, the steps that cut in red; with a plan, the plan and the cut path at rest.
+void top_view_plot(Context& c, const TopView& top) {
   const bool path = c.steps.has("tool_x") && c.steps.has("tool_y");
+  const CsvTable* rest_top = top.rest_top;
   const bool organ = rest_top && rest_top->has("x") && rest_top->has("y") && !rest_top->rows.empty();
   if (!path) c.result.notes.push_back("Cut path from above: not drawn (steps.csv has no tool_x, tool_y columns)");
   if (!organ && !path) return;
   std::string data, plot;
   if (organ) {
-    auto x = rest_top->column("x"), y = rest_top->column("y");
-    for (auto& v : x) v *= 1000.0;
-    for (auto& v : y) v *= 1000.0;
-    data += inline_data({x, y}, "$rest");
+    data += inline_data({millimetres(*rest_top, "x"), millimetres(*rest_top, "y")}, "$rest");
     plot += "$rest using 1:2 with points pt 7 ps 0.35 lc rgb '#c8c8c8' title 'organ at rest'";
   }
   if (path) {
-    auto x = c.steps.column("tool_x"), y = c.steps.column("tool_y");
-    for (auto& v : x) v *= 1000.0;
-    for (auto& v : y) v *= 1000.0;
+    const auto x = millimetres(c.steps, "tool_x"), y = millimetres(c.steps, "tool_y");
     std::vector<double> cut_x(x.size(), NAN), cut_y(y.size(), NAN);
     const auto cutting = cut_steps(c.steps);
     for (std::size_t k = 0; k < cutting.size() && k < x.size(); ++k)
@@ -197,6 +218,7 @@ void top_view_plot(Context& c, const CsvTable* rest_top) {
     plot += std::string(organ ? ", " : "") + "$data using 2:3:1 with lines lw 2 lc palette title 'tool tip', "
             "'' using 4:5 with points pt 7 ps 0.6 lc rgb '#cc0000' title 'cutting'";
   }
+  add_plan_and_cut(top, data, plot);
   c.draw("top_view", "From above: the organ at rest and the cut path",
          "set terminal pngcairo size 960,520 font ',10' background rgb '#ffffff'\nset output 'top_view.png'\n"
          "set title 'From above: the organ at rest" + std::string(path ? ", the tool tip (colour: time; red: steps that cut)" : "") +
@@ -210,7 +232,7 @@ void top_view_plot(Context& c, const CsvTable* rest_top) {
 
 bool gnuplot_installed() { return std::system("command -v gnuplot > /dev/null 2>&1") == 0; }
 
-RunPlots draw_run_plots(const CsvTable& steps, const CsvTable* rest_top, const std::filesystem::path& out_dir,
+RunPlots draw_run_plots(const CsvTable& steps, const TopView& top, const std::filesystem::path& out_dir,
                         std::ostream& progress) {
   std::filesystem::create_directories(out_dir);
   Context c{steps, out_dir, progress, {}, {}, {}};
@@ -225,7 +247,7 @@ RunPlots draw_run_plots(const CsvTable& steps, const CsvTable* rest_top, const s
   single_series_plot(c, "energy", "Energy", "energy (J)",
                      {{"elastic_energy_J", "elastic"}, {"kinetic_energy_J", "kinetic"}});
   cuts_plot(c);
-  top_view_plot(c, rest_top);
+  top_view_plot(c, top);
   return std::move(c.result);
 }
 

@@ -24,9 +24,17 @@ struct RunPlots {
   std::vector<std::string> notes;  // a plot skipped and why (a column missing)
 };
 
+// What the view from above draws besides the tool's path, each null when the run has none:
+// rest_top.csv (x,y of the surface at rest), plan.csv (x,y,z of the planned incision) and
+// cut_path.csv (x0,y0,z0,x1,y1,z1: the wound's mouth at rest), from engine/incision_score.hpp.
+struct TopView {
+  const CsvTable* rest_top = nullptr;
+  const CsvTable* plan = nullptr;
+  const CsvTable* cut_path = nullptr;
+};
+
 // Writes one gnuplot script per plot (data inline) into out_dir and draws each PNG there.
-// rest_top (the run's rest_top.csv: x,y of the surface at rest) may be null.
-RunPlots draw_run_plots(const CsvTable& steps, const CsvTable* rest_top, const std::filesystem::path& out_dir,
+RunPlots draw_run_plots(const CsvTable& steps, const TopView& top, const std::filesystem::path& out_dir,
                         std::ostream& progress);
 
 bool gnuplot_installed();

@@ -118,9 +118,14 @@ void plots_section(HtmlPage& page, const std::filesystem::path& run_dir, std::os
     return;
   }
   if (!gnuplot_installed()) page.note("gnuplot is not installed: the plots are not drawn (their scripts are in report/)");
-  std::optional<CsvTable> rest_top;
-  if (std::filesystem::exists(run_dir / "rest_top.csv")) rest_top = read_csv_table(run_dir / "rest_top.csv");
-  const RunPlots plots = draw_run_plots(read_csv_table(file), rest_top ? &*rest_top : nullptr, run_dir / "report", progress);
+  std::optional<CsvTable> rest_top, plan, cut_path;
+  const auto read_if_there = [&run_dir](const char* name, std::optional<CsvTable>& table) {
+    if (std::filesystem::exists(run_dir / name)) table = read_csv_table(run_dir / name);
+    return table ? &*table : nullptr;
+  };
+  const TopView top{read_if_there("rest_top.csv", rest_top), read_if_there("plan.csv", plan),
+                    read_if_there("cut_path.csv", cut_path)};
+  const RunPlots plots = draw_run_plots(read_csv_table(file), top, run_dir / "report", progress);
   for (const auto& p : plots.plots) page.embedded_png(p.png, p.title, p.id);
   for (const auto& n : plots.notes) page.note(n);
 }
