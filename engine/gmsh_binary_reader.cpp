@@ -19,11 +19,13 @@ namespace {
 // The file's bytes from where the text reader stopped; errors name the byte offset.
 class Bytes {
  public:
-  explicit Bytes(const Lines& lines) : lines_(lines), text_(lines.text()), at_(lines.position()) {}
+  // The text reader's position is one past the end when the last line has no newline.
+  explicit Bytes(const Lines& lines)
+      : lines_(lines), text_(lines.text()), at_(std::min(lines.position(), lines.text().size())) {}
 
   template <class T>
   T take(const std::string& what) {
-    if (text_.size() - at_ < sizeof(T)) fail("the file ends where " + what + " was expected");
+    if (at_ > text_.size() || text_.size() - at_ < sizeof(T)) fail("the file ends where " + what + " was expected");
     T value;
     std::memcpy(&value, text_.data() + at_, sizeof(T));
     at_ += sizeof(T);

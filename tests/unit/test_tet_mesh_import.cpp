@@ -202,4 +202,10 @@ TEST(TetMeshImport, TruncatedBinaryMshIsRefusedWithTheByte) {
     const std::string message = refusal(files.write("cut_binary.msh", whole.substr(0, keep)));
     EXPECT_NE(message.find("cut_binary.msh: byte "), std::string::npos) << keep << ": " << message;
   }
+  // The fuzzer's finding: a binary format line that ends the file without a newline left the
+  // byte reader one past the end, and its first read overran the buffer.
+  for (const char* text : {"$MeshFormat\n4.1 1 8", "$MeshFormat\n2.2 1 8", "$MeshFormat\n4.1 1 8\n"}) {
+    const std::string message = refusal(files.write("no_newline.msh", text));
+    EXPECT_NE(message.find("no_newline.msh: byte "), std::string::npos) << message;
+  }
 }
