@@ -6,6 +6,7 @@ gtest_discover_tests(test_thread_pool DISCOVERY_TIMEOUT 60)
 add_executable(test_engine
   ${CMAKE_CURRENT_LIST_DIR}/test_scene.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_model_registry.cpp
+  ${PROJECT_SOURCE_DIR}/fuzz/fuzz_models.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_publication.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_mesh_import.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_tet_mesh_import.cpp

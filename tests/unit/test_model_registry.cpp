@@ -117,6 +117,25 @@ TEST(ModelRegistry, ListsTheBuiltInModelsWithTheirCapabilities) {
   EXPECT_EQ(models().find("tethered"), nullptr);
 }
 
+namespace incise::engine {
+void register_fuzz_models(ModelRegistry& registry);  // fuzz/fuzz_models.cpp
+}
+
+// The scene fuzz target validates scenes through a registry of its own (the builders need
+// physics/, which its build leaves out): it must list the product's models as the product does.
+TEST(ModelRegistry, TheSceneFuzzTargetRegistersTheProductsModels) {
+  ModelRegistry fuzz;
+  register_fuzz_models(fuzz);
+  ASSERT_EQ(fuzz.names(), models().names());
+  for (const ModelEntry& entry : models().entries()) {
+    const ModelEntry& mirror = *fuzz.find(entry.name);
+    EXPECT_EQ(mirror.cuttable, entry.cuttable) << entry.name;
+    EXPECT_EQ(mirror.gpu, entry.gpu) << entry.name;
+    EXPECT_EQ(mirror.node_name, entry.node_name) << entry.name;
+    EXPECT_EQ(static_cast<bool>(mirror.read_settings), static_cast<bool>(entry.read_settings)) << entry.name;
+  }
+}
+
 TEST(ModelRegistry, RefusesATakenNameAndAModelWithoutBuilder) {
   ModelEntry again = tethered_entry();
   again.name = "fem";

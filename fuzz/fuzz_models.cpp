@@ -1,0 +1,33 @@
+// The built-in models as the scene fuzz target registers them: the names, capabilities and
+// settings readers of engine/models/NAME_model.cpp, without the builders (which need physics/,
+// not in the fuzz build). A model added to INCISE_MODELS (engine/CMakeLists.txt) is added here
+// too, its settings reader in a file of its own like engine/models/efg_settings.cpp.
+#include "engine/body.hpp"
+#include "engine/body_builder.hpp"
+#include "engine/model_registry.hpp"
+#include "engine/models/efg_settings.hpp"
+
+#include <stdexcept>
+
+namespace incise::engine {
+
+namespace {
+
+Body no_build(const BodySpec&, const SolverSpec&, const BodyShape&) {
+  throw std::logic_error("the fuzz build reads scenes, it builds no body");
+}
+
+}  // namespace
+
+void register_fuzz_models(ModelRegistry& registry) {
+  registry.add({.name = "fem", .summary = "corotational linear tetrahedra", .build = no_build});
+  registry.add({.name = "efg",
+                .summary = "meshless corotational element-free Galerkin",
+                .cuttable = true,
+                .gpu = true,
+                .node_name = "particle",
+                .read_settings = read_efg_settings,
+                .build = no_build});
+}
+
+}  // namespace incise::engine
