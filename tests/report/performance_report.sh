@@ -6,6 +6,7 @@
 set -euo pipefail
 incise=$1 sample=$2 work=$3 check=$4
 fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "$0")/render_page.sh"
 rm -rf "$work"
 mkdir -p "$work/bench" "$work/empty"
 cp "$sample" "$work/bench/performance.csv"
@@ -19,17 +20,5 @@ head -1 "$sample" > "$work/empty/performance.csv"
 "$incise" bench performance --report-only --out "$work/empty"
 grep -q 'holds no row' "$work/empty/report.html" || fail "the empty CSV's page does not say it has no row"
 
-browser=$(command -v chromium || command -v chromium-browser || true)
-if [ -z "$browser" ]; then
-  echo "chromium is not installed: the page was checked, not rendered"
-  exit 77
-fi
-headless=("$browser" --headless --no-sandbox --disable-gpu --hide-scrollbars --no-first-run
-          --user-data-dir="$work/profile" --window-size=1200,1400)
-timeout 120 "${headless[@]}" --enable-logging=stderr --v=0 --screenshot="$work/shot.png" "file://$page" \
-  > "$work/chromium.log" 2>&1 || fail "chromium failed"
-grep -qE ':CONSOLE[:(]' "$work/chromium.log" && fail "console messages: $(grep -E ':CONSOLE[:(]' "$work/chromium.log" | head -3)"
-timeout 120 "${headless[@]}" --dump-dom "file://$page#layout" > "$work/dom.html" 2> /dev/null
-sed -n '/<pre id="layout">/,/<\/pre>/p' "$work/dom.html" | sed -E 's/<[^>]*>//g' > "$work/layout.txt"
-"$check" "$work/shot.png" "$work/layout.txt" 1
+render_page "$page" "$work" 1400 "$check" 1
 echo "ok: $rows rows"

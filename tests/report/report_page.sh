@@ -10,6 +10,7 @@
 set -euo pipefail
 incise=$1 scene=$2 work=$3 check=$4 docs_png=${5:-}
 fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "$0")/render_page.sh"
 rm -rf "$work"
 mkdir -p "$work"
 run=$work/run
@@ -52,26 +53,7 @@ mkdir -p "$work/empty"
 if "$incise" report "$work/empty" 2> "$work/refusal.txt"; then fail "incise report accepted $work/empty"; fi
 grep -q "$work/empty/metrics.json" "$work/refusal.txt" || fail "the refusal does not name metrics.json: $(cat "$work/refusal.txt")"
 
-browser=$(command -v chromium || command -v chromium-browser || true)
-if [ -z "$browser" ]; then
-  echo "chromium is not installed (scripts/setup installs it): the page was checked, not rendered"
-  exit 77
-fi
-headless=("$browser" --headless --no-sandbox --disable-gpu --hide-scrollbars --no-first-run
-          --user-data-dir="$work/profile" --window-size=1200,4200)
-timeout 120 "${headless[@]}" --enable-logging=stderr --v=0 --screenshot="$work/shot.png" "file://$page" \
-  > "$work/chromium.log" 2>&1 || fail "chromium failed: $(tail -5 "$work/chromium.log")"
-# Console messages come as ":INFO:CONSOLE(line)] "text"": an exception, a failed load or an
-# error logged by the page is a failure.
-if grep -qE ':CONSOLE[:(]' "$work/chromium.log"; then
-  fail "console messages: $(grep -E ':CONSOLE[:(]' "$work/chromium.log" | head -5)"
-fi
-timeout 120 "${headless[@]}" --dump-dom "file://$page#layout" > "$work/dom.html" 2> "$work/chromium_dom.log" \
-  || fail "chromium --dump-dom failed"
-sed -n '/<pre id="layout">/,/<\/pre>/p' "$work/dom.html" | sed -E 's/<[^>]*>//g' > "$work/layout.txt"
-echo "plots on the page (id x y width height):"
-cat "$work/layout.txt"
-"$check" "$work/shot.png" "$work/layout.txt" 6
+render_page "$page" "$work" 4200 "$check" 6
 
 if [ -n "$docs_png" ]; then
   # The README's picture: the top of the page at half scale, kept small.
