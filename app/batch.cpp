@@ -1,6 +1,8 @@
 // `incise batch MANIFEST --out DIR [--shard I/N]` and `incise batch merge DIR` (docs/batch.md).
 #include "app/commands.hpp"
 
+#include "batch/bench_job.hpp"
+#include "batch/json_file.hpp"
 #include "batch/manifest.hpp"
 #include "batch/merge.hpp"
 #include "batch/ranks.hpp"
@@ -24,7 +26,11 @@ batch::Shard choose_shard(const BatchArgs& args, const batch::Ranks& ranks) {
 }
 
 int report_merge(const batch::MergeTotals& totals) {
-  if (totals.failed + totals.missing == 0) return 0;
+  if (totals.failed + totals.missing == 0) {
+    if (totals.benches_joined) return 0;
+    std::fprintf(stderr, "incise batch: a benchmark's parts could not be joined (see above)\n");
+    return 1;
+  }
   std::fprintf(stderr, "incise batch: %d of %d jobs failed, %d not run (summary.csv has their errors)\n",
                totals.failed, totals.jobs, totals.missing);
   return 1;
@@ -51,7 +57,10 @@ int list_jobs(const std::string& manifest_file) {
     const batch::Job& job = manifest.jobs[i];
     std::string overrides;
     for (const auto& [key, value] : job.overrides) overrides += " " + key + "=" + value.dump();
-    std::printf("%zu %s %s%s\n", i, job.name.c_str(), job.scene.filename().string().c_str(), overrides.c_str());
+    const std::string what = job.bench ? "bench " + job.bench->name + " part " + std::to_string(job.bench->part) + "/" +
+                                             std::to_string(job.bench->parts)
+                                       : job.scene.filename().string();
+    std::printf("%zu %s %s%s\n", i, job.name.c_str(), what.c_str(), overrides.c_str());
   }
   std::printf("%s: %zu jobs\n", manifest_file.c_str(), manifest.jobs.size());
   return 0;
@@ -73,5 +82,13 @@ int batch_run(const BatchArgs& args) {
 }
 
 int batch_merge(const std::string& dir) { return report_merge(batch::merge_batch(dir, std::cerr)); }
+
+int emit_bench_manifest(const std::string& bench, bool quick, int parts, const std::string& file) {
+  batch::write_atomically(file, batch::bench_manifest(bench, quick, parts));
+  std::fprintf(stderr, "wrote %s: %s in %d parts; run it with `incise batch %s --out DIR` (or its shards), then "
+               "`incise batch merge DIR` joins the sweep into DIR/bench/%s/\n",
+               file.c_str(), bench.c_str(), parts, file.c_str(), bench.c_str());
+  return 0;
+}
 
 }  // namespace incise::app

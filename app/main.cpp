@@ -168,6 +168,13 @@ int main(int argc, char** argv) {
   stability_cmd->add_option("--out", stability_out, "Output folder (stability.csv, stability.png)")->capture_default_str();
   stability_cmd->add_flag("--resume", stability_resume,
                           "Keep the runs already in OUT/stability.csv (an interrupted sweep) and run the missing ones");
+  std::string stability_manifest;
+  int stability_parts = 8;
+  stability_cmd->add_option("--emit-manifest", stability_manifest,
+                            "Write a batch manifest of the sweep in --parts jobs instead of running it (docs/batch.md)");
+  stability_cmd->add_option("--parts", stability_parts, "Jobs of the emitted manifest")
+      ->check(CLI::Range(1, 10000))
+      ->capture_default_str();
 
   bool performance_quick = false;
   std::string performance_out = "out/bench/performance";
@@ -222,7 +229,9 @@ int main(int argc, char** argv) {
     if (*import_cmd) return incise::app::trajectory_import(import_file, import_out);
     if (*synth_cmd) return incise::app::trajectory_synth(synth);
     if (*accuracy_cmd) return incise::bench::run_accuracy_bench(accuracy_quick, accuracy_out, std::cerr);
-    if (*stability_cmd) return incise::bench::run_stability_bench(stability_quick, stability_out, std::cerr, stability_resume);
+    if (*stability_cmd && !stability_manifest.empty())
+      return incise::app::emit_bench_manifest("stability", stability_quick, stability_parts, stability_manifest);
+    if (*stability_cmd) return incise::bench::run_stability_bench({stability_quick, stability_resume}, stability_out, std::cerr);
     if (*performance_cmd && performance_report_only) {
       std::printf("report: %s\n", incise::bench::write_performance_report(performance_out, std::cerr).c_str());
       return 0;

@@ -92,6 +92,19 @@ void read_keys(const Json& block, const std::string& path, bool grid, const Json
   }
 }
 
+// A job's `bench` block: which benchmark, its quick form or not, and which part of how many.
+BenchPart read_bench(const Json& node, const std::string& path, std::vector<std::string>& errors) {
+  Reader b(node, path, errors);
+  BenchPart bench;
+  bench.name = b.text("name", true, "stability", {"stability"});
+  bench.quick = b.boolean("quick", false);
+  bench.parts = b.integer("parts", false, 1, 1, 10000);
+  bench.part = b.integer("part", true, 0, 0, 9999);
+  if (bench.part >= bench.parts)
+    b.error(b.child("part"), std::to_string(bench.part) + " is not below parts (" + std::to_string(bench.parts) + ")");
+  return bench;
+}
+
 // One entry of `jobs`: one job, or one per point of its grid (the last key varies fastest;
 // keys in the order nlohmann keeps them, sorted). Names: NAME, or NAME-000, NAME-001, ...
 void read_job(const Json& node, const std::string& path, const std::filesystem::path& base, SceneCache& scenes,
@@ -101,6 +114,12 @@ void read_job(const Json& node, const std::string& path, const std::filesystem::
   job.name = r.text("name", true, "");
   if (r.has("name") && !job.name.empty() && !valid_name(job.name))
     r.error(r.child("name"), "'" + job.name + "' must be letters, digits, '_', '-' or '.' (a folder's name)");
+  if (const Json* bench = r.get("bench", false)) {
+    job.bench = read_bench(*bench, r.child("bench"), errors);
+    if (r.has("scene")) r.error(r.child("scene"), "a job is a scene or a bench part, not both");
+    jobs.push_back(job);
+    return;
+  }
   const std::string scene = r.text("scene", true, "");
   const Json* scene_json = nullptr;
   if (!scene.empty()) {
@@ -189,10 +208,14 @@ Json jobs_json(const Manifest& manifest) {
   for (const Job& job : manifest.jobs) {
     Json overrides = Json::object();
     for (const auto& [key, value] : job.overrides) overrides[key] = value;
-    jobs.push_back({{"name", job.name},
-                    {"scene", job.scene.string()},
-                    {"trajectory", job.trajectory ? job.trajectory->string() : ""},
-                    {"overrides", overrides}});
+    Json entry = {{"name", job.name},
+                  {"scene", job.scene.string()},
+                  {"trajectory", job.trajectory ? job.trajectory->string() : ""},
+                  {"overrides", overrides}};
+    if (job.bench)
+      entry["bench"] = {{"name", job.bench->name}, {"quick", job.bench->quick}, {"part", job.bench->part},
+                        {"parts", job.bench->parts}};
+    jobs.push_back(std::move(entry));
   }
   return {{"manifest", manifest.file.string()}, {"override_keys", manifest.override_keys}, {"jobs", jobs}};
 }

@@ -14,9 +14,19 @@
 
 namespace incise::batch {
 
-// One run: a replay of a scene into DIR/jobs/NAME/.
+// A part of a benchmark's sweep run as a job (batch/bench_job.hpp): `incise bench NAME
+// --emit-manifest` writes one per part, `incise batch merge` joins their rows into one sweep.
+struct BenchPart {
+  std::string name;  // "stability"
+  bool quick = false;
+  int part = 0;
+  int parts = 1;
+};
+
+// One run: a replay of a scene into DIR/jobs/NAME/, or a part of a benchmark.
 struct Job {
   std::string name;                // unique; the folder's name
+  std::optional<BenchPart> bench;  // instead of a scene
   std::filesystem::path scene;     // resolved against the manifest's folder, canonical
   std::optional<std::filesystem::path> trajectory;  // likewise
   std::optional<long> steps;       // default: the scene's solver.duration / dt

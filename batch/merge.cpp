@@ -1,5 +1,6 @@
 #include "batch/merge.hpp"
 
+#include "batch/bench_job.hpp"
 #include "batch/json_file.hpp"
 #include "bench/plot.hpp"
 
@@ -100,6 +101,7 @@ MergeTotals merge_batch(const std::filesystem::path& out_dir, std::ostream& prog
   bench::draw_with_gnuplot(out_dir, "summary.gnuplot", plot_script(bars), "summary.png", progress);
   progress << "merged " << totals.jobs << " jobs: " << totals.ok << " ok, " << totals.failed << " failed, "
            << totals.missing << " not run; wrote " << (out_dir / "summary.csv").string() << "\n";
+  totals.benches_joined = merge_bench_parts(out_dir, jobs_file, progress);
   return totals;
 }
 

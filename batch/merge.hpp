@@ -9,6 +9,7 @@ namespace incise::batch {
 
 struct MergeTotals {
   int jobs = 0, ok = 0, failed = 0, missing = 0;  // missing: no outcome.json (not run yet)
+  bool benches_joined = true;  // every benchmark's parts joined into DIR/bench/NAME/ (batch/bench_job.hpp)
 };
 
 // Reads DIR/jobs.json and each DIR/jobs/NAME/outcome.json; throws std::runtime_error naming

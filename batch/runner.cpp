@@ -1,5 +1,6 @@
 #include "batch/runner.hpp"
 
+#include "batch/bench_job.hpp"
 #include "batch/json_file.hpp"
 
 #include "engine/replay.hpp"
@@ -54,7 +55,13 @@ Json run_job(const Job& job, std::size_t index, const std::filesystem::path& dir
   Json outcome = {{"job", job.name},       {"index", index},  {"scene", job.scene.string()},
                   {"overrides", overrides}, {"outcome", "ok"}, {"error", ""},
                   {"state_hash", ""},       {"steps", 0},     {"shard", std::to_string(shard.index) + "/" + std::to_string(shard.count)}};
+  if (job.bench) outcome["scene"] = "bench " + job.bench->name;
   try {
+    if (job.bench) {
+      run_bench_part(*job.bench, dir, outcome);
+      outcome["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      return outcome;
+    }
     const engine::Scene scene = scene_with_overrides(job);
     engine::ReplayOptions options;
     options.out_dir = dir;

@@ -963,8 +963,17 @@ std::string bounds_text(const Sweep& sweep) {
 
 }  // namespace
 
-int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress_stream,
-                        bool resume) {
+int run_stability_bench(const StabilityOptions& options, const std::filesystem::path& out_dir,
+                        std::ostream& progress_stream) {
+  const bool quick = options.quick, resume = options.resume;
+  if (options.parts < 1 || options.part < 0 || options.part >= options.parts) {
+    progress_stream << "stability bench: part " << options.part << " of " << options.parts << " does not exist\n";
+    return 1;
+  }
+  // A part runs every parts-th body of the sweep (a model, case and material, in the order
+  // below) with all its runs: a body serves its runs in turn and keeps its rotations' warm
+  // starts from one to the next, so its runs are only reproduced bit for bit in that order.
+  const auto in_part = [&](int body_index) { return body_index % options.parts == options.part; };
   try {
     std::filesystem::create_directories(out_dir);
     const Sweep sweep = make_sweep(quick);
@@ -981,25 +990,28 @@ int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::o
     if (resume) progress_stream << "resuming: " << previous.size() << " runs kept from the earlier sweep\n";
 
     int total = 0;
-    for (const ModelKind& kind : kinds) {
-      for (const std::string& case_name : sweep.cases) {
+    int body_index = 0;
+    for (const std::string& case_name : sweep.cases)
+      for (const ModelKind& kind : kinds) {
         if (!model_runs_case(kind.name, case_name)) continue;
-        total += static_cast<int>(kind.integrators.size() * sweep.youngs_moduli.size() *
-                                  sweep.poisson_ratios.size() * sweep.time_steps.size());
+        for (std::size_t m = 0; m < sweep.youngs_moduli.size() * sweep.poisson_ratios.size(); ++m)
+          if (in_part(body_index++)) total += static_cast<int>(kind.integrators.size() * sweep.time_steps.size());
       }
-    }
-    progress_stream << "stability sweep" << (quick ? " (quick)" : "") << ": " << total << " runs\n"
-                    << bounds_text(sweep);
+    progress_stream << "stability sweep" << (quick ? " (quick)" : "") << ": " << total << " runs";
+    if (options.parts > 1) progress_stream << " (part " << options.part << " of " << options.parts << ")";
+    progress_stream << "\n" << bounds_text(sweep);
     const auto start = std::chrono::steady_clock::now();
     common::ProgressBar progress(progress_stream, total);
     std::vector<Run> runs;
     std::vector<std::string> set_up_notes;
+    body_index = 0;
     for (const std::string& case_name : sweep.cases) {
       const double duration = is_beam(case_name) ? sweep.beam_duration : sweep.cube_duration;
       for (const ModelKind& kind : kinds) {
         if (!model_runs_case(kind.name, case_name)) continue;
         for (double youngs_modulus : sweep.youngs_moduli) {
           for (double poisson_ratio : sweep.poisson_ratios) {
+            if (!in_part(body_index++)) continue;
             const Material material{youngs_modulus, poisson_ratio, density};
             const bool first_material = youngs_modulus == sweep.youngs_moduli.front() &&
                                         poisson_ratio == sweep.poisson_ratios.front();
@@ -1071,7 +1083,8 @@ int run_stability_bench(bool quick, const std::filesystem::path& out_dir, std::o
     }
     progress.draw("done");
     progress.finish();
-    const std::string slices = thin_slice_report(quick, progress_stream);
+    const std::string slices = options.parts > 1 ? "Thin-slice study: run by the merge of the parts.\n"
+                                                 : thin_slice_report(quick, progress_stream);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 

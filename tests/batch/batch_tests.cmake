@@ -14,6 +14,15 @@ if(INCISE_SANITIZE STREQUAL "")
   set_tests_properties(batch_score PROPERTIES TIMEOUT 600 LABELS "batch")
 endif()
 
+# The quick stability sweep in 3 parts on the batch path, joined and compared with the
+# unsharded sweep that bench_stability_quick writes (its fixture); Release only, like it.
+if(INCISE_SANITIZE STREQUAL "")
+  add_test(NAME batch_bench_parts
+           COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/batch_bench_parts.sh $<TARGET_FILE:incise>
+                   ${CMAKE_CURRENT_BINARY_DIR}/bench_stability_quick/stability.csv ${CMAKE_CURRENT_BINARY_DIR}/batch_bench_parts)
+  set_tests_properties(batch_bench_parts PROPERTIES TIMEOUT 600 LABELS "batch" FIXTURES_REQUIRED stability_sweep)
+endif()
+
 # mpirun and the single-node Slurm in Release only: OpenMPI's runtime is not clean under the
 # sanitizers (LSan counts what it keeps until exit), and what they add to incise (ranks.cpp,
 # shell scripts) is not code the sanitizers look into; batch_shards runs the batch code there.

@@ -29,7 +29,7 @@ if(INCISE_SANITIZE STREQUAL "")
   add_test(NAME bench_stability_quick
            COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/bench_stability_quick.sh $<TARGET_FILE:incise>
                    ${CMAKE_CURRENT_BINARY_DIR}/bench_stability_quick)
-  set_tests_properties(bench_stability_quick PROPERTIES TIMEOUT 600 LABELS "bench")
+  set_tests_properties(bench_stability_quick PROPERTIES TIMEOUT 600 LABELS "bench" FIXTURES_SETUP stability_sweep)
 endif()
 include(${CMAKE_CURRENT_LIST_DIR}/cut_scenes.cmake)
 
