@@ -50,7 +50,11 @@ Vector3 clamp_force(const Vector3& force, double max_force, bool* clamped) {
 }
 
 HapticLoop::HapticLoop(Device& device, ContactChannel& contacts, HapticLoopConfig config)
-    : device_(device), contacts_(contacts), config_(config), ring_(config.ring_capacity == 0 ? 1 : config.ring_capacity) {
+    : device_(device),
+      contacts_(contacts),
+      config_(config),
+      passivity_(config.passivity),
+      ring_(config.ring_capacity == 0 ? 1 : config.ring_capacity) {
   require_finite(config_.rate_hz, "haptic loop rate_hz");
   if (!(config_.rate_hz >= 1 && config_.rate_hz <= 100'000))
     throw std::invalid_argument("haptic loop rate_hz " + std::to_string(config_.rate_hz) + " is outside [1, 100000]");
@@ -138,9 +142,14 @@ TickSample HapticLoop::step(std::int64_t now_ns) {
 
   if (!std::isfinite(total[0]) || !std::isfinite(total[1]) || !std::isfinite(total[2]))
     nonfinite_.fetch_add(1, std::memory_order_relaxed);
-  if (s.state != DeviceState::ok) total = Vector3{};
-  s.force = clamp_force(total, limits_.max_force, &s.clamped);
+  const bool render = s.state == DeviceState::ok;
+  if (!render) total = Vector3{};
+  const Vector3 rendered = clamp_force(total, limits_.max_force, &s.clamped);
+  s.force = passivity_.tick(x, rendered, period_s_, limits_.max_force, render);
+  s.damper_force = passivity_.damper_force();
+  s.device_energy = passivity_.energy();
   device_.write_force(s.force);
+  passivity_figures_.store(passivity_.figures());
 
   if (!ring_.try_push(s)) overflows_.fetch_add(1, std::memory_order_relaxed);
   latest_.store(s);

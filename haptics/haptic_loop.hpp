@@ -4,6 +4,7 @@
 //   model  = the newest ContactModel physics published (TripleBuffer read: no lock, no copy)
 //   force  = virtual coupling to the tool proxy + contact_force(model, device position)
 //   force  = 0 unless the device is ok; clamped to |force| <= device.limits().max_force
+//   force += the passivity controller's damper while the device holds net energy (passivity.hpp)
 //   device.write_force(force); push the TickSample into the SPSC ring physics drains.
 //
 // Integration (the engine's side: engine/haptic_session.hpp, HapticSession):
@@ -36,6 +37,7 @@
 
 #include "haptics/contact_model.hpp"
 #include "haptics/device.hpp"
+#include "haptics/passivity.hpp"
 #include "haptics/period_statistics.hpp"
 #include "haptics/seqlock.hpp"
 #include "haptics/spsc_ring.hpp"
@@ -86,6 +88,9 @@ struct HapticLoopConfig {
   // most max_blend_ns; 0: a new model takes effect on the next tick as it is.
   std::int64_t blend_ns = -1;
   std::int64_t max_blend_ns = 50'000'000;
+  // The energy observer and the damper that keeps the device from receiving net energy
+  // (haptics/passivity.hpp, after Hannaford & Ryu 2002).
+  PassivityParameters passivity{};
 };
 
 struct TickSample {
@@ -98,6 +103,8 @@ struct TickSample {
   DeviceState state = DeviceState::closed;
   bool clamped = false;       // the clamp reduced the force
   std::uint64_t contact_step = 0;  // ContactModel::step in effect
+  Vector3 damper_force{};     // the passivity controller's part of force, N
+  double device_energy = 0;   // J, net energy the loop has given the device up to this tick (passivity.hpp)
 };
 
 // The pieces, as free functions (the loop and the tests use the same ones).
@@ -135,6 +142,8 @@ class HapticLoop {
   std::uint64_t nonfinite_forces() const { return nonfinite_.load(std::memory_order_relaxed); }
   double period_s() const { return period_s_; }
   double coupling_damping() const { return damping_; }
+  // The energy balance so far (passivity.hpp); any thread.
+  PassivityFigures passivity() const { return passivity_figures_.load(); }
 
  private:
   TickSample step(std::int64_t now_ns);
@@ -159,9 +168,11 @@ class HapticLoop {
   std::int64_t previous_time_ns_ = 0;
   Vector3 velocity_{};
   bool velocity_primed_ = false;
+  PassivityController passivity_;
 
   SpscRing<TickSample> ring_;
   Seqlock<TickSample> latest_;
+  Seqlock<PassivityFigures> passivity_figures_;
   PeriodHistogram periods_;
   std::atomic<std::uint64_t> ticks_{0}, overflows_{0}, nonfinite_{0};
   std::atomic<bool> stop_{false}, realtime_{false};
