@@ -116,6 +116,16 @@ Vector3 coupling_force(const CouplingParameters& coupling, double period_s, cons
 // Scales force down to |force| <= max_force, keeping its direction; a non-finite force becomes 0.
 Vector3 clamp_force(const Vector3& force, double max_force, bool* clamped = nullptr);
 
+// What the kernel says of the loop thread over its last run (getrusage(RUSAGE_THREAD) at its
+// start and end): page faults it took and the times it was switched out while runnable. With
+// none, each long period was the wake-up from the wait coming late, not the tick.
+struct LoopThreadUsage {
+  long minor_faults = 0, major_faults = 0;
+  long involuntary_switches = 0;  // preempted while runnable
+  long voluntary_switches = 0;    // the waits (one per tick that slept)
+  bool measured = false;          // false until a run() has ended
+};
+
 class HapticLoop {
  public:
   // Validates the config against the device's limits (std::invalid_argument). The device and
@@ -139,11 +149,14 @@ class HapticLoop {
   TickSample latest() const { return latest_.load(); }
   std::uint64_t ticks() const { return ticks_.load(std::memory_order_acquire); }
   PeriodStatistics period_statistics() const { return periods_.summary(); }
+  std::vector<LongPeriod> long_periods() const { return periods_.long_periods(); }
+  LoopThreadUsage thread_usage() const { return usage_.load(); }  // after stop()
   std::uint64_t nonfinite_forces() const { return nonfinite_.load(std::memory_order_relaxed); }
   double period_s() const { return period_s_; }
   double coupling_damping() const { return damping_; }
   // The energy balance so far (passivity.hpp); any thread.
   PassivityFigures passivity() const { return passivity_figures_.load(); }
+  const PassivityParameters& passivity_parameters() const { return config_.passivity; }
 
  private:
   TickSample step(std::int64_t now_ns);
@@ -173,6 +186,7 @@ class HapticLoop {
   SpscRing<TickSample> ring_;
   Seqlock<TickSample> latest_;
   Seqlock<PassivityFigures> passivity_figures_;
+  Seqlock<LoopThreadUsage> usage_;
   PeriodHistogram periods_;
   std::atomic<std::uint64_t> ticks_{0}, overflows_{0}, nonfinite_{0};
   std::atomic<bool> stop_{false}, realtime_{false};
@@ -187,5 +201,8 @@ void wait_until(std::int64_t deadline_ns, std::int64_t spin_ns);
 // (same rate, spin and priority settings), run on its own thread for duration_ns, in this
 // process; its periods say what this machine allows.
 PeriodStatistics measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns);
+// The same into `histogram` (its long periods too): run on another thread beside a live loop,
+// it tells which of the loop's long periods the host caused (long_periods_not_in).
+void measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns, PeriodHistogram& histogram);
 
 }  // namespace incise::haptics

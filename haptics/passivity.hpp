@@ -16,13 +16,17 @@
 // observer sums (Hannaford & Ryu's f v dT with v dT replaced by the displacement it
 // approximates; Ryu, Kwon & Hannaford 2004 book the same one-sample-delayed product).
 //
-// The controller. At tick k, with E = energy() > 0 and the device's last displacement d (its
-// best prediction of the next one), the damper force -(E / |d|^2) d dissipates E if the next
-// displacement is d again (Hannaford & Ryu's alpha = -E_obs / (v^2 dT), with v = d / dT). Its
-// bounds keep it from becoming the instability it fights: the damping alpha = E dT / |d|^2
-// is capped at max_damping (a slow hand would otherwise get an unbounded damper) and the
-// output force at the device's max_force. What it fails to dissipate (a capped damper, a hand
-// that changed direction) the observer sees at the next tick, and the controller goes on.
+// The controller. At tick k, with E = energy() > 0 and the device's velocity v (the loop's
+// filtered estimate: the next displacement is predicted as d = v T), the damper force
+// -(E / |d|^2) d dissipates E if the next displacement is d (Hannaford & Ryu's alpha =
+// -E_obs / (v^2 dT)). Its bounds keep it from becoming the instability it fights, or a jolt:
+// the damping alpha = E T / |d|^2 is capped at max_damping (a slow hand would otherwise get an
+// unbounded damper), the damper's force changes by at most max_step per tick (a damper that
+// springs on in one tick is a force jump the hand feels; the raw displacement of a device
+// sampled unevenly would make it chatter), and the output force stays within the device's
+// max_force. What it leaves (a capped or ramping damper, a hand that changed speed) the
+// observer sees at the next tick, and the controller goes on: dissipation is spread over ticks,
+// never skipped.
 #pragma once
 
 #include <cstdint>
@@ -39,9 +43,12 @@ struct PassivityParameters {
   // is several times the loop's own dampers (coupling K T = 0.3 N s/m, contact k_eff T up to
   // 0.4 N s/m at the defaults), so it can take what they miss.
   double max_damping = 2.0;
+  // N, the most the damper's force changes between ticks: of the order of the force change
+  // between physics publications the loop renders anyway (bench haptics, "between").
+  double max_step = 0.02;
 };
 
-// Throws std::invalid_argument naming the field for a non-finite or negative max_damping.
+// Throws std::invalid_argument naming the field for a non-finite or negative max_damping or max_step.
 void validate(const PassivityParameters& parameters);
 
 struct PassivityFigures {
@@ -56,10 +63,12 @@ class PassivityController {
 
   // One tick: books the work the force written at the previous tick did while the device moved
   // to x, then returns the force to write now: `force` (what the environment renders, already
-  // clamped) plus the damper when the device holds net energy, clamped to max_force. render =
-  // false (a lost device): the output is zero and no damper is added. Non-finite inputs book no
-  // work. No allocation, no lock: the haptic thread calls it every tick.
-  Vector3 tick(const Vector3& x, const Vector3& force, double period_s, double max_force, bool render = true);
+  // clamped) plus the damper when the device holds net energy (velocity: the device's, m/s),
+  // clamped to max_force. render = false (a lost device): the output is zero and the damper
+  // lets go. Non-finite inputs book no work. No allocation, no lock: the haptic thread calls it
+  // every tick.
+  Vector3 tick(const Vector3& x, const Vector3& velocity, const Vector3& force, double period_s, double max_force,
+               bool render = true);
 
   // The part of the last output the controller added (output - force), N.
   const Vector3& damper_force() const { return damper_; }
