@@ -26,7 +26,7 @@
 // sampled unevenly would make it chatter), and the output force stays within the device's
 // max_force. What it leaves (a capped or ramping damper, a hand that changed speed) the
 // observer sees at the next tick, and the controller goes on: dissipation is spread over ticks,
-// never skipped.
+// never skipped. Once the excess is gone the damper lets go at the same rate (max_step a tick).
 #pragma once
 
 #include <cstdint>
