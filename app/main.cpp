@@ -201,6 +201,9 @@ int main(int argc, char** argv) {
   haptics_cmd->add_option("--out", haptics_bench.out_dir, "Output folder (haptics.json)")->capture_default_str();
   haptics_cmd->add_option("--scene", haptics_scene, "Cutting scene (default assets/scenes/haptics_block.json)");
   haptics_cmd->add_option("--spin-us", haptics_bench.spin_us, "Sleep to this long before each deadline, then spin")->capture_default_str();
+  bool haptics_normal_priority = false;
+  haptics_cmd->add_flag("--normal-priority", haptics_normal_priority,
+                        "Run the loops at normal priority (as where SCHED_FIFO is refused)");
 
   SoakCommand soak;
   CLI::App* soak_cmd = add_soak_command(*bench_cmd, soak);
@@ -221,6 +224,7 @@ int main(int argc, char** argv) {
     if (*report_cmd) return incise::app::report(report_dir);
     if (*haptics_cmd) {
       haptics_bench.scene = haptics_scene;
+      haptics_bench.realtime_priority = !haptics_normal_priority;
       return incise::bench::run_haptics_bench(haptics_bench, std::cerr);
     }
     if (*soak_cmd) return incise::bench::run_soak_bench(soak.options(), std::cerr);

@@ -8,6 +8,7 @@
 #include <sched.h>
 #include <stdexcept>
 #include <string>
+#include <sys/resource.h>
 #include <time.h>
 
 #include "haptics/clock.hpp"
@@ -50,7 +51,11 @@ Vector3 clamp_force(const Vector3& force, double max_force, bool* clamped) {
 }
 
 HapticLoop::HapticLoop(Device& device, ContactChannel& contacts, HapticLoopConfig config)
-    : device_(device), contacts_(contacts), config_(config), ring_(config.ring_capacity == 0 ? 1 : config.ring_capacity) {
+    : device_(device),
+      contacts_(contacts),
+      config_(config),
+      passivity_(config.passivity),
+      ring_(config.ring_capacity == 0 ? 1 : config.ring_capacity) {
   require_finite(config_.rate_hz, "haptic loop rate_hz");
   if (!(config_.rate_hz >= 1 && config_.rate_hz <= 100'000))
     throw std::invalid_argument("haptic loop rate_hz " + std::to_string(config_.rate_hz) + " is outside [1, 100000]");
@@ -138,9 +143,14 @@ TickSample HapticLoop::step(std::int64_t now_ns) {
 
   if (!std::isfinite(total[0]) || !std::isfinite(total[1]) || !std::isfinite(total[2]))
     nonfinite_.fetch_add(1, std::memory_order_relaxed);
-  if (s.state != DeviceState::ok) total = Vector3{};
-  s.force = clamp_force(total, limits_.max_force, &s.clamped);
+  const bool render = s.state == DeviceState::ok;
+  if (!render) total = Vector3{};
+  const Vector3 rendered = clamp_force(total, limits_.max_force, &s.clamped);
+  s.force = passivity_.tick(x, velocity_, rendered, period_s_, limits_.max_force, render);
+  s.damper_force = passivity_.damper_force();
+  s.device_energy = passivity_.energy();
   device_.write_force(s.force);
+  passivity_figures_.store(passivity_.figures());
 
   if (!ring_.try_push(s)) overflows_.fetch_add(1, std::memory_order_relaxed);
   latest_.store(s);
@@ -181,6 +191,16 @@ std::int64_t next_deadline(std::int64_t deadline, std::int64_t period, std::int6
   return deadline;
 }
 
+// A period from the tick started at previous_start (whose work ended at worked_until) to the
+// tick starting at start, due at deadline.
+void record_period(PeriodHistogram& h, std::int64_t previous_start, std::int64_t worked_until, std::int64_t deadline,
+                   std::int64_t start) {
+  if (previous_start == 0) return;
+  const std::int64_t period = start - previous_start;
+  h.record(period);
+  if (period > 2'000'000) h.record_long({start, period, start - deadline, worked_until - previous_start});
+}
+
 }  // namespace
 
 void HapticLoop::start() {
@@ -199,36 +219,47 @@ void HapticLoop::stop() {
 
 void HapticLoop::run() {
   realtime_.store(try_realtime(config_), std::memory_order_release);
+  rusage before{}, after{};
+  const bool measured = getrusage(RUSAGE_THREAD, &before) == 0;
   std::int64_t deadline = monotonic_now_ns() + period_ns_;
-  std::int64_t previous_start = 0;
+  std::int64_t previous_start = 0, worked_until = 0;
   while (!stop_.load(std::memory_order_acquire)) {
     wait_until(deadline, config_.spin_ns);
     const std::int64_t start = monotonic_now_ns();
-    if (previous_start != 0) periods_.record(start - previous_start);
+    record_period(periods_, previous_start, worked_until, deadline, start);
     previous_start = start;
     step(start);
-    deadline = next_deadline(deadline, period_ns_, monotonic_now_ns(), periods_);
+    worked_until = monotonic_now_ns();
+    deadline = next_deadline(deadline, period_ns_, worked_until, periods_);
   }
+  if (measured && getrusage(RUSAGE_THREAD, &after) == 0)
+    usage_.store({after.ru_minflt - before.ru_minflt, after.ru_majflt - before.ru_majflt,
+                  after.ru_nivcsw - before.ru_nivcsw, after.ru_nvcsw - before.ru_nvcsw, true});
 }
 
-PeriodStatistics measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns) {
-  PeriodHistogram histogram;
+void measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns, PeriodHistogram& histogram) {
   std::thread bare([&] {
     try_realtime(config);
     const std::int64_t period = static_cast<std::int64_t>(std::llround(1e9 / config.rate_hz));
     const std::int64_t end = monotonic_now_ns() + duration_ns;
     std::int64_t deadline = monotonic_now_ns() + period;
-    std::int64_t previous_start = 0;
+    std::int64_t previous_start = 0, worked_until = 0;
     for (;;) {
       wait_until(deadline, config.spin_ns);
       const std::int64_t start = monotonic_now_ns();
       if (start >= end) break;
-      if (previous_start != 0) histogram.record(start - previous_start);
+      record_period(histogram, previous_start, worked_until, deadline, start);
       previous_start = start;
-      deadline = next_deadline(deadline, period, monotonic_now_ns(), histogram);
+      worked_until = monotonic_now_ns();
+      deadline = next_deadline(deadline, period, worked_until, histogram);
     }
   });
   bare.join();
+}
+
+PeriodStatistics measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns) {
+  PeriodHistogram histogram;
+  measure_bare_loop(config, duration_ns, histogram);
   return histogram.summary();
 }
 

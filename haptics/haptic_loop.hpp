@@ -4,6 +4,7 @@
 //   model  = the newest ContactModel physics published (TripleBuffer read: no lock, no copy)
 //   force  = virtual coupling to the tool proxy + contact_force(model, device position)
 //   force  = 0 unless the device is ok; clamped to |force| <= device.limits().max_force
+//   force += the passivity controller's damper while the device holds net energy (passivity.hpp)
 //   device.write_force(force); push the TickSample into the SPSC ring physics drains.
 //
 // Integration (the engine's side: engine/haptic_session.hpp, HapticSession):
@@ -36,6 +37,7 @@
 
 #include "haptics/contact_model.hpp"
 #include "haptics/device.hpp"
+#include "haptics/passivity.hpp"
 #include "haptics/period_statistics.hpp"
 #include "haptics/seqlock.hpp"
 #include "haptics/spsc_ring.hpp"
@@ -86,6 +88,9 @@ struct HapticLoopConfig {
   // most max_blend_ns; 0: a new model takes effect on the next tick as it is.
   std::int64_t blend_ns = -1;
   std::int64_t max_blend_ns = 50'000'000;
+  // The energy observer and the damper that keeps the device from receiving net energy
+  // (haptics/passivity.hpp, after Hannaford & Ryu 2002).
+  PassivityParameters passivity{};
 };
 
 struct TickSample {
@@ -98,6 +103,8 @@ struct TickSample {
   DeviceState state = DeviceState::closed;
   bool clamped = false;       // the clamp reduced the force
   std::uint64_t contact_step = 0;  // ContactModel::step in effect
+  Vector3 damper_force{};     // the passivity controller's part of force, N
+  double device_energy = 0;   // J, net energy the loop has given the device up to this tick (passivity.hpp)
 };
 
 // The pieces, as free functions (the loop and the tests use the same ones).
@@ -108,6 +115,16 @@ Vector3 coupling_force(const CouplingParameters& coupling, double period_s, cons
                        const Vector3& device_velocity, const Vector3& proxy_position, const Vector3& proxy_velocity);
 // Scales force down to |force| <= max_force, keeping its direction; a non-finite force becomes 0.
 Vector3 clamp_force(const Vector3& force, double max_force, bool* clamped = nullptr);
+
+// What the kernel says of the loop thread over its last run (getrusage(RUSAGE_THREAD) at its
+// start and end): page faults it took and the times it was switched out while runnable. With
+// none, each long period was the wake-up from the wait coming late, not the tick.
+struct LoopThreadUsage {
+  long minor_faults = 0, major_faults = 0;
+  long involuntary_switches = 0;  // preempted while runnable
+  long voluntary_switches = 0;    // the waits (one per tick that slept)
+  bool measured = false;          // false until a run() has ended
+};
 
 class HapticLoop {
  public:
@@ -132,9 +149,14 @@ class HapticLoop {
   TickSample latest() const { return latest_.load(); }
   std::uint64_t ticks() const { return ticks_.load(std::memory_order_acquire); }
   PeriodStatistics period_statistics() const { return periods_.summary(); }
+  std::vector<LongPeriod> long_periods() const { return periods_.long_periods(); }
+  LoopThreadUsage thread_usage() const { return usage_.load(); }  // after stop()
   std::uint64_t nonfinite_forces() const { return nonfinite_.load(std::memory_order_relaxed); }
   double period_s() const { return period_s_; }
   double coupling_damping() const { return damping_; }
+  // The energy balance so far (passivity.hpp); any thread.
+  PassivityFigures passivity() const { return passivity_figures_.load(); }
+  const PassivityParameters& passivity_parameters() const { return config_.passivity; }
 
  private:
   TickSample step(std::int64_t now_ns);
@@ -159,9 +181,12 @@ class HapticLoop {
   std::int64_t previous_time_ns_ = 0;
   Vector3 velocity_{};
   bool velocity_primed_ = false;
+  PassivityController passivity_;
 
   SpscRing<TickSample> ring_;
   Seqlock<TickSample> latest_;
+  Seqlock<PassivityFigures> passivity_figures_;
+  Seqlock<LoopThreadUsage> usage_;
   PeriodHistogram periods_;
   std::atomic<std::uint64_t> ticks_{0}, overflows_{0}, nonfinite_{0};
   std::atomic<bool> stop_{false}, realtime_{false};
@@ -176,5 +201,8 @@ void wait_until(std::int64_t deadline_ns, std::int64_t spin_ns);
 // (same rate, spin and priority settings), run on its own thread for duration_ns, in this
 // process; its periods say what this machine allows.
 PeriodStatistics measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns);
+// The same into `histogram` (its long periods too): run on another thread beside a live loop,
+// it tells which of the loop's long periods the host caused (long_periods_not_in).
+void measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns, PeriodHistogram& histogram);
 
 }  // namespace incise::haptics

@@ -40,7 +40,31 @@ PeriodStatistics PeriodHistogram::summary() const {
   return s;
 }
 
+void PeriodHistogram::record_long(const LongPeriod& period) {
+  const int n = long_count_.load(std::memory_order_relaxed);
+  if (n >= kLongKept) return;
+  long_[static_cast<std::size_t>(n)] = period;
+  long_count_.store(n + 1, std::memory_order_release);
+}
+
+std::vector<LongPeriod> PeriodHistogram::long_periods() const {
+  const int n = long_count_.load(std::memory_order_acquire);
+  return {long_.begin(), long_.begin() + n};
+}
+
+std::size_t long_periods_not_in(const std::vector<LongPeriod>& loop, const std::vector<LongPeriod>& beside) {
+  std::size_t alone = 0;
+  for (const LongPeriod& a : loop) {
+    bool shared = false;
+    for (const LongPeriod& b : beside)
+      shared = shared || (a.end_ns - a.period_ns < b.end_ns && b.end_ns - b.period_ns < a.end_ns);
+    alone += shared ? 0 : 1;
+  }
+  return alone;
+}
+
 void PeriodHistogram::reset() {
+  long_count_.store(0);
   for (int i = 0; i <= kBins; ++i) bins_[i].store(0, std::memory_order_relaxed);
   count_.store(0);
   sum_ns_.store(0);

@@ -8,12 +8,18 @@ add_executable(test_haptics
   ${CMAKE_CURRENT_LIST_DIR}/test_haptics_devices.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_haptics_channels.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_haptics_loop.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_haptics_passivity.cpp
 )
 target_link_libraries(test_haptics PRIVATE incise_haptics GTest::gtest_main)
 # The bridge round-trip test runs the real incise-bridge program.
 add_dependencies(test_haptics incise-bridge)
 target_compile_definitions(test_haptics PRIVATE INCISE_BRIDGE_PATH="$<TARGET_FILE:incise-bridge>")
 gtest_discover_tests(test_haptics DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "haptics")
+
+# Its own program: it replaces the global operator new to count the tick's allocations.
+add_executable(test_haptics_allocation ${CMAKE_CURRENT_LIST_DIR}/test_haptics_allocation.cpp)
+target_link_libraries(test_haptics_allocation PRIVATE incise_haptics GTest::gtest_main)
+gtest_discover_tests(test_haptics_allocation DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "haptics")
 
 # The window end to end with the haptic session (needs a display; scripts/test provides Xvfb).
 if(INCISE_WITH_WINDOW)
