@@ -68,6 +68,13 @@ HexMassSpring::HexMassSpring(const HexMesh& mesh, const MassSpringMaterial& mate
     const BrickSprings k = baudet_brick_springs(size, material.youngs_modulus, material.poisson_ratio);
     if (const std::string problem = brick_problem(k); !problem.empty())
       refuse_brick(e, size, material.poisson_ratio, problem);
+    bricks_.push_back(k);
+    // The axial loads from the springs' resultants S: the corrections on a half-brick's 4 nodes
+    // also cross its mid-plane, so the load balancing it is F = S - 8 C^T F (axial_loads).
+    const Mat3 balance = Mat3::Identity() + 8 * k.correction.transpose();
+    if (material.corrections && !(std::abs(balance.determinant()) > 1e-9))
+      refuse_brick(e, size, material.poisson_ratio, "its correction forces leave its axial loads undetermined");
+    load_from_springs_.push_back(balance.inverse());
     const auto add = [&](int a, int b, double value) { stiffness[{std::min(a, b), std::max(a, b)}] += value; };
     for (int s = 0; s < 12; ++s) add(hex[kHexEdges[s][0]], hex[kHexEdges[s][1]], k.edge[s / 4]);
     for (const auto& d : kHexDiagonals) add(hex[d[0]], hex[d[1]], k.diagonal);
@@ -89,6 +96,7 @@ HexMassSpring::HexMassSpring(const HexMesh& mesh, const MassSpringMaterial& mate
     node_stiffness_[s.b] += k;
     springs_.push_back(s);
   }
+  corrections_ = material.corrections;
   explicit_limit_ = mass_spring_explicit_limit(masses_, node_stiffness_);
   update_rotations(rest_);
 }
@@ -121,6 +129,49 @@ void HexMassSpring::add_elastic_forces(const Vector& x, Vector& f) const {
     const Vec3 force = spring.stiffness * (length - spring.rest_length) / length * d;
     f.segment<3>(3 * static_cast<Index>(spring.a)) += force;
     f.segment<3>(3 * static_cast<Index>(spring.b)) -= force;
+  }
+  if (corrections_) add_correction_forces(x, f);
+}
+
+Vec3 HexMassSpring::axial_loads(const Vector& x, std::size_t e) const {
+  const auto& hex = hexes_[e];
+  const BrickSprings& k = bricks_[e];
+  const auto tension = [&](int a, int b, double stiffness, Vec3& d) {
+    d = at(x, hex[b]) - at(x, hex[a]);
+    return stiffness * (d.norm() - (at(rest_, hex[b]) - at(rest_, hex[a])).norm());
+  };
+  Vec3 loads = Vec3::Zero();
+  std::array<Vec3, 3> axis{Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+  for (int s = 0; s < 12; ++s) {
+    Vec3 d;
+    loads[s / 4] += tension(kHexEdges[s][0], kHexEdges[s][1], k.edge[s / 4], d);
+    axis[s / 4] += d;
+  }
+  for (auto& a : axis) a.normalize();
+  // Each diagonal crosses all three mid-planes: its tension's component along each axis.
+  for (const auto& diagonal : kHexDiagonals) {
+    Vec3 d;
+    const double t = tension(diagonal[0], diagonal[1], k.diagonal, d);
+    for (int i = 0; i < 3; ++i) loads[i] += t * std::abs(d.dot(axis[i])) / d.norm();
+  }
+  return load_from_springs_[e] * loads;
+}
+
+void HexMassSpring::add_correction_forces(const Vector& x, Vector& f) const {
+  for (std::size_t e = 0; e < hexes_.size(); ++e) {
+    const auto& hex = hexes_[e];
+    const Vec3 loads = axial_loads(x, e);
+    for (int j = 0; j < 3; ++j) {
+      double along_j = 0;  // 2 sum_i F_ij on every node, outward along j
+      for (int i = 0; i < 3; ++i)
+        if (i != j) along_j += 2 * bricks_[e].correction(i, j) * loads[i];
+      // Local node a's neighbour along x, y, z is a ^ 1, a ^ 3, a ^ 4 (hex_mesh.hpp's order).
+      static constexpr int kFlip[3] = {1, 3, 4};
+      for (int a = 0; a < 8; ++a) {
+        const Vec3 outward = (at(x, hex[a]) - at(x, hex[a ^ kFlip[j]])).normalized();
+        f.segment<3>(3 * static_cast<Index>(hex[a])) += along_j * outward;
+      }
+    }
   }
 }
 

@@ -11,6 +11,7 @@
 #pragma once
 
 #include "physics/core/model.hpp"
+#include "physics/mss/baudet_stiffness.hpp"
 #include "physics/mss/hex_mesh.hpp"
 
 #include <memory>
@@ -26,6 +27,8 @@ struct MassSpringMaterial {
   // critical damping, 1), m the reduced mass m_a m_b / (m_a + m_b) of its two nodes: the source
   // leaves the mass open; the reduced mass makes the pair's relative motion critically damped.
   double damping_ratio = 1;
+  // Baudet's correction forces (add_correction_forces); off: springs only.
+  bool corrections = false;
 };
 
 struct Spring {
@@ -56,6 +59,21 @@ class HexMassSpring final : public DeformableModel {
   double node_spacing() const override { return spacing_; }
   std::unique_ptr<DeformableModel> clone() const override { return std::make_unique<HexMassSpring>(*this); }
 
+  // Baudet's correction forces, which the springs alone cannot give (digest B.1.3): for a load
+  // F_i along the brick's axis i, F_ij = correction(i, j) F_i along each other axis j, applied
+  // as 2 F_ij on each of its 8 nodes (the factor 2 of the Lagrangian's 8 F (2 eps) term),
+  // outward from the brick's mid-plane, along the node's current edge on axis j (Fléchon §5.1:
+  // the corrections follow the deformation). Under general loading F_i is the brick's axial
+  // load that balances half of it: the force S_i its share of the springs carries across its
+  // mid-plane normal to i, plus the corrections along i on that half's 4 nodes, which depend on
+  // the other loads: F = S - 8 C^T F, solved per brick (axial_loads). In a traction test this is
+  // the applied load along the pull and zero across it, exactly. Added by add_elastic_forces
+  // when the material asks for them; they are explicit in the implicit step (not in K), and
+  // conserve momentum (each edge's two nodes get opposite forces).
+  void add_correction_forces(const Vector& x, Vector& f) const;
+  // Brick e's axial loads F_x, F_y, F_z at x (tension positive), N.
+  Vec3 axial_loads(const Vector& x, std::size_t e) const;
+
   const std::vector<Spring>& springs() const { return springs_; }
   const std::vector<std::array<int, 8>>& hexes() const { return hexes_; }
   // Per node, the summed stiffness of the springs that meet there, N/m.
@@ -66,6 +84,9 @@ class HexMassSpring final : public DeformableModel {
   Vector masses_;
   Vector node_stiffness_;
   std::vector<std::array<int, 8>> hexes_;
+  std::vector<BrickSprings> bricks_;  // per brick, its own stiffnesses and correction ratios
+  std::vector<Mat3> load_from_springs_;  // per brick, (I + 8 C^T)^-1 (axial_loads)
+  bool corrections_ = false;
   std::vector<Spring> springs_;
   std::vector<Mat3> tangent_;  // per spring, K_s frozen by update_rotations
   std::vector<Vec3> direction_;  // per spring, its unit direction frozen by update_rotations

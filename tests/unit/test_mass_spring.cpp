@@ -49,11 +49,25 @@ struct Measured {
 // held only along x (rollers), the face x = max pulled by a total force F shared by the
 // consistent weights (corner 1/4, edge 1/2, interior 1 per face brick, Fléchon Fig. 9), three
 // lateral DOFs at x = min holding the rigid motions without restraining the contraction.
-Measured traction(const Vec3& size, std::array<int, 3> cells, double nu) {
+// With `corrections`, Baudet's correction forces enter the linear solve through their
+// derivative at rest (central differences: they vanish at rest and are linear in small strain).
+Measured traction(const Vec3& size, std::array<int, 3> cells, double nu, bool corrections = false) {
   const physics::HexMesh mesh = physics::make_box_hexes(Vec3::Zero(), size, cells);
-  physics::HexMassSpring model(mesh, material(nu));
+  physics::MassSpringMaterial properties = material(nu);
+  properties.corrections = corrections;
+  physics::HexMassSpring model(mesh, properties);
   model.update_rotations(mesh.rest);
-  const Eigen::MatrixXd k = dense_stiffness(model);
+  Eigen::MatrixXd k = dense_stiffness(model);
+  if (corrections) {
+    const double h = 1e-6 * size.minCoeff();
+    for (Eigen::Index d = 0; d < mesh.rest.size(); ++d) {
+      Vector plus = mesh.rest, minus = mesh.rest, fp = Vector::Zero(mesh.rest.size()), fm = fp;
+      plus[d] += h, minus[d] -= h;
+      model.add_correction_forces(plus, fp);
+      model.add_correction_forces(minus, fm);
+      k.col(d) -= (fp - fm) / (2 * h);
+    }
+  }
   const int n = model.node_count();
   const double force = 1e-3;
   Vector load = Vector::Zero(3 * n);
@@ -82,7 +96,7 @@ Measured traction(const Vec3& size, std::array<int, 3> cells, double nu) {
     rhs[a] = load[free[a]];
     for (std::size_t b = 0; b < free.size(); ++b) reduced(a, b) = k(free[a], free[b]);
   }
-  const Vector solution = reduced.ldlt().solve(rhs);
+  const Vector solution = reduced.fullPivLu().solve(rhs);
   Vector u = Vector::Zero(3 * n);
   for (std::size_t a = 0; a < free.size(); ++a) u[free[a]] = solution[a];
   double stretch = 0, y_top = 0, y_bottom = 0;
@@ -277,4 +291,44 @@ TEST(MassSpringModel, TheDashpotsOnlyDissipateAndTheCubeComesToRest) {
   // Back to its rest size: every edge 0.1 m again.
   for (const physics::Spring& s : model.springs())
     EXPECT_NEAR((state.positions.segment<3>(3 * s.b) - state.positions.segment<3>(3 * s.a)).norm(), s.rest_length, 1e-4);
+}
+
+TEST(MassSpringTraction, CorrectionForcesGiveTheTargetEAndNuExactly) {
+  // Digest B.1.3 / D5: with 2 F_ij on each node, F_i the brick's axial load from its springs,
+  // a cube, a 1.2 x 1.0 x 0.8 brick, a 3 x 3 x 3 block of cubes and a 4 x 2 x 2 block of
+  // 0.12 x 0.1 x 0.08 bricks measure E = 1e4 and the target nu.
+  for (double nu : {0.1, 0.3, 0.45}) {
+    for (const auto& [size, cells] : std::vector<std::pair<Vec3, std::array<int, 3>>>{
+             {Vec3::Constant(0.1), {1, 1, 1}}, {Vec3(1.2, 1.0, 0.8), {1, 1, 1}},
+             {Vec3::Constant(0.3), {3, 3, 3}}, {Vec3(0.48, 0.2, 0.16), {4, 2, 2}}}) {
+      const Measured m = traction(size, cells, nu, true);
+      EXPECT_NEAR(m.youngs_modulus, 1e4, 1e-6 * 1e4) << "nu " << nu << ", " << cells[0] << " bricks along x";
+      EXPECT_NEAR(m.poisson_ratio, nu, 1e-6) << "nu " << nu << ", " << cells[0] << " bricks along x";
+    }
+  }
+}
+
+TEST(MassSpringModel, CorrectionForcesConserveMomentumAndFollowTheBrick) {
+  // A stretched cube turned by 90 degrees about z gets the same corrections, turned.
+  const physics::HexMesh mesh = physics::make_box_hexes(Vec3::Zero(), Vec3::Constant(0.1), {1, 1, 1});
+  physics::MassSpringMaterial properties = material(0.3);
+  properties.corrections = true;
+  physics::HexMassSpring model(mesh, properties);
+  Vector x = mesh.rest;
+  for (int i = 0; i < 8; ++i) x[3 * i] *= 1.05;  // 5 % along x
+  Vector f = Vector::Zero(24);
+  model.add_correction_forces(x, f);
+  Vec3 total = Vec3::Zero();
+  for (int i = 0; i < 8; ++i) total += f.segment<3>(3 * i);
+  EXPECT_LT(total.norm(), 1e-15);
+  const Vec3 loads = model.axial_loads(x, 0);
+  EXPECT_GT(loads.x(), 0);
+  // Node 0 (at y = 0: outward is -y) gets 2 (F_xy + F_zy) along -y, F_ij = F_i (1 - 4 nu) / 16
+  // on a cube (digest B.1.3).
+  EXPECT_NEAR(f[1], -2 * (loads.x() + loads.z()) * (1 - 4 * 0.3) / 16, 1e-12);
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(M_PI / 2, Vec3::UnitZ()).toRotationMatrix();
+  Vector turned = x, g = Vector::Zero(24);
+  for (int i = 0; i < 8; ++i) turned.segment<3>(3 * i) = turn * Vec3(x.segment<3>(3 * i));
+  model.add_correction_forces(turned, g);
+  for (int i = 0; i < 8; ++i) EXPECT_LT((Vec3(g.segment<3>(3 * i)) - turn * Vec3(f.segment<3>(3 * i))).norm(), 1e-12);
 }
