@@ -21,11 +21,13 @@ namespace {
 
 struct MassSpringSettings {
   double damping_ratio = 1;  // each spring's dashpot over its critical 2 sqrt(m k)
+  bool corrections = false;  // Baudet's correction forces (HexMassSpring::add_correction_forces)
 };
 
 void read_mass_spring_settings(Reader& block, BodySpec& body) {
   MassSpringSettings settings;
   settings.damping_ratio = block.number("damping_ratio", false, 1, 0, 100, false);
+  settings.corrections = block.boolean("corrections", false);
   body.settings = settings;
 }
 
@@ -95,7 +97,7 @@ Body build_mass_spring_body(const BodySpec& spec, const SolverSpec& solver, cons
     physics::Stopwatch watch;
     mesh = make_hexes(spec, shape);
     physics::MassSpringMaterial material{spec.material.youngs_modulus, spec.material.poisson_ratio,
-                                         spec.material.density, settings.damping_ratio};
+                                         spec.material.density, settings.damping_ratio, settings.corrections};
     body.mechanics = std::make_unique<physics::HexMassSpring>(mesh, material);
     result.build_ms.volume = watch.ms();
   } catch (const std::exception& e) {
