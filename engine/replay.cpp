@@ -436,7 +436,7 @@ Json bodies_json(const World& world, PositionsDigest& digest) {
     std::size_t surface_vertices = 0;
     const double surface_max = surface_max_displacement(body, surface_vertices);
     bodies.push_back({{"name", body.model->name},
-                      {"model", body.data.embedding ? "efg_corotated" : "fem_corotational_tet4"},
+                      {"model", body.data.embedding ? "efg_corotated" : body.model->kind == "mass_spring" ? "mass_spring_hex" : "fem_corotational_tet4"},
                       {"surface_vertices", surface_vertices},
                       {"surface_max_displacement", surface_max},
                       {"nodes", n},

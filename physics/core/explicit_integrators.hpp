@@ -100,7 +100,9 @@ ExplicitStepReport velocity_verlet_step(DeformableModel& model, State& state,
                                         const ExplicitSettings& settings);
 
 // Dispatches on `scheme`; `history` is required for ExplicitScheme::verlet (throws
-// std::invalid_argument if null) and ignored otherwise.
+// std::invalid_argument if null) and ignored otherwise. A dt beyond the model's
+// explicit_step_limit() is refused (std::invalid_argument with both numbers). The schemes see
+// the elastic forces and Rayleigh mass damping only, not a model's own dashpots.
 ExplicitStepReport explicit_step(ExplicitScheme scheme, DeformableModel& model, State& state,
                                  const std::vector<uint8_t>& fixed_nodes,
                                  const Vector& external_forces, const ExplicitSettings& settings,

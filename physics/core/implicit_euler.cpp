@@ -56,9 +56,10 @@ void check_inputs(const DeformableModel& model, const State& state,
   if (!(settings.dt > 0.0)) fail("dt must be positive");
 }
 
-// The diagonal of A = m_coefficient M + k_coefficient K (the springs' included).
+// The diagonal of A = m_coefficient M + k_coefficient K (the springs' included) + d_coefficient D
+// (a model's own dashpots, where it has them).
 Vector jacobi_diagonal(const DeformableModel& model, std::span<const NodalSpring> springs, const Vector& masses,
-                       double mass_coefficient, double stiffness_coefficient) {
+                       double mass_coefficient, double stiffness_coefficient, double damping_coefficient) {
   Vector stiffness_diagonal = Vector::Zero(3 * masses.size());
   model.add_stiffness_diagonal(stiffness_diagonal);
   for (const NodalSpring& spring : springs) {
@@ -69,15 +70,22 @@ Vector jacobi_diagonal(const DeformableModel& model, std::span<const NodalSpring
     diagonal.segment<3>(3 * node) = mass_coefficient * masses[node] * Vec3::Ones() +
                                     stiffness_coefficient * stiffness_diagonal.segment<3>(3 * node);
   }
+  if (model.has_damping() && damping_coefficient != 0) {
+    Vector damping_diagonal = Vector::Zero(diagonal.size());
+    model.add_damping_diagonal(damping_diagonal);
+    diagonal += damping_coefficient * damping_diagonal;
+  }
   return diagonal;
 }
 
 // CG preconditioned with that diagonal.
 CgResult jacobi_solve(const DeformableModel& model, std::span<const NodalSpring> springs, const Vector& masses,
-                      double mass_coefficient, double stiffness_coefficient, const LinearOperator& apply,
+                      double mass_coefficient, double stiffness_coefficient, double damping_coefficient,
+                      const LinearOperator& apply,
                       const Vector& right_hand_side, const std::vector<uint8_t>& fixed_nodes, Vector& velocity_change,
                       const CgSettings& settings) {
-  const Vector diagonal = jacobi_diagonal(model, springs, masses, mass_coefficient, stiffness_coefficient);
+  const Vector diagonal =
+      jacobi_diagonal(model, springs, masses, mass_coefficient, stiffness_coefficient, damping_coefficient);
   return conjugate_gradient(apply, right_hand_side, diagonal, fixed_nodes, velocity_change, settings);
 }
 
@@ -125,8 +133,17 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   Vector mass_velocity(size);
   multiply_mass(masses, state.velocities, mass_velocity);
 
-  const Vector right_hand_side =
+  Vector right_hand_side =
       dt * (forces - (dt + beta) * stiffness_velocity - alpha * mass_velocity);
+  // The model's own dashpots, -D v, implicit like the rest: A gains dt D.
+  const bool damped = model.has_damping();
+  Vector damping_p;
+  if (damped) {
+    Vector damping_velocity = Vector::Zero(size);
+    model.add_damping_product(state.velocities, damping_velocity);
+    right_hand_side -= dt * damping_velocity;
+    damping_p.resize(size);
+  }
   if (!right_hand_side.allFinite()) {
     report.nonfinite = true;
     return report;
@@ -143,6 +160,11 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
     model.add_stiffness_product(p, stiffness_p);
     add_spring_product(springs, p, stiffness_p);
     out += stiffness_coefficient * stiffness_p;
+    if (damped) {
+      damping_p.setZero();
+      model.add_damping_product(p, damping_p);
+      out += dt * damping_p;
+    }
   };
 
   Vector velocity_change = Vector::Zero(size);
@@ -154,7 +176,7 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
     // A coarse factor corrects only the smooth part: Jacobi takes the rest (additive two-level).
     const Vector inverse_diagonal =
         rest_factor->coarse()
-            ? jacobi_inverse(jacobi_diagonal(model, springs, masses, mass_coefficient, stiffness_coefficient))
+            ? jacobi_inverse(jacobi_diagonal(model, springs, masses, mass_coefficient, stiffness_coefficient, dt))
             : Vector();
     Vector coarse(size);
     const Preconditioner warped = [&](const Vector& r, Vector& z) {
@@ -164,7 +186,7 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
     };
     report.cg = preconditioned_conjugate_gradient(apply, right_hand_side, warped, fixed_nodes, velocity_change, settings.cg);
   } else {
-    report.cg = jacobi_solve(model, springs, masses, mass_coefficient, stiffness_coefficient, apply, right_hand_side,
+    report.cg = jacobi_solve(model, springs, masses, mass_coefficient, stiffness_coefficient, dt, apply, right_hand_side,
                              fixed_nodes, velocity_change, settings.cg);
   }
   if (report.cg.nonfinite) {

@@ -30,7 +30,8 @@ struct StepReport {
 //   [(1 + dt alpha) M + (dt beta + dt^2) K] dv
 //       = dt [f_elastic(x) + f_ext + f_springs - dt K v - alpha M v - beta K v]
 // then v += dv, x += dt v, where K is the model stiffness plus the springs' 3x3 stiffnesses
-// (penalty contacts are integrated implicitly for stability).
+// (penalty contacts are integrated implicitly for stability). A model with dashpots of its own
+// (DeformableModel::has_damping, f = -D v) adds dt D to the matrix and -dt D v to the right.
 // - Calls model.update_rotations(x) first.
 // - `fixed_nodes`: one entry per node, 1 = fixed (empty = none); fixed nodes keep their
 //   position and get zero velocity.

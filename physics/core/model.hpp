@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -44,6 +45,17 @@ class DeformableModel {
   // diag += diagonal of K (for the Jacobi preconditioner).
   virtual void add_stiffness_diagonal(Vector& diag) const = 0;
   virtual double elastic_energy(const Vector& x) const = 0;
+
+  // A model's own damping force, linear in the velocity with the frames frozen by
+  // update_rotations: f_damping = -D v, D symmetric PSD (a mass-spring's dashpots). The
+  // integrators apply it only where has_damping() (so the others' arithmetic is untouched);
+  // the scene's Rayleigh damping is separate.
+  virtual bool has_damping() const { return false; }
+  virtual void add_damping_product(const Vector& /*p*/, Vector& /*out*/) const {}  // out += D p
+  virtual void add_damping_diagonal(Vector& /*diag*/) const {}                     // diag += diagonal of D
+  // The largest dt an explicit integrator may take on this model (explicit_step refuses a
+  // larger one); infinity: the model names no bound.
+  virtual double explicit_step_limit() const { return std::numeric_limits<double>::infinity(); }
 
   // For rest-shape preconditioners (physics/solve/): a job that assembles K0, the stiffness
   // with every rotation the identity, from its own copy of what it reads, so that it may run

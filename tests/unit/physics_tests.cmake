@@ -16,3 +16,8 @@ add_executable(test_integrator
 )
 target_link_libraries(test_integrator PRIVATE incise_physics GTest::gtest_main)
 gtest_discover_tests(test_integrator DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
+
+# Baudet's hexahedral mass-spring model (physics/mss, seed 003).
+add_executable(test_mass_spring ${CMAKE_CURRENT_LIST_DIR}/test_mass_spring.cpp)
+target_link_libraries(test_mass_spring PRIVATE incise_physics GTest::gtest_main)
+gtest_discover_tests(test_mass_spring DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")

@@ -303,7 +303,7 @@ TEST(World, ASurfaceWithNoInteriorAtTheResolutionIsRefused) {
                                           // A speck 10 mm above, so that the box is deeper than one cell.
                                           "v 0.01 0.01 0.01\nv 0.0105 0.01 0.01\nv 0.01 0.0105 0.01\nv 0.01 0.01 0.0105\n"
                                           "f 9 11 10\nf 9 10 12\nf 9 12 11\nf 10 11 12\n";
-  for (const char* model : {"fem", "efg"}) {
+  for (const char* model : {"fem", "efg", "mass_spring"}) {
     Json json = block_scene(false);
     json["bodies"][0].erase("generator");
     json["bodies"][0]["model"] = model;
@@ -319,4 +319,49 @@ TEST(World, ASurfaceWithNoInteriorAtTheResolutionIsRefused) {
           << model << ": " << message;
     }
   }
+}
+
+// Baudet's mass-spring model through the world: a free block falls at exactly g (its springs
+// and dashpots are internal), the probe presses it and feels it, and a voxelised ellipsoid
+// starts settled under gravity.
+TEST(World, MassSpringBodiesFallArePressedAndSettle) {
+  TempDir dir("incise_world_mass_spring");
+  Json json = block_scene(false);
+  json["bodies"][0]["model"] = "mass_spring";
+  json["bodies"][0].erase("fixed");
+  json["bodies"][0].erase("damping");
+  {
+    World world(write_scene(dir, json), std::nullopt);
+    for (int k = 0; k < 20; ++k) world.step();
+    const auto& body = world.bodies()[0];
+    EXPECT_EQ(body.model->elements, 8u * 4u * 4u);
+    const auto& m = body.data.mechanics->lumped_masses();
+    double momentum_z = 0, mass = 0;
+    for (int i = 0; i < body.data.mechanics->node_count(); ++i) momentum_z += m[i] * body.data.state.velocities[3 * i + 2], mass += m[i];
+    EXPECT_NEAR(mass, 1000 * 0.04 * 0.02 * 0.02, 1e-12);
+    EXPECT_NEAR(momentum_z / mass, -9.81 * 0.2, 1e-6);
+  }
+  json = block_scene(true);
+  json["bodies"][0]["model"] = "mass_spring";
+  {
+    World world(write_scene(dir, json), read_trajectory(dir.path / "poke.traj"));
+    double max_up_force = 0;
+    for (int k = 0; k < 20; ++k) max_up_force = std::max(max_up_force, world.step().tool_force[2]);
+    EXPECT_GT(max_up_force, 0.01);
+  }
+  json = block_scene(false);
+  json["bodies"][0]["model"] = "mass_spring";
+  json["bodies"][0]["generator"] = Json::parse(R"({"type": "ellipsoid", "center": [0.02, 0, 0.01], "radii": [0.02, 0.01, 0.01]})");
+  json["bodies"][0]["fixed"] = Json::parse(R"([{"min": [-1, -1, -1], "max": [0.006, 1, 1]}])");
+  json["bodies"][0]["material"]["E"] = 2e6;  // small strain, where the linear settle holds
+  json["solver"]["start"] = "settled";
+  World world(write_scene(dir, json), std::nullopt);
+  const auto& body = world.bodies()[0];
+  EXPECT_GT(body.model->elements, 20u);
+  // Settled: the first step barely moves it (the static solve is linear, the step nonlinear).
+  const physics::Vector start = body.data.state.positions;
+  EXPECT_GT((start - body.data.mechanics->rest_positions()).cwiseAbs().maxCoeff(), 0);
+  world.step();
+  EXPECT_LT((world.bodies()[0].data.state.positions - start).cwiseAbs().maxCoeff(),
+            0.01 * (start - body.data.mechanics->rest_positions()).cwiseAbs().maxCoeff());
 }

@@ -1,0 +1,137 @@
+// Baudet's hexahedral mass-spring model (physics/mss/hex_mass_spring.hpp, seed 003): bricks of
+// about `resolution` over the body's shape (a box generator meshed exactly, any other shape or
+// mesh voxelised, the staircase kept: the formulas hold on bricks only), stepped by the shared
+// implicit Euler + CG. Its settings block is `mass_spring`; it cannot be cut and runs on the CPU.
+#include "engine/body_builder.hpp"
+#include "engine/model_registry.hpp"
+#include "physics/core/cg.hpp"
+#include "physics/core/stopwatch.hpp"
+#include "physics/mss/hex_mass_spring.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace incise::engine {
+
+namespace {
+
+struct MassSpringSettings {
+  double damping_ratio = 1;  // each spring's dashpot over its critical 2 sqrt(m k)
+  bool corrections = false;  // Baudet's correction forces (HexMassSpring::add_correction_forces)
+};
+
+void read_mass_spring_settings(Reader& block, BodySpec& body) {
+  MassSpringSettings settings;
+  settings.damping_ratio = block.number("damping_ratio", false, 1, 0, 100, false);
+  settings.corrections = block.boolean("corrections", false);
+  body.settings = settings;
+}
+
+physics::HexMesh make_hexes(const BodySpec& spec, const BodyShape& shape) {
+  if (spec.generator && spec.generator->type == "box") {
+    std::array<int, 3> cells{};
+    for (int i = 0; i < 3; ++i)
+      cells[i] = std::max(1, static_cast<int>(std::lround((shape.hi[i] - shape.lo[i]) / spec.resolution)));
+    return physics::make_box_hexes(shape.lo, shape.hi, cells);
+  }
+  physics::HexMesh mesh = physics::make_hexes_inside(shape.inside, shape.lo, shape.hi, spec.resolution);
+  if (mesh.hexes.empty()) {
+    std::ostringstream out;
+    out << "no brick of side " << spec.resolution << " m has its centre inside the shape (a finer resolution fills it)";
+    throw std::runtime_error(out.str());
+  }
+  return mesh;
+}
+
+// Static equilibrium under gravity with the rest-shape stiffness (small strain), by CG.
+physics::Vector settle(physics::DeformableModel& model, const physics::BodyData& body) {
+  if (std::none_of(body.fixed.begin(), body.fixed.end(), [](std::uint8_t f) { return f != 0; }))
+    throw std::runtime_error("no node is fixed");
+  model.update_rotations(model.rest_positions());
+  physics::Vector diagonal = physics::Vector::Zero(body.gravity.size());
+  model.add_stiffness_diagonal(diagonal);
+  physics::Vector displacement = physics::Vector::Zero(body.gravity.size());
+  physics::CgSettings settings;
+  settings.tolerance = 1e-10;
+  settings.max_iterations = static_cast<int>(std::min<Eigen::Index>(100000, body.gravity.size() * 4));
+  const physics::LinearOperator apply = [&](const physics::Vector& p, physics::Vector& out) {
+    out.setZero();
+    model.add_stiffness_product(p, out);
+  };
+  const physics::CgResult result =
+      physics::conjugate_gradient(apply, body.gravity, diagonal, body.fixed, displacement, settings);
+  if (result.nonfinite || !displacement.allFinite()) throw std::runtime_error("the static solve gave non-finite values");
+  return displacement;
+}
+
+void make_surface(physics::BodyModel& model, physics::BodyData& body, const physics::HexMesh& mesh) {
+  body.surface = physics::hex_boundary_triangles(mesh.hexes);
+  const int n = static_cast<int>(mesh.rest.size() / 3);
+  std::vector<int> surface_index(n, -1);
+  for (const auto& t : body.surface)
+    for (int v : t) surface_index[v] = 0;
+  for (int i = 0; i < n; ++i)
+    if (surface_index[i] == 0) {
+      surface_index[i] = static_cast<int>(model.surface_nodes.size());
+      model.surface_nodes.push_back(i);
+    }
+  body.render_triangles.reserve(body.surface.size() * 3);
+  for (const auto& t : body.surface)
+    for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(surface_index[v]));
+}
+
+Body build_mass_spring_body(const BodySpec& spec, const SolverSpec& solver, const BodyShape& shape) {
+  Body result;
+  auto model = body_model(spec, solver);
+  model->rest_lo = shape.lo;
+  model->rest_hi = shape.hi;
+  physics::BodyData& body = result.data;
+  const std::string where = "body '" + spec.name + "'";
+  const auto settings = std::any_cast<MassSpringSettings>(spec.settings);
+  physics::HexMesh mesh;
+  try {
+    physics::Stopwatch watch;
+    mesh = make_hexes(spec, shape);
+    physics::MassSpringMaterial material{spec.material.youngs_modulus, spec.material.poisson_ratio,
+                                         spec.material.density, settings.damping_ratio, settings.corrections};
+    body.mechanics = std::make_unique<physics::HexMassSpring>(mesh, material);
+    result.build_ms.volume = watch.ms();
+  } catch (const std::exception& e) {
+    throw std::runtime_error(where + ": " + e.what());
+  }
+  model->elements = mesh.hexes.size();
+  make_surface(*model, body, mesh);
+  start_at_rest(body);
+  fix_nodes(body, spec, body.mechanics->rest_positions());
+  body.gravity = physics::gravity_forces(body.mechanics->lumped_masses(), model->gravity);
+  if (solver.start == "settled") {
+    const physics::Stopwatch watch;
+    try {
+      body.state.positions += settle(*body.mechanics, body);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(where + ": solver.start 'settled' needs a body held in place by its "
+                               "fixed regions: " + e.what());
+    }
+    result.build_ms.settle = watch.ms();
+  }
+  result.model = std::move(model);
+  return result;
+}
+
+}  // namespace
+
+void register_mass_spring_model(ModelRegistry& registry) {
+  registry.add({.name = "mass_spring",
+                .summary = "Baudet's hexahedral mass-spring, springs from E and nu",
+                .cuttable = false,
+                .gpu = false,
+                .node_name = "node",
+                .read_settings = read_mass_spring_settings,
+                .build = build_mass_spring_body});
+}
+
+}  // namespace incise::engine

@@ -1,0 +1,101 @@
+// Baudet's parameterised hexahedral mass-spring model as Fléchon implements it (seed 003;
+// digest seed-000-003.md B.1, C.2): per brick 12 edge springs and 4 body diagonals whose
+// stiffnesses come from (E, nu) by Baudet's 3-D formulas (baudet_stiffness.hpp), a spring
+// shared by several bricks created once with the sum of their stiffnesses, masses lumped from
+// each brick's volume (rho V / 8 to each of its nodes), and a dashpot on every spring.
+//
+// As a DeformableModel for the shared implicit Euler + CG: the elastic force is the full
+// nonlinear spring force; update_rotations(x) freezes each spring's direction and length,
+// from which the stiffness K (the spring's tangent, its transverse part clamped at zero under
+// compression so that K stays positive semi-definite) and the damping D are applied.
+#pragma once
+
+#include "physics/core/model.hpp"
+#include "physics/mss/baudet_stiffness.hpp"
+#include "physics/mss/hex_mesh.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace incise::physics {
+
+struct MassSpringMaterial {
+  double youngs_modulus = 0;  // Pa
+  double poisson_ratio = 0;
+  double density = 0;  // kg/m^3
+  // Each spring's dashpot is damping_ratio x 2 sqrt(m k) (Fléchon §2.2 after Bhasin & Liu:
+  // critical damping, 1), m the reduced mass m_a m_b / (m_a + m_b) of its two nodes: the source
+  // leaves the mass open; the reduced mass makes the pair's relative motion critically damped.
+  double damping_ratio = 1;
+  // Baudet's correction forces (add_correction_forces); off: springs only.
+  bool corrections = false;
+};
+
+struct Spring {
+  int a = 0, b = 0;
+  double rest_length = 0;
+  double stiffness = 0;  // N/m, summed over the bricks that share it
+  double damping = 0;    // N s/m, on the relative velocity projected on the spring
+};
+
+class HexMassSpring final : public DeformableModel {
+ public:
+  // Throws std::invalid_argument naming the brick (index, size, aspect ratio) whose formulas
+  // give a non-positive stiffness, or a bad material.
+  HexMassSpring(const HexMesh& mesh, const MassSpringMaterial& material);
+
+  int node_count() const override { return static_cast<int>(masses_.size()); }
+  const Vector& rest_positions() const override { return rest_; }
+  const Vector& lumped_masses() const override { return masses_; }
+  void update_rotations(const Vector& x) override;
+  void add_elastic_forces(const Vector& x, Vector& f) const override;
+  void add_stiffness_product(const Vector& p, Vector& out) const override;
+  void add_stiffness_diagonal(Vector& diag) const override;
+  double elastic_energy(const Vector& x) const override;
+  bool has_damping() const override { return true; }
+  void add_damping_product(const Vector& p, Vector& out) const override;
+  void add_damping_diagonal(Vector& diag) const override;
+  double explicit_step_limit() const override { return explicit_limit_; }
+  double node_spacing() const override { return spacing_; }
+  std::unique_ptr<DeformableModel> clone() const override { return std::make_unique<HexMassSpring>(*this); }
+
+  // Baudet's correction forces, which the springs alone cannot give (digest B.1.3): for a load
+  // F_i along the brick's axis i, F_ij = correction(i, j) F_i along each other axis j, applied
+  // as 2 F_ij on each of its 8 nodes (the factor 2 of the Lagrangian's 8 F (2 eps) term),
+  // outward from the brick's mid-plane, along the node's current edge on axis j (Fléchon §5.1:
+  // the corrections follow the deformation). Under general loading F_i is the brick's axial
+  // load that balances half of it: the force S_i its share of the springs carries across its
+  // mid-plane normal to i, plus the corrections along i on that half's 4 nodes, which depend on
+  // the other loads: F = S - 8 C^T F, solved per brick (axial_loads). In a traction test this is
+  // the applied load along the pull and zero across it, exactly. Added by add_elastic_forces
+  // when the material asks for them; they are explicit in the implicit step (not in K), and
+  // conserve momentum (each edge's two nodes get opposite forces).
+  void add_correction_forces(const Vector& x, Vector& f) const;
+  // Brick e's axial loads F_x, F_y, F_z at x (tension positive), N.
+  Vec3 axial_loads(const Vector& x, std::size_t e) const;
+
+  const std::vector<Spring>& springs() const { return springs_; }
+  const std::vector<std::array<int, 8>>& hexes() const { return hexes_; }
+  // Per node, the summed stiffness of the springs that meet there, N/m.
+  const Vector& node_stiffness() const { return node_stiffness_; }
+
+ private:
+  Vector rest_;
+  Vector masses_;
+  Vector node_stiffness_;
+  std::vector<std::array<int, 8>> hexes_;
+  std::vector<BrickSprings> bricks_;  // per brick, its own stiffnesses and correction ratios
+  std::vector<Mat3> load_from_springs_;  // per brick, (I + 8 C^T)^-1 (axial_loads)
+  bool corrections_ = false;
+  std::vector<Spring> springs_;
+  std::vector<Mat3> tangent_;  // per spring, K_s frozen by update_rotations
+  std::vector<Vec3> direction_;  // per spring, its unit direction frozen by update_rotations
+  double explicit_limit_ = 0;
+  double spacing_ = 0;
+};
+
+// The explicit integrators' bound for a mass-spring network (digest B.1.1, "Caution"): 2
+// sqrt(m / k) on the lightest, stiffest node, m_min / k_node_max, not the report's m_max / k_min.
+double mass_spring_explicit_limit(const Vector& masses, const Vector& node_stiffness);
+
+}  // namespace incise::physics
