@@ -6,6 +6,7 @@
 #include "engine/body_builder.hpp"
 #include "engine/model_registry.hpp"
 #include "engine/models/efg_settings.hpp"
+#include "engine/models/mass_spring_settings.hpp"
 
 #include <stdexcept>
 
@@ -27,6 +28,10 @@ void register_fuzz_models(ModelRegistry& registry) {
                 .gpu = true,
                 .node_name = "particle",
                 .read_settings = read_efg_settings,
+                .build = no_build});
+  registry.add({.name = "mass_spring",
+                .summary = "Baudet's hexahedral mass-spring, springs from E and nu",
+                .read_settings = read_mass_spring_settings,
                 .build = no_build});
 }
 

@@ -4,6 +4,7 @@
 // implicit Euler + CG. Its settings block is `mass_spring`; it cannot be cut and runs on the CPU.
 #include "engine/body_builder.hpp"
 #include "engine/model_registry.hpp"
+#include "engine/models/mass_spring_settings.hpp"
 #include "physics/core/cg.hpp"
 #include "physics/core/stopwatch.hpp"
 #include "physics/mss/hex_mass_spring.hpp"
@@ -18,18 +19,6 @@
 namespace incise::engine {
 
 namespace {
-
-struct MassSpringSettings {
-  double damping_ratio = 1;  // each spring's dashpot over its critical 2 sqrt(m k)
-  bool corrections = false;  // Baudet's correction forces (HexMassSpring::add_correction_forces)
-};
-
-void read_mass_spring_settings(Reader& block, BodySpec& body) {
-  MassSpringSettings settings;
-  settings.damping_ratio = block.number("damping_ratio", false, 1, 0, 100, false);
-  settings.corrections = block.boolean("corrections", false);
-  body.settings = settings;
-}
 
 physics::HexMesh make_hexes(const BodySpec& spec, const BodyShape& shape) {
   if (spec.generator && spec.generator->type == "box") {
