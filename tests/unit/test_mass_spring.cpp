@@ -332,3 +332,33 @@ TEST(MassSpringModel, CorrectionForcesConserveMomentumAndFollowTheBrick) {
   model.add_correction_forces(turned, g);
   for (int i = 0; i < 8; ++i) EXPECT_LT((Vec3(g.segment<3>(3 * i)) - turn * Vec3(f.segment<3>(3 * i))).norm(), 1e-12);
 }
+
+TEST(MassSpringTraction, TheStepsSettleACorrectedCubeAtTheTargetEAndNu) {
+  // The corrections ride explicitly in the implicit steps: pulled apart by F on its two x faces
+  // (free, the loads balanced), a corrected cube comes to rest at the strain E and nu give,
+  // within the geometric nonlinearity of a 1e-4 strain.
+  const physics::HexMesh mesh = physics::make_box_hexes(Vec3::Zero(), Vec3::Constant(0.1), {1, 1, 1});
+  physics::MassSpringMaterial properties = material(0.3);
+  properties.corrections = true;
+  physics::HexMassSpring model(mesh, properties);
+  const double force = 1e-4 * 1e4 * 0.01;  // stress E x 1e-4 on the 0.01 m^2 face
+  Vector load = Vector::Zero(24);
+  for (int i = 0; i < 8; ++i) load[3 * i] = (mesh.rest[3 * i] > 0.05 ? 0.25 : -0.25) * force;
+  physics::State state{mesh.rest, Vector::Zero(24)};
+  physics::ImplicitEulerSettings settings;
+  settings.dt = 0.01;
+  settings.cg.tolerance = 1e-12;
+  settings.cg.max_iterations = 1000;
+  for (int step = 0; step < 2000; ++step)
+    ASSERT_FALSE(physics::implicit_euler_step(model, state, {}, load, {}, settings).nonfinite);
+  const Vector u = state.positions - mesh.rest;
+  double stretch = 0, lateral = 0;
+  for (int i = 0; i < 8; ++i) {
+    stretch += (mesh.rest[3 * i] > 0.05 ? 0.25 : -0.25) * u[3 * i];
+    lateral += (mesh.rest[3 * i + 1] > 0.05 ? 0.25 : -0.25) * u[3 * i + 1];
+  }
+  const double strain = stretch / 0.1;
+  EXPECT_NEAR((force / 0.01) / strain, 1e4, 1e-3 * 1e4);
+  EXPECT_NEAR(-lateral / stretch, 0.3, 1e-3);
+  EXPECT_LT(state.velocities.norm(), 1e-9);
+}
