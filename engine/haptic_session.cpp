@@ -129,7 +129,10 @@ haptics::ContactModel build_contact_model(const World& world, const ContactBuild
   // tissue: the lips beside the blade's flanks. A surface the moving edge runs into (its
   // normal against the blade's velocity) is about to be cut, not pushed against: it would push
   // the hand back over the step and let go at the next publication, once the edge is inside.
-  const bool cutting = world.blade() && (tool.pose.buttons & kToolButtonEngaged) != 0;
+  // Before the crack's onset (tool.onset) the engaged blade presses like a probe: every surface
+  // pushes it.
+  const bool cutting = world.blade() && (tool.pose.buttons & kToolButtonEngaged) != 0 &&
+                       (!world.scene().tool->onset || tool.cutting.cutting);
   const Vec3 velocity = vec(build.proxy_velocity);
   const double speed = velocity.norm();
   const Vec3 heading = speed > 1e-3 ? Vec3(velocity / speed) : Vec3::Zero();
@@ -143,6 +146,14 @@ haptics::ContactModel build_contact_model(const World& world, const ContactBuild
     c.reach = tool.radius;
     c.stiffness = stiffness / found;
     c.compliance = n.compliance * found;  // the patch is shared too: each point's spring is softer
+  }
+  // The tissue's resistance while the crack advances (engine/cutting_resistance.cpp), against
+  // the blade's motion over the step that found it.
+  const double resisting = tool.cutting_force.norm();
+  if (cutting && resisting > 0) {
+    const Vec3 direction = -tool.cutting_force / resisting;
+    for (int k = 0; k < 3; ++k) model.cutting.direction[k] = direction[k];
+    model.cutting.force = resisting;
   }
   haptics::validate(model);  // non-finite numbers are caught here, where they arise
   return model;
