@@ -81,6 +81,23 @@ double longest_tick_us(const std::vector<haptics::LongPeriod>& periods) {
   return 1e-3 * static_cast<double>(longest);
 }
 
+// The cutting resistance the hand felt (TickSample::cutting_force), over the ticks that cut
+// (those where it was not zero): mean and peak magnitude, N.
+Json cutting_force_json(const std::vector<haptics::TickSample>& ticks, double& mean, double& peak) {
+  double sum = 0;
+  std::uint64_t cutting = 0;
+  mean = peak = 0;
+  for (const auto& t : ticks) {
+    const double f = std::hypot(t.cutting_force[0], t.cutting_force[1], t.cutting_force[2]);
+    if (!(f > 0)) continue;
+    sum += f;
+    peak = std::max(peak, f);
+    ++cutting;
+  }
+  if (cutting > 0) mean = sum / static_cast<double>(cutting);
+  return {{"mean", mean}, {"peak", peak}, {"ticks", cutting}};
+}
+
 struct RunResult {
   Json json;
   std::string line;
@@ -220,7 +237,11 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
                 static_cast<unsigned long long>(energy.ticks_acted), jumps.at_cut_max, jumps.at_publication_max,
                 jumps.between_max, max_force, session.world().cut_totals().events, wall > 0 ? sim / wall : 0,
                 (wall - sim) / scene.solver.dt, static_cast<unsigned long long>(session.steps_over_budget()));
-  return {j, line};
+  double cut_mean = 0, cut_peak = 0;
+  j["cutting_force_N"] = cutting_force_json(ticks, cut_mean, cut_peak);
+  char cut_line[128];
+  std::snprintf(cut_line, sizeof cut_line, "\n  cutting force mean %.2f peak %.2f N", cut_mean, cut_peak);
+  return {j, std::string(line) + cut_line};
 }
 
 }  // namespace

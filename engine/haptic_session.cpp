@@ -53,6 +53,9 @@ std::vector<Vec3> tool_points(const World& world) {
   return points;
 }
 
+// N/s: how fast the rendered cutting resistance may rise (HapticSession::publish).
+constexpr double kCuttingForceRamp = 10;
+
 }  // namespace
 
 haptics::ContactModel build_contact_model(const World& world, const ContactBuild& build) {
@@ -129,7 +132,10 @@ haptics::ContactModel build_contact_model(const World& world, const ContactBuild
   // tissue: the lips beside the blade's flanks. A surface the moving edge runs into (its
   // normal against the blade's velocity) is about to be cut, not pushed against: it would push
   // the hand back over the step and let go at the next publication, once the edge is inside.
-  const bool cutting = world.blade() && (tool.pose.buttons & kToolButtonEngaged) != 0;
+  // Before the crack's onset (tool.onset) the engaged blade presses like a probe: every surface
+  // pushes it.
+  const bool cutting = world.blade() && (tool.pose.buttons & kToolButtonEngaged) != 0 &&
+                       (!world.scene().tool->onset || tool.cutting.cutting);
   const Vec3 velocity = vec(build.proxy_velocity);
   const double speed = velocity.norm();
   const Vec3 heading = speed > 1e-3 ? Vec3(velocity / speed) : Vec3::Zero();
@@ -143,6 +149,14 @@ haptics::ContactModel build_contact_model(const World& world, const ContactBuild
     c.reach = tool.radius;
     c.stiffness = stiffness / found;
     c.compliance = n.compliance * found;  // the patch is shared too: each point's spring is softer
+  }
+  // The tissue's resistance while the crack advances (engine/cutting_resistance.cpp), against
+  // the blade's motion over the step that found it.
+  const double resisting = tool.cutting_force.norm();
+  if (cutting && resisting > 0) {
+    const Vec3 direction = -tool.cutting_force / resisting;
+    for (int k = 0; k < 3; ++k) model.cutting.direction[k] = direction[k];
+    model.cutting.force = resisting;
   }
   haptics::validate(model);  // non-finite numbers are caught here, where they arise
   return model;
@@ -263,7 +277,14 @@ void HapticSession::publish(std::uint64_t step) {
   if (step > 0)
     for (int i = 0; i < 3; ++i) build.proxy_velocity[i] = (now[i] - previous_proxy_[i]) / world_->dt();
   previous_proxy_ = now;
+  // The cutting resistance rises at most kCuttingForceRamp N/s from one model to the next: an
+  // edge that enters the tissue along its whole length (engaged from nothing to all of it in a
+  // step) is felt building up over a few steps, not as a step of G_c L, so the force's change at
+  // a cut stays within that of any other publication. It falls at once (a blade that stops or
+  // leaves is not held back).
+  const double previous_cutting = last_model_.cutting.force;
   last_model_ = build_contact_model(*world_, build);
+  last_model_.cutting.force = std::min(last_model_.cutting.force, previous_cutting + kCuttingForceRamp * world_->dt());
   channel_.write(last_model_);
 }
 

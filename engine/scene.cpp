@@ -3,6 +3,7 @@
 #include "engine/model_registry.hpp"
 #include "engine/scene_reader.hpp"
 #include "engine/tet_mesh_import.hpp"
+#include "physics/cut/cutting_resistance.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -140,6 +141,8 @@ BodySpec read_body(const Json& node, const std::string& path, const std::filesys
     b.material.youngs_modulus = mr.number("E", true, 1e4, 0, 1e12, true);
     b.material.poisson_ratio = mr.number("nu", true, 0.3, 0, 0.5, false, true);
     b.material.density = mr.number("rho", true, 1000, 0, 1e5, true);
+    // Fracture toughness, J/m^2 (Mahvash and Hayward 2004's cutting model; liver: 100-300).
+    b.material.toughness = mr.number("toughness", false, physics::kLiverToughness, 0, 1e7, true);
   }
   if (const Json* fixed = r.get("fixed", false)) {
     if (!fixed->is_array()) {
@@ -217,6 +220,10 @@ ToolSpec read_tool(const Json& tool, const std::filesystem::path& file, std::vec
   t.radius = tr.number("radius", !blade, blade ? 0.0005 : 0.005, 0, 1, true);
   t.length = tr.number("length", t.shape == "capsule", 0, 0, 10);
   t.stiffness = tr.number("stiffness", false, 500, 0, 1e9, true);
+  t.flank_friction = tr.number("flank_friction", false, physics::kDefaultFlankFriction, 0, 1e7);
+  if (!blade && tr.has("flank_friction")) tr.error(tr.child("flank_friction"), "only a blade has flanks");
+  t.onset = tr.boolean("onset", false);
+  if (!blade && tr.has("onset")) tr.error(tr.child("onset"), "only a blade cuts");
   if (const Json* edge = tr.get("edge", blade)) read_edge(tr, *edge, blade, t.edge);
   // Optional: a replay needs one (or --trajectory); a live session's device drives the tool.
   if (const Json* traj = tr.get("trajectory", false)) {

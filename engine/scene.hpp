@@ -36,6 +36,9 @@ struct MaterialSpec {
   double youngs_modulus = 0;  // Pa
   double poisson_ratio = 0;
   double density = 0;  // kg/m^3
+  // Fracture toughness G_c, J/m^2: the energy a unit area of cut takes (the blade's
+  // resistance, physics/cut/cutting_resistance.hpp; default physics::kLiverToughness).
+  double toughness = 200;
 };
 
 // Either a mesh file (closed surface, read with assimp and filled with elements) or a
@@ -88,6 +91,12 @@ struct ToolSpec {
   double radius = 0;
   double length = 0;  // capsule: along the tool's local -z from the tip... see docs
   double stiffness = 0;  // penalty contact stiffness per surface node, N/m
+  // Blade: the flanks' Coulomb-like friction per metre of engaged edge, N/m
+  // (physics/cut/cutting_resistance.hpp).
+  double flank_friction = 20;
+  // Blade: whether it presses like a probe until the crack's onset (engine/cutting_resistance.cpp);
+  // off, it cuts from first contact, resisted all the same.
+  bool onset = false;
   std::optional<std::filesystem::path> trajectory;
   // Blade: the cutting edge, a polyline in the tool's frame (m; the trajectory's position is
   // the frame's origin). An ideal blade (seed 004 §2.2): no volume, no force, it cuts the

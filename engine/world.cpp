@@ -162,6 +162,7 @@ StepStats World::step(std::int64_t deadline_ns) {
   stats.ms_tool_input = phase.ms();
   stats.tool_tip = tool_.tip;
   stats.blade_engaged = std::find(tool_.blade_active.begin(), tool_.blade_active.end(), 1) != tool_.blade_active.end();
+  resist_cutting(stats);
   budget_.begin_step(steps_ + 1, deadline_ns > 0 ? deadline_ns - static_cast<std::int64_t>(ms_after_solve_ * 1e6) : 0);
   for (auto& body : bodies_) {
     if (!body.cut || !blade()) continue;  // a body is cut by a blade only
@@ -175,7 +176,9 @@ StepStats World::step(std::int64_t deadline_ns) {
   for (std::size_t b = 0; b < bodies_.size(); ++b) springs[b] = contact(bodies_[b], stats);
   stats.ms_contact = phase.ms();
   phase.restart();
+  const std::vector<physics::Vec3> centres = tool_.pressing ? mass_centres() : std::vector<physics::Vec3>{};
   for (std::size_t b = 0; b < bodies_.size(); ++b) solve(bodies_[b], springs[b], end_time, stats);
+  if (tool_.pressing) advance_onset(centres, stats);
   stats.ms_solve = phase.ms();
   phase.restart();
   for (auto& body : bodies_) update_surface(body);
@@ -244,6 +247,12 @@ std::uint64_t World::state_hash() const {
       fnv1a(hash, body.data.embedding->weights);
     }
     if (body.cut) fnv1a(hash, body.cut->surface->vertices());
+  }
+  if (blade() && scene_.tool->onset) {
+    // The crack's onset decides whether the next steps cut.
+    const std::uint8_t cutting = tool_.cutting.cutting ? 1 : 0;
+    fnv1a(hash, &cutting, 1);
+    fnv1a(hash, &tool_.cutting.work, sizeof(double));
   }
   return hash;
 }

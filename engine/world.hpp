@@ -1,7 +1,7 @@
 // The World: what a scene names, built once, stepped on simulated time.
 //
 // A step reads as the pipeline it runs, in seed 004's loop order (World::step, world.cpp):
-//   take_tool_input -> detect_cuts -> apply_topology -> contact -> solve -> update_surface
+//   take_tool_input -> resist_cutting -> detect_cuts -> apply_topology -> contact -> solve -> update_surface
 // then the caller publishes (fill_frame, the haptic contact model). Each stage is a function
 // in a file named after it: the cut stages in physics/cut/ (detect_cuts, apply_topology with
 // remap_surface), the others in engine/ (take_tool_input.cpp, contact.cpp, solve.cpp,
@@ -16,6 +16,7 @@
 #include "engine/trajectory.hpp"
 #include "physics/core/body.hpp"
 #include "physics/cut/cut_body.hpp"
+#include "physics/cut/cutting_resistance.hpp"
 #include "physics/cut/detect_cuts.hpp"
 #include "render/frame.hpp"
 
@@ -59,6 +60,13 @@ struct StepStats {
   std::array<double, 3> tool_force{};  // force of the tissue on the tool, N
   std::array<double, 3> tool_tip{};    // the tool's position at the end of the step, m
   bool blade_engaged = false;          // the blade's button was held during the step
+  // The tissue's resistance to the blade (engine/cutting_resistance.cpp): the cutting force on
+  // the tool (in tool_force too), the engaged edge length, and the engagement's phase: pressing
+  // (engaged, before the onset: the edge indents like a probe, nothing is cut) or cutting.
+  std::array<double, 3> cutting_force{};
+  double engaged_length = 0;  // m
+  bool blade_pressing = false;
+  bool blade_cutting = false;
   // Cutting (blade tools and cuttable bodies).
   bool cut_tested = false;   // the blade was engaged near a cuttable body: CCD ran
   bool cut_event = false;    // the topology changed this step
@@ -109,6 +117,13 @@ struct ToolState {
   std::array<double, 3> tail{};  // capsule end (= tip for a sphere)
   double radius = 0;
   bool present = false;
+  // Blade: the crack's onset and whether it advances (physics/cut/cutting_resistance.hpp), and
+  // whether this step's edge presses on the tissue before the onset (penalty contact).
+  physics::CuttingState cutting;
+  bool pressing = false;
+  double engaged_length = 0;  // m, at the step's end
+  double onset_width = 0;     // m, the engaged length across the edge's motion
+  physics::Vec3 cutting_force = physics::Vec3::Zero();  // N on the tool over the step (0 unless cutting)
 };
 
 class World {
@@ -174,6 +189,13 @@ class World {
   void build();  // the bodies and the tool from the scene (the constructor, reset)
   void take_tool_input(double time);
   std::vector<physics::NodalSpring> contact(const Body& body, StepStats& stats) const;
+  // The blade's phase and cutting force for the step (after take_tool_input: before the onset
+  // the blade's sweep is not engaged for the cut stages), and the onset's work after the solve
+  // from the bodies' mass centres before it (engine/cutting_resistance.cpp).
+  void resist_cutting(StepStats& stats);
+  std::vector<physics::Vec3> mass_centres() const;
+  double toughness() const;  // G_c of the body the blade cuts, J/m^2
+  void advance_onset(const std::vector<physics::Vec3>& centres_before, StepStats& stats);
   void update_surface(Body& body) const;
   // solver.backend "gpu": the body's GPU step (throws naming the field when it cannot be).
   void make_gpu_backend(Body& body, std::size_t index) const;

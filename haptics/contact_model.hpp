@@ -39,6 +39,20 @@ struct ContactPoint {
   double compliance = 0;  // m/N, >= 0
 };
 
+// The tissue's resistance to a blade that is cutting (physics/cut/cutting_resistance.hpp:
+// the toughness times the engaged edge length, plus the flanks' friction, Mahvash and
+// Hayward 2004), as physics found it at the model's step. Rendered against the hand's motion
+// along `direction` (the blade's motion when the model was built), a dissipative force
+//     F = -force * clamp((x_dot . direction) / speed, 0, 1) * direction,
+// full above `speed`, fading linearly to zero as the hand slows or turns back (continuous,
+// and never pushing: F . x_dot <= 0, so the term cannot give the hand energy). It fades with
+// the model's domain and blends between models like the contacts.
+struct CuttingResistance {
+  Vector3 direction{1, 0, 0};  // unit
+  double force = 0;            // N, >= 0; 0: not cutting
+  double speed = 0.005;        // m/s, > 0
+};
+
 struct ContactModel {
   static constexpr int kCapacity = 16;
   std::array<ContactPoint, kCapacity> contacts{};
@@ -51,6 +65,8 @@ struct ContactModel {
   // nothing rather than a surface that is no longer where the hand is. 0: no limit.
   Vector3 linearised_at{};  // m
   double valid_radius = 0;  // m, >= 0
+
+  CuttingResistance cutting{};
 
   bool has_proxy = false;  // false: no tool proxy yet, the coupling force is zero
   Vector3 proxy_position{};  // m
@@ -68,7 +84,11 @@ void validate(const ContactModel& model);
 // (m/s) and the loop's period T (s) for the contact damping (see haptic_loop.hpp: each active
 // contact's normal force gets a damper of k_eff * T, twice Colgate's bound). The normal force
 // is never negative (tissue pushes, it does not pull).
+// The cutting resistance is part of it.
 Vector3 contact_force(const ContactModel& model, const Vector3& x, const Vector3& x_dot, double period_s);
+
+// The cutting resistance's part of contact_force alone (N), for the records.
+Vector3 cutting_force(const ContactModel& model, const Vector3& x, const Vector3& x_dot);
 
 // The publication channel: physics writes, the haptic loop reads.
 using ContactChannel = TripleBuffer<ContactModel>;

@@ -100,6 +100,7 @@ struct TickSample {
   Vector3 velocity{};         // filtered device velocity, m/s
   Vector3 force{};            // written to the device, N (after the clamp)
   Vector3 contact_force{};    // its contact part before the clamp, N
+  Vector3 cutting_force{};    // of which the cutting resistance (ContactModel::cutting), N
   DeviceState state = DeviceState::closed;
   bool clamped = false;       // the clamp reduced the force
   std::uint64_t contact_step = 0;  // ContactModel::step in effect

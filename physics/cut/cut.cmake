@@ -14,6 +14,7 @@ add_library(incise_cut STATIC
   ${CMAKE_CURRENT_LIST_DIR}/voxel_boundary.cpp
   ${CMAKE_CURRENT_LIST_DIR}/cut_body.cpp
   ${CMAKE_CURRENT_LIST_DIR}/detect_cuts.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/cutting_resistance.cpp
   ${CMAKE_CURRENT_LIST_DIR}/apply_topology.cpp
   ${CMAKE_CURRENT_LIST_DIR}/remap_surface.cpp
   ${CMAKE_CURRENT_LIST_DIR}/front_surface.cpp

@@ -13,6 +13,7 @@ add_executable(test_engine
   ${CMAKE_CURRENT_LIST_DIR}/test_surface_queries.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_world.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_world_cut.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_cutting_resistance.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_world_copy.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_incision_score.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_surface_snap.cpp)

@@ -131,6 +131,30 @@ TEST(HapticsContactModel, ForceFadesOutsideTheDomainOfTheLinearisation) {
   EXPECT_NE(error_of([&] { validate(m); }).find("valid_radius"), std::string::npos);
 }
 
+TEST(HapticsContactModel, CuttingResistanceOpposesTheMotionFadesWithSpeedAndNeverPushes) {
+  ContactModel m;  // no contacts: the cutting term alone
+  m.cutting.direction = {1, 0, 0};
+  m.cutting.force = 3.0;
+  m.cutting.speed = 0.005;
+  // Above the speed: the whole force against the blade's motion; below it, in proportion.
+  expect_near(contact_force(m, {0, 0, 0}, {0.05, 0, 0}, 1e-3), {-3.0, 0, 0}, 1e-15, "cutting at 5 cm/s");
+  expect_near(contact_force(m, {0, 0, 0}, {0.0025, 0.01, 0}, 1e-3), {-1.5, 0, 0}, 1e-15, "half the speed along");
+  expect_near(cutting_force(m, {0, 0, 0}, {0.0025, 0, 0}), {-1.5, 0, 0}, 1e-15, "its part alone");
+  // At rest or going back, nothing: the term only takes energy from the hand (F . v <= 0).
+  expect_near(contact_force(m, {0, 0, 0}, {0, 0, 0}, 1e-3), {0, 0, 0}, 0, "at rest");
+  expect_near(contact_force(m, {0, 0, 0}, {-0.05, 0, 0}, 1e-3), {0, 0, 0}, 0, "backwards");
+  // It fades with the model's domain like the contacts.
+  m.linearised_at = {0, 0, 0};
+  m.valid_radius = 0.01;
+  expect_near(contact_force(m, {0.0075, 0, 0}, {0.05, 0, 0}, 1e-3), {-1.5, 0, 0}, 1e-12, "fading");
+  EXPECT_NO_THROW(validate(m));
+  m.cutting.force = -1;
+  EXPECT_EQ(error_of([&] { validate(m); }), "ContactModel.cutting.force -1.000000 is not >= 0");
+  m.cutting.force = 1;
+  m.cutting.direction = {0.5, 0, 0};
+  EXPECT_NE(error_of([&] { validate(m); }).find("ContactModel.cutting.direction is not unit"), std::string::npos);
+}
+
 TEST(HapticsCoupling, ForceIsClampedToTheDeviceLimitKeepingItsDirection) {
   bool clamped = false;
   const Vector3 f = clamp_force({3, 4, 0}, 2.5, &clamped);
