@@ -162,6 +162,19 @@ physics::TetMesh fill_with_tets(const BodySpec& spec, const BodyShape& shape, do
   return mesh;
 }
 
+void settle_if_asked(Body& result, const SolverSpec& solver, const std::string& where,
+                     const std::function<physics::Vector()>& settle) {
+  if (solver.start != "settled") return;
+  const physics::Stopwatch watch;
+  try {
+    result.data.state.positions += settle();
+  } catch (const std::exception& e) {
+    throw std::runtime_error(where + ": solver.start 'settled' needs a body held in place by its fixed regions: " +
+                             e.what());
+  }
+  result.build_ms.settle = watch.ms();
+}
+
 void fix_nodes(physics::BodyData& body, const BodySpec& spec, const physics::Vector& rest) {
   const int n = static_cast<int>(rest.size() / 3);
   body.fixed.assign(n, 0);

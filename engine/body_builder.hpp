@@ -43,5 +43,11 @@ std::shared_ptr<physics::BodyModel> body_model(const BodySpec& spec, const Solve
 void start_at_rest(physics::BodyData& body);
 // Marks the nodes of `rest` inside any of the spec's fixed boxes.
 void fix_nodes(physics::BodyData& body, const BodySpec& spec, const physics::Vector& rest);
+// solver.start "settled": adds the model's static displacement under gravity (`settle`, which
+// needs the body held by its fixed regions) to the body's positions and times it in
+// build_ms.settle, so a replay does not begin with the body dropping; a failure is rethrown
+// naming the body (`where`) and what the start needs. Nothing for any other start.
+void settle_if_asked(Body& result, const SolverSpec& solver, const std::string& where,
+                     const std::function<physics::Vector()>& settle);
 
 }  // namespace incise::engine

@@ -123,16 +123,9 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
   start_at_rest(body);
   fix_nodes(body, spec, efg.rest_positions());
   body.gravity = physics::gravity_forces(efg.lumped_masses(), model->gravity);
-  if (solver.start == "settled") {
-    const physics::Stopwatch watch;
-    try {
-      body.state.positions += physics::solve_static(physics::assemble_stiffness(efg), body.gravity, body.fixed);
-    } catch (const std::exception& e) {
-      throw std::runtime_error(where + ": solver.start 'settled' needs a body held in place by its "
-                               "fixed regions: " + e.what());
-    }
-    result.build_ms.settle = watch.ms();
-  }
+  settle_if_asked(result, solver, where, [&] {
+    return physics::solve_static(physics::assemble_stiffness(efg), body.gravity, body.fixed);
+  });
   physics::set_fixed_vertices(body);
   physics::CorotationalEfg::surface_positions(*body.embedding, body.state.positions, body.surface_positions);
   if (result.cut) result.cut->previous_positions = body.state.positions;

@@ -37,19 +37,11 @@ Body build_fem_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
   start_at_rest(body);
   fix_nodes(body, spec, body.mechanics->rest_positions());
   body.gravity = physics::gravity_forces(body.mechanics->lumped_masses(), model->gravity);
-  if (solver.start == "settled") {
-    watch.restart();
-    // Start from static equilibrium under gravity (small-strain solve, exact enough for the
-    // sag of a supported organ), so a replay does not begin with the body dropping.
-    try {
-      body.state.positions += physics::solve_static_linear(mesh, material, body.fixed,
-                                                           spec.material.density * model->gravity);
-    } catch (const std::exception& e) {
-      throw std::runtime_error(where + ": solver.start 'settled' needs a body held in place by its "
-                               "fixed regions: " + e.what());
-    }
-    result.build_ms.settle = watch.ms();
-  }
+  // Static equilibrium under gravity by a small-strain solve: exact enough for the sag of a
+  // supported organ.
+  settle_if_asked(result, solver, where, [&] {
+    return physics::solve_static_linear(mesh, material, body.fixed, spec.material.density * model->gravity);
+  });
   std::vector<int> surface_index(n, -1);
   for (const auto& t : body.surface)
     for (int v : t) surface_index[v] = 0;

@@ -97,16 +97,7 @@ Body build_mass_spring_body(const BodySpec& spec, const SolverSpec& solver, cons
   start_at_rest(body);
   fix_nodes(body, spec, body.mechanics->rest_positions());
   body.gravity = physics::gravity_forces(body.mechanics->lumped_masses(), model->gravity);
-  if (solver.start == "settled") {
-    const physics::Stopwatch watch;
-    try {
-      body.state.positions += settle(*body.mechanics, body);
-    } catch (const std::exception& e) {
-      throw std::runtime_error(where + ": solver.start 'settled' needs a body held in place by its "
-                               "fixed regions: " + e.what());
-    }
-    result.build_ms.settle = watch.ms();
-  }
+  settle_if_asked(result, solver, where, [&] { return settle(*body.mechanics, body); });
   result.model = std::move(model);
   return result;
 }
