@@ -53,7 +53,7 @@ std::vector<Vec3> tool_points(const World& world) {
   return points;
 }
 
-// N/s: how fast the rendered cutting resistance may rise (HapticSession::publish).
+// N/s: how fast the rendered cutting resistance may rise or fall (HapticSession::publish).
 constexpr double kCuttingForceRamp = 10;
 
 }  // namespace
@@ -277,14 +277,21 @@ void HapticSession::publish(std::uint64_t step) {
   if (step > 0)
     for (int i = 0; i < 3; ++i) build.proxy_velocity[i] = (now[i] - previous_proxy_[i]) / world_->dt();
   previous_proxy_ = now;
-  // The cutting resistance rises at most kCuttingForceRamp N/s from one model to the next: an
-  // edge that enters the tissue along its whole length (engaged from nothing to all of it in a
-  // step) is felt building up over a few steps, not as a step of G_c L, so the force's change at
-  // a cut stays within that of any other publication. It falls at once (a blade that stops or
-  // leaves is not held back).
-  const double previous_cutting = last_model_.cutting.force;
+  // The cutting resistance's level changes at most kCuttingForceRamp N/s from one model to the
+  // next. Rising: an edge that enters the tissue along its whole length (engaged from nothing to
+  // all of it in a step) is felt building up over a few steps. Falling: a blade that stops
+  // cutting or leaves the tissue lets the load ahead of its edge go over a few steps (the
+  // previous direction kept), where the loop's spring would otherwise drop it in a tick.
+  const haptics::CuttingResistance previous = last_model_.cutting;
   last_model_ = build_contact_model(*world_, build);
-  last_model_.cutting.force = std::min(last_model_.cutting.force, previous_cutting + kCuttingForceRamp * world_->dt());
+  haptics::CuttingResistance& cutting = last_model_.cutting;
+  const double most = kCuttingForceRamp * world_->dt();
+  if (cutting.force > previous.force + most) cutting.force = previous.force + most;
+  if (cutting.force < previous.force - most) {
+    const double level = previous.force - most;
+    if (cutting.force == 0) cutting = previous;  // no blade cutting now: the last one's direction
+    cutting.force = level;
+  }
   channel_.write(last_model_);
 }
 

@@ -35,9 +35,10 @@ void validate(const ContactModel& model) {
   const CuttingResistance& cut = model.cutting;
   require_finite_vector(cut.direction, "ContactModel.cutting.direction");
   require_finite(cut.force, "ContactModel.cutting.force");
-  require_finite(cut.speed, "ContactModel.cutting.speed");
+  require_finite(cut.stiffness, "ContactModel.cutting.stiffness");
   if (!(cut.force >= 0)) throw std::invalid_argument("ContactModel.cutting.force " + std::to_string(cut.force) + " is not >= 0");
-  if (!(cut.speed > 0)) throw std::invalid_argument("ContactModel.cutting.speed " + std::to_string(cut.speed) + " is not > 0");
+  if (!(cut.stiffness > 0))
+    throw std::invalid_argument("ContactModel.cutting.stiffness " + std::to_string(cut.stiffness) + " is not > 0");
   const double length = std::sqrt(dot(cut.direction, cut.direction));
   if (cut.force > 0 && std::abs(length - 1) > 1e-6)
     throw std::invalid_argument("ContactModel.cutting.direction is not unit (|d| = " + std::to_string(length) + ")");
@@ -49,9 +50,6 @@ void validate(const ContactModel& model) {
   require_finite_vector(model.proxy_velocity, "ContactModel.proxy_velocity");
 }
 
-namespace {
-
-// The model's weight at x: 1 within half its domain, fading linearly to 0 at valid_radius.
 double domain_weight(const ContactModel& model, const Vector3& x) {
   if (!(model.valid_radius > 0)) return 1;
   const Vector3 away{x[0] - model.linearised_at[0], x[1] - model.linearised_at[1], x[2] - model.linearised_at[2]};
@@ -59,24 +57,10 @@ double domain_weight(const ContactModel& model, const Vector3& x) {
   return std::clamp(2 * (model.valid_radius - d) / model.valid_radius, 0.0, 1.0);
 }
 
-Vector3 cutting_part(const ContactModel& model, const Vector3& x_dot, double weight) {
-  const CuttingResistance& cut = model.cutting;
-  if (!(cut.force > 0) || !(cut.speed > 0)) return {};
-  const double along = std::clamp(dot(x_dot, cut.direction) / cut.speed, 0.0, 1.0);
-  const double magnitude = weight * cut.force * along;
-  return {-magnitude * cut.direction[0], -magnitude * cut.direction[1], -magnitude * cut.direction[2]};
-}
-
-}  // namespace
-
-Vector3 cutting_force(const ContactModel& model, const Vector3& x, const Vector3& x_dot) {
-  return cutting_part(model, x_dot, domain_weight(model, x));
-}
-
 Vector3 contact_force(const ContactModel& model, const Vector3& x, const Vector3& x_dot, double period_s) {
   const double weight = domain_weight(model, x);
   if (weight == 0) return {};
-  Vector3 force = cutting_part(model, x_dot, weight);
+  Vector3 force{};
   const int count = model.count < 0 ? 0 : (model.count > ContactModel::kCapacity ? ContactModel::kCapacity : model.count);
   for (int i = 0; i < count; ++i) {
     const ContactPoint& c = model.contacts[i];

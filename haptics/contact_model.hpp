@@ -41,16 +41,16 @@ struct ContactPoint {
 
 // The tissue's resistance to a blade that is cutting (physics/cut/cutting_resistance.hpp:
 // the toughness times the engaged edge length, plus the flanks' friction, Mahvash and
-// Hayward 2004), as physics found it at the model's step. Rendered against the hand's motion
-// along `direction` (the blade's motion when the model was built), a dissipative force
-//     F = -force * clamp((x_dot . direction) / speed, 0, 1) * direction,
-// full above `speed`, fading linearly to zero as the hand slows or turns back (continuous,
-// and never pushing: F . x_dot <= 0, so the term cannot give the hand energy). It fades with
-// the model's domain and blends between models like the contacts.
+// Hayward 2004), as physics found it at the model's step: `force` is the level at which the
+// tissue ahead of the edge ruptures, `direction` the blade's motion then. The loop renders it
+// with a state of its own (haptics/cutting_proxy.hpp): the tissue ahead of the edge loads like
+// a spring of `stiffness` along `direction` until its force reaches `force`, then the crack
+// front advances with the hand at that force; the two phases of Mahvash and Hayward, so the
+// force builds up with the hand's motion rather than stepping with its speed.
 struct CuttingResistance {
   Vector3 direction{1, 0, 0};  // unit
   double force = 0;            // N, >= 0; 0: not cutting
-  double speed = 0.005;        // m/s, > 0
+  double stiffness = 500;      // N/m, > 0
 };
 
 struct ContactModel {
@@ -84,11 +84,10 @@ void validate(const ContactModel& model);
 // (m/s) and the loop's period T (s) for the contact damping (see haptic_loop.hpp: each active
 // contact's normal force gets a damper of k_eff * T, twice Colgate's bound). The normal force
 // is never negative (tissue pushes, it does not pull).
-// The cutting resistance is part of it.
 Vector3 contact_force(const ContactModel& model, const Vector3& x, const Vector3& x_dot, double period_s);
 
-// The cutting resistance's part of contact_force alone (N), for the records.
-Vector3 cutting_force(const ContactModel& model, const Vector3& x, const Vector3& x_dot);
+// The model's weight at x: 1 within half its domain, fading linearly to 0 at valid_radius.
+double domain_weight(const ContactModel& model, const Vector3& x);
 
 // The publication channel: physics writes, the haptic loop reads.
 using ContactChannel = TripleBuffer<ContactModel>;

@@ -135,13 +135,13 @@ TickSample HapticLoop::step(std::int64_t now_ns) {
     total = coupling_force(config_.coupling, period_s_, x, velocity_, proxy, model.proxy_velocity);
   }
   s.contact_force = contact_force(model, x, velocity_, period_s_);
-  s.cutting_force = cutting_force(model, x, velocity_);
   if (has_fading_) {
     const Vector3 before = contact_force(fading_, x, velocity_, period_s_);
-    const Vector3 cut_before = cutting_force(fading_, x, velocity_);
     for (int i = 0; i < 3; ++i) s.contact_force[i] = weight * s.contact_force[i] + (1 - weight) * before[i];
-    for (int i = 0; i < 3; ++i) s.cutting_force[i] = weight * s.cutting_force[i] + (1 - weight) * cut_before[i];
   }
+  const BlendedCutting cutting = blend_cutting(model, has_fading_ ? &fading_ : nullptr, weight, x);
+  s.cutting_force = cutting_proxy_.tick(cutting.term, cutting.level, x, period_s_);
+  for (int i = 0; i < 3; ++i) s.contact_force[i] += s.cutting_force[i];
   for (int i = 0; i < 3; ++i) total[i] += s.contact_force[i];
 
   if (!std::isfinite(total[0]) || !std::isfinite(total[1]) || !std::isfinite(total[2]))

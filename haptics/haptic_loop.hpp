@@ -36,6 +36,7 @@
 #include <thread>
 
 #include "haptics/contact_model.hpp"
+#include "haptics/cutting_proxy.hpp"
 #include "haptics/device.hpp"
 #include "haptics/passivity.hpp"
 #include "haptics/period_statistics.hpp"
@@ -175,6 +176,7 @@ class HapticLoop {
   // The model in effect (copied from the channel when its step changes), the one it replaced,
   // when it took effect and how long the one before had lasted.
   ContactModel shown_{}, fading_{};
+  CuttingProxy cutting_proxy_;  // the crack front the hand pushes against (cutting_proxy.hpp)
   bool has_shown_ = false, has_fading_ = false;
   std::int64_t shown_since_ns_ = 0, blend_over_ns_ = 0;
   bool has_previous_ = false;

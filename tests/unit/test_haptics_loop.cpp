@@ -131,28 +131,111 @@ TEST(HapticsContactModel, ForceFadesOutsideTheDomainOfTheLinearisation) {
   EXPECT_NE(error_of([&] { validate(m); }).find("valid_radius"), std::string::npos);
 }
 
-TEST(HapticsContactModel, CuttingResistanceOpposesTheMotionFadesWithSpeedAndNeverPushes) {
-  ContactModel m;  // no contacts: the cutting term alone
-  m.cutting.direction = {1, 0, 0};
-  m.cutting.force = 3.0;
-  m.cutting.speed = 0.005;
-  // Above the speed: the whole force against the blade's motion; below it, in proportion.
-  expect_near(contact_force(m, {0, 0, 0}, {0.05, 0, 0}, 1e-3), {-3.0, 0, 0}, 1e-15, "cutting at 5 cm/s");
-  expect_near(contact_force(m, {0, 0, 0}, {0.0025, 0.01, 0}, 1e-3), {-1.5, 0, 0}, 1e-15, "half the speed along");
-  expect_near(cutting_force(m, {0, 0, 0}, {0.0025, 0, 0}), {-1.5, 0, 0}, 1e-15, "its part alone");
-  // At rest or going back, nothing: the term only takes energy from the hand (F . v <= 0).
-  expect_near(contact_force(m, {0, 0, 0}, {0, 0, 0}, 1e-3), {0, 0, 0}, 0, "at rest");
-  expect_near(contact_force(m, {0, 0, 0}, {-0.05, 0, 0}, 1e-3), {0, 0, 0}, 0, "backwards");
-  // It fades with the model's domain like the contacts.
-  m.linearised_at = {0, 0, 0};
-  m.valid_radius = 0.01;
-  expect_near(contact_force(m, {0.0075, 0, 0}, {0.05, 0, 0}, 1e-3), {-1.5, 0, 0}, 1e-12, "fading");
-  EXPECT_NO_THROW(validate(m));
-  m.cutting.force = -1;
-  EXPECT_EQ(error_of([&] { validate(m); }), "ContactModel.cutting.force -1.000000 is not >= 0");
-  m.cutting.force = 1;
-  m.cutting.direction = {0.5, 0, 0};
-  EXPECT_NE(error_of([&] { validate(m); }).find("ContactModel.cutting.direction is not unit"), std::string::npos);
+TEST(HapticsCuttingProxy, TheTissueLoadsLikeASpringThenTheFrontAdvancesAtTheRuptureForce) {
+  CuttingResistance term;
+  term.direction = {1, 0, 0};
+  term.force = 3.0;
+  term.stiffness = 500;  // rupture after F / k = 6 mm
+  CuttingProxy proxy;
+  expect_near(proxy.tick(term, 3.0, {0, 0, 0}, 1e-3), {0, 0, 0}, 0, "a new cut starts unloaded at the hand");
+  expect_near(proxy.tick(term, 3.0, {0.002, 0.001, 0}, 1e-3), {-1.0, 0, 0}, 1e-12, "loading: k s along the motion only");
+  expect_near(proxy.tick(term, 3.0, {0.010, 0, 0}, 1e-3), {-3.0, 0, 0}, 1e-12, "cutting: the rupture force");
+  EXPECT_NEAR(proxy.front()[0], 0.004, 1e-15);  // the front 6 mm behind the hand
+  expect_near(proxy.tick(term, 3.0, {0.008, 0, 0}, 1e-3), {-2.0, 0, 0}, 1e-12, "backing off: the spring unloads");
+  expect_near(proxy.tick(term, 3.0, {0.003, 0, 0}, 1e-3), {0, 0, 0}, 0, "behind the front: nothing, it never pulls");
+  EXPECT_NEAR(proxy.front()[0], 0.004, 1e-15);  // a crack does not heal
+  expect_near(proxy.tick(term, 3.0, {0.012, 0, 0}, 1e-3), {-3.0, 0, 0}, 1e-12, "forward again: reloaded, then cutting");
+  expect_near(proxy.tick(term, 1.5, {0.012, 0, 0}, 1e-3), {-1.5, 0, 0}, 1e-12, "a lower level (a fade) caps it");
+  expect_near(proxy.tick(term, 0.0, {0.012, 0, 0}, 1e-3), {0, 0, 0}, 0, "no level: let go");
+  EXPECT_FALSE(proxy.engaged());
+  expect_near(proxy.tick(term, 3.0, {0.020, 0, 0}, 1e-3), {0, 0, 0}, 0, "the next cut starts unloaded");
+}
+
+// A hand drawn back and forth at 5 cm/s through a cutting model, ticked at 1 kHz: the force
+// changes by at most k |dx| a tick (no step at a stroke's start or end, where a force scaled by
+// the hand's speed would jump by the whole rupture force), and over the closed strokes the
+// term gives the hand no energy.
+TEST(HapticsCuttingProxy, AStrokeFeelsNoJumpAndGetsNoEnergyBack) {
+  CuttingResistance term;
+  term.direction = {1, 0, 0};
+  term.force = 2.0;
+  term.stiffness = 500;
+  CuttingProxy proxy;
+  const double dt = 1e-3, speed = 0.05;
+  Vector3 previous_force{}, x{};
+  double work_on_hand = 0, largest_jump = 0, peak = 0;
+  for (int tick = 0; tick < 4000; ++tick) {
+    const double phase = std::fmod(tick * dt, 2.0);  // 1 s forward, 1 s back, twice
+    const Vector3 next{phase < 1 ? speed * phase : speed * (2 - phase), 0, 0};
+    const Vector3 f = proxy.tick(term, 2.0, next, 1e-3);
+    work_on_hand += f[0] * (next[0] - x[0]);
+    largest_jump = std::max(largest_jump, std::abs(f[0] - previous_force[0]));
+    peak = std::max(peak, std::abs(f[0]));
+    previous_force = f;
+    x = next;
+  }
+  EXPECT_NEAR(peak, 2.0, 1e-12);
+  EXPECT_LE(largest_jump, term.stiffness * speed * dt * (1 + 1e-9));
+  EXPECT_LE(work_on_hand, 0.0);
+  // The first stroke cuts 50 mm less the 4 mm the spring takes up; the second meets the crack
+  // it made and only loads and unloads the spring. Each tick books the force at its end, which
+  // misses the spring's energy by about k dx^2 per loading or unloading tick.
+  EXPECT_NEAR(work_on_hand, -2.0 * (speed * 1.0 - 2.0 / 500), 200 * term.stiffness * std::pow(speed * dt, 2));
+}
+
+// A blade that pressed down through the tissue and then draws along it: the models' direction
+// turns by 90 degrees from one step to the next, the spring's axis turns at kTurnRate, and the
+// force on the hand changes by no more than the turn allows in a tick.
+TEST(HapticsCuttingProxy, ATurnOfTheBladesMotionTurnsTheLoadSmoothly) {
+  CuttingResistance down;
+  down.direction = {0, 0, -1};
+  down.force = 2.0;
+  down.stiffness = 500;
+  CuttingProxy proxy;
+  const double dt = 1e-3;
+  Vector3 x{0, 0, 0}, f{};
+  for (int tick = 0; tick < 200; ++tick) f = proxy.tick(down, 2.0, x = {0, 0, -5e-5 * tick}, dt);
+  expect_near(f, {0, 0, 2.0}, 1e-12, "cutting downwards");
+  CuttingResistance along = down;
+  along.direction = {1, 0, 0};
+  double largest_jump = 0;
+  for (int tick = 0; tick < 600; ++tick) {
+    x[0] += 5e-5;  // drawn along at 5 cm/s from here
+    const Vector3 next = proxy.tick(along, 2.0, x, dt);
+    largest_jump = std::max(largest_jump, std::hypot(next[0] - f[0], next[1] - f[1], next[2] - f[2]));
+    f = next;
+  }
+  expect_near(proxy.direction(), along.direction, 1e-12, "turned to the new motion");
+  expect_near(f, {-2.0, 0, 0}, 1e-9, "cutting along");
+  // A tick's turn changes the force by at most F dtheta plus k |x - front| dtheta, and the hand's
+  // own motion by k dx.
+  const double turn = CuttingProxy::kTurnRate * dt;
+  EXPECT_LE(largest_jump, 2.0 * turn + 2.0 * turn + 500 * 5e-5 + 1e-12);
+}
+
+TEST(HapticsCuttingProxy, ABlendWeighsEachModelsLevelByItsDomainAndTheFade) {
+  ContactModel now, before;
+  now.cutting.force = 4.0;
+  now.cutting.direction = {0, 1, 0};
+  before.cutting.force = 2.0;
+  before.cutting.direction = {1, 0, 0};
+  BlendedCutting b = blend_cutting(now, &before, 0.25, {0, 0, 0});
+  EXPECT_DOUBLE_EQ(b.level, 0.25 * 4.0 + 0.75 * 2.0);
+  EXPECT_EQ(b.term.direction, before.cutting.direction);  // the stronger part's direction
+  b = blend_cutting(now, nullptr, 1.0, {0, 0, 0});
+  EXPECT_DOUBLE_EQ(b.level, 4.0);
+  now.linearised_at = {0, 0, 0};
+  now.valid_radius = 0.01;
+  EXPECT_DOUBLE_EQ(blend_cutting(now, nullptr, 1.0, {0.0075, 0, 0}).level, 2.0);  // half way out of its domain
+  EXPECT_NO_THROW(validate(now));
+  now.cutting.stiffness = 0;
+  EXPECT_NE(error_of([&] { validate(now); }).find("ContactModel.cutting.stiffness 0.000000 is not > 0"), std::string::npos);
+  now.cutting.stiffness = 500;
+  now.cutting.force = -1;
+  EXPECT_EQ(error_of([&] { validate(now); }), "ContactModel.cutting.force -1.000000 is not >= 0");
+  now.cutting.force = 1;
+  now.cutting.direction = {0.5, 0, 0};
+  EXPECT_NE(error_of([&] { validate(now); }).find("ContactModel.cutting.direction is not unit"), std::string::npos);
 }
 
 TEST(HapticsCoupling, ForceIsClampedToTheDeviceLimitKeepingItsDirection) {

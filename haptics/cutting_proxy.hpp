@@ -1,0 +1,45 @@
+// The cutting resistance as the hand meets it at 1 kHz (ContactModel::cutting; Mahvash and
+// Hayward 2004, "Haptic rendering of cutting: a fracture mechanics approach"): the tissue ahead
+// of the edge is a spring of stiffness k along the blade's motion d, anchored at the crack
+// front f. Each tick, with the hand at x and s = (x - f) . d,
+//     s > F / k:  the tissue ruptures: the front advances to x - (F / k) d (cutting phase);
+//     s <= 0:     the hand is behind the front: no force, the front stays (a crack does not heal);
+// and the force is -k s d, at most F (the model's rupture level, weighted by the model's domain
+// and by the blend between models). The force builds up over F / k of the hand's motion and
+// follows it continuously, where a force that stepped with the hand's speed would jump by F at
+// a stroke's start and end; the front only moves forward, so the hand can get back at most the
+// energy it put into the spring (passive). When the level F goes to zero the spring lets go,
+// and the next cut starts unloaded at the hand. The direction the spring acts along turns
+// towards each model's d at most kTurnRate: a blade that pressed down and then draws along
+// would otherwise swap a loaded spring's axis in one tick (a jump of up to F).
+#pragma once
+
+#include "haptics/contact_model.hpp"
+
+namespace incise::haptics {
+
+class CuttingProxy {
+ public:
+  static constexpr double kTurnRate = 5;  // rad/s
+  // The force on the hand (N) at x for the term (direction d, stiffness k) at rupture level
+  // `level` (N, >= 0: the term's force times its weights).
+  Vector3 tick(const CuttingResistance& term, double level, const Vector3& x, double period_s);
+  bool engaged() const { return engaged_; }
+  const Vector3& front() const { return front_; }
+  const Vector3& direction() const { return direction_; }
+
+ private:
+  bool engaged_ = false;
+  Vector3 front_{};
+  Vector3 direction_{1, 0, 0};  // unit, turning towards the model's
+};
+
+// The term rendered while `model` fades in over `faded` (weight w of the new one): the levels
+// weighted by each model's domain at x and by the blend, the direction of the stronger.
+struct BlendedCutting {
+  CuttingResistance term;
+  double level = 0;
+};
+BlendedCutting blend_cutting(const ContactModel& model, const ContactModel* faded, double weight, const Vector3& x);
+
+}  // namespace incise::haptics
