@@ -201,6 +201,8 @@ int main(int argc, char** argv) {
   haptics_cmd->add_option("--out", haptics_bench.out_dir, "Output folder (haptics.json)")->capture_default_str();
   haptics_cmd->add_option("--scene", haptics_scene, "Cutting scene (default assets/scenes/haptics_block.json)");
   haptics_cmd->add_option("--spin-us", haptics_bench.spin_us, "Sleep to this long before each deadline, then spin")->capture_default_str();
+  haptics_cmd->add_option("--record", haptics_bench.record,
+                          "Record the cutting run's ticks and CG stops to this trajectory file (incise replay repeats it)");
   bool haptics_normal_priority = false;
   haptics_cmd->add_flag("--normal-priority", haptics_normal_priority,
                         "Run the loops at normal priority (as where SCHED_FIFO is refused)");

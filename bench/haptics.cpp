@@ -98,6 +98,10 @@ Json cutting_force_json(const std::vector<haptics::TickSample>& ticks, double& m
   return {{"mean", mean}, {"peak", peak}, {"ticks", cutting}};
 }
 
+std::string scene_file_hint(const HapticsBenchOptions& options) {
+  return options.scene.empty() ? std::string("assets/scenes/haptics_block.json") : options.scene.string();
+}
+
 struct RunResult {
   Json json;
   std::string line;
@@ -111,6 +115,7 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
   session_options.budget = scene.solver.realtime;
   session_options.loop.spin_ns = static_cast<std::int64_t>(options.spin_us * 1000);
   session_options.loop.realtime_priority = options.realtime_priority;
+  if (engage && !options.record.empty()) session_options.record = options.record;
   device.set_pose(scripted_stroke(0, engage));
   engine::HapticSession session(scene, device, session_options);
   const std::int64_t t0 = session.t0_ns();
@@ -148,7 +153,15 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
   const haptics::LoopThreadUsage usage = session.loop().thread_usage();
   done.store(true, std::memory_order_release);
   hand.join();
-  if (!error.empty()) throw std::runtime_error("physics stopped: " + error);
+  if (!error.empty()) {
+    // The step that threw is the one after those taken.
+    const std::uint64_t failed = session.world().steps_taken() + 1;
+    std::string message = "physics stopped at step " + std::to_string(failed) + ": " + error;
+    if (session_options.record)
+      message += " (recorded; to repeat it: incise replay " + scene_file_hint(options) + " --trajectory " +
+                 options.record.string() + " --steps " + std::to_string(failed) + ")";
+    throw std::runtime_error(message);
+  }
 
   const auto& ticks = session.ticks();
   const auto at = [t0](std::size_t count, std::int64_t ns) {

@@ -13,6 +13,10 @@ struct HapticsBenchOptions {
   std::filesystem::path out_dir = "out/bench/haptics";
   double spin_us = 300;         // sleep to this long before each deadline, then spin
   bool realtime_priority = true;
+  // The cutting run's ticks (poses, buttons, forces) and CG stops to this trajectory file, so
+  // a run that fails can be replayed headless, bit for bit (`incise replay SCENE --trajectory
+  // FILE`): real time makes each run's states differ. Empty: not recorded.
+  std::filesystem::path record;
 };
 
 // Three runs of `seconds` each, in this process: (1) the 1 kHz loop on its own thread with a

@@ -79,6 +79,12 @@ bool pin_orphans(CutContext& ctx) {
 bool close_stroke(CutContext& ctx, double reach) {
   const bool carried = ctx.cut.surface->end_stroke(reach);
   ctx.cut.stroke_folds = 0;
+  // A stroke the surface could not keep is counted with the samples it could not cut.
+  if (const std::string& problem = ctx.cut.surface->end_problem(); !problem.empty()) {
+    ctx.totals.front_problems++;
+    if (ctx.totals.first_front_problem.empty())
+      ctx.totals.first_front_problem = "step " + std::to_string(ctx.step) + ": " + problem;
+  }
   if (carried) ctx.totals.front_strokes_carried_through++;
   return carried;
 }
@@ -88,8 +94,9 @@ void end_stroke(CutContext& ctx) {
   FrontSurface& front = *ctx.cut.surface;
   if (front.stroke_samples() == 0) return;
   const Stopwatch watch;
-  // Not carried: the surface is the one shown (its stroke's vertices became base ones).
-  if (!close_stroke(ctx, front.front_width())) return;
+  // Not carried: the surface is the one shown (its stroke's vertices became base ones), unless
+  // the stroke was dropped (FrontSurface::end_problem), which shows the last base again.
+  if (!close_stroke(ctx, front.front_width()) && front.end_problem().empty()) return;
   const std::vector<std::uint8_t> unchanged(static_cast<std::size_t>(ctx.body.efg->element_count()), 0);
   remap_front_surface(ctx, {ctx.model.rest_lo, ctx.model.rest_hi, unchanged, false});
   ctx.report.ms_topology += watch.ms();

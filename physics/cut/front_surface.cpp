@@ -107,19 +107,14 @@ int ray_crosses(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b, cons
   return along >= 0 && along <= 1 ? 1 : 0;
 }
 
-// Whether the polygon (ids into positions) turns counter-clockwise about n.
-bool oriented_about(const std::vector<int>& polygon, const Vec3& n, const std::vector<Vec3>& positions) {
-  Vec3 area = Vec3::Zero();
-  for (size_t k = 0; k < polygon.size(); ++k)
-    area += positions[static_cast<size_t>(polygon[k])].cross(positions[static_cast<size_t>(polygon[(k + 1) % polygon.size()])]);
-  return area.dot(n) >= 0;
-}
-
-// Triangulates a small simple polygon lying in a plane of normal n by clipping ears, its
-// triangles counter-clockwise about n. A vertex on the line of its neighbours (the slit's
-// middle) is never an ear: it is clipped last, with a vertex off that line.
+// Triangulates a small polygon lying in a plane of normal n by clipping ears. The polygon
+// comes in the order its triangles must keep (the base triangle's, so that they share each
+// edge with their neighbours the other way round), and every triangle keeps it, whatever the
+// geometry says: an ear is taken where the polygon turns counter-clockwise about n, and where
+// none does (a sliver, rounding) one is clipped anyway, still in that order. A vertex on the
+// line of its neighbours (the slit's middle) is never an ear: it is clipped last, with a
+// vertex off that line.
 void ear_clip(std::vector<int> polygon, const Vec3& n, const std::vector<Vec3>& positions, std::vector<std::array<int, 3>>& out) {
-  if (!oriented_about(polygon, n, positions)) std::reverse(polygon.begin(), polygon.end());
   const auto at = [&](int id) -> const Vec3& { return positions[static_cast<size_t>(id)]; };
   const auto turn = [&](int a, int b, int c) { return (at(b) - at(a)).cross(at(c) - at(a)).dot(n); };
   while (polygon.size() > 3) {
@@ -643,6 +638,7 @@ FrontSurface::FrontSurface(const FrontSurface& other)
       replaced_slots_(other.replaced_slots_),
       planed_base_(other.planed_base_),
       last_report_(other.last_report_),
+      end_problem_(other.end_problem_),
       reuse_face_(other.reuse_face_) {}
 
 FrontSurface& FrontSurface::operator=(const FrontSurface& other) {
@@ -650,9 +646,13 @@ FrontSurface& FrontSurface::operator=(const FrontSurface& other) {
   return *this;
 }
 
-void FrontSurface::index_base() {
-  base_ = std::make_unique<Base>();
-  base_->edges = edge_table(base_triangles_);
+void FrontSurface::index_base(std::unique_ptr<Base> with_edges) {
+  if (with_edges) {
+    base_ = std::move(with_edges);
+  } else {
+    base_ = std::make_unique<Base>();
+    base_->edges = edge_table(base_triangles_);
+  }
   double length = 0;
   std::vector<std::array<Vec3, 2>> boxes;
   boxes.reserve(base_->edges.ends.size());
@@ -879,13 +879,25 @@ bool FrontSurface::end_stroke(double reach) {
   }
   FrontCutReport report;
   if (samples_.size() >= 2) recompute(report);
+  end_problem_.clear();
   if (report.ok() && samples_.size() >= 2) {
-    base_vertices_ = vertices_;
-    base_triangles_ = triangles_;
-    base_planes_ = vertex_planes_.lists();
-    base_cut_face_ = cut_face_;
-    base_crack_front_ = crack_front_;
-    index_base();
+    // The edge table first: a surface that is not closed and consistently oriented would
+    // make every later stroke on it fail, so it is not taken (see the header).
+    auto fresh = std::make_unique<Base>();
+    try {
+      fresh->edges = edge_table(triangles_);
+    } catch (const std::invalid_argument& error) {
+      end_problem_ = std::string("the stroke's surface was not kept: ") + error.what();
+      fresh.reset();
+    }
+    if (fresh) {
+      base_vertices_ = vertices_;
+      base_triangles_ = triangles_;
+      base_planes_ = vertex_planes_.lists();
+      base_cut_face_ = cut_face_;
+      base_crack_front_ = crack_front_;
+      index_base(std::move(fresh));
+    }
   }
   drop_stroke();
   last_report_ = FrontCutReport();
@@ -1428,22 +1440,29 @@ bool FrontSurface::Recompute::split_at_slit(int t, const std::array<int, 2>& end
   for (int k = 0; k < 3; ++k)
     if (left[static_cast<size_t>(k)] != left[static_cast<size_t>((k + 1) % 3)] && left[static_cast<size_t>(k)] != left[static_cast<size_t>((k + 2) % 3)])
       lone = k;
+  // v0 is alone on its side of the slit's line; (v0, va, vb) keeps the base triangle's
+  // counter-clockwise order. That line crosses the edges (v0, va) and (v0, vb), and with v0 on
+  // its left (about n) the crossing on (v0, vb) is the one ahead along t1 -> t2 (the triangle
+  // v0 and the two crossings make turns the same way as the base triangle): the tip ahead, t2,
+  // faces vb, and t1 faces va; with v0 on its right, the other way round. Taking the pairing
+  // from the side, rather than from the vertices' own order along t1 -> t2 (which differs on
+  // an obtuse triangle), and orienting the pieces by the base triangle's order rather than by
+  // their area, every edge is used once each way whatever the rounding: the mesh stays closed
+  // and consistently oriented.
   const int v0 = tri[static_cast<size_t>(lone)], va = tri[static_cast<size_t>((lone + 1) % 3)], vb = tri[static_cast<size_t>((lone + 2) % 3)];
-  // v1 is the one further ahead along t1 -> t2, v2 the other.
-  const bool a_ahead = direction.dot(vertices[static_cast<size_t>(va)]) >= direction.dot(vertices[static_cast<size_t>(vb)]);
-  const int v1 = a_ahead ? va : vb, v2 = a_ahead ? vb : va;
+  const bool v0_left = left[static_cast<size_t>(lone)];
+  const int ta = v0_left ? t1.vertex : t2.vertex, tb = v0_left ? t2.vertex : t1.vertex;
   const int middle_a = static_cast<int>(vertices.size()), middle_b = middle_a + 1;
   vertices.push_back(0.5 * (t1.point + t2.point));
   vertices.push_back(0.5 * (t1.point + t2.point));
-  ear_clip({v0, v1, t2.vertex}, n, vertices, split);
-  ear_clip({v2, v0, t1.vertex}, n, vertices, split);
-  std::vector<int> lip_v0{v0, t1.vertex, middle_a, t2.vertex};
-  ear_clip(lip_v0, n, vertices, split);
-  ear_clip({t2.vertex, v1, v2, t1.vertex, middle_b}, n, vertices, split);
+  ear_clip({v0, va, ta}, n, vertices, split);
+  ear_clip({vb, v0, tb}, n, vertices, split);
+  ear_clip({v0, ta, middle_a, tb}, n, vertices, split);  // v0's lip
+  ear_clip({ta, va, vb, tb, middle_b}, n, vertices, split);
   split_on_face.resize(split.size(), splitting_face);
   // The face on the sheet's minus side runs leave -> middle -> enter, so the lip of the
-  // minus side runs enter -> middle -> leave (ear_clip orients the polygon about n).
-  const bool a_is_minus = !oriented_about(lip_v0, n, vertices);
+  // minus side runs enter -> middle -> leave: v0's lip runs ta -> middle_a -> tb.
+  const bool a_is_minus = ta == t2.vertex;
   const int middle_minus = a_is_minus ? middle_a : middle_b, middle_plus = a_is_minus ? middle_b : middle_a;
   const int middle_point = add_point(0.5 * (t1.st + t2.st), middle_minus, middle_plus);
   slit_points.push_back(middle_point);

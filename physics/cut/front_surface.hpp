@@ -158,7 +158,15 @@ class FrontSurface {
   // body while its image at rest, which extrapolates outside the body, stops short of the
   // far side (the world passes w: docs/status.md, cut_torus). Returns whether it was carried
   // through.
+  //
+  // A stroke whose surface is not a closed, consistently oriented mesh (which the cut's stages
+  // are built never to make) does not become the base: the stroke is dropped, the surface
+  // stays the last base, and end_problem() says why, for the caller to count with the
+  // samples' problems.
   bool end_stroke(double reach = 0);
+  // Why the last end_stroke kept the old base rather than the stroke's surface; empty when it
+  // did not.
+  const std::string& end_problem() const { return end_problem_; }
   int stroke_samples() const { return static_cast<int>(samples_.size()); }
   // Whether a sample keeps the last one's cut-face triangles that lie well behind the front
   // (the default) or triangulates the stroke's whole face again: the same surface either way
@@ -208,7 +216,9 @@ class FrontSurface {
   struct Base;    // the base mesh's edges, and its edges and triangles binned
   struct Stroke;  // what the stroke's fixed part crossed, kept between calls
   struct Recompute;  // recompute's stages, and what they share within one call
-  void index_base();
+  // Indexes the base: `with_edges` holds its edge table already (end_stroke builds it before
+  // it adopts a new base); null, it is built here.
+  void index_base(std::unique_ptr<Base> with_edges = nullptr);
   void show_base();     // the surface is the base's (copied whole: after a new base)
   void restore_base();  // the same from an output of the base's (undoing only what a stroke changed)
   void recompute(FrontCutReport& report);
@@ -231,6 +241,7 @@ class FrontSurface {
   std::vector<std::uint8_t> base_cut_face_, cut_face_;
   std::vector<int> replaced_slots_, planed_base_;
   FrontCutReport last_report_;  // of the last sample taken
+  std::string end_problem_;      // why the last end_stroke kept the old base (empty: it did not)
   bool reuse_face_ = true;
 };
 

@@ -348,6 +348,42 @@ TEST(FrontSurface, AStabInsideOneTriangleOpensASlitClosedAtBothEnds) {
   EXPECT_GT(made, 2);
 }
 
+// The slit's pieces around the tips: which of the base triangle's two far corners faces which
+// tip follows from the side of the slit the lone corner is on. On an obtuse triangle the far
+// corners' own order along the slit says the opposite, and pairing them by it made two pieces
+// overlap, an edge used twice the same way: the stroke's surface then could not become the base
+// (`incise bench haptics` stopped with "edge (..) is not used exactly once in each direction").
+TEST(FrontSurface, AStabInAnObtuseTriangleKeepsTheSurfaceClosedWhicheverWayTheSlitRuns) {
+  // A tetrahedron whose top face (z = 0, facing up) is long and obtuse: the line y = 0 crosses
+  // it from x = 0.57 (edge P-R) to x = 5 (edge P-Q), while R lies further along x than Q.
+  const Vec3 p{0, 1, 0}, q{10, -1, 0}, r{12, -20, 0}, d{7, -6, -5};
+  const std::vector<Vec3> vertices{p, q, r, d};
+  const std::vector<std::array<int, 3>> triangles{{0, 2, 1}, {0, 1, 3}, {1, 2, 3}, {2, 0, 3}};
+  const double whole = volume(vertices, triangles);
+  ASSERT_GT(whole, 0);
+  for (const bool reversed : {false, true}) {
+    const std::string way = reversed ? "blade -x: " : "blade +x: ";
+    FrontSurface surface(vertices, triangles, 0.5);
+    int slit = 0;
+    // A blade along y = 0, from x = 1.5 to 4, pushed down through the top face, not deep
+    // enough to reach another face: both its ends pierce the top triangle, no edge is cut.
+    for (int k = 0; k < 8; ++k) {
+      const double z = 0.3 - 0.05 * k;
+      std::vector<Vec3> blade{{1.5, 0, z}, {4, 0, z}};
+      if (reversed) std::swap(blade[0], blade[1]);
+      const FrontCutReport report = surface.advance(blade);
+      ASSERT_TRUE(report.ok()) << way << "sample " << k << ": " << report.problems.front();
+      expect_closed_with_volume(surface, whole, way + "sample " + std::to_string(k));
+      if (report.tips == 2 && report.crossings == 0) ++slit;
+    }
+    EXPECT_GT(slit, 0) << way << "the slit case did happen";
+    ASSERT_NO_THROW(surface.end_stroke()) << way;
+    EXPECT_EQ(surface.end_problem(), "") << way << "the stroke's surface became the base";
+    expect_closed_with_volume(surface, whole, way + "after the stroke");
+    EXPECT_GT(surface.base_vertex_count(), 4) << way << "the slit's vertices are base ones now";
+  }
+}
+
 TEST(FrontSurface, SmallMotionsMakeNoNewTrianglesAndWhatIsBehindTheFrontStaysPut) {
   const Mesh mesh = icosphere(3, 1.0);
   FrontSurface surface(mesh.vertices, mesh.triangles, 0.08);
