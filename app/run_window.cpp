@@ -241,6 +241,8 @@ class Panel {
       last_ticks_ = ticks;
       last_frame_time_ = now;
       force_plot_.push(static_cast<float>(std::hypot(tick_.force[0], tick_.force[1], tick_.force[2])));
+      cutting_plot_.push(
+          static_cast<float>(std::hypot(tick_.cutting_force[0], tick_.cutting_force[1], tick_.cutting_force[2])));
     }
     if (s.step != last_step_plotted_) {
       last_step_plotted_ = s.step;
@@ -268,7 +270,9 @@ class Panel {
                   static_cast<unsigned long long>(periods_.over_2ms));
       ImGui::Text("%s", realtime_ ? "SCHED_FIFO" : "normal priority");
       period_plot_.draw("period", "us", 800, 1400);
-      force_plot_.draw("|F|", "N", 0, 1);
+      force_plot_.draw("|F|", "N", 0, 3);
+      cutting_plot_.draw("cutting", "N", 0, 3);  // the tissue's resistance to the blade (haptics/cutting_proxy.hpp)
+      ImGui::Text("energy to the device %.2e J", tick_.device_energy);
     }
     if (ImGui::CollapsingHeader("step time (ms)", ImGuiTreeNodeFlags_DefaultOpen)) {
       cut_plot_.draw("cut", "ms", 0, 50);
@@ -307,7 +311,7 @@ class Panel {
   std::string device_;
   float youngs_kpa_, poisson_, tolerance_log_;
   int max_iterations_;
-  Plot period_plot_, force_plot_, cut_plot_, solve_plot_, surface_plot_, contact_plot_;
+  Plot period_plot_, force_plot_, cutting_plot_, cut_plot_, solve_plot_, surface_plot_, contact_plot_;
   std::uint64_t last_ticks_ = 0, last_step_plotted_ = 0;
   SteadyClock::time_point last_frame_time_ = SteadyClock::now();
   haptics::TickSample tick_{};
