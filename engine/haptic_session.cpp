@@ -150,13 +150,18 @@ haptics::ContactModel build_contact_model(const World& world, const ContactBuild
     c.stiffness = stiffness / found;
     c.compliance = n.compliance * found;  // the patch is shared too: each point's spring is softer
   }
-  // The tissue's resistance while the crack advances (engine/cutting_resistance.cpp), against
-  // the blade's motion over the step that found it.
+  // The tissue's resistance to the blade (engine/cutting_resistance.cpp) as the level at which
+  // the loop's spring lets the crack front advance (haptics/cutting_proxy.hpp): the toughness
+  // times the engaged edge across its motion plus the flanks' friction, whether or not the
+  // blade advanced over this step. The hand moves between steps (a window's cursor in jumps a
+  // frame apart): it meets the same crack front, and the loop decides when it ruptures. Its
+  // direction: the blade's motion over the step, else its last one.
   const double resisting = tool.cutting_force.norm();
-  if (cutting && resisting > 0) {
-    const Vec3 direction = -tool.cutting_force / resisting;
+  const Vec3 direction = resisting > 0 ? Vec3(-tool.cutting_force / resisting) : vec(build.cutting_direction);
+  if (cutting && tool.cutting.cutting && tool.engaged_length > 0 && direction.norm() > 0.5) {
     for (int k = 0; k < 3; ++k) model.cutting.direction[k] = direction[k];
-    model.cutting.force = resisting;
+    model.cutting.force =
+        world.toughness() * tool.onset_width + world.scene().tool->flank_friction * tool.engaged_length;
   }
   haptics::validate(model);  // non-finite numbers are caught here, where they arise
   return model;
@@ -283,6 +288,7 @@ void HapticSession::publish(std::uint64_t step) {
   // cutting or leaves the tissue lets the load ahead of its edge go over a few steps (the
   // previous direction kept), where the loop's spring would otherwise drop it in a tick.
   const haptics::CuttingResistance previous = last_model_.cutting;
+  if (previous.force > 0) build.cutting_direction = previous.direction;
   last_model_ = build_contact_model(*world_, build);
   haptics::CuttingResistance& cutting = last_model_.cutting;
   const double most = kCuttingForceRamp * world_->dt();

@@ -63,6 +63,9 @@ struct ContactBuild {
   // The model's domain (ContactModel::valid_radius) around the tool's position; <= 0: the
   // search radius (the nearest surface is only looked for that far).
   double valid_radius = 0;
+  // The blade's last cutting direction (unit; zero: none yet), for a step in which it engaged
+  // the tissue without advancing.
+  std::array<double, 3> cutting_direction{};
 };
 inline constexpr double kDefaultBladeStiffness = 400;  // N/m, whole edge
 haptics::ContactModel build_contact_model(const World& world, const ContactBuild& build);

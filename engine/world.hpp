@@ -184,6 +184,7 @@ class World {
   void fill_frame(render::Frame& frame, int width, int height) const;
   std::array<double, 3> bounds_min() const { return bounds_min_; }
   std::array<double, 3> bounds_max() const { return bounds_max_; }
+  double toughness() const;  // G_c of the body the blade cuts, J/m^2
 
  private:
   void build();  // the bodies and the tool from the scene (the constructor, reset)
@@ -194,7 +195,6 @@ class World {
   // from the bodies' mass centres before it (engine/cutting_resistance.cpp).
   void resist_cutting(StepStats& stats);
   std::vector<physics::Vec3> mass_centres() const;
-  double toughness() const;  // G_c of the body the blade cuts, J/m^2
   void advance_onset(const std::vector<physics::Vec3>& centres_before, StepStats& stats);
   void update_surface(Body& body) const;
   // solver.backend "gpu": the body's GPU step (throws naming the field when it cannot be).

@@ -246,6 +246,36 @@ TEST(HapticSession, TheContactModelIsRebuiltInTheCutStepAndTheForceStaysContinuo
   EXPECT_LE(cut.at_cut_max, std::max({cut.at_publication_max, press.at_publication_max, press.between_max}) * 1.0001);
 }
 
+// A window's cursor moves the device in jumps a frame apart, so in most physics steps the
+// blade does not advance. The crack front is still there: the hand that jumps into it must
+// feel the same resistance as a hand moving smoothly (the model's level does not drop to zero
+// in the steps without motion, haptics/cutting_proxy.hpp).
+TEST(HapticSession, AHandMovingInJumpsFeelsTheCuttingResistanceOfASmoothOne) {
+  TempDir dir("incise_session_jumps");
+  const Scene scene = beam_scene(dir);
+  const auto peak_cutting_force = [&](double frame_s) {
+    haptics::VirtualDevice device;
+    SessionOptions options;
+    options.keep_ticks = true;
+    options.script = [&](double t) { device.set_pose(stroke(frame_s > 0 ? frame_s * std::floor(t / frame_s) : t, true)); };
+    HapticSession session(scene, device, options);
+    for (int k = 0; k < 40; ++k) session.step();
+    session.stop();
+    double peak = 0;
+    for (const auto& tick : session.ticks())
+      peak = std::max(peak, std::hypot(tick.cutting_force[0], tick.cutting_force[1], tick.cutting_force[2]));
+    return std::pair{peak, session.world().cut_totals().events};
+  };
+  const auto [smooth, smooth_events] = peak_cutting_force(0);
+  const auto [jumps, jump_events] = peak_cutting_force(0.06);
+  std::printf("peak cutting force: smooth hand %.3f N (%ld cut events), a hand in 60 ms jumps %.3f N (%ld)\n", smooth,
+              smooth_events, jumps, jump_events);
+  ASSERT_GT(smooth_events, 0);
+  ASSERT_GT(jump_events, 0);
+  EXPECT_GT(smooth, 1.0);
+  EXPECT_GT(jumps, 0.8 * smooth);
+}
+
 TEST(HapticSession, ABladePressedOnTheSurfaceIsPushedOutAlongItsNormal) {
   TempDir dir("incise_session_normal");
   const Scene scene = beam_scene(dir, 200);
