@@ -963,6 +963,20 @@ std::string bounds_text(const Sweep& sweep) {
 
 }  // namespace
 
+// The runs of the part: every run of the bodies (a model, a case and a material, in the sweep's
+// order) whose index `in_part` takes.
+template <class InPart>
+int runs_in_part(const Sweep& sweep, const std::vector<ModelKind>& kinds, const InPart& in_part) {
+  int total = 0, body_index = 0;
+  for (const std::string& case_name : sweep.cases)
+    for (const ModelKind& kind : kinds) {
+      if (!model_runs_case(kind.name, case_name)) continue;
+      for (std::size_t m = 0; m < sweep.youngs_moduli.size() * sweep.poisson_ratios.size(); ++m)
+        if (in_part(body_index++)) total += static_cast<int>(kind.integrators.size() * sweep.time_steps.size());
+    }
+  return total;
+}
+
 int run_stability_bench(const StabilityOptions& options, const std::filesystem::path& out_dir,
                         std::ostream& progress_stream) {
   const bool quick = options.quick, resume = options.resume;
@@ -989,14 +1003,7 @@ int run_stability_bench(const StabilityOptions& options, const std::filesystem::
                            "max_displacement", "steps", "guard_events"});
     if (resume) progress_stream << "resuming: " << previous.size() << " runs kept from the earlier sweep\n";
 
-    int total = 0;
-    int body_index = 0;
-    for (const std::string& case_name : sweep.cases)
-      for (const ModelKind& kind : kinds) {
-        if (!model_runs_case(kind.name, case_name)) continue;
-        for (std::size_t m = 0; m < sweep.youngs_moduli.size() * sweep.poisson_ratios.size(); ++m)
-          if (in_part(body_index++)) total += static_cast<int>(kind.integrators.size() * sweep.time_steps.size());
-      }
+    const int total = runs_in_part(sweep, kinds, in_part);
     progress_stream << "stability sweep" << (quick ? " (quick)" : "") << ": " << total << " runs";
     if (options.parts > 1) progress_stream << " (part " << options.part << " of " << options.parts << ")";
     progress_stream << "\n" << bounds_text(sweep);
@@ -1004,7 +1011,7 @@ int run_stability_bench(const StabilityOptions& options, const std::filesystem::
     common::ProgressBar progress(progress_stream, total);
     std::vector<Run> runs;
     std::vector<std::string> set_up_notes;
-    body_index = 0;
+    int body_index = 0;
     for (const std::string& case_name : sweep.cases) {
       const double duration = is_beam(case_name) ? sweep.beam_duration : sweep.cube_duration;
       for (const ModelKind& kind : kinds) {
