@@ -51,10 +51,19 @@ uniform int slot1;
 #define LOADA(i) vec3r(va[3 * (i)], va[3 * (i) + 1], va[3 * (i) + 2])
 #define LOADB(i) vec3r(vb[3 * (i)], vb[3 * (i) + 1], vb[3 * (i) + 2])
 #define GRADIENT(slot) vec3r(gradients[3 * (slot)], gradients[3 * (slot) + 1], gradients[3 * (slot) + 2])
-// Row-major 3x3 blocks of 9 reals; GLSL matrices are column-major, hence m[column][row].
+// Row-major 3x3 blocks of 9 reals; GLSL matrices are column-major, so the block read in order
+// is the transpose. Built by a constructor, not by writes at loop indices: NVIDIA's compiler
+// cannot link a dmat3 written at a run-time index ("can't find __setVectorIndex").
 #define LOAD_MATRIX(m, array, e) \
-  for (int r_ = 0; r_ < 3; ++r_) for (int c_ = 0; c_ < 3; ++c_) m[c_][r_] = array[9 * (e) + 3 * r_ + c_]
+  m = transpose(mat3r(array[9 * (e)], array[9 * (e) + 1], array[9 * (e) + 2], array[9 * (e) + 3], \
+                      array[9 * (e) + 4], array[9 * (e) + 5], array[9 * (e) + 6], array[9 * (e) + 7], \
+                      array[9 * (e) + 8]))
+#define STORE_MATRIX(array, e, m) \
+  array[9 * (e)] = m[0].x; array[9 * (e) + 1] = m[1].x; array[9 * (e) + 2] = m[2].x; \
+  array[9 * (e) + 3] = m[0].y; array[9 * (e) + 4] = m[1].y; array[9 * (e) + 5] = m[2].y; \
+  array[9 * (e) + 6] = m[0].z; array[9 * (e) + 7] = m[1].z; array[9 * (e) + 8] = m[2].z
 bool finite(real x) { return !isnan(x) && !isinf(x); }
+bool finite3(vec3r v) { return finite(v.x) && finite(v.y) && finite(v.z); }
 )";
 
 // mode 0: elastic forces from the displacements in A; mode 1: K p for p in A.
@@ -86,8 +95,7 @@ void main() {
   real trace = strain[0][0] + strain[1][1] + strain[2][2];
   mat3r sigma = real(2) * parameters[1] * strain + parameters[0] * trace * mat3r(1);
   mat3r s = (mode == 0 ? -volume : volume) * (sigma + w * sigma);
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) stresses[9 * e + 3 * r + c] = s[c][r];
+  STORE_MATRIX(stresses, e, s);
 }
 )";
 
@@ -118,8 +126,7 @@ void main() {
     vec3r stiffness = sum;
     if (spring >= 0) {
       mat3r k;
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) k[c][r] = spring_stiffness[9 * spring + 3 * r + c];
+      LOAD_MATRIX(k, spring_stiffness, spring);
       stiffness += k * p;
     }
     result = mode == 1 ? stiffness
@@ -152,10 +159,10 @@ void main() {
   int spring = spring_index[n];
   if (spring >= 0)
     sum += vec3r(spring_stiffness[9 * spring], spring_stiffness[9 * spring + 4], spring_stiffness[9 * spring + 8]);
-  for (int c = 0; c < 3; ++c) {
-    real d = parameters[5] * masses[n] + parameters[6] * sum[c];
-    vc[3 * n + c] = (d > real(0) && finite(d)) ? real(1) / d : real(1);
-  }
+  vec3r d = parameters[5] * masses[n] + parameters[6] * sum;
+  vc[3 * n] = (d.x > real(0) && finite(d.x)) ? real(1) / d.x : real(1);
+  vc[3 * n + 1] = (d.y > real(0) && finite(d.y)) ? real(1) / d.y : real(1);
+  vc[3 * n + 2] = (d.z > real(0) && finite(d.z)) ? real(1) / d.z : real(1);
 }
 )";
 
@@ -333,9 +340,7 @@ void main() {
   mat3r f = rest_gradient + h;
   real x = orientations[4 * e], y = orientations[4 * e + 1], z = orientations[4 * e + 2], w = orientations[4 * e + 3];
   bool settled = false;
-  bool finite_f = true;
-  for (int c = 0; c < 3; ++c)
-    for (int r = 0; r < 3; ++r) finite_f = finite_f && finite(f[c][r]);
+  bool finite_f = finite3(f[0]) && finite3(f[1]) && finite3(f[2]);
   if (!finite_f) settled = true;
   for (int iteration = 0; iteration < 24 && !settled; ++iteration) {
     mat3r rotation;  // column-major: rotation[c][r] = R(r, c)
