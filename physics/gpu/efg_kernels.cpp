@@ -44,6 +44,15 @@ uniform int incidence_stride;
 uniform int mode;
 uniform int slot0;
 uniform int slot1;
+// CG's state on the GPU (efg_step.cpp, solve_velocity_change): flags[1] its status (0 running,
+// 1 converged, 2 non-finite, 3 p.Ap not positive, 4 at the iteration limit), flags[2] its
+// iterations. Inside CG's loop (cg_gate 1) the iteration's kernels do nothing once the status is
+// set, so the host can queue several iterations between read-backs and the iterate stops
+// exactly where a CG checked after every iteration would have stopped.
+uniform int cg_gate;
+uniform int limit;
+#define CG_DONE (cg_gate != 0 && flags[1] != 0)
+#define THRESHOLD_SLOT 7
 
 // Macros rather than functions, since GLSL cannot pass a buffer's array to a function; a
 // kernel declares only the blocks it names (Mesa counts declared blocks against its limit of
@@ -72,7 +81,7 @@ bool finite3(vec3r v) { return finite(v.x) && finite(v.y) && finite(v.z); }
 const char* const kElementStress = R"(
 void main() {
   int e = int(gl_GlobalInvocationID.x);
-  if (e >= count) return;
+  if (e >= count || CG_DONE) return;
   int base = e * stride;
   int length = lengths[e];
   real volume = volumes[e];
@@ -106,7 +115,7 @@ void main() {
 const char* const kNodeGather = R"(
 void main() {
   int n = int(gl_GlobalInvocationID.x);
-  if (n >= count) return;
+  if (n >= count || CG_DONE) return;
   vec3r sum = vec3r(0);
   int length = incidence_lengths[n];
   for (int i = 0; i < length; ++i) {
@@ -213,6 +222,7 @@ void main() {
 const char* const kDotPartial = R"(
 void main() {
   int t = int(gl_GlobalInvocationID.x);
+  if (CG_DONE) return;
   real s0 = real(0), s1 = real(0);
   for (int i = t; i < count; i += REDUCE_THREADS) {
     s0 += va[i] * vb[i];
@@ -226,7 +236,7 @@ void main() {
 // Second pass: one invocation sums the partials in order into scalars[slot0] (and slot1).
 const char* const kDotFinal = R"(
 void main() {
-  if (gl_GlobalInvocationID.x != 0u) return;
+  if (gl_GlobalInvocationID.x != 0u || CG_DONE) return;
   real s0 = real(0), s1 = real(0);
   for (int t = 0; t < REDUCE_THREADS; ++t) {
     s0 += partials[2 * t];
@@ -243,7 +253,7 @@ void main() {
 const char* const kCgUpdate = R"(
 void main() {
   int i = int(gl_GlobalInvocationID.x);
-  if (i >= count) return;
+  if (i >= count || CG_DONE) return;
   real curvature = scalars[slot0];
   real s = scalars[slot1] / curvature;
   if (!(curvature > real(0)) || !finite(s)) return;
@@ -257,9 +267,29 @@ void main() {
 const char* const kCgDirection = R"(
 void main() {
   int i = int(gl_GlobalInvocationID.x);
-  if (i >= count) return;
+  if (i >= count || CG_DONE) return;
   real beta = scalars[slot1] / scalars[slot0];
   vb[i] = va[i] + beta * vb[i];
+}
+)";
+
+// CG's stops, the host's checks moved to the GPU (cg.cpp's order): after an iteration (mode 0)
+// p.Ap (scalars[slot0]) not finite or not positive ends CG before the iteration counts; then
+// r.r (scalars[slot1]) at or below (tolerance |b|)^2 converges it, and the iteration limit
+// (the maximum, or a recorded stop) ends it. Mode 1: the check of the first residual.
+const char* const kCgCheck = R"(
+void main() {
+  if (gl_GlobalInvocationID.x != 0u || flags[1] != 0) return;
+  if (mode == 0) {
+    real curvature = scalars[slot0];
+    if (!finite(curvature)) { flags[1] = 2; return; }
+    if (!(curvature > real(0))) { flags[1] = 3; return; }
+    flags[2] += 1;
+  }
+  real residual = scalars[slot1];
+  if (!finite(residual)) flags[1] = 2;
+  else if (residual <= scalars[THRESHOLD_SLOT]) flags[1] = 1;
+  else if (mode == 0 && flags[2] >= limit) flags[1] = 4;
 }
 )";
 
@@ -408,6 +438,7 @@ const char* kernel_name(Kernel kernel) {
     case Kernel::dot_final: return "dot_final";
     case Kernel::cg_update: return "cg_update";
     case Kernel::cg_direction: return "cg_direction";
+    case Kernel::cg_check: return "cg_check";
     case Kernel::integrate: return "integrate";
     case Kernel::surface: return "surface";
     case Kernel::integration_points: return "integration_points";
@@ -430,7 +461,7 @@ std::string kernel_source(Kernel kernel, bool double_precision) {
   source += double_precision ? "#define SETTLED_ANGLE 1e-8lf\n#define TINY 1e-9lf\n"
                               : "#define SETTLED_ANGLE 3e-5\n#define TINY 1e-9\n";
   source += "#define REDUCE_THREADS " + std::to_string(kReduceGroups * kGroupSize) + "\n";
-  const int group = kernel == Kernel::dot_final ? 1 : kGroupSize;
+  const int group = kernel == Kernel::dot_final || kernel == Kernel::cg_check ? 1 : kGroupSize;
   source += "layout(local_size_x = " + std::to_string(group) + ") in;\n";
   std::string body;
   switch (kernel) {
@@ -444,6 +475,7 @@ std::string kernel_source(Kernel kernel, bool double_precision) {
     case Kernel::dot_final: body = kDotFinal; break;
     case Kernel::cg_update: body = kCgUpdate; break;
     case Kernel::cg_direction: body = kCgDirection; break;
+    case Kernel::cg_check: body = kCgCheck; break;
     case Kernel::integrate: body = kIntegrate; break;
     // Integration points use the same gather with the element rows and phi bound.
     case Kernel::surface:
@@ -457,6 +489,7 @@ std::string kernel_source(Kernel kernel, bool double_precision) {
   if (body.find("LOADA(") != std::string::npos) expanded += " va ";
   if (body.find("LOADB(") != std::string::npos) expanded += " vb ";
   if (body.find("GRADIENT(") != std::string::npos) expanded += " gradients ";
+  if (body.find("CG_DONE") != std::string::npos) expanded += " flags ";
   const auto names = [&expanded](const std::string& name) {
     const auto word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
     for (size_t at = expanded.find(name); at != std::string::npos; at = expanded.find(name, at + 1)) {
