@@ -183,7 +183,7 @@ TEST(ModelRegistry, ARegisteredModelsScenesAreCheckedThroughItsEntry) {
   TetheredRegistered registered;
   const std::vector<std::pair<std::function<void(Json&)>, std::string>> cases = {
       {[](Json& s) { s["bodies"][0]["cuttable"] = true; }, "bodies[0].cuttable: only 'efg' bodies can be cut"},
-      {[](Json& s) { s["bodies"][0]["model"] = "sph"; }, "bodies[0].model: 'sph' is not one of: fem, efg, mass_spring, tethered"},
+      {[](Json& s) { s["bodies"][0]["model"] = "sph"; }, "bodies[0].model: 'sph' is not one of: fem, efg, mass_spring, constraint_particles, tethered"},
       {[](Json& s) { s["bodies"][0]["tethered"]["stiffness"] = -1; }, "bodies[0].tethered.stiffness: -1 must be in (0"},
       {[](Json& s) { s["bodies"][0]["tethered"]["damping"] = 1; }, "bodies[0].tethered.damping: unknown key"},
       {[](Json& s) { s["bodies"][0].erase("tethered"); }, "bodies[0].tethered.stiffness: is required"},
