@@ -127,6 +127,60 @@ TEST(ConstraintParticles, TheVolumeForceScalesAsOneOverSize) {
   }
 }
 
+// At rest every C is 0, so the stiffness K = sum k grad C grad C^T (Gauss-Newton) is the exact
+// -df/dx there: checked against central differences of the forces.
+TEST(ConstraintParticles, TheStiffnessAtRestIsTheForcesDerivative) {
+  const physics::TetMesh mesh = jittered_cube(0.1, 0.05, 11, {2, 1, 1});
+  physics::ConstraintParticleSettings settings;
+  settings.area_on_every_face = true;
+  physics::ConstraintParticles model(mesh, settings);
+  model.update_rotations(mesh.rest);
+  const Vector p = deformed(Vector::Zero(mesh.rest.size()), 1, 12);
+  Vector kp = Vector::Zero(p.size());
+  model.add_stiffness_product(p, kp);
+  const double h = 1e-7;
+  Vector plus = Vector::Zero(p.size()), minus = Vector::Zero(p.size());
+  model.add_elastic_forces(mesh.rest + h * p, plus);
+  model.add_elastic_forces(mesh.rest - h * p, minus);
+  const Vector numeric = -(plus - minus) / (2 * h);
+  EXPECT_LT((kp - numeric).norm(), 1e-5 * kp.norm());
+  Vector diagonal = Vector::Zero(p.size());
+  model.add_stiffness_diagonal(diagonal);
+  for (Eigen::Index i = 0; i < p.size(); i += 7) {
+    Vector unit = Vector::Zero(p.size()), column = Vector::Zero(p.size());
+    unit[i] = 1;
+    model.add_stiffness_product(unit, column);
+    EXPECT_NEAR(diagonal[i], column[i], 1e-9 * diagonal[i]);
+  }
+}
+
+// Both dashpots leave a translation alone; the constraint-projected one (eq. 1.16) leaves a
+// rigid rotation alone too, the relative one (eq. 1.14) damps it (the "oil" the thesis notes).
+TEST(ConstraintParticles, TheConstraintDashpotsLeaveRigidMotionUndamped) {
+  const physics::TetMesh mesh = jittered_cube(0.1, 0.05, 13, {2, 2, 1});
+  const Vector x = deformed(mesh.rest, 0.01, 14);
+  const Vec3 omega(0.3, -1.2, 0.7), velocity(0.5, 0.1, -0.2);
+  Vector translation(x.size()), rotation(x.size());
+  for (Eigen::Index i = 0; i < x.size() / 3; ++i) {
+    translation.segment<3>(3 * i) = velocity;
+    rotation.segment<3>(3 * i) = omega.cross(Vec3(x.segment<3>(3 * i)));
+  }
+  for (physics::ParticleDamping damping : {physics::ParticleDamping::relative, physics::ParticleDamping::constraint}) {
+    physics::ConstraintParticleSettings settings;
+    settings.damping = damping;
+    settings.damping_coefficient = 1;
+    physics::ConstraintParticles model(mesh, settings);
+    model.update_rotations(x);
+    Vector d_translation = Vector::Zero(x.size()), d_rotation = Vector::Zero(x.size());
+    model.add_damping_product(translation, d_translation);
+    model.add_damping_product(rotation, d_rotation);
+    EXPECT_LT(d_translation.norm(), 1e-12);
+    if (damping == physics::ParticleDamping::constraint) EXPECT_LT(d_rotation.norm(), 1e-9);
+    else EXPECT_GT(d_rotation.norm(), 0.1);
+    EXPECT_GT(rotation.dot(d_rotation), -1e-12);  // dissipative: v . D v >= 0
+  }
+}
+
 TEST(ConstraintParticles, TheThesisCubeHasItsCounts) {
   // §4.2: 729 particles, 2,560 tets, 3,672 distance, 5,504 area and 2,560 volume constraints.
   const physics::TetMesh mesh = physics::make_box_tets5(Vec3::Zero(), Vec3(8, 8, 8), {8, 8, 8});
@@ -315,6 +369,18 @@ TEST(ConstraintParticles, TheWorldBuildsAndStepsAFallingBody) {
   double momentum = 0;
   for (Eigen::Index i = 0; i < m.size(); ++i) momentum += m[i] * body.data.state.velocities[3 * i + 2];
   EXPECT_NEAR(momentum / m.sum(), -9.81 * 50 * 2e-5, 1e-9);
+
+  // "implicit_euler": the shared step with the Gauss-Newton stiffness; held at its base it sags.
+  std::string text = scene_text(R"({"integrator": "implicit_euler", "stretch_stiffness": 0})",
+                                R"(, "fixed": [{"min": [-1, -1, -1], "max": [1, 1, 0.0101]}])");
+  engine::World held(engine::parse_scene(text, "cp.json"), std::nullopt);
+  EXPECT_FALSE(static_cast<bool>(held.bodies()[0].model->own_step));
+  for (int k = 0; k < 20; ++k) EXPECT_TRUE(held.step().cg_converged);
+  const auto& sagging = held.bodies()[0].data;
+  const Vector shift = sagging.state.positions - sagging.mechanics->rest_positions();
+  EXPECT_TRUE(shift.allFinite());
+  EXPECT_LT(shift.segment<3>(shift.size() - 3)[2], 0);  // the top corner moved down
+  EXPECT_EQ(shift.head<3>().norm(), 0);                 // a base particle is held
 }
 
 // Digest D3 (§4.2, Fig. 4.5-4.9): the thesis's cube (9^3 particles, 2,560 tets, k = 500) dropped
