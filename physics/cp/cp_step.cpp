@@ -80,4 +80,28 @@ CpStepReport constraint_particles_step(ConstraintParticles& model, State& state,
   return report;
 }
 
+RelaxReport relax(ConstraintParticles& model, State& state, const std::vector<std::uint8_t>& fixed, const Vector& external,
+                  const CpStepSettings& settings, const RelaxSettings& relax_settings) {
+  RelaxReport report;
+  double previous = model.elastic_energy(state.positions);
+  int calm = 0;
+  while (report.steps < relax_settings.max_steps) {
+    const CpStepReport step = constraint_particles_step(model, state, fixed, external, settings, model.verlet_history());
+    ++report.steps;
+    if (step.nonfinite) {
+      report.nonfinite = true;
+      break;
+    }
+    report.energy = model.elastic_energy(state.positions);
+    const double change = std::abs(report.energy - previous);
+    previous = report.energy;
+    calm = change < relax_settings.tolerance ? calm + 1 : 0;
+    if (calm >= relax_settings.calm_steps) {
+      report.converged = true;
+      break;
+    }
+  }
+  return report;
+}
+
 }  // namespace incise::physics

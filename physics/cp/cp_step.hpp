@@ -62,4 +62,26 @@ Vector inverse_masses(const Vector& masses, const std::vector<std::uint8_t>& fix
 CpStepReport constraint_particles_step(ConstraintParticles& model, State& state, const std::vector<std::uint8_t>& fixed,
                                        const Vector& external, const CpStepSettings& settings, VerletHistory& history);
 
+// Alg. 3.2's relaxation to a "stable" state, for quasi-static targets (the post-operative
+// shape): steps until the constraints' energy changes by less than `tolerance` over one step
+// (|E_t - E_prev| < delta; the thesis gives no delta), or `max_steps`. Taken literally the test
+// stops at the first step of a body starting at rest (its energy barely moves yet) or at any
+// turning point, so it must hold over `calm_steps` steps in a row (ours). The body needs damping
+// to settle.
+struct RelaxSettings {
+  double tolerance = 1e-9;  // delta, J
+  int max_steps = 100000;
+  int calm_steps = 100;
+};
+
+struct RelaxReport {
+  int steps = 0;
+  double energy = 0;       // the constraints' energy at the end, J
+  bool converged = false;  // |dE| < tolerance before max_steps
+  bool nonfinite = false;
+};
+
+RelaxReport relax(ConstraintParticles& model, State& state, const std::vector<std::uint8_t>& fixed, const Vector& external,
+                  const CpStepSettings& settings, const RelaxSettings& relax_settings);
+
 }  // namespace incise::physics

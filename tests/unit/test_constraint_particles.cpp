@@ -318,6 +318,34 @@ TEST(ConstraintParticles, ADegenerateTetIsRefusedNamingIt) {
   }
 }
 
+// Alg. 3.2's relaxation: a damped block held at its base under gravity settles where the
+// constraint forces balance the weight (the residual on its free particles a small fraction of
+// their weight) and stops once its energy no longer changes.
+TEST(ConstraintParticles, RelaxationSettlesAHeldBlockUnderGravity) {
+  const physics::TetMesh mesh = physics::make_box_tets5(Vec3::Zero(), Vec3(0.04, 0.02, 0.02), {4, 2, 2});
+  physics::ConstraintParticleSettings settings;
+  settings.distance_stiffness = settings.area_stiffness = settings.volume_stiffness = 0.05;
+  settings.damping_coefficient = 0.02;  // N s/m on every edge
+  physics::ConstraintParticles model(mesh, settings);
+  std::vector<std::uint8_t> fixed = physics::nodes_in_box(mesh.rest, Vec3(-1, -1, -1), Vec3(1e-9, 1, 1));
+  const Vector weight = physics::gravity_forces(model.lumped_masses(), Vec3(0, 0, -9.81));
+  physics::State state{mesh.rest, Vector::Zero(mesh.rest.size())};
+  physics::CpStepSettings step;
+  step.dt = 1e-4;
+  const physics::RelaxReport report = physics::relax(model, state, fixed, weight, step, {1e-12, 200000, 100});
+  ASSERT_TRUE(report.converged) << report.steps << " steps";
+  Vector residual = weight;
+  model.add_elastic_forces(state.positions, residual);
+  double worst = 0, sag = 0;
+  for (Eigen::Index i = 0; i < model.node_count(); ++i)
+    if (!fixed[i]) {
+      worst = std::max(worst, residual.segment<3>(3 * i).norm() / weight.segment<3>(3 * i).norm());
+      sag = std::min(sag, state.positions[3 * i + 2] - mesh.rest[3 * i + 2]);
+    }
+  EXPECT_LT(worst, 1e-3) << report.steps << " steps";  // 2.4e-6 measured, after 13,569 steps
+  EXPECT_LT(sag, -1e-5);  // it did bend
+}
+
 namespace {
 
 std::string scene_text(const std::string& block, const std::string& extra_body = "") {
