@@ -1,6 +1,6 @@
 // solve: the external forces (gravity, the scene's loads at the step's end) and one guarded
-// implicit Euler step per body on its backend (physics/core/guarded_step.hpp), whose guards
-// are counted and logged here.
+// implicit Euler step per body on its backend, or the model's own step (BodyModel::own_step)
+// (physics/core/guarded_step.hpp), whose guards are counted and logged here.
 #include "engine/world.hpp"
 
 #include "physics/core/guarded_step.hpp"
@@ -63,8 +63,9 @@ void World::solve(Body& body, const std::vector<physics::NodalSpring>& springs,
     physics::ImplicitEulerSettings settings = given;
     settings.cg.budget = budget_.next();
     const physics::StepReport report =
-        body.gpu ? body.gpu->step(*body.data.efg, state, body.data.fixed, external, springs, settings, velocity_change)
-                 : physics::implicit_euler_step(*body.data.mechanics, state, body.data.fixed, external, springs,
+        body.gpu              ? body.gpu->step(*body.data.efg, state, body.data.fixed, external, springs, settings, velocity_change)
+        : body.model->own_step ? body.model->own_step(*body.data.mechanics, state, body.data.fixed, external, springs, settings)
+                               : physics::implicit_euler_step(*body.data.mechanics, state, body.data.fixed, external, springs,
                                                 settings, velocity_change, factor);
     budget_.solved(report.cg);
     return report;

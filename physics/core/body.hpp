@@ -16,6 +16,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -23,10 +24,20 @@
 
 namespace incise::physics {
 
+// A model that steps itself instead of by implicit Euler (constraint particles: an explicit
+// scheme, then position projections, physics/cp/cp_step.hpp): advances `state` over
+// settings.dt with the forces `external` and the springs' forces (applied explicitly), and
+// reports like implicit_euler_step (cg converged, no iterations). The guarded step halves its
+// dt on a non-finite step as it does implicit Euler's.
+using OwnStep = std::function<StepReport(DeformableModel& mechanics, State& state, const std::vector<std::uint8_t>& fixed,
+                                         const Vector& external, const std::vector<NodalSpring>& springs,
+                                         const ImplicitEulerSettings& settings)>;
+
 struct BodyModel {
   std::string name;
   std::string kind;  // the model's name in the registry: "fem", "efg"
   ImplicitEulerSettings integrator;
+  OwnStep own_step;  // empty: implicit Euler (the engine's solve stage)
   PreconditionerSettings preconditioner;
   Vec3 gravity = Vec3::Zero();  // acceleration, m/s^2 (lumped into BodyData::gravity)
   // The body's box at rest (its shape's), the region a whole-surface remapping covers.

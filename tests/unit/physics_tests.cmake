@@ -21,3 +21,8 @@ gtest_discover_tests(test_integrator DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "phy
 add_executable(test_mass_spring ${CMAKE_CURRENT_LIST_DIR}/test_mass_spring.cpp)
 target_link_libraries(test_mass_spring PRIVATE incise_physics GTest::gtest_main)
 gtest_discover_tests(test_mass_spring DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
+
+# Dionne's constraint particles (physics/cp, seed 000), with its settings block and the world.
+add_executable(test_constraint_particles ${CMAKE_CURRENT_LIST_DIR}/test_constraint_particles.cpp)
+target_link_libraries(test_constraint_particles PRIVATE incise_engine GTest::gtest_main)
+gtest_discover_tests(test_constraint_particles DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
