@@ -5,6 +5,7 @@
 
 #include "physics/core/guarded_step.hpp"
 #include "physics/gpu/efg_step.hpp"
+#include "physics/promayon/promayon_body.hpp"
 
 #include <algorithm>
 #include <string>
@@ -58,15 +59,26 @@ void World::solve(Body& body, const std::vector<physics::NodalSpring>& springs,
   }
   if (body.cut) body.cut->previous_positions = body.data.state.positions;
   const physics::RestFactor* factor = body.gpu ? nullptr : prepare_preconditioner(body, stats);
+  // Promayon's models step themselves (the seed's order, physics/promayon/seed_step.hpp) and
+  // need each sub-step's start time for their V0(t): an attempt of the guarded step is a run of
+  // equal dt's from the step's start, a retry a new run of half that.
+  auto* promayon = dynamic_cast<physics::PromayonBody*>(body.data.mechanics.get());
+  double attempt_dt = 0, clock = 0;
   const physics::StepFunction step = [&](physics::State& state, const physics::ImplicitEulerSettings& given,
                                          physics::Vector* velocity_change) {
     physics::ImplicitEulerSettings settings = given;
     settings.cg.budget = budget_.next();
+    if (promayon && given.dt != attempt_dt) {
+      attempt_dt = given.dt;
+      clock = end_time - body.model->integrator.dt;
+    }
     const physics::StepReport report =
-        body.gpu ? body.gpu->step(*body.data.efg, state, body.data.fixed, external, springs, settings, velocity_change)
+        promayon ? promayon->step(state, body.data.fixed, external, springs, settings, clock)
+        : body.gpu ? body.gpu->step(*body.data.efg, state, body.data.fixed, external, springs, settings, velocity_change)
                  : physics::implicit_euler_step(*body.data.mechanics, state, body.data.fixed, external, springs,
                                                 settings, velocity_change, factor);
     budget_.solved(report.cg);
+    if (promayon && !report.nonfinite) clock += given.dt;
     return report;
   };
   const physics::GuardedStepReport report =

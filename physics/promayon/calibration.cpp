@@ -38,7 +38,7 @@ double apparent_modulus(PromayonKind kind, Neighbourhood neighbourhood, int cell
   }
   // Dynamic relaxation: unit masses, a step well inside the explicit limit, damping near the
   // lowest mode's critical value.
-  SeedStepSettings settings{0.1, 0.5, SeedScheme::symplectic_euler};
+  SeedStepSettings settings{0.1, 0.5, 0, SeedScheme::symplectic_euler};
   const Vector zero = Vector::Zero(state.positions.size());
   for (int it = 0; it < 200000; ++it) {
     seed_explicit_step(*model, state, fixed, zero, {}, settings, nullptr, 0);

@@ -29,9 +29,11 @@ void PromayonBody::add_elastic_forces(const Vector& x, Vector& f) const {
 }
 
 StepReport PromayonBody::step(State& state, const std::vector<std::uint8_t>& fixed, const Vector& external,
-                              const std::vector<NodalSpring>& springs, const ImplicitEulerSettings& settings) {
+                              const std::vector<NodalSpring>& springs, const ImplicitEulerSettings& settings,
+                              double start_time) {
   const VolumeControl* volume = volume_ ? &*volume_ : nullptr;
   StepReport out;
+  if (!stepping_.implicit) out.cg.converged = true;
   State next = state;
   SeedStepReport last;
   double worst = worst_volume_error_;
@@ -42,15 +44,15 @@ StepReport PromayonBody::step(State& state, const std::vector<std::uint8_t>& fix
   if (stepping_.implicit) {
     const Vector before = next.positions;
     out = implicit_euler_step(*this, next, fixed, external, springs, settings, nullptr, nullptr);
-    if (out.nonfinite || !apply_seed_constraints(next, before, fixed, settings.dt, volume, time_ + settings.dt, last)) {
+    if (out.nonfinite || !apply_seed_constraints(next, before, fixed, settings.dt, volume, start_time + settings.dt, last)) {
       out.nonfinite = true;
       return out;
     }
   } else {
-    SeedStepSettings seed{settings.dt / stepping_.substeps, stepping_.damping, stepping_.scheme};
+    SeedStepSettings seed{settings.dt / stepping_.substeps, stepping_.damping, stepping_.mass_damping, stepping_.scheme};
     for (int k = 1; k <= stepping_.substeps; ++k) {
       // The penalty is added by the seed step itself: pass the forces alone.
-      last = seed_explicit_step(*forces_, next, fixed, external, springs, seed, volume, time_ + k * seed.dt);
+      last = seed_explicit_step(*forces_, next, fixed, external, springs, seed, volume, start_time + k * seed.dt);
       if (last.nonfinite) {
         out.nonfinite = true;
         return out;
@@ -59,7 +61,7 @@ StepReport PromayonBody::step(State& state, const std::vector<std::uint8_t>& fix
     }
   }
   state = std::move(next);
-  time_ += settings.dt;
+  time_ = start_time + settings.dt;
   last_ = last;
   track_volume(last, worst);
   worst_volume_error_ = worst;

@@ -22,6 +22,7 @@ struct PromayonStepping {
   bool implicit = false;   // implicit Euler + steps 4-6 instead of the seed's explicit step
   int substeps = 1;        // explicit steps per engine step
   double damping = 0;      // k_a, N s/m per atom (explicit; the implicit one uses the scene's Rayleigh damping)
+  double mass_damping = 0; // alpha, 1/s: -alpha m v per atom (explicit)
   SeedScheme scheme = SeedScheme::symplectic_euler;
 };
 
@@ -45,13 +46,14 @@ class PromayonBody final : public DeformableModel {
   double node_spacing() const override { return forces_->node_spacing(); }
   std::unique_ptr<DeformableModel> clone() const override { return std::make_unique<PromayonBody>(*this); }
 
-  // One engine step of settings.dt from the body's own clock (for V0(t)), which advances only
-  // when the step is accepted. nonfinite: rejected, the state unchanged.
+  // One engine step of settings.dt from `start_time` (for V0(t)). nonfinite: rejected, the state
+  // unchanged. The report's CG is marked converged (an explicit step solves nothing).
   StepReport step(State& state, const std::vector<std::uint8_t>& fixed, const Vector& external,
-                  const std::vector<NodalSpring>& springs, const ImplicitEulerSettings& settings);
+                  const std::vector<NodalSpring>& springs, const ImplicitEulerSettings& settings, double start_time);
 
   const DeformableModel& forces() const { return *forces_; }
   const std::optional<VolumeControl>& volume() const { return volume_; }
+  // The end of the last accepted step (the penalty's V0 is taken there).
   double time() const { return time_; }
   // The largest |V - V0(t)| / V0(t) after any accepted step so far (exact volume control).
   double worst_volume_error() const { return worst_volume_error_; }

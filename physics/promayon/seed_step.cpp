@@ -67,7 +67,10 @@ SeedStepReport seed_explicit_step(DeformableModel& model, State& state, const st
   // 2. forces (the model redistributes its reactions inside add_elastic_forces)
   const Vector& x = state.positions;
   model.update_rotations(x);
+  const Vector& m = model.lumped_masses();
   Vector f = external - settings.damping * v;
+  if (settings.mass_damping > 0)
+    for (Eigen::Index i = 0; i < n3; ++i) f[i] -= settings.mass_damping * m[i / 3] * v[i];
   model.add_elastic_forces(x, f);
   if (model.has_damping()) {
     Vector damping = Vector::Zero(n3);
@@ -79,7 +82,6 @@ SeedStepReport seed_explicit_step(DeformableModel& model, State& state, const st
     add_volume_penalty_forces(x, volume->triangles, fixed, volume->at(end_time - settings.dt), volume->penalty_stiffness, f);
   // 3. integrate
   Vector a(n3);
-  const Vector& m = model.lumped_masses();
   for (Eigen::Index i = 0; i < n3; ++i) a[i] = f[i] / m[i / 3];
   State next;
   if (settings.scheme == SeedScheme::explicit_euler) {

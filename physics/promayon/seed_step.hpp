@@ -45,7 +45,8 @@ struct VolumeControl {
 
 struct SeedStepSettings {
   double dt = 1e-3;
-  double damping = 0;  // k_a, N s/m on every atom
+  double damping = 0;       // k_a, N s/m on every atom (the seed's -k_a v)
+  double mass_damping = 0;  // alpha, 1/s: -alpha m_i v_i besides (the same rate on light and heavy atoms)
   SeedScheme scheme = SeedScheme::explicit_euler;
 };
 

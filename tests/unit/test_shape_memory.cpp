@@ -204,7 +204,7 @@ struct ThreeAtom {
 bool stable(physics::DeformableModel& model, const ThreeAtom& t, double damping, double dt) {
   physics::State state{t.rest, Vector::Zero(12)};
   state.positions.segment<3>(0) += Vec3(1e-6, -2e-6, 3e-6);
-  const physics::SeedStepSettings settings{dt, damping, physics::SeedScheme::explicit_euler};
+  const physics::SeedStepSettings settings{dt, damping, 0, physics::SeedScheme::explicit_euler};
   const Vector zero = Vector::Zero(12);
   for (int k = 0; k < 4000; ++k) {
     if (physics::seed_explicit_step(model, state, t.fixed, zero, {}, settings, nullptr, 0).nonfinite) return false;
@@ -286,7 +286,7 @@ TEST(SeedStep, AVolumeRampIsFollowedExactlyAtEveryStep) {
   physics::State state{b.mesh.rest, Vector::Zero(b.mesh.rest.size())};
   std::vector<std::uint8_t> fixed(b.masses.size(), 0);
   fixed[0] = 1;
-  const physics::SeedStepSettings settings{1e-3, 0.05, physics::SeedScheme::symplectic_euler};
+  const physics::SeedStepSettings settings{1e-3, 0.05, 0, physics::SeedScheme::symplectic_euler};
   double worst = 0;
   for (int k = 1; k <= 300; ++k) {
     const auto r = physics::seed_explicit_step(model, state, fixed, Vector::Zero(state.positions.size()), {}, settings,
