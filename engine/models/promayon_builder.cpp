@@ -103,6 +103,18 @@ Body build_promayon_body(physics::PromayonKind kind, const BodySpec& spec, const
   start_at_rest(body);
   fix_nodes(body, spec, body.mechanics->rest_positions());
   body.gravity = physics::gravity_forces(body.mechanics->lumped_masses(), model->gravity);
+  if (settings.integrator == "explicit" && settings.scheme == "symplectic_euler") {
+    // The explicit step's bound, estimated at rest (seed_step_limit): a dt beyond it blows up.
+    const double limit = physics::seed_step_limit(*body.mechanics, body.fixed);
+    const double dt = solver.dt / settings.substeps;
+    if (dt > limit) {
+      std::ostringstream out;
+      out << where << ": " << model->kind << ".substeps: solver.dt / substeps = " << dt
+          << " s is beyond the explicit step's limit " << limit << " s (2 / omega_max at rest); substeps "
+          << static_cast<int>(std::ceil(solver.dt / limit)) << " or more would do";
+      throw std::runtime_error(out.str());
+    }
+  }
   settle_if_asked(result, solver, where, []() -> physics::Vector {
     throw std::runtime_error("Promayon's models have no static settle (their step is explicit): use solver.start \"rest\"");
   });

@@ -1,6 +1,8 @@
 #include "physics/promayon/seed_step.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace incise::physics {
@@ -51,6 +53,32 @@ bool apply_seed_constraints(State& state, const Vector& before_positions, const 
   state.positions = std::move(x);
   state.velocities = std::move(v);
   return true;
+}
+
+double seed_step_limit(DeformableModel& model, const std::vector<std::uint8_t>& fixed) {
+  const Vector& m = model.lumped_masses();
+  const Eigen::Index n3 = 3 * m.size();
+  model.update_rotations(model.rest_positions());
+  Vector v(n3);
+  for (Eigen::Index i = 0; i < n3; ++i) v[i] = 1 + 0.5 * std::sin(1.7 * static_cast<double>(i));  // deterministic start
+  const auto clamp = [&](Vector& x) {
+    for (std::size_t i = 0; i < fixed.size(); ++i)
+      if (fixed[i]) x.segment<3>(3 * static_cast<Eigen::Index>(i)).setZero();
+  };
+  clamp(v);
+  double lambda = 0;
+  for (int it = 0; it < 300; ++it) {
+    Vector kv = Vector::Zero(n3);
+    model.add_stiffness_product(v, kv);
+    clamp(kv);
+    double mass_norm = 0;
+    for (Eigen::Index i = 0; i < n3; ++i) mass_norm += m[i / 3] * v[i] * v[i];
+    if (!(mass_norm > 0)) break;
+    lambda = v.dot(kv) / mass_norm;  // Rayleigh quotient of (K, M)
+    for (Eigen::Index i = 0; i < n3; ++i) v[i] = kv[i] / m[i / 3];
+    v /= v.norm();
+  }
+  return lambda > 0 ? 2 / std::sqrt(lambda) : std::numeric_limits<double>::infinity();
 }
 
 SeedStepReport seed_explicit_step(DeformableModel& model, State& state, const std::vector<std::uint8_t>& fixed,

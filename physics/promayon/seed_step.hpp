@@ -65,6 +65,12 @@ SeedStepReport seed_explicit_step(DeformableModel& model, State& state, const st
                                   const Vector& external, const std::vector<NodalSpring>& springs,
                                   const SeedStepSettings& settings, const VolumeControl* volume, double end_time);
 
+// The largest dt of the symplectic Euler step without damping, 2 / omega_max, omega_max^2 the
+// largest eigenvalue of M^-1 K over the free atoms (K the model's stiffness at rest), by power
+// iteration (which approaches it from below: the estimate errs towards large dt by the last
+// iterate's gap). Forward Euler is not bounded by it (it needs damping, §1.3).
+double seed_step_limit(DeformableModel& model, const std::vector<std::uint8_t>& fixed);
+
 // Steps 4-6 alone, for a state another integrator advanced from `before` (the implicit Euler
 // option): fixed atoms restored, the volume projected, the velocities corrected. Returns false
 // (state untouched) when the projection fails or gives non-finite values.

@@ -130,6 +130,24 @@ TEST(PromayonScenes, TheImplicitOptionProjectsTheVolumeToo) {
     if (rest[3 * i + 2] < 1e-9) EXPECT_EQ(x.segment<3>(3 * i), rest.segment<3>(3 * i));
 }
 
+// A sub-step beyond the explicit limit (seed_step_limit) is refused when the world is built,
+// naming the field and the substeps that would do.
+TEST(PromayonScenes, ASubStepBeyondTheExplicitLimitIsRefused) {
+  Json json = free_block("shape_memory");
+  json["bodies"][0]["shape_memory"] = {{"substeps", 1}};
+  const Scene scene = parse_scene(json.dump(), "fast.json");
+  try {
+    World world(scene, std::nullopt);
+    FAIL() << "a 0.5 ms explicit step on 5 mm atoms was accepted";
+  } catch (const std::runtime_error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("body 'block': shape_memory.substeps: solver.dt / substeps = 0.0005 s is beyond the explicit step's limit"),
+              std::string::npos)
+        << message;
+    EXPECT_NE(message.find("or more would do"), std::string::npos) << message;
+  }
+}
+
 TEST(PromayonScenes, BadSettingsAreRefusedNamingTheField) {
   const std::vector<std::pair<std::function<void(Json&)>, std::string>> cases = {
       {[](Json& s) { s["bodies"][0]["shape_memory"] = {{"neighbourhood", "hex"}}; },

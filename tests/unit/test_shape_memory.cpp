@@ -323,3 +323,33 @@ TEST(Calibration, ShapeMemoryStiffnessFromE) {
                                                            target, h);
   EXPECT_NEAR(ke, target * h / c4, 1e-12 * ke);
 }
+
+// The symplectic step's bound (seed_step_limit) against bisection on the step itself: a 3 x 3 x 3
+// Moore network and shape memory block with its bottom fixed, no damping; stable: the
+// perturbation stays within 10 x its size over 3000 steps.
+TEST(SeedStep, TheEstimatedLimitIsTheMeasuredOne) {
+  const Block b = block(2, physics::Neighbourhood::moore);
+  std::vector<std::uint8_t> fixed(b.masses.size(), 0);
+  for (std::size_t i = 0; i < fixed.size(); ++i) fixed[i] = b.mesh.rest[static_cast<Eigen::Index>(3 * i + 2)] < 1e-9;
+  physics::SpringNetwork network(b.mesh.rest, b.neighbours, b.masses, 300, 0, 0.01);
+  const Vector zero = Vector::Zero(b.mesh.rest.size());
+  const auto stable = [&](physics::DeformableModel& model, double dt) {
+    physics::State state{jiggled(b.mesh.rest, 1e-7, 5), zero};
+    for (std::size_t i = 0; i < fixed.size(); ++i)
+      if (fixed[i]) state.positions.segment<3>(3 * static_cast<Eigen::Index>(i)) = b.mesh.rest.segment<3>(3 * static_cast<Eigen::Index>(i));
+    const physics::SeedStepSettings settings{dt, 0, 0, physics::SeedScheme::symplectic_euler};
+    for (int k = 0; k < 3000; ++k) {
+      if (physics::seed_explicit_step(model, state, fixed, zero, {}, settings, nullptr, 0).nonfinite) return false;
+      if ((state.positions - b.mesh.rest).cwiseAbs().maxCoeff() > 1e-6) return false;
+    }
+    return true;
+  };
+  const double estimate = physics::seed_step_limit(network, fixed);
+  double lo = estimate / 10, hi = estimate * 10;
+  while (hi - lo > 1e-3 * lo) {
+    const double mid = 0.5 * (lo + hi);
+    (stable(network, mid) ? lo : hi) = mid;
+  }
+  std::printf("spring network: estimated limit %.4e s, measured %.4e s\n", estimate, lo);
+  EXPECT_NEAR(lo, estimate, 0.03 * estimate);
+}
