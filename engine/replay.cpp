@@ -8,6 +8,7 @@
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
 #include "physics/gpu/efg_step.hpp"
+#include "physics/promayon/promayon_body.hpp"
 #include "render/image.hpp"
 #include "render/offscreen.hpp"
 
@@ -436,7 +437,10 @@ Json bodies_json(const World& world, PositionsDigest& digest) {
     std::size_t surface_vertices = 0;
     const double surface_max = surface_max_displacement(body, surface_vertices);
     bodies.push_back({{"name", body.model->name},
-                      {"model", body.data.embedding ? "efg_corotated" : body.model->kind == "mass_spring" ? "mass_spring_hex" : "fem_corotational_tet4"},
+                      {"model", body.data.embedding ? std::string("efg_corotated")
+                                : body.model->kind == "mass_spring" ? std::string("mass_spring_hex")
+                                : body.model->kind == "fem"         ? std::string("fem_corotational_tet4")
+                                                                    : body.model->kind},
                       {"surface_vertices", surface_vertices},
                       {"surface_max_displacement", surface_max},
                       {"nodes", n},
@@ -445,6 +449,14 @@ Json bodies_json(const World& world, PositionsDigest& digest) {
                       {"fixed_nodes", fixed},
                       {"surface_triangles", body.data.surface.size()},
                       {"build_ms", build_ms_json(body.build_ms)}});
+    // Promayon's volume control (seed 002 §1.5): how far the closed surface ever was from V0(t).
+    const auto* promayon = dynamic_cast<const physics::PromayonBody*>(body.data.mechanics.get());
+    if (promayon && promayon->volume()) {
+      if (promayon->volume()->mode == physics::VolumeMode::exact)
+        bodies.back()["volume_relative_error_max"] = promayon->worst_volume_error();
+      bodies.back()["volume_m3"] = promayon->last_volume();
+      bodies.back()["volume_target_m3"] = promayon->last_volume_target();
+    }
   }
   for (auto& c : digest.centroid) c /= static_cast<double>(std::max<std::size_t>(nodes, 1));
   digest.mean_displacement /= static_cast<double>(std::max<std::size_t>(nodes, 1));
