@@ -9,9 +9,10 @@
 // with h, so E = C k / h, C the run's result, and a body of spacing h takes k = E h / C.
 //
 // What this does not capture (measured in tests/unit/test_shape_memory.cpp): the shape
-// memory's stiffness against a homogeneous strain comes from the atoms near the boundary
-// (an interior VN1 atom's triplet residuals cancel to first order over its 8 octant triplets),
-// so the apparent modulus of a larger block at the same k_e is lower; nu has no counterpart in
+// memory's stiffness against a homogeneous strain comes from the boundary atoms only (an
+// interior atom's neighbourhood is centrally symmetric, and a triplet's normal term and its
+// mirror image's cancel under any affine map), so the apparent modulus of a larger block at the
+// same k_e is lower; nu has no counterpart in
 // either model (the VN1 network's Poisson ratio is 0) and is not used.
 #pragma once
 

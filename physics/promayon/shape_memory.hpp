@@ -12,7 +12,10 @@
 //
 // The coordinates are invariant under rigid motions (barycentric coordinates under any affine
 // map, the signed distance under rotations and translations), so a rigid motion of the rest
-// shape gives zero force.
+// shape gives zero force. On a lattice, more: an atom whose neighbourhood is centrally
+// symmetric feels no pull under any affine map of it (a triplet and its mirror image through the
+// atom keep one normal and opposite beta), so the bulk resists strain gradients only and a
+// homogeneous strain is held by the boundary atoms (docs/status.md).
 //
 // As a DeformableModel: K = k_e B^T B, B the linear map x -> (P - sum_a w_a N_a) per atom, is
 // the Jacobian with the normals frozen (symmetric PSD); it is what the implicit Euler and the

@@ -353,3 +353,27 @@ TEST(SeedStep, TheEstimatedLimitIsTheMeasuredOne) {
   std::printf("spring network: estimated limit %.4e s, measured %.4e s\n", estimate, lo);
   EXPECT_NEAR(lo, estimate, 0.03 * estimate);
 }
+
+// Why the shape memory's bulk is soft (docs/status.md): an atom whose neighbourhood is
+// centrally symmetric (interior VN1 or Moore) feels no pull under ANY affine map of its
+// neighbourhood, not only a small one: the barycentric part follows the map exactly, and a
+// triplet's mirror image through the atom (which an affine map keeps the mirror image) has the
+// same normal and the opposite beta, so their normal terms cancel. A homogeneous strain of the
+// lattice is resisted by the boundary atoms only, at first order (halving it halves the pull).
+TEST(ShapeMemory, AnInteriorAtomIgnoresAnyAffineMap) {
+  const Block b = block(4);
+  const physics::ShapeMemory model(b.mesh.rest, b.neighbours, b.masses, 1, 0.01);
+  Eigen::Matrix3d strain;
+  strain << 0.3, 0.1, -0.05, 0.1, -0.2, 0.07, -0.05, 0.07, 0.15;
+  const auto pull_at = [&](double scale, int atom) {
+    Vector x = b.mesh.rest;
+    for (Eigen::Index i = 0; i < x.size(); i += 3) x.segment<3>(i) += scale * strain * b.mesh.rest.segment<3>(i);
+    return (model.attractor(x, atom) - x.segment<3>(3 * atom)).norm();
+  };
+  const int centre = 2 + 5 * (2 + 5 * 2), face = 2 + 5 * (2 + 5 * 0);  // atoms (2,2,2) and (2,2,0)
+  ASSERT_NEAR(b.mesh.rest[3 * centre], 0.02, 1e-12);
+  std::printf("pull at strain scale 1: interior atom %.2e m, boundary atom %.2e m\n", pull_at(1, centre), pull_at(1, face));
+  EXPECT_LT(pull_at(1, centre), 1e-15);  // round-off on 4 cm positions, at 30 % strain
+  EXPECT_GT(pull_at(1, face), 1e-4);
+  EXPECT_NEAR(pull_at(1e-3, face) / pull_at(5e-4, face), 2, 0.01);
+}
