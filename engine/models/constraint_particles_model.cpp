@@ -54,7 +54,7 @@ physics::OwnStep explicit_step_of(const ConstraintParticlesSettings& s) {
   step.floor_z = s.floor_z;
   return [step](physics::DeformableModel& mechanics, physics::State& state, const std::vector<std::uint8_t>& fixed,
                 const physics::Vector& external, const std::vector<physics::NodalSpring>& springs,
-                const physics::ImplicitEulerSettings& given) {
+                const physics::ImplicitEulerSettings& given, double /*start_time*/) {
     auto& particles = dynamic_cast<physics::ConstraintParticles&>(mechanics);
     physics::CpStepSettings settings = step;
     settings.dt = given.dt;

@@ -25,13 +25,15 @@
 namespace incise::physics {
 
 // A model that steps itself instead of by implicit Euler (constraint particles: an explicit
-// scheme, then position projections, physics/cp/cp_step.hpp): advances `state` over
-// settings.dt with the forces `external` and the springs' forces (applied explicitly), and
-// reports like implicit_euler_step (cg converged, no iterations). The guarded step halves its
-// dt on a non-finite step as it does implicit Euler's.
+// scheme, then position projections, physics/cp/cp_step.hpp; Promayon's bodies: the seed's
+// step order, physics/promayon/seed_step.hpp): advances `state` over settings.dt from
+// `start_time` (s; V0(t) curves read it) with the forces `external` and the springs' forces
+// (applied explicitly), and reports like implicit_euler_step (cg converged, no iterations).
+// The guarded step halves its dt on a non-finite step as it does implicit Euler's; the start
+// time then follows the halved steps.
 using OwnStep = std::function<StepReport(DeformableModel& mechanics, State& state, const std::vector<std::uint8_t>& fixed,
                                          const Vector& external, const std::vector<NodalSpring>& springs,
-                                         const ImplicitEulerSettings& settings)>;
+                                         const ImplicitEulerSettings& settings, double start_time)>;
 
 struct BodyModel {
   std::string name;
