@@ -271,10 +271,11 @@ TEST(ConstraintParticles, AFreeBodyKeepsItsMomentum) {
         ASSERT_FALSE(physics::constraint_particles_step(model, state, {}, Vector::Zero(mesh.rest.size()), step, history).nonfinite);
       EXPECT_LT((momentum() - start).norm(), 1e-12 * m.sum()) << physics::explicit_scheme_name(scheme);
       // The dashpots dissipate (explicit Euler and RK2 add energy of their own: not checked).
-      if (scheme == physics::ExplicitScheme::runge_kutta4 || scheme == physics::ExplicitScheme::velocity_verlet)
+      if (scheme == physics::ExplicitScheme::runge_kutta4 || scheme == physics::ExplicitScheme::velocity_verlet) {
         EXPECT_LT(physics::kinetic_energy(m, state.velocities) + model.elastic_energy(state.positions),
                   0.99 * (kinetic_start + model.elastic_energy(deformed(mesh.rest, 0.002, 9))))
             << physics::explicit_scheme_name(scheme);
+      }
     }
 }
 
