@@ -184,6 +184,21 @@ void HexMassSpring::add_stiffness_product(const Vector& p, Vector& out) const {
   }
 }
 
+void HexMassSpring::add_stiffness_triplets(std::vector<Eigen::Triplet<double>>& out) const {
+  out.reserve(out.size() + 36 * springs_.size());
+  for (std::size_t s = 0; s < springs_.size(); ++s) {
+    const Index a = 3 * static_cast<Index>(springs_[s].a), b = 3 * static_cast<Index>(springs_[s].b);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) {
+        const double k = tangent_[s](r, c);
+        out.emplace_back(a + r, a + c, k);
+        out.emplace_back(b + r, b + c, k);
+        out.emplace_back(a + r, b + c, -k);
+        out.emplace_back(b + r, a + c, -k);
+      }
+  }
+}
+
 void HexMassSpring::add_stiffness_diagonal(Vector& diag) const {
   for (std::size_t s = 0; s < springs_.size(); ++s) {
     diag.segment<3>(3 * static_cast<Index>(springs_[s].a)) += tangent_[s].diagonal();

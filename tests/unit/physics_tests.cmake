@@ -21,3 +21,9 @@ gtest_discover_tests(test_integrator DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "phy
 add_executable(test_mass_spring ${CMAKE_CURRENT_LIST_DIR}/test_mass_spring.cpp)
 target_link_libraries(test_mass_spring PRIVATE incise_physics GTest::gtest_main)
 gtest_discover_tests(test_mass_spring DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
+
+# Baudet's mass-spring against the 10-node FEM (D6 elongation, D8 bending) and Van Gelder's
+# springs as the negative control (D9), digest seed-000-003.md part D.
+add_executable(test_mass_spring_fem ${CMAKE_CURRENT_LIST_DIR}/test_mass_spring_fem.cpp)
+target_link_libraries(test_mass_spring_fem PRIVATE incise_physics GTest::gtest_main)
+gtest_discover_tests(test_mass_spring_fem DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
