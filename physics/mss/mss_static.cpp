@@ -26,7 +26,7 @@ std::vector<Index> free_dofs(const std::vector<uint8_t>& fixed, Index nodes) {
 
 MassSpringStatic solve_mass_spring_static(HexMassSpring& model, const std::vector<uint8_t>& fixed,
                                           const Vector& prescribed, const Vector& load, int increments,
-                                          double tolerance) {
+                                          double tolerance, bool rest_tangent) {
   const Vector& rest = model.rest_positions();
   const Index size = rest.size();
   const std::vector<Index> free = free_dofs(fixed, size / 3);
@@ -35,6 +35,8 @@ MassSpringStatic solve_mass_spring_static(HexMassSpring& model, const std::vecto
   MassSpringStatic result;
   result.positions = rest;
   double first_residual = -1, residual = 0;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  bool factorised = false;
   for (int step = 1; step <= std::max(1, increments); ++step) {
     const double share = static_cast<double>(step) / std::max(1, increments);
     for (Index i = 0; i < size / 3; ++i)
@@ -50,17 +52,21 @@ MassSpringStatic solve_mass_spring_static(HexMassSpring& model, const std::vecto
       for (std::size_t i = 0; i < free.size(); ++i) rhs[static_cast<Index>(i)] = f[free[i]];
       residual = rhs.norm();
       if (first_residual < 0) first_residual = residual;
-      std::vector<Eigen::Triplet<double>> all, reduced;
-      model.add_stiffness_triplets(all);
-      reduced.reserve(all.size());
-      for (const auto& t : all) {
-        const Index r = slot[static_cast<std::size_t>(t.row())], c = slot[static_cast<std::size_t>(t.col())];
-        if (r >= 0 && c >= 0) reduced.emplace_back(r, c, t.value());
+      if (!rest_tangent || !factorised) {
+        if (rest_tangent) model.update_rotations(rest);
+        std::vector<Eigen::Triplet<double>> all, reduced;
+        model.add_stiffness_triplets(all);
+        reduced.reserve(all.size());
+        for (const auto& t : all) {
+          const Index r = slot[static_cast<std::size_t>(t.row())], c = slot[static_cast<std::size_t>(t.col())];
+          if (r >= 0 && c >= 0) reduced.emplace_back(r, c, t.value());
+        }
+        Eigen::SparseMatrix<double> k(static_cast<Index>(free.size()), static_cast<Index>(free.size()));
+        k.setFromTriplets(reduced.begin(), reduced.end());
+        solver.compute(k);
+        if (solver.info() != Eigen::Success) throw std::runtime_error("mass-spring static: the tangent cannot be factorised");
+        factorised = true;
       }
-      Eigen::SparseMatrix<double> k(static_cast<Index>(free.size()), static_cast<Index>(free.size()));
-      k.setFromTriplets(reduced.begin(), reduced.end());
-      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(k);
-      if (solver.info() != Eigen::Success) throw std::runtime_error("mass-spring static: the tangent cannot be factorised");
       const Vector dx = solver.solve(rhs);
       if (!dx.allFinite()) throw std::runtime_error("mass-spring static: the Newton update is not finite");
       for (std::size_t i = 0; i < free.size(); ++i) result.positions[free[i]] += dx[static_cast<Index>(i)];

@@ -28,11 +28,13 @@ struct MassSpringStatic {
 // (sparse LDLT): the corrections are not in the tangent, which makes it a modified Newton (they
 // are a few % of the spring forces, the iteration still contracts). The prescribed motion and
 // the load are applied in `increments` equal steps, each iterated until the update is below
-// `tolerance` x the largest displacement. Throws std::runtime_error when the tangent cannot be
-// factorised or an increment does not converge in 200 iterations.
+// `tolerance` x the largest displacement. `rest_tangent`: the tangent at rest factorised once
+// and kept (for small strains, where it changes little: one factorisation instead of one per
+// iteration). Throws std::runtime_error when the tangent cannot be factorised or an increment
+// does not converge in 200 iterations.
 MassSpringStatic solve_mass_spring_static(HexMassSpring& model, const std::vector<uint8_t>& fixed,
                                           const Vector& prescribed, const Vector& load, int increments = 1,
-                                          double tolerance = 1e-10);
+                                          double tolerance = 1e-10, bool rest_tangent = false);
 
 // The network's stiffness at rest as a dense matrix (small meshes only): the springs' K, minus
 // the derivative of the correction forces when the model has them (central differences: they
