@@ -73,6 +73,8 @@ class HexMassSpring final : public DeformableModel {
   // when the material asks for them; they are explicit in the implicit step (not in K), and
   // conserve momentum (each edge's two nodes get opposite forces).
   void add_correction_forces(const Vector& x, Vector& f) const;
+  // Brick e's share of them, on its 8 nodes in the local order (24 values).
+  Eigen::Matrix<double, 24, 1> brick_correction_forces(const Vector& x, std::size_t e) const;
   // Brick e's axial loads F_x, F_y, F_z at x (tension positive), N.
   Vec3 axial_loads(const Vector& x, std::size_t e) const;
 

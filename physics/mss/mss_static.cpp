@@ -2,6 +2,7 @@
 
 #include <Eigen/LU>
 #include <Eigen/SparseCholesky>
+#include <Eigen/SparseLU>
 
 #include <algorithm>
 #include <cmath>
@@ -22,11 +23,33 @@ std::vector<Index> free_dofs(const std::vector<uint8_t>& fixed, Index nodes) {
   return free;
 }
 
+// The derivative of Baudet's corrections as stiffness triplets, -d(corrections)/dx, brick by
+// brick (each brick's corrections depend on its own 8 nodes only) by central differences.
+void add_correction_tangent(const HexMassSpring& model, const Vector& x, std::vector<Eigen::Triplet<double>>& out) {
+  Vector probe = x;
+  const double h = 1e-7 * model.node_spacing();
+  for (std::size_t e = 0; e < model.hexes().size(); ++e) {
+    const auto& hex = model.hexes()[e];
+    for (int a = 0; a < 8; ++a)
+      for (int c = 0; c < 3; ++c) {
+        const Index d = 3 * static_cast<Index>(hex[a]) + c;
+        probe[d] = x[d] + h;
+        const Eigen::Matrix<double, 24, 1> plus = model.brick_correction_forces(probe, e);
+        probe[d] = x[d] - h;
+        const Eigen::Matrix<double, 24, 1> minus = model.brick_correction_forces(probe, e);
+        probe[d] = x[d];
+        const Eigen::Matrix<double, 24, 1> column = -(plus - minus) / (2 * h);
+        for (int b = 0; b < 8; ++b)
+          for (int r = 0; r < 3; ++r) out.emplace_back(3 * static_cast<Index>(hex[b]) + r, d, column[3 * b + r]);
+      }
+  }
+}
+
 }  // namespace
 
 MassSpringStatic solve_mass_spring_static(HexMassSpring& model, const std::vector<uint8_t>& fixed,
                                           const Vector& prescribed, const Vector& load, int increments,
-                                          double tolerance, bool rest_tangent) {
+                                          double tolerance) {
   const Vector& rest = model.rest_positions();
   const Index size = rest.size();
   const std::vector<Index> free = free_dofs(fixed, size / 3);
@@ -35,8 +58,10 @@ MassSpringStatic solve_mass_spring_static(HexMassSpring& model, const std::vecto
   MassSpringStatic result;
   result.positions = rest;
   double first_residual = -1, residual = 0;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
-  bool factorised = false;
+  // The springs' tangent is symmetric (LDLT); with the corrections' derivative it is not (LU).
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> symmetric;
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> general;
+  const bool corrected = model.corrections();
   for (int step = 1; step <= std::max(1, increments); ++step) {
     const double share = static_cast<double>(step) / std::max(1, increments);
     for (Index i = 0; i < size / 3; ++i)
@@ -52,10 +77,11 @@ MassSpringStatic solve_mass_spring_static(HexMassSpring& model, const std::vecto
       for (std::size_t i = 0; i < free.size(); ++i) rhs[static_cast<Index>(i)] = f[free[i]];
       residual = rhs.norm();
       if (first_residual < 0) first_residual = residual;
-      if (!rest_tangent || !factorised) {
-        if (rest_tangent) model.update_rotations(rest);
+      {
+        const Vector& at = result.positions;
         std::vector<Eigen::Triplet<double>> all, reduced;
         model.add_stiffness_triplets(all);
+        if (corrected) add_correction_tangent(model, at, all);
         reduced.reserve(all.size());
         for (const auto& t : all) {
           const Index r = slot[static_cast<std::size_t>(t.row())], c = slot[static_cast<std::size_t>(t.col())];
@@ -63,11 +89,17 @@ MassSpringStatic solve_mass_spring_static(HexMassSpring& model, const std::vecto
         }
         Eigen::SparseMatrix<double> k(static_cast<Index>(free.size()), static_cast<Index>(free.size()));
         k.setFromTriplets(reduced.begin(), reduced.end());
-        solver.compute(k);
-        if (solver.info() != Eigen::Success) throw std::runtime_error("mass-spring static: the tangent cannot be factorised");
-        factorised = true;
+        bool ok = false;
+        if (corrected) {
+          general.compute(k);
+          ok = general.info() == Eigen::Success;
+        } else {
+          symmetric.compute(k);
+          ok = symmetric.info() == Eigen::Success;
+        }
+        if (!ok) throw std::runtime_error("mass-spring static: the tangent cannot be factorised");
       }
-      const Vector dx = solver.solve(rhs);
+      const Vector dx = corrected ? Vector(general.solve(rhs)) : Vector(symmetric.solve(rhs));
       if (!dx.allFinite()) throw std::runtime_error("mass-spring static: the Newton update is not finite");
       for (std::size_t i = 0; i < free.size(); ++i) result.positions[free[i]] += dx[static_cast<Index>(i)];
       double largest = 0;

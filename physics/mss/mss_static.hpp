@@ -25,16 +25,17 @@ struct MassSpringStatic {
 // The network's equilibrium with the nodes `fixed` moved by `prescribed` (3n, read there;
 // empty: held at rest) under the nodal forces `load` (3n or empty), the springs' full nonlinear
 // forces and, when the model has them, Baudet's corrections. Newton with the springs' tangent
-// (sparse LDLT): the corrections are not in the tangent, which makes it a modified Newton (they
-// are a few % of the spring forces, the iteration still contracts). The prescribed motion and
+// (sparse LDLT) plus, with corrections, their derivative brick by brick (central differences;
+// non-symmetric: sparse LU). The prescribed motion and
 // the load are applied in `increments` equal steps, each iterated until the update is below
-// `tolerance` x the largest displacement. `rest_tangent`: the tangent at rest factorised once
-// and kept (for small strains, where it changes little: one factorisation instead of one per
-// iteration). Throws std::runtime_error when the tangent cannot be factorised or an increment
-// does not converge in 200 iterations.
+// `tolerance` x the largest displacement. The tangent is the current one, whose transverse
+// spring terms (1 - L0 / L) carry the network's near-mechanisms: at rest they vanish, and a
+// rest-tangent iteration on a voxelised beam crawls (50-90 iterations) or diverges. Throws
+// std::runtime_error when the tangent cannot be factorised or an increment does not converge
+// in 200 iterations.
 MassSpringStatic solve_mass_spring_static(HexMassSpring& model, const std::vector<uint8_t>& fixed,
                                           const Vector& prescribed, const Vector& load, int increments = 1,
-                                          double tolerance = 1e-10, bool rest_tangent = false);
+                                          double tolerance = 1e-10);
 
 // The network's stiffness at rest as a dense matrix (small meshes only): the springs' K, minus
 // the derivative of the correction forces when the model has them (central differences: they
