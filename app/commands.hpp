@@ -1,4 +1,5 @@
-// The subcommands of `incise`, one function each; main.cpp only parses the command line.
+// The subcommands of `incise`, one function each; command_line.cpp sets up their options and
+// main.cpp parses the command line and calls the one given.
 #pragma once
 
 #include <array>

@@ -7,7 +7,9 @@
 #include "engine/publication.hpp"
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
+#include "physics/cp/constraint_particles.hpp"
 #include "physics/gpu/efg_step.hpp"
+#include "physics/promayon/promayon_body.hpp"
 #include "render/image.hpp"
 #include "render/offscreen.hpp"
 
@@ -435,16 +437,34 @@ Json bodies_json(const World& world, PositionsDigest& digest) {
     for (auto f : body.data.fixed) fixed += f;
     std::size_t surface_vertices = 0;
     const double surface_max = surface_max_displacement(body, surface_vertices);
-    bodies.push_back({{"name", body.model->name},
-                      {"model", body.data.embedding ? "efg_corotated" : body.model->kind == "mass_spring" ? "mass_spring_hex" : "fem_corotational_tet4"},
-                      {"surface_vertices", surface_vertices},
-                      {"surface_max_displacement", surface_max},
-                      {"nodes", n},
-                      {"dofs", 3 * n},
-                      {"elements", body.model->elements},
-                      {"fixed_nodes", fixed},
-                      {"surface_triangles", body.data.surface.size()},
-                      {"build_ms", build_ms_json(body.build_ms)}});
+    Json entry = {{"name", body.model->name},
+                  {"model", body.data.embedding ? std::string("efg_corotated")
+                            : body.model->kind == "mass_spring" ? std::string("mass_spring_hex")
+                            : body.model->kind == "constraint_particles" ? std::string("constraint_particles_tet")
+                            : body.model->kind == "fem"         ? std::string("fem_corotational_tet4")
+                                                                : body.model->kind},
+                  {"surface_vertices", surface_vertices},
+                  {"surface_max_displacement", surface_max},
+                  {"nodes", n},
+                  {"dofs", 3 * n},
+                  {"elements", body.model->elements},
+                  {"fixed_nodes", fixed},
+                  {"surface_triangles", body.data.surface.size()},
+                  {"build_ms", build_ms_json(body.build_ms)}};
+    // Dionne's model: its volume over the rest volume (digest D3) and its inverted tets.
+    if (const auto* particles = dynamic_cast<const physics::ConstraintParticles*>(body.data.mechanics.get())) {
+      entry["volume_ratio"] = particles->volume(x) / particles->volume(rest);
+      entry["inverted_tets"] = particles->inverted_tets(x);
+    }
+    // Promayon's volume control (seed 002 §1.5): how far the closed surface ever was from V0(t).
+    const auto* promayon = dynamic_cast<const physics::PromayonBody*>(body.data.mechanics.get());
+    if (promayon && promayon->volume()) {
+      if (promayon->volume()->mode == physics::VolumeMode::exact)
+        entry["volume_relative_error_max"] = promayon->worst_volume_error();
+      entry["volume_m3"] = promayon->last_volume();
+      entry["volume_target_m3"] = promayon->last_volume_target();
+    }
+    bodies.push_back(std::move(entry));
   }
   for (auto& c : digest.centroid) c /= static_cast<double>(std::max<std::size_t>(nodes, 1));
   digest.mean_displacement /= static_cast<double>(std::max<std::size_t>(nodes, 1));

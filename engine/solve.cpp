@@ -1,6 +1,6 @@
 // solve: the external forces (gravity, the scene's loads at the step's end) and one guarded
-// implicit Euler step per body on its backend (physics/core/guarded_step.hpp), whose guards
-// are counted and logged here.
+// implicit Euler step per body on its backend, or the model's own step (BodyModel::own_step)
+// (physics/core/guarded_step.hpp), whose guards are counted and logged here.
 #include "engine/world.hpp"
 
 #include "physics/core/guarded_step.hpp"
@@ -58,15 +58,24 @@ void World::solve(Body& body, const std::vector<physics::NodalSpring>& springs,
   }
   if (body.cut) body.cut->previous_positions = body.data.state.positions;
   const physics::RestFactor* factor = body.gpu ? nullptr : prepare_preconditioner(body, stats);
+  // A model that steps itself (BodyModel::own_step) gets each step's start time: an attempt of
+  // the guarded step is a run of equal dt's from the step's start, a retry a new run of half that.
+  double attempt_dt = 0, clock = 0;
   const physics::StepFunction step = [&](physics::State& state, const physics::ImplicitEulerSettings& given,
                                          physics::Vector* velocity_change) {
     physics::ImplicitEulerSettings settings = given;
     settings.cg.budget = budget_.next();
+    if (given.dt != attempt_dt) {
+      attempt_dt = given.dt;
+      clock = end_time - body.model->integrator.dt;
+    }
     const physics::StepReport report =
-        body.gpu ? body.gpu->step(*body.data.efg, state, body.data.fixed, external, springs, settings, velocity_change)
-                 : physics::implicit_euler_step(*body.data.mechanics, state, body.data.fixed, external, springs,
-                                                settings, velocity_change, factor);
+        body.gpu               ? body.gpu->step(*body.data.efg, state, body.data.fixed, external, springs, settings, velocity_change)
+        : body.model->own_step ? body.model->own_step(*body.data.mechanics, state, body.data.fixed, external, springs, settings, clock)
+                               : physics::implicit_euler_step(*body.data.mechanics, state, body.data.fixed, external, springs,
+                                                              settings, velocity_change, factor);
     budget_.solved(report.cg);
+    if (!report.nonfinite) clock += given.dt;
     return report;
   };
   const physics::GuardedStepReport report =

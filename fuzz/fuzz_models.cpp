@@ -5,8 +5,10 @@
 #include "engine/body.hpp"
 #include "engine/body_builder.hpp"
 #include "engine/model_registry.hpp"
+#include "engine/models/constraint_particles_settings.hpp"
 #include "engine/models/efg_settings.hpp"
 #include "engine/models/mass_spring_settings.hpp"
+#include "engine/models/promayon_settings.hpp"
 
 #include <stdexcept>
 
@@ -32,6 +34,21 @@ void register_fuzz_models(ModelRegistry& registry) {
   registry.add({.name = "mass_spring",
                 .summary = "Baudet's hexahedral mass-spring, springs from E and nu",
                 .read_settings = read_mass_spring_settings,
+                .build = no_build});
+  registry.add({.name = "constraint_particles",
+                .summary = "Dionne's particles held by distance, area and volume constraints, explicit + stretch limiter",
+                .node_name = "particle",
+                .read_settings = read_constraint_particles_settings,
+                .build = no_build});
+  registry.add({.name = "shape_memory",
+                .summary = "Promayon's volumetric shape memory on a lattice, exact volume control",
+                .node_name = "atom",
+                .read_settings = read_shape_memory_settings,
+                .build = no_build});
+  registry.add({.name = "spring_network",
+                .summary = "the seed-002 mass-spring baseline, VN1 or Moore neighbourhood",
+                .node_name = "atom",
+                .read_settings = read_spring_network_settings,
                 .build = no_build});
 }
 

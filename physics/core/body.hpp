@@ -16,6 +16,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -23,10 +24,22 @@
 
 namespace incise::physics {
 
+// A model that steps itself instead of by implicit Euler (constraint particles: an explicit
+// scheme, then position projections, physics/cp/cp_step.hpp; Promayon's bodies: the seed's
+// step order, physics/promayon/seed_step.hpp): advances `state` over settings.dt from
+// `start_time` (s; V0(t) curves read it) with the forces `external` and the springs' forces
+// (applied explicitly), and reports like implicit_euler_step (cg converged, no iterations).
+// The guarded step halves its dt on a non-finite step as it does implicit Euler's; the start
+// time then follows the halved steps.
+using OwnStep = std::function<StepReport(DeformableModel& mechanics, State& state, const std::vector<std::uint8_t>& fixed,
+                                         const Vector& external, const std::vector<NodalSpring>& springs,
+                                         const ImplicitEulerSettings& settings, double start_time)>;
+
 struct BodyModel {
   std::string name;
   std::string kind;  // the model's name in the registry: "fem", "efg"
   ImplicitEulerSettings integrator;
+  OwnStep own_step;  // empty: implicit Euler (the engine's solve stage)
   PreconditionerSettings preconditioner;
   Vec3 gravity = Vec3::Zero();  // acceleration, m/s^2 (lumped into BodyData::gravity)
   // The body's box at rest (its shape's), the region a whole-surface remapping covers.

@@ -60,6 +60,11 @@ class Dynamics {
     model_.update_rotations(x);
     a = external_;
     model_.add_elastic_forces(x, a);
+    if (settings_.model_damping && model_.has_damping()) {
+      Vector damping = Vector::Zero(a.size());
+      model_.add_damping_product(v, damping);
+      a -= damping;
+    }
     ++evaluations_;
     const Vector& masses = model_.lumped_masses();
     const double alpha = settings_.rayleigh_mass;

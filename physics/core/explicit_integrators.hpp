@@ -45,6 +45,10 @@ std::optional<ExplicitScheme> explicit_scheme_from_name(std::string_view name);
 struct ExplicitSettings {
   double dt = 1e-3;
   double rayleigh_mass = 0;  // alpha, 1/s: damping force -alpha M v
+  // Also the model's own dashpots, -D v (DeformableModel::has_damping), with D frozen at each
+  // stage's positions. Off by default, so that the schemes' arithmetic for the models that
+  // have dashpots (the mass-spring's) stays as it was; constraint particles turn it on.
+  bool model_damping = false;
 };
 
 struct ExplicitStepReport {
@@ -102,7 +106,8 @@ ExplicitStepReport velocity_verlet_step(DeformableModel& model, State& state,
 // Dispatches on `scheme`; `history` is required for ExplicitScheme::verlet (throws
 // std::invalid_argument if null) and ignored otherwise. A dt beyond the model's
 // explicit_step_limit() is refused (std::invalid_argument with both numbers). The schemes see
-// the elastic forces and Rayleigh mass damping only, not a model's own dashpots.
+// the elastic forces and Rayleigh mass damping, and a model's own dashpots only where
+// settings.model_damping asks for them.
 ExplicitStepReport explicit_step(ExplicitScheme scheme, DeformableModel& model, State& state,
                                  const std::vector<uint8_t>& fixed_nodes,
                                  const Vector& external_forces, const ExplicitSettings& settings,

@@ -18,6 +18,15 @@ add_library(incise_cut STATIC
   ${CMAKE_CURRENT_LIST_DIR}/apply_topology.cpp
   ${CMAKE_CURRENT_LIST_DIR}/remap_surface.cpp
   ${CMAKE_CURRENT_LIST_DIR}/front_surface.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/front_edge_table.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/front_binning.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/front_face_reuse.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/front_recompute.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/front_crossings.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/front_outline.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/front_split.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/front_lattice.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/front_cut_face.cpp
   ${CMAKE_CURRENT_LIST_DIR}/front_mapping.cpp
   ${CMAKE_CURRENT_LIST_DIR}/triangulate_2d.cpp
 )

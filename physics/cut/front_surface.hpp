@@ -52,6 +52,12 @@
 // points in the sheet's fixed cells; the rest of the stroke's work (matching the face's
 // points, the planes, the output, renumbered at every call) still grows with its face:
 // docs/status.md has figures.
+//
+// The implementation, a file per idea: front_surface.cpp (the strokes: samples taken or left
+// out, the base a stroke leaves), front_edge_table.cpp and front_binning.cpp (the base's index),
+// front_recompute.hpp (a sample's stages, in front_crossings.cpp, front_outline.cpp,
+// front_split.cpp, front_lattice.cpp and front_cut_face.cpp), front_face_reuse.cpp (the cut
+// face kept between samples), front_geometry.hpp (the orientation predicates).
 #pragma once
 
 #include "physics/core/model.hpp"

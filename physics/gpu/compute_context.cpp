@@ -58,6 +58,25 @@ GlVersion required_version(GlVersion required, std::string& notes) {
   return {major, minor};
 }
 
+
+// A core context of the version required or, when the driver refuses it, of the newest
+// version it gives, so that the message can say what was found. Asking for less and reading
+// the version back is not enough: Mesa answers a 3.2 request with its newest version, but
+// NVIDIA's driver gives exactly the version asked for (an H100 said "OpenGL 3.2.0").
+EGLContext create_core_context(EGLDisplay display, GlVersion required) {
+  std::vector<GlVersion> tries{required};
+  for (const GlVersion known : {GlVersion{4, 6}, {4, 5}, {4, 3}, {4, 0}, {3, 3}, {3, 2}})
+    if (known.major < required.major || (known.major == required.major && known.minor < required.minor))
+      tries.push_back(known);
+  for (const GlVersion version : tries) {
+    const EGLint attributes[] = {EGL_CONTEXT_MAJOR_VERSION, version.major, EGL_CONTEXT_MINOR_VERSION, version.minor,
+                                 EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+    const EGLContext context = eglCreateContext(display, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attributes);
+    if (context != EGL_NO_CONTEXT) return context;
+  }
+  return EGL_NO_CONTEXT;
+}
+
 }  // namespace
 
 struct ComputeContext::Egl {
@@ -123,14 +142,9 @@ std::unique_ptr<ComputeContext> ComputeContext::create(GlVersion required) {
       notes += "no surfaceless, configless contexts";
       continue;
     }
-    // The newest context the driver gives (it returns its highest version for a request of
-    // 3.2 core), so that the message can say what was found when it is too old.
-    const EGLint attributes[] = {EGL_CONTEXT_MAJOR_VERSION, 3, EGL_CONTEXT_MINOR_VERSION, 2,
-                                 EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
-                                 EGL_NONE};
     auto egl = std::make_unique<Egl>();
     egl->display = display;
-    egl->context = eglCreateContext(display, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attributes);
+    egl->context = create_core_context(display, required);
     if (egl->context == EGL_NO_CONTEXT) {
       notes += "no core context (" + egl_error() + ")";
       continue;

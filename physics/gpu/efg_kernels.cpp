@@ -44,6 +44,15 @@ uniform int incidence_stride;
 uniform int mode;
 uniform int slot0;
 uniform int slot1;
+// CG's state on the GPU (efg_step.cpp, solve_velocity_change): flags[1] its status (0 running,
+// 1 converged, 2 non-finite, 3 p.Ap not positive, 4 at the iteration limit), flags[2] its
+// iterations. Inside CG's loop (cg_gate 1) the iteration's kernels do nothing once the status is
+// set, so the host can queue several iterations between read-backs and the iterate stops
+// exactly where a CG checked after every iteration would have stopped.
+uniform int cg_gate;
+uniform int limit;
+#define CG_DONE (cg_gate != 0 && flags[1] != 0)
+#define THRESHOLD_SLOT 7
 
 // Macros rather than functions, since GLSL cannot pass a buffer's array to a function; a
 // kernel declares only the blocks it names (Mesa counts declared blocks against its limit of
@@ -51,10 +60,19 @@ uniform int slot1;
 #define LOADA(i) vec3r(va[3 * (i)], va[3 * (i) + 1], va[3 * (i) + 2])
 #define LOADB(i) vec3r(vb[3 * (i)], vb[3 * (i) + 1], vb[3 * (i) + 2])
 #define GRADIENT(slot) vec3r(gradients[3 * (slot)], gradients[3 * (slot) + 1], gradients[3 * (slot) + 2])
-// Row-major 3x3 blocks of 9 reals; GLSL matrices are column-major, hence m[column][row].
+// Row-major 3x3 blocks of 9 reals; GLSL matrices are column-major, so the block read in order
+// is the transpose. Built by a constructor, not by writes at loop indices: NVIDIA's compiler
+// cannot link a dmat3 written at a run-time index ("can't find __setVectorIndex").
 #define LOAD_MATRIX(m, array, e) \
-  for (int r_ = 0; r_ < 3; ++r_) for (int c_ = 0; c_ < 3; ++c_) m[c_][r_] = array[9 * (e) + 3 * r_ + c_]
+  m = transpose(mat3r(array[9 * (e)], array[9 * (e) + 1], array[9 * (e) + 2], array[9 * (e) + 3], \
+                      array[9 * (e) + 4], array[9 * (e) + 5], array[9 * (e) + 6], array[9 * (e) + 7], \
+                      array[9 * (e) + 8]))
+#define STORE_MATRIX(array, e, m) \
+  array[9 * (e)] = m[0].x; array[9 * (e) + 1] = m[1].x; array[9 * (e) + 2] = m[2].x; \
+  array[9 * (e) + 3] = m[0].y; array[9 * (e) + 4] = m[1].y; array[9 * (e) + 5] = m[2].y; \
+  array[9 * (e) + 6] = m[0].z; array[9 * (e) + 7] = m[1].z; array[9 * (e) + 8] = m[2].z
 bool finite(real x) { return !isnan(x) && !isinf(x); }
+bool finite3(vec3r v) { return finite(v.x) && finite(v.y) && finite(v.z); }
 )";
 
 // mode 0: elastic forces from the displacements in A; mode 1: K p for p in A.
@@ -63,7 +81,7 @@ bool finite(real x) { return !isnan(x) && !isinf(x); }
 const char* const kElementStress = R"(
 void main() {
   int e = int(gl_GlobalInvocationID.x);
-  if (e >= count) return;
+  if (e >= count || CG_DONE) return;
   int base = e * stride;
   int length = lengths[e];
   real volume = volumes[e];
@@ -86,8 +104,7 @@ void main() {
   real trace = strain[0][0] + strain[1][1] + strain[2][2];
   mat3r sigma = real(2) * parameters[1] * strain + parameters[0] * trace * mat3r(1);
   mat3r s = (mode == 0 ? -volume : volume) * (sigma + w * sigma);
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) stresses[9 * e + 3 * r + c] = s[c][r];
+  STORE_MATRIX(stresses, e, s);
 }
 )";
 
@@ -98,7 +115,7 @@ void main() {
 const char* const kNodeGather = R"(
 void main() {
   int n = int(gl_GlobalInvocationID.x);
-  if (n >= count) return;
+  if (n >= count || CG_DONE) return;
   vec3r sum = vec3r(0);
   int length = incidence_lengths[n];
   for (int i = 0; i < length; ++i) {
@@ -118,8 +135,7 @@ void main() {
     vec3r stiffness = sum;
     if (spring >= 0) {
       mat3r k;
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) k[c][r] = spring_stiffness[9 * spring + 3 * r + c];
+      LOAD_MATRIX(k, spring_stiffness, spring);
       stiffness += k * p;
     }
     result = mode == 1 ? stiffness
@@ -152,10 +168,10 @@ void main() {
   int spring = spring_index[n];
   if (spring >= 0)
     sum += vec3r(spring_stiffness[9 * spring], spring_stiffness[9 * spring + 4], spring_stiffness[9 * spring + 8]);
-  for (int c = 0; c < 3; ++c) {
-    real d = parameters[5] * masses[n] + parameters[6] * sum[c];
-    vc[3 * n + c] = (d > real(0) && finite(d)) ? real(1) / d : real(1);
-  }
+  vec3r d = parameters[5] * masses[n] + parameters[6] * sum;
+  vc[3 * n] = (d.x > real(0) && finite(d.x)) ? real(1) / d.x : real(1);
+  vc[3 * n + 1] = (d.y > real(0) && finite(d.y)) ? real(1) / d.y : real(1);
+  vc[3 * n + 2] = (d.z > real(0) && finite(d.z)) ? real(1) / d.z : real(1);
 }
 )";
 
@@ -206,6 +222,7 @@ void main() {
 const char* const kDotPartial = R"(
 void main() {
   int t = int(gl_GlobalInvocationID.x);
+  if (CG_DONE) return;
   real s0 = real(0), s1 = real(0);
   for (int i = t; i < count; i += REDUCE_THREADS) {
     s0 += va[i] * vb[i];
@@ -219,7 +236,7 @@ void main() {
 // Second pass: one invocation sums the partials in order into scalars[slot0] (and slot1).
 const char* const kDotFinal = R"(
 void main() {
-  if (gl_GlobalInvocationID.x != 0u) return;
+  if (gl_GlobalInvocationID.x != 0u || CG_DONE) return;
   real s0 = real(0), s1 = real(0);
   for (int t = 0; t < REDUCE_THREADS; ++t) {
     s0 += partials[2 * t];
@@ -236,7 +253,7 @@ void main() {
 const char* const kCgUpdate = R"(
 void main() {
   int i = int(gl_GlobalInvocationID.x);
-  if (i >= count) return;
+  if (i >= count || CG_DONE) return;
   real curvature = scalars[slot0];
   real s = scalars[slot1] / curvature;
   if (!(curvature > real(0)) || !finite(s)) return;
@@ -250,9 +267,29 @@ void main() {
 const char* const kCgDirection = R"(
 void main() {
   int i = int(gl_GlobalInvocationID.x);
-  if (i >= count) return;
+  if (i >= count || CG_DONE) return;
   real beta = scalars[slot1] / scalars[slot0];
   vb[i] = va[i] + beta * vb[i];
+}
+)";
+
+// CG's stops, the host's checks moved to the GPU (cg.cpp's order): after an iteration (mode 0)
+// p.Ap (scalars[slot0]) not finite or not positive ends CG before the iteration counts; then
+// r.r (scalars[slot1]) at or below (tolerance |b|)^2 converges it, and the iteration limit
+// (the maximum, or a recorded stop) ends it. Mode 1: the check of the first residual.
+const char* const kCgCheck = R"(
+void main() {
+  if (gl_GlobalInvocationID.x != 0u || flags[1] != 0) return;
+  if (mode == 0) {
+    real curvature = scalars[slot0];
+    if (!finite(curvature)) { flags[1] = 2; return; }
+    if (!(curvature > real(0))) { flags[1] = 3; return; }
+    flags[2] += 1;
+  }
+  real residual = scalars[slot1];
+  if (!finite(residual)) flags[1] = 2;
+  else if (residual <= scalars[THRESHOLD_SLOT]) flags[1] = 1;
+  else if (mode == 0 && flags[2] >= limit) flags[1] = 4;
 }
 )";
 
@@ -333,9 +370,7 @@ void main() {
   mat3r f = rest_gradient + h;
   real x = orientations[4 * e], y = orientations[4 * e + 1], z = orientations[4 * e + 2], w = orientations[4 * e + 3];
   bool settled = false;
-  bool finite_f = true;
-  for (int c = 0; c < 3; ++c)
-    for (int r = 0; r < 3; ++r) finite_f = finite_f && finite(f[c][r]);
+  bool finite_f = finite3(f[0]) && finite3(f[1]) && finite3(f[2]);
   if (!finite_f) settled = true;
   for (int iteration = 0; iteration < 24 && !settled; ++iteration) {
     mat3r rotation;  // column-major: rotation[c][r] = R(r, c)
@@ -403,6 +438,7 @@ const char* kernel_name(Kernel kernel) {
     case Kernel::dot_final: return "dot_final";
     case Kernel::cg_update: return "cg_update";
     case Kernel::cg_direction: return "cg_direction";
+    case Kernel::cg_check: return "cg_check";
     case Kernel::integrate: return "integrate";
     case Kernel::surface: return "surface";
     case Kernel::integration_points: return "integration_points";
@@ -425,7 +461,7 @@ std::string kernel_source(Kernel kernel, bool double_precision) {
   source += double_precision ? "#define SETTLED_ANGLE 1e-8lf\n#define TINY 1e-9lf\n"
                               : "#define SETTLED_ANGLE 3e-5\n#define TINY 1e-9\n";
   source += "#define REDUCE_THREADS " + std::to_string(kReduceGroups * kGroupSize) + "\n";
-  const int group = kernel == Kernel::dot_final ? 1 : kGroupSize;
+  const int group = kernel == Kernel::dot_final || kernel == Kernel::cg_check ? 1 : kGroupSize;
   source += "layout(local_size_x = " + std::to_string(group) + ") in;\n";
   std::string body;
   switch (kernel) {
@@ -439,6 +475,7 @@ std::string kernel_source(Kernel kernel, bool double_precision) {
     case Kernel::dot_final: body = kDotFinal; break;
     case Kernel::cg_update: body = kCgUpdate; break;
     case Kernel::cg_direction: body = kCgDirection; break;
+    case Kernel::cg_check: body = kCgCheck; break;
     case Kernel::integrate: body = kIntegrate; break;
     // Integration points use the same gather with the element rows and phi bound.
     case Kernel::surface:
@@ -452,6 +489,7 @@ std::string kernel_source(Kernel kernel, bool double_precision) {
   if (body.find("LOADA(") != std::string::npos) expanded += " va ";
   if (body.find("LOADB(") != std::string::npos) expanded += " vb ";
   if (body.find("GRADIENT(") != std::string::npos) expanded += " gradients ";
+  if (body.find("CG_DONE") != std::string::npos) expanded += " flags ";
   const auto names = [&expanded](const std::string& name) {
     const auto word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
     for (size_t at = expanded.find(name); at != std::string::npos; at = expanded.find(name, at + 1)) {

@@ -21,6 +21,7 @@ enum class Kernel {
   dot_final,
   cg_update,
   cg_direction,
+  cg_check,
   integrate,
   surface,
   integration_points,

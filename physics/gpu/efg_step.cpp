@@ -37,9 +37,10 @@ enum Binding : GLuint {
   flags_binding
 };
 
-// Scalars: 0 p.Ap, 1 r.r (the two read back per iteration), 2 and 3 r.z (old and new in
-// turn), 4 b.b.
-constexpr int curvature_slot = 0, residual_slot = 1, rz_slot = 2, rhs_slot = 4, guess_slot = 5;
+// Scalars: 0 p.Ap, 1 r.r, 2 and 3 r.z (old and new in turn), 4 b.b, 5 and 6 the guess's
+// scale, 7 (tolerance |b|)^2 (efg_kernels.cpp's THRESHOLD_SLOT).
+constexpr int curvature_slot = 0, residual_slot = 1, rz_slot = 2, rhs_slot = 4, guess_slot = 5, threshold_slot = 7;
+
 
 // Incidence rows get this many slots (at least; a quarter of the longest row if more)
 // beyond the longest at (re)allocation: re-selection after cuts adds particles beyond the
@@ -102,7 +103,7 @@ struct EfgStep::Impl {
 
   struct Program {
     GLuint id = 0;
-    GLint count = -1, stride = -1, incidence_stride = -1, mode = -1, slot0 = -1, slot1 = -1;
+    GLint count = -1, stride = -1, incidence_stride = -1, mode = -1, slot0 = -1, slot1 = -1, cg_gate = -1, limit = -1;
   };
   std::array<Program, static_cast<size_t>(Kernel::count)> programs{};
 
@@ -224,6 +225,8 @@ struct EfgStep::Impl {
       program.mode = glGetUniformLocation(program.id, "mode");
       program.slot0 = glGetUniformLocation(program.id, "slot0");
       program.slot1 = glGetUniformLocation(program.id, "slot1");
+      program.cg_gate = glGetUniformLocation(program.id, "cg_gate");
+      program.limit = glGetUniformLocation(program.id, "limit");
     }
   }
 
@@ -263,6 +266,8 @@ struct EfgStep::Impl {
     if (program.mode >= 0) glUniform1i(program.mode, mode);
     if (program.slot0 >= 0) glUniform1i(program.slot0, slot0);
     if (program.slot1 >= 0) glUniform1i(program.slot1, slot1);
+    if (program.cg_gate >= 0) glUniform1i(program.cg_gate, cg_gate);
+    if (program.limit >= 0) glUniform1i(program.limit, cg_limit);
     for (const auto& [binding, buffer] : vectors) bind(binding, *buffer);
     GLuint groups = 0;
     if (kernel == Kernel::dot_partial) groups = kReduceGroups;
@@ -277,6 +282,10 @@ struct EfgStep::Impl {
       kernel_runs[static_cast<size_t>(kernel)]++;
     }
   }
+
+  // Inside CG's loop: the loop's kernels stop once flags[1] is set (efg_kernels.cpp, CG_DONE).
+  int cg_gate = 0;
+  int cg_limit = 0;
 
   // INCISE_GPU_PROFILE=1: glFinish after every dispatch and the time per kernel on stderr
   // when the step is destroyed (a measurement aid; it serialises the pipeline).
@@ -528,6 +537,9 @@ struct EfgStep::Impl {
 EfgStep::EfgStep(const CorotationalEfg& model, const GpuSettings& settings) : settings_(settings) {
   if (settings.batch_rows < 1)
     throw std::invalid_argument("gpu batch_rows must be at least 1, got " + std::to_string(settings.batch_rows));
+  if (settings.cg_iterations_per_check < 1)
+    throw std::invalid_argument("gpu cg_iterations_per_check must be at least 1, got " +
+                                std::to_string(settings.cg_iterations_per_check));
   if (settings.row_headroom < 0)
     throw std::invalid_argument("gpu row_headroom must not be negative, got " + std::to_string(settings.row_headroom));
   if (!(settings.surface_headroom >= 1) || !std::isfinite(settings.surface_headroom))
@@ -800,49 +812,52 @@ bool EfgStep::solve_velocity_change(const ImplicitEulerSettings& settings, CgRes
     s.run(Kernel::residual_init, dofs,
           {{a_binding, &s.product}, {b_binding, &s.rhs}, {c_binding, &s.r}, {d_binding, &s.z}, {e_binding, &s.p},
            {f_binding, &s.inverse_diagonal}});
+    // CG's checks run on the GPU (kernel cg_check); the host reads the status back every
+    // cg_iterations_per_check iterations, and sees the deadline there.
+    const double threshold = settings.cg.tolerance * b_norm * settings.cg.tolerance * b_norm;
+    s.upload_reals(s.scalars, threshold_slot, &threshold, 1);
+    const int cleared[2] = {0, 0};
+    s.upload_ints(s.flags, 1, cleared, 2);
+    const CgBudget& budget = settings.cg.budget;
+    s.cg_limit = budget.stop_at > 0 ? std::min(budget.stop_at, settings.cg.max_iterations) : settings.cg.max_iterations;
     int rz_current = rz_slot, rz_next = rz_slot + 1;
     s.dot(dofs, s.r, s.r, residual_slot, &s.r, &s.z, rz_current);
-    const double residual_norm = std::sqrt(s.read_scalars(curvature_slot)[1]);
-    if (!std::isfinite(residual_norm)) {
-      return false;
-    }
-    cg.relative_residual = residual_norm / b_norm;
-    if (cg.relative_residual <= settings.cg.tolerance) cg.converged = true;
-    while (!cg.converged && cg.iterations < settings.cg.max_iterations) {
-      s.product_of(s.p, s.product, 2);
-      s.dot(dofs, s.p, s.product, curvature_slot);
-      s.run(Kernel::cg_update, dofs,
-            {{a_binding, &s.dv}, {b_binding, &s.p}, {c_binding, &s.r}, {d_binding, &s.product}, {e_binding, &s.z},
-             {f_binding, &s.inverse_diagonal}},
-            0, curvature_slot, rz_current);
-      s.dot(dofs, s.r, s.r, residual_slot, &s.r, &s.z, rz_next);
-      const auto [curvature, residual_squared] = s.read_scalars(curvature_slot);
-      if (!std::isfinite(curvature)) {
-        cg.nonfinite = true;
-        break;
-      }
-      if (curvature <= 0.0) {
-        cg.non_positive_curvature = true;
-        break;
-      }
-      ++cg.iterations;
-      const double norm = std::sqrt(residual_squared);
-      if (!std::isfinite(norm)) {
-        cg.nonfinite = true;
-        break;
-      }
-      cg.relative_residual = norm / b_norm;
-      if (cg.relative_residual <= settings.cg.tolerance) {
-        cg.converged = true;
-        break;
-      }
-      if (budget_spent(settings.cg.budget, cg.iterations)) {
+    s.run(Kernel::cg_check, 1, {}, 1, curvature_slot, residual_slot);
+    s.cg_gate = 1;
+    int status = 0;
+    for (int queued = 0;;) {
+      int flags[2] = {0, 0};
+      glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+      glGetNamedBufferSubData(s.flags.id, 4, 8, flags);
+      status = flags[0];
+      cg.iterations = flags[1];
+      if (status != 0 || queued >= s.cg_limit) break;
+      if (budget.stop_at == 0 && budget_spent(budget, cg.iterations)) {
         cg.stopped_by_budget = true;
         break;
       }
-      s.run(Kernel::cg_direction, dofs, {{a_binding, &s.z}, {b_binding, &s.p}}, 0, rz_current, rz_next);
-      std::swap(rz_current, rz_next);
+      // Iterations queued past the stop cost a dispatch of kernels that return at once.
+      const int batch = std::min(settings_.cg_iterations_per_check, s.cg_limit - queued);
+      for (int k = 0; k < batch; ++k, ++queued) {
+        s.product_of(s.p, s.product, 2);
+        s.dot(dofs, s.p, s.product, curvature_slot);
+        s.run(Kernel::cg_update, dofs,
+              {{a_binding, &s.dv}, {b_binding, &s.p}, {c_binding, &s.r}, {d_binding, &s.product}, {e_binding, &s.z},
+               {f_binding, &s.inverse_diagonal}},
+              0, curvature_slot, rz_current);
+        s.dot(dofs, s.r, s.r, residual_slot, &s.r, &s.z, rz_next);
+        s.run(Kernel::cg_check, 1, {}, 0, curvature_slot, residual_slot);
+        s.run(Kernel::cg_direction, dofs, {{a_binding, &s.z}, {b_binding, &s.p}}, 0, rz_current, rz_next);
+        std::swap(rz_current, rz_next);
+      }
     }
+    s.cg_gate = 0;
+    const double residual_norm = std::sqrt(s.read_scalars(curvature_slot)[1]);
+    cg.relative_residual = residual_norm / b_norm;
+    cg.converged = status == 1;
+    cg.nonfinite = status == 2 || (status == 1 && !std::isfinite(residual_norm));
+    cg.non_positive_curvature = status == 3;
+    if (status == 4 && budget.stop_at > 0 && cg.iterations >= budget.stop_at) cg.stopped_by_budget = true;
     if (cg.nonfinite) return false;
   }
 

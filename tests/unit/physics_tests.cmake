@@ -27,3 +27,8 @@ gtest_discover_tests(test_mass_spring DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "ph
 add_executable(test_mass_spring_fem ${CMAKE_CURRENT_LIST_DIR}/test_mass_spring_fem.cpp)
 target_link_libraries(test_mass_spring_fem PRIVATE incise_physics GTest::gtest_main)
 gtest_discover_tests(test_mass_spring_fem DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
+
+# Dionne's constraint particles (physics/cp, seed 000), with its settings block and the world.
+add_executable(test_constraint_particles ${CMAKE_CURRENT_LIST_DIR}/test_constraint_particles.cpp)
+target_link_libraries(test_constraint_particles PRIVATE incise_engine GTest::gtest_main)
+gtest_discover_tests(test_constraint_particles DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")

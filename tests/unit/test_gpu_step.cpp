@@ -8,10 +8,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <algorithm>
 #include <set>
 #include <span>
 #include <string>
@@ -133,6 +133,45 @@ TEST(GpuStep, ACgStoppedAtThreeIterationsStartsFromTheCpusScaledGuess) {
               reach);
   EXPECT_GT(reach, 1e-4);
   EXPECT_LT(worst, 1e-9 * reach);
+}
+
+// CG's stops are decided on the GPU and the host reads them back only every few iterations:
+// the iterations queued past a stop must leave the iterate alone. Checked after every
+// iteration, every 3 and every 8, the same steps give the bitwise same states and iteration
+// counts, converged (a count no batch divides) and stopped by a recorded stop at 5.
+TEST(GpuStep, CgChecksReadBackEveryFewIterationsGiveTheSameIterate) {
+  for (const int stop_at : {0, 5}) {
+    std::vector<Vector> states;
+    std::vector<std::vector<int>> counts;
+    for (const int every : {1, 3, 8}) {
+      Beam beam(1e-8);
+      beam.settings.cg.budget.stop_at = stop_at;
+      GpuSettings settings;
+      settings.precision = Precision::double_precision;
+      settings.cg_iterations_per_check = every;
+      EfgStep step(beam.model, settings);
+      std::vector<int> iterations;
+      for (int s = 0; s < 4; ++s) {
+        const StepReport report = step.step(beam.model, beam.state, beam.fixed, beam.gravity, {}, beam.settings);
+        ASSERT_TRUE(stop_at > 0 ? report.cg.stopped_by_budget : report.cg.converged) << "every " << every;
+        iterations.push_back(report.cg.iterations);
+      }
+      states.push_back(beam.state.positions);
+      counts.push_back(iterations);
+    }
+    std::printf("[gpu double, stop_at %d] CG iterations per step %d %d %d %d (checked every 1, 3, 8)\n", stop_at,
+                counts[0][0], counts[0][1], counts[0][2], counts[0][3]);
+    if (stop_at == 0)  // a count no batch divides: iterations were queued past the stop
+      EXPECT_TRUE(std::any_of(counts[0].begin(), counts[0].end(), [](int n) { return n % 8 != 0 && n % 3 != 0; }));
+    for (size_t k = 1; k < states.size(); ++k) {
+      EXPECT_EQ(counts[k], counts[0]);
+      EXPECT_EQ((states[k] - states[0]).cwiseAbs().maxCoeff(), 0.0);
+    }
+  }
+  Beam beam(1e-8);
+  GpuSettings settings;
+  settings.cg_iterations_per_check = 0;
+  EXPECT_THROW(EfgStep(beam.model, settings), std::invalid_argument);
 }
 
 // A rigid rotation of 1 rad about a tilted axis, no load, nothing fixed: the corotated forces

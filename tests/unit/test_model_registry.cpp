@@ -102,7 +102,7 @@ std::string error_of(const std::function<void(Json&)>& mutate) {
 }  // namespace
 
 TEST(ModelRegistry, ListsTheBuiltInModelsWithTheirCapabilities) {
-  EXPECT_EQ(models().names(), (std::vector<std::string>{"fem", "efg", "mass_spring"}));
+  EXPECT_EQ(models().names(), (std::vector<std::string>{"fem", "efg", "mass_spring", "constraint_particles", "shape_memory", "spring_network"}));
   const ModelEntry* fem = models().find("fem");
   const ModelEntry* efg = models().find("efg");
   ASSERT_TRUE(fem && efg);
@@ -118,6 +118,12 @@ TEST(ModelRegistry, ListsTheBuiltInModelsWithTheirCapabilities) {
   EXPECT_FALSE(mass_spring->cuttable);
   EXPECT_FALSE(mass_spring->gpu);
   EXPECT_TRUE(mass_spring->read_settings);
+  const ModelEntry* particles = models().find("constraint_particles");
+  ASSERT_TRUE(particles);
+  EXPECT_FALSE(particles->cuttable);
+  EXPECT_FALSE(particles->gpu);
+  EXPECT_TRUE(particles->read_settings);
+  EXPECT_EQ(particles->node_name, "particle");
   EXPECT_EQ(models().names_where(&ModelEntry::cuttable), std::vector<std::string>{"efg"});
   EXPECT_EQ(models().find("tethered"), nullptr);
 }
@@ -148,7 +154,7 @@ TEST(ModelRegistry, RefusesATakenNameAndAModelWithoutBuilder) {
   ModelEntry no_builder = tethered_entry();
   no_builder.build = nullptr;
   EXPECT_THROW(register_model(no_builder), std::invalid_argument);
-  EXPECT_EQ(models().names().size(), 3u);
+  EXPECT_EQ(models().names().size(), 6u);
 }
 
 TEST(ModelRegistry, ARegisteredModelValidatesBuildsAndSteps) {
@@ -177,7 +183,7 @@ TEST(ModelRegistry, ARegisteredModelsScenesAreCheckedThroughItsEntry) {
   TetheredRegistered registered;
   const std::vector<std::pair<std::function<void(Json&)>, std::string>> cases = {
       {[](Json& s) { s["bodies"][0]["cuttable"] = true; }, "bodies[0].cuttable: only 'efg' bodies can be cut"},
-      {[](Json& s) { s["bodies"][0]["model"] = "sph"; }, "bodies[0].model: 'sph' is not one of: fem, efg, mass_spring, tethered"},
+      {[](Json& s) { s["bodies"][0]["model"] = "sph"; }, "bodies[0].model: 'sph' is not one of: fem, efg, mass_spring, constraint_particles, shape_memory, spring_network, tethered"},
       {[](Json& s) { s["bodies"][0]["tethered"]["stiffness"] = -1; }, "bodies[0].tethered.stiffness: -1 must be in (0"},
       {[](Json& s) { s["bodies"][0]["tethered"]["damping"] = 1; }, "bodies[0].tethered.damping: unknown key"},
       {[](Json& s) { s["bodies"][0].erase("tethered"); }, "bodies[0].tethered.stiffness: is required"},

@@ -78,7 +78,7 @@ TEST(Scene, BrokenScenesAreRefusedWithTheFieldNamed) {
       {"unknown top-level key", [](Json& s) { s["solvr"] = Json::object(); }, "solvr: unknown key"},
       {"missing solver", [](Json& s) { s.erase("solver"); }, "solver: is required"},
       {"dt as string", [](Json& s) { s["solver"]["dt"] = "fast"; }, "solver.dt: must be a number, not a string"},
-      {"unknown model", [](Json& s) { s["bodies"][0]["model"] = "sph"; }, "bodies[0].model: 'sph' is not one of: fem, efg, mass_spring"},
+      {"unknown model", [](Json& s) { s["bodies"][0]["model"] = "sph"; }, "bodies[0].model: 'sph' is not one of: fem, efg, mass_spring, constraint_particles, shape_memory, spring_network"},
       {"efg settings on a fem body", [](Json& s) { s["bodies"][0]["efg"] = {{"neighbours", 8}}; },
        "bodies[0].efg: only bodies with model 'efg' take efg settings"},
       {"efg with 6 neighbours", [](Json& s) {

@@ -1,0 +1,131 @@
+// Dionne's constraint particles (physics/cp/constraint_particles.hpp, seed 000): the nodes of the
+// body's tetrahedra are particles held by distance, area and volume constraints, stepped by an
+// explicit integrator (velocity Verlet by default) and the stretch limiter
+// (physics/cp/cp_step.hpp) through BodyModel::own_step, or by the shared implicit Euler. A box
+// generator is split into 5 tets per cube (the thesis's cube), any other shape filled as the fem
+// model fills it (6 per cell, snapped). Its settings block is `constraint_particles`; it cannot
+// be cut and runs on the CPU.
+#include "engine/body_builder.hpp"
+#include "engine/model_registry.hpp"
+#include "engine/models/constraint_particles_settings.hpp"
+#include "physics/core/stopwatch.hpp"
+#include "physics/cp/cp_step.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace incise::engine {
+
+namespace {
+
+physics::TetMesh make_tets(const BodySpec& spec, const BodyShape& shape, physics::SnapReport* snap) {
+  if (spec.generator && spec.generator->type == "box") {
+    std::array<int, 3> cells{};
+    for (int i = 0; i < 3; ++i)
+      cells[i] = std::max(1, static_cast<int>(std::lround((shape.hi[i] - shape.lo[i]) / spec.resolution)));
+    return physics::make_box_tets5(shape.lo, shape.hi, cells);
+  }
+  return fill_with_tets(spec, shape, spec.resolution, snap);
+}
+
+physics::ConstraintParticleSettings particle_settings(const ConstraintParticlesSettings& s, double density) {
+  physics::ConstraintParticleSettings p;
+  p.density = density;
+  p.distance_stiffness = s.distance_stiffness;
+  p.area_stiffness = s.area_stiffness;
+  p.volume_stiffness = s.volume_stiffness;
+  p.area_on_every_face = s.area_on == "every_face";
+  p.damping = s.damping == "constraint" ? physics::ParticleDamping::constraint : physics::ParticleDamping::relative;
+  p.damping_coefficient = s.damping_coefficient;
+  return p;
+}
+
+// The explicit step with the limiter, as the engine's solve stage calls a model's own step.
+physics::OwnStep explicit_step_of(const ConstraintParticlesSettings& s) {
+  physics::CpStepSettings step;
+  step.scheme = *physics::explicit_scheme_from_name(s.integrator);
+  step.limiter.enabled = s.stretch_stiffness > 0;
+  step.limiter.stiffness = s.stretch_stiffness;
+  step.limiter.alpha = s.stretch_alpha;
+  step.limiter.iterations = s.stretch_iterations;
+  step.floor_z = s.floor_z;
+  return [step](physics::DeformableModel& mechanics, physics::State& state, const std::vector<std::uint8_t>& fixed,
+                const physics::Vector& external, const std::vector<physics::NodalSpring>& springs,
+                const physics::ImplicitEulerSettings& given, double /*start_time*/) {
+    auto& particles = dynamic_cast<physics::ConstraintParticles&>(mechanics);
+    physics::CpStepSettings settings = step;
+    settings.dt = given.dt;
+    settings.rayleigh_mass = given.rayleigh_mass;
+    physics::Vector forces = external;
+    for (const physics::NodalSpring& spring : springs) forces.segment<3>(3 * spring.node) += spring.force;
+    const physics::CpStepReport cp =
+        physics::constraint_particles_step(particles, state, fixed, forces, settings, particles.verlet_history());
+    physics::StepReport report;
+    report.nonfinite = cp.nonfinite;
+    report.cg.converged = true;  // no linear solve
+    report.elastic_energy = cp.integrator.elastic_energy;
+    report.kinetic_energy = physics::kinetic_energy(particles.lumped_masses(), state.velocities);
+    return report;
+  };
+}
+
+void make_surface(physics::BodyModel& model, physics::BodyData& body, int n) {
+  std::vector<int> surface_index(n, -1);
+  for (const auto& t : body.surface)
+    for (int v : t) surface_index[v] = 0;
+  for (int i = 0; i < n; ++i)
+    if (surface_index[i] == 0) {
+      surface_index[i] = static_cast<int>(model.surface_nodes.size());
+      model.surface_nodes.push_back(i);
+    }
+  body.render_triangles.reserve(body.surface.size() * 3);
+  for (const auto& t : body.surface)
+    for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(surface_index[v]));
+}
+
+Body build_constraint_particles_body(const BodySpec& spec, const SolverSpec& solver, const BodyShape& shape) {
+  Body result;
+  auto model = body_model(spec, solver);
+  model->rest_lo = shape.lo;
+  model->rest_hi = shape.hi;
+  physics::BodyData& body = result.data;
+  const std::string where = "body '" + spec.name + "'";
+  const auto settings = std::any_cast<ConstraintParticlesSettings>(spec.settings);
+  physics::TetMesh mesh;
+  try {
+    physics::Stopwatch watch;
+    mesh = make_tets(spec, shape, &model->snap);
+    body.mechanics = std::make_unique<physics::ConstraintParticles>(mesh, particle_settings(settings, spec.material.density));
+    result.build_ms.volume = watch.ms();
+  } catch (const std::exception& e) {
+    throw std::runtime_error(where + ": " + e.what());
+  }
+  model->elements = mesh.tets.size();
+  if (settings.integrator != "implicit_euler") model->own_step = explicit_step_of(settings);
+  body.surface = physics::boundary_triangles(mesh.tets);
+  make_surface(*model, body, body.mechanics->node_count());
+  start_at_rest(body);
+  fix_nodes(body, spec, body.mechanics->rest_positions());
+  body.gravity = physics::gravity_forces(body.mechanics->lumped_masses(), model->gravity);
+  if (solver.start == "settled")
+    throw std::runtime_error(where + ": solver.start 'settled' is not offered for constraint_particles (no static solve)");
+  result.model = std::move(model);
+  return result;
+}
+
+}  // namespace
+
+void register_constraint_particles_model(ModelRegistry& registry) {
+  registry.add({.name = "constraint_particles",
+                .summary = "Dionne's particles held by distance, area and volume constraints, explicit + stretch limiter",
+                .cuttable = false,
+                .gpu = false,
+                .node_name = "particle",
+                .read_settings = read_constraint_particles_settings,
+                .build = build_constraint_particles_body});
+}
+
+}  // namespace incise::engine

@@ -1,0 +1,12 @@
+# Promayon's discrete models (physics/promayon, seed 002): shape memory, spring network, exact
+# volume projection, the seed's step, the stiffness calibration; and their scenes through the
+# engine (test_promayon_scenes).
+add_executable(test_promayon ${CMAKE_CURRENT_LIST_DIR}/test_shape_memory.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_promayon_compression.cpp)
+target_link_libraries(test_promayon PRIVATE incise_physics GTest::gtest_main)
+gtest_discover_tests(test_promayon DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
+
+add_executable(test_promayon_scenes ${CMAKE_CURRENT_LIST_DIR}/test_promayon_scenes.cpp)
+target_link_libraries(test_promayon_scenes PRIVATE incise_engine GTest::gtest_main)
+target_compile_definitions(test_promayon_scenes PRIVATE INCISE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+gtest_discover_tests(test_promayon_scenes DISCOVERY_TIMEOUT 60)
