@@ -55,7 +55,10 @@
 // geometry cut: with the front mid-cell, between particle rows at z = +-a, nb8_cutter's
 // stretch_cut tip moves by +69 % at a = 5 mm and +21 % at 2 mm); fem tet4 (the
 // corotational real-time baseline) and tet10 (the coarser reference meshes; timed with their
-// assembled linear stiffness and HRZ-lumped masses, as no dynamic tet10 model exists).
+// assembled linear stiffness and HRZ-lumped masses, as no dynamic tet10 model exists);
+// mass_spring and mass_spring_uncorrected (Baudet's bricks with and without their correction
+// forces) on the uncut cases, and the `traction` case of the spring networks' measured E and nu
+// with Van Gelder's springs beside (bench/accuracy_mass_spring.hpp).
 //
 // Equilibrium: each model's linear static solution (sparse direct solve of its stiffness at
 // rest), i.e. the small-strain problem the reference solves. ms_per_step: the mean wall time
@@ -63,6 +66,7 @@
 // with the scene-like CG (tolerance 1e-6, Jacobi preconditioner, at most 2000 iterations);
 // cg_iterations is their mean iteration count.
 #include "bench/accuracy.hpp"
+#include "bench/accuracy_mass_spring.hpp"
 #include "bench/bench_page.hpp"
 #include "bench/plot.hpp"
 
@@ -88,6 +92,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -705,6 +710,8 @@ struct Row {
   double ms_per_step = 0, cg_iterations = 0, error_pct = 0;
   bool converged = true;
   Vec3 tip = Vec3::Zero();  // the mean tip displacement (printed, not in the CSV)
+  double measured_E = std::numeric_limits<double>::quiet_NaN();  // the traction case only
+  double measured_nu = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct Reference {
@@ -719,6 +726,14 @@ struct Reference {
   std::vector<Level> levels;
 };
 
+Row from_mass_spring(const MassSpringRow& r) {
+  Row row{r.case_name, r.model, r.variant, r.resolution, r.dofs, r.elements, r.ms_per_step, r.cg_iterations,
+          r.error_pct, r.converged, r.tip};
+  row.measured_E = r.measured_E;
+  row.measured_nu = r.measured_nu;
+  return row;
+}
+
 // This report's figures: 4 significant digits unless a caller asks for others.
 std::string format(double value, int digits = 4) { return common::significant(value, digits); }
 
@@ -730,10 +745,12 @@ std::string json_vector(const Vec3& v) {
 
 void write_csv(const std::filesystem::path& path, const std::vector<Row>& rows) {
   common::CsvWriter csv(path, {"case", "model", "variant", "resolution", "dofs", "elements", "ms_per_step",
-                               "cg_iterations", "error_pct"});
+                               "cg_iterations", "error_pct", "measured_E", "measured_nu"});
+  const auto optional = [](double value, int digits) { return std::isnan(value) ? std::string() : format(value, digits); };
   for (const Row& row : rows) {
     csv.row(row.case_name, row.model, row.variant, row.resolution, row.dofs, row.elements,
-            common::fixed(row.ms_per_step, 3), common::fixed(row.cg_iterations, 1), common::fixed(row.error_pct, 4));
+            common::fixed(row.ms_per_step, 3), common::fixed(row.cg_iterations, 1), common::fixed(row.error_pct, 4),
+            optional(row.measured_E, 8), optional(row.measured_nu, 8));
   }
 }
 
@@ -867,6 +884,8 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
         {"novolume", 8, false, defaults.support_factor, true, defaults.samples_per_axis},
         {"nb8_support3", 8, true, 3.0, true, defaults.samples_per_axis},
         {"nb8_thesis", 8, true, 3.0, false, 4}};
+    // The mass-spring (uncut bodies only: it cannot be cut): bricks across the beam's y extent.
+    const std::vector<int> mass_spring_across = quick ? std::vector<int>{2, 4, 6} : std::vector<int>{2, 4, 6, 8};
     // The cut cases also run these with the cutter (suffix `_cutter`).
     const std::vector<std::string> cutter_variants{"nb8", "nb4", "novolume"};
 
@@ -891,14 +910,20 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
       const bool hexagon = body.shape == Shape::hexagon;
       total += static_cast<int>((body.cut ? crack_levels : hexagon ? hexagon_levels : square_levels).size() +
                                 (hexagon ? hexagon_linear : square_linear).size() +
-                                efg_cells.size() * (efg_variants.size() + (body.cut ? cutter_variants.size() : 0)));
+                                efg_cells.size() * (efg_variants.size() + (body.cut ? cutter_variants.size() : 0)) +
+                                (body.cut ? 0 : mass_spring_beam_runs(mass_spring_across)));
     }
+    total += traction_runs();
     common::ProgressBar progress(progress_stream, total);
     progress.note(std::string("incise bench accuracy") + (quick ? " --quick" : "") + ": " +
                   std::to_string(cases.size()) + " cases, output in " + out_dir.string());
 
     std::vector<Row> rows;
     std::map<std::string, Reference> references;
+    const TimeSteps timer = [timed_steps](DeformableModel& model, const std::vector<uint8_t>& fixed, const Vector& load) {
+      const Timing timing = time_steps(model, fixed, load, timed_steps);
+      return StepTiming{timing.ms_per_step, timing.cg_iterations, timing.converged};
+    };
     // What the cutter did, per variant and resolution ("nb8_cutter a2mm").
     std::map<std::string, physics::VolumeCutReport> cut_reports;
     const auto relative_error_pct = [](const Vec3& tip, const Vec3& reference) {
@@ -1106,9 +1131,20 @@ int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::os
           progress.step(body_name + " efg " + variant_name + " " + resolution);
         }
       }
+      if (!body.cut) {
+        MassSpringBeam beam{[shape = body.shape](const Vec3& p) { return inside_shape(shape, p); },
+                            box_min(body.shape), box_max(body.shape), !hexagon,
+                            beam_material.youngs_modulus, beam_material.poisson_ratio, beam_material.density};
+        std::vector<MassSpringCase> spring_cases;
+        for (const Case& c : body.cases) spring_cases.push_back({c.name, c.acceleration, references[c.name].tip});
+        for (const MassSpringRow& r : mass_spring_beam_rows(beam, spring_cases, mass_spring_across, timer, progress)) {
+          rows.push_back(from_mass_spring(r));
+        }
+      }
       const std::chrono::duration<double> body_time = Clock::now() - body_start;
       progress.note("  " + body_name + " body done in " + format(body_time.count(), 3) + " s");
     }
+    for (const MassSpringRow& r : traction_rows(timer, progress)) rows.push_back(from_mass_spring(r));
     progress.finish();
 
     // Rows in case order, then model, variant and size.

@@ -36,7 +36,11 @@
 //
 // Models: `fem`, CorotationalTetFem (beam 10 x 2 x 2 cells, cube 4 x 4 x 4 cells, 6 tets per
 // cell) with implicit Euler and the five explicit integrators; `efg`, CorotationalEfg (grid
-// spacing a = 5 mm, particles 10 mm apart) with implicit Euler. Damping: Rayleigh mass
+// spacing a = 5 mm, particles 10 mm apart) with implicit Euler; `mass_spring`, Baudet's
+// HexMassSpring (cubic bricks: beam 20 x 2 x 2, cube 4 x 4 x 4; critical dashpots, no
+// corrections) with implicit Euler and the five explicit integrators, an explicit run whose dt
+// is beyond its bound 2 sqrt(m_min / k_node_max) counted as `refused` (as is a body whose bricks
+// the formulas give a non-positive stiffness; the cubic bricks never do). Damping: Rayleigh mass
 // damping alpha = 1/s for every integrator; implicit Euler's CG: tolerance 1e-6, at most 1000
 // iterations, warm started from the previous step's velocity change, as in the engine.
 //
@@ -69,6 +73,8 @@
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/fem/corotational_fem.hpp"
 #include "physics/fem/tet_mesh.hpp"
+#include "physics/mss/hex_mass_spring.hpp"
+#include "physics/mss/hex_mesh.hpp"
 
 #include <Eigen/LU>
 
@@ -137,9 +143,9 @@ constexpr double fast_blade_top = 0.06;
 constexpr double thin_slice_front = 0.0115;
 constexpr std::array<double, 2> thin_slice_cuts{0.034, 0.011};  // one element on top, two below
 
-enum class Outcome { stable, diverged, nonfinite, cg_not_converged };
-constexpr std::array<Outcome, 4> all_outcomes{Outcome::stable, Outcome::diverged,
-                                              Outcome::nonfinite, Outcome::cg_not_converged};
+enum class Outcome { stable, diverged, nonfinite, cg_not_converged, refused };
+constexpr std::array<Outcome, 5> all_outcomes{Outcome::stable, Outcome::diverged, Outcome::nonfinite,
+                                              Outcome::cg_not_converged, Outcome::refused};
 
 const char* outcome_name(Outcome outcome) {
   switch (outcome) {
@@ -147,6 +153,7 @@ const char* outcome_name(Outcome outcome) {
     case Outcome::diverged: return "diverged";
     case Outcome::nonfinite: return "nonfinite";
     case Outcome::cg_not_converged: return "cg_not_converged";
+    case Outcome::refused: return "refused";
   }
   return "unknown";
 }
@@ -158,6 +165,7 @@ int outcome_colour(Outcome outcome) {
     case Outcome::diverged: return 0xd62728;
     case Outcome::nonfinite: return 0x222222;
     case Outcome::cg_not_converged: return 0xf0b400;
+    case Outcome::refused: return 0x9e9e9e;
   }
   return 0xffffff;
 }
@@ -238,7 +246,7 @@ Sweep make_sweep(bool quick) {
 // The models this bench sets up bodies for (make_body, below the engine's builder: the cases
 // need the bare DeformableModel), with the integrators each offers.
 const std::set<std::string>& bench_models() {
-  static const std::set<std::string> names{"fem", "efg"};
+  static const std::set<std::string> names{"fem", "efg", "mass_spring"};
   return names;
 }
 
@@ -258,8 +266,9 @@ std::vector<ModelKind> model_kinds(std::vector<std::string>* left_out = nullptr)
       continue;
     }
     // The EFG model offers implicit Euler only (issue 7: explicit integrators "where a model
-    // offers them"); any DeformableModel would take the explicit steps as well.
-    kinds.push_back({name, name == "fem" ? fem : std::vector<Integrator>{{"implicit_euler", true}}});
+    // offers them"); any DeformableModel would take the explicit steps as well. The mass-spring
+    // takes them all, up to its explicit bound (beyond it the run is refused).
+    kinds.push_back({name, name != "efg" ? fem : std::vector<Integrator>{{"implicit_euler", true}}});
   }
   return kinds;
 }
@@ -472,10 +481,54 @@ Body make_efg_body(const std::string& case_name, const Material& material,
   return body;
 }
 
+// Hexahedra inverted at x: a corner whose three edges (oriented along +x, +y, +z of the local
+// order, hex_mesh.hpp) have a non-positive triple product.
+int count_inverted_hexes(const std::vector<std::array<int, 8>>& hexes, const Vector& x) {
+  int inverted = 0;
+  for (const auto& hex : hexes) {
+    bool bad = false;
+    for (int a = 0; a < 8 && !bad; ++a) {
+      const bool plus_x = a == 1 || a == 2 || a == 5 || a == 6, plus_y = (a & 3) >= 2, plus_z = a >= 4;
+      const Vec3 p = x.segment<3>(3 * hex[a]);
+      const Vec3 ex = (plus_x ? -1.0 : 1.0) * (Vec3(x.segment<3>(3 * hex[a ^ 1])) - p);
+      const Vec3 ey = (plus_y ? -1.0 : 1.0) * (Vec3(x.segment<3>(3 * hex[a ^ 3])) - p);
+      const Vec3 ez = (plus_z ? -1.0 : 1.0) * (Vec3(x.segment<3>(3 * hex[a ^ 4])) - p);
+      bad = ex.cross(ey).dot(ez) <= 0;
+    }
+    inverted += bad ? 1 : 0;
+  }
+  return inverted;
+}
+
+// Baudet's mass-spring (physics/mss): cubic bricks, the beam 20 x 2 x 2 (the fem's 10 x 2 x 2
+// cells are 2:1 bricks, whose edge stiffness is negative at every nu: refused), the cube
+// 4 x 4 x 4; its default dashpots (critical) and no corrections. Throws std::invalid_argument
+// when the formulas give a brick a non-positive stiffness (counted as refused by the sweep).
+Body make_mass_spring_body(const std::string& case_name, const Material& material) {
+  const std::array<int, 3> cells = is_beam(case_name) ? std::array<int, 3>{20, 2, 2} : std::array<int, 3>{4, 4, 4};
+  const physics::HexMesh mesh = physics::make_box_hexes(case_min(case_name), case_max(case_name), cells);
+  auto model = std::make_unique<physics::HexMassSpring>(
+      mesh, physics::MassSpringMaterial{material.youngs_modulus, material.poisson_ratio, material.density});
+  Body body;
+  Vector positions = mesh.rest;
+  if (case_name == "compression_release") squeeze_heights(positions);
+  if (case_name == "inverted_start") {
+    // As the EFG's particles: each flipped node two node layers down, through the layer below.
+    for (int node : nodes_to_flip(mesh.rest)) positions[3 * node + 2] -= 2 * cube_side / cells[2];
+    body.count_inverted = [hexes = mesh.hexes](const Vector& x) { return count_inverted_hexes(hexes, x); };
+    body.inverted = body.count_inverted(positions);
+  }
+  body.initial.positions = positions;
+  body.model = std::move(model);
+  finish_body(body, case_name);
+  return body;
+}
+
 Body make_body(const std::string& model_name, const std::string& case_name,
                const Material& material) {
   if (model_name == "fem") return make_fem_body(case_name, material);
   if (model_name == "efg") return make_efg_body(case_name, material);
+  if (model_name == "mass_spring") return make_mass_spring_body(case_name, material);
   throw std::invalid_argument("stability bench: unknown model " + model_name);
 }
 
@@ -518,6 +571,12 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
   run.max_energy_ratio = initial_energy / reference_energy;
 
   const int steps = std::max(1, static_cast<int>(std::lround(duration / dt)));
+  // A model that knows its explicit bound (the mass-spring's) refuses a step beyond it
+  // (explicit_step throws): the run is counted as refused, not taken.
+  if (!integrator.implicit && dt > model.explicit_step_limit()) {
+    run.outcome = Outcome::refused;
+    return run;
+  }
   int capped_steps = 0;
   Vector before_last_solve = state.positions;
   physics::VolumeCutReport cuts;
@@ -895,8 +954,8 @@ std::string plot_script(const std::string& png, bool quick, const Sweep& sweep, 
 std::string counts_table(const std::vector<ModelKind>& kinds, const std::vector<Run>& runs) {
   std::ostringstream table;
   char line[160];
-  std::snprintf(line, sizeof line, "%-24s %8s %9s %10s %17s\n", "model/integrator", "stable",
-                "diverged", "nonfinite", "cg_not_converged");
+  std::snprintf(line, sizeof line, "%-30s %8s %9s %10s %17s %8s\n", "model/integrator", "stable",
+                "diverged", "nonfinite", "cg_not_converged", "refused");
   table << line;
   for (const ModelKind& kind : kinds) {
     for (const Integrator& integrator : kind.integrators) {
@@ -905,9 +964,9 @@ std::string counts_table(const std::vector<ModelKind>& kinds, const std::vector<
         if (run.model == kind.name && run.integrator == integrator.name) ++counts[run.outcome];
       }
       const std::string name = kind.name + "/" + integrator.name;
-      std::snprintf(line, sizeof line, "%-24s %8d %9d %10d %17d\n", name.c_str(),
+      std::snprintf(line, sizeof line, "%-30s %8d %9d %10d %17d %8d\n", name.c_str(),
                     counts[Outcome::stable], counts[Outcome::diverged], counts[Outcome::nonfinite],
-                    counts[Outcome::cg_not_converged]);
+                    counts[Outcome::cg_not_converged], counts[Outcome::refused]);
       table << line;
     }
   }
@@ -957,7 +1016,10 @@ std::string bounds_text(const Sweep& sweep) {
        << " s (cubes) of simulated time, stopped at the first divergence; Rayleigh mass damping "
        << format(rayleigh_mass) << "/s; gravity 9.81 m/s^2 along -z; rho " << format(density)
        << " kg/m^3.\n"
-       << "fast_blade and thin_slice cut, which only the efg model does: fem is not run on them.\n";
+       << "refused = the model refused the run: an explicit dt beyond its stability bound (the "
+          "mass-spring's 2 sqrt(m_min / k_node_max)), or a brick its formulas give a non-positive "
+          "stiffness.\n"
+       << "fast_blade and thin_slice cut, which only the efg model does: the others are not run on them.\n";
   return text.str();
 }
 
@@ -1040,7 +1102,25 @@ int run_stability_bench(const StabilityOptions& options, const std::filesystem::
                 }
               continue;
             }
-            Body body = make_body(kind.name, case_name, material);
+            Body body;
+            try {
+              body = make_body(kind.name, case_name, material);
+            } catch (const std::invalid_argument& refusal) {
+              // The model refused the set-up (a mass-spring brick with a non-positive stiffness):
+              // each of its runs is counted as refused, and the sweep goes on.
+              if (first_material) set_up_notes.push_back(kind.name + " " + case_name + ": refused: " + refusal.what());
+              for (const Integrator& integrator : kind.integrators)
+                for (double dt : sweep.time_steps) {
+                  Run run;
+                  run.model = kind.name, run.integrator = integrator.name, run.case_name = case_name;
+                  run.youngs_modulus = youngs_modulus, run.poisson_ratio = poisson_ratio, run.dt = dt;
+                  run.outcome = Outcome::refused;
+                  write_row(csv, run);
+                  runs.push_back(std::move(run));
+                  progress.advance();
+                }
+              continue;
+            }
             if (first_material) {
               set_up_notes.push_back(kind.name + " " + case_name + ": " +
                                      std::to_string(body.model->node_count()) + " nodes" +

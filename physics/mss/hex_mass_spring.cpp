@@ -157,21 +157,28 @@ Vec3 HexMassSpring::axial_loads(const Vector& x, std::size_t e) const {
   return load_from_springs_[e] * loads;
 }
 
+Eigen::Matrix<double, 24, 1> HexMassSpring::brick_correction_forces(const Vector& x, std::size_t e) const {
+  Eigen::Matrix<double, 24, 1> f = Eigen::Matrix<double, 24, 1>::Zero();
+  const auto& hex = hexes_[e];
+  const Vec3 loads = axial_loads(x, e);
+  for (int j = 0; j < 3; ++j) {
+    double along_j = 0;  // 2 sum_i F_ij on every node, outward along j
+    for (int i = 0; i < 3; ++i)
+      if (i != j) along_j += 2 * bricks_[e].correction(i, j) * loads[i];
+    // Local node a's neighbour along x, y, z is a ^ 1, a ^ 3, a ^ 4 (hex_mesh.hpp's order).
+    static constexpr int kFlip[3] = {1, 3, 4};
+    for (int a = 0; a < 8; ++a) {
+      const Vec3 outward = (at(x, hex[a]) - at(x, hex[a ^ kFlip[j]])).normalized();
+      f.segment<3>(3 * a) += along_j * outward;
+    }
+  }
+  return f;
+}
+
 void HexMassSpring::add_correction_forces(const Vector& x, Vector& f) const {
   for (std::size_t e = 0; e < hexes_.size(); ++e) {
-    const auto& hex = hexes_[e];
-    const Vec3 loads = axial_loads(x, e);
-    for (int j = 0; j < 3; ++j) {
-      double along_j = 0;  // 2 sum_i F_ij on every node, outward along j
-      for (int i = 0; i < 3; ++i)
-        if (i != j) along_j += 2 * bricks_[e].correction(i, j) * loads[i];
-      // Local node a's neighbour along x, y, z is a ^ 1, a ^ 3, a ^ 4 (hex_mesh.hpp's order).
-      static constexpr int kFlip[3] = {1, 3, 4};
-      for (int a = 0; a < 8; ++a) {
-        const Vec3 outward = (at(x, hex[a]) - at(x, hex[a ^ kFlip[j]])).normalized();
-        f.segment<3>(3 * static_cast<Index>(hex[a])) += along_j * outward;
-      }
-    }
+    const Eigen::Matrix<double, 24, 1> brick = brick_correction_forces(x, e);
+    for (int a = 0; a < 8; ++a) f.segment<3>(3 * static_cast<Index>(hexes_[e][a])) += brick.segment<3>(3 * a);
   }
 }
 
@@ -181,6 +188,21 @@ void HexMassSpring::add_stiffness_product(const Vector& p, Vector& out) const {
     const Vec3 product = tangent_[s] * (p.segment<3>(a) - p.segment<3>(b));
     out.segment<3>(a) += product;
     out.segment<3>(b) -= product;
+  }
+}
+
+void HexMassSpring::add_stiffness_triplets(std::vector<Eigen::Triplet<double>>& out) const {
+  out.reserve(out.size() + 36 * springs_.size());
+  for (std::size_t s = 0; s < springs_.size(); ++s) {
+    const Index a = 3 * static_cast<Index>(springs_[s].a), b = 3 * static_cast<Index>(springs_[s].b);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) {
+        const double k = tangent_[s](r, c);
+        out.emplace_back(a + r, a + c, k);
+        out.emplace_back(b + r, b + c, k);
+        out.emplace_back(a + r, b + c, -k);
+        out.emplace_back(b + r, a + c, -k);
+      }
   }
 }
 

@@ -14,6 +14,8 @@
 #include "physics/mss/baudet_stiffness.hpp"
 #include "physics/mss/hex_mesh.hpp"
 
+#include <Eigen/SparseCore>
+
 #include <memory>
 #include <vector>
 
@@ -71,9 +73,16 @@ class HexMassSpring final : public DeformableModel {
   // when the material asks for them; they are explicit in the implicit step (not in K), and
   // conserve momentum (each edge's two nodes get opposite forces).
   void add_correction_forces(const Vector& x, Vector& f) const;
+  // Brick e's share of them, on its 8 nodes in the local order (24 values).
+  Eigen::Matrix<double, 24, 1> brick_correction_forces(const Vector& x, std::size_t e) const;
   // Brick e's axial loads F_x, F_y, F_z at x (tension positive), N.
   Vec3 axial_loads(const Vector& x, std::size_t e) const;
 
+  // K (the springs' tangent frozen by update_rotations, as add_stiffness_product applies it) as
+  // triplets of the 3n x 3n matrix, for a sparse direct solve (mss_static.hpp).
+  void add_stiffness_triplets(std::vector<Eigen::Triplet<double>>& out) const;
+
+  bool corrections() const { return corrections_; }
   const std::vector<Spring>& springs() const { return springs_; }
   const std::vector<std::array<int, 8>>& hexes() const { return hexes_; }
   // Per node, the summed stiffness of the springs that meet there, N/m.

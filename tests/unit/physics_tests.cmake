@@ -22,6 +22,12 @@ add_executable(test_mass_spring ${CMAKE_CURRENT_LIST_DIR}/test_mass_spring.cpp)
 target_link_libraries(test_mass_spring PRIVATE incise_physics GTest::gtest_main)
 gtest_discover_tests(test_mass_spring DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
 
+# Baudet's mass-spring against the 10-node FEM (D6 elongation, D8 bending) and Van Gelder's
+# springs as the negative control (D9), digest seed-000-003.md part D.
+add_executable(test_mass_spring_fem ${CMAKE_CURRENT_LIST_DIR}/test_mass_spring_fem.cpp)
+target_link_libraries(test_mass_spring_fem PRIVATE incise_physics GTest::gtest_main)
+gtest_discover_tests(test_mass_spring_fem DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
+
 # Dionne's constraint particles (physics/cp, seed 000), with its settings block and the world.
 add_executable(test_constraint_particles ${CMAKE_CURRENT_LIST_DIR}/test_constraint_particles.cpp)
 target_link_libraries(test_constraint_particles PRIVATE incise_engine GTest::gtest_main)
