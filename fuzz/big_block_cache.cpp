@@ -1,14 +1,15 @@
 // The mesh target's operator new: assimp's OBJ reader allocates two 16 MiB buffers per file and
 // fills them; under ASan each is a fresh mapping, and on this VM the page faults took about
 // 100 ms per input (55 executions a second). Here blocks of at least 1 MiB are kept after
-// delete and handed out again to a request that fits. Each sits between poisoned guards, so a
-// read or write past either end still reports (as ASan's redzones would), and a cached block
-// is poisoned, so a use after delete reports too. Everything smaller, and every aligned new,
-// is ASan's as before (malloc and free underneath, so the two never mix).
+// delete and handed out again, zeroed, to a request that fits. Each sits between poisoned
+// guards, so a read or write past either end of it still reports (as ASan's redzones would),
+// and a cached block is poisoned, so a use after delete reports too. Everything smaller, and
+// every aligned new, is ASan's as before (malloc and free underneath, so the two never mix).
 #include <sanitizer/asan_interface.h>
 
 #include <cstddef>
 #include <cstdlib>
+#include <cstring>
 #include <mutex>
 #include <new>
 
@@ -36,6 +37,10 @@ void* allocate(std::size_t size) {
       if (block.in_use || block.capacity < size || block.capacity > 2 * size) continue;
       block.in_use = true;
       ASAN_UNPOISON_MEMORY_REGION(block.base + kGuard, size);
+      // Zeros, as a fresh mapping reads: the last input's bytes left in a reused buffer let
+      // assimp (not instrumented) parse past its data, and the run ended in an ASan internal
+      // check (a chunk header overwritten) that no input reproduced alone.
+      std::memset(block.base + kGuard, 0, size);
       return block.base + kGuard;
     }
     if (empty) {
