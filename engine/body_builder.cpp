@@ -184,6 +184,37 @@ void fix_nodes(physics::BodyData& body, const BodySpec& spec, const physics::Vec
   }
 }
 
+physics::HexMesh hex_cells(const BodySpec& spec, const BodyShape& shape, const std::string& cell) {
+  if (spec.generator && spec.generator->type == "box") {
+    std::array<int, 3> cells{};
+    for (int i = 0; i < 3; ++i)
+      cells[i] = std::max(1, static_cast<int>(std::lround((shape.hi[i] - shape.lo[i]) / spec.resolution)));
+    return physics::make_box_hexes(shape.lo, shape.hi, cells);
+  }
+  physics::HexMesh mesh = physics::make_hexes_inside(shape.inside, shape.lo, shape.hi, spec.resolution);
+  if (mesh.hexes.empty()) {
+    std::ostringstream out;
+    out << "no " << cell << " of side " << spec.resolution
+        << " m has its centre inside the shape (a finer resolution fills it)";
+    throw std::runtime_error(out.str());
+  }
+  return mesh;
+}
+
+void index_surface(physics::BodyModel& model, physics::BodyData& body, int node_count) {
+  std::vector<int> surface_index(static_cast<std::size_t>(node_count), -1);
+  for (const auto& t : body.surface)
+    for (int v : t) surface_index[static_cast<std::size_t>(v)] = 0;
+  for (int i = 0; i < node_count; ++i)
+    if (surface_index[static_cast<std::size_t>(i)] == 0) {
+      surface_index[static_cast<std::size_t>(i)] = static_cast<int>(model.surface_nodes.size());
+      model.surface_nodes.push_back(i);
+    }
+  body.render_triangles.reserve(body.surface.size() * 3);
+  for (const auto& t : body.surface)
+    for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(surface_index[static_cast<std::size_t>(v)]));
+}
+
 std::shared_ptr<physics::BodyModel> body_model(const BodySpec& spec, const SolverSpec& solver) {
   auto model = std::make_shared<physics::BodyModel>();
   model->name = spec.name;

@@ -10,6 +10,7 @@
 #include "engine/scene.hpp"
 #include "physics/fem/surface_snap.hpp"
 #include "physics/fem/tet_mesh.hpp"
+#include "physics/mss/hex_mesh.hpp"
 
 #include <functional>
 #include <memory>
@@ -37,6 +38,13 @@ TriangleSoup boundary_surface(const physics::TetMesh& tets);
 // (reported in `snap`).
 physics::TetMesh fill_with_tets(const BodySpec& spec, const BodyShape& shape, double resolution,
                                 physics::SnapReport* snap);
+// The cells of a hexahedral model (mass_spring, Promayon's lattices): a box generator's box cut
+// into cells of about `resolution`, anything else voxelised (the cells whose centre is inside);
+// a shape no cell's centre is inside is refused, naming the cell (`brick`, `lattice cell`).
+physics::HexMesh hex_cells(const BodySpec& spec, const BodyShape& shape, const std::string& cell);
+// From body.surface (triangles over node indices, `node_count` nodes): the model's surface nodes
+// in increasing order and the body's render triangles indexed into them.
+void index_surface(physics::BodyModel& model, physics::BodyData& body, int node_count);
 // The read-only part every body has: name, kind (the model's name), integrator, gravity.
 std::shared_ptr<physics::BodyModel> body_model(const BodySpec& spec, const SolverSpec& solver);
 // Positions at rest, velocities and the velocity change zero.

@@ -23,7 +23,7 @@ Body no_build(const BodySpec&, const SolverSpec&, const BodyShape&) {
 }  // namespace
 
 void register_fuzz_models(ModelRegistry& registry) {
-  registry.add({.name = "fem", .summary = "corotational linear tetrahedra", .build = no_build});
+  registry.add({.name = "fem", .summary = "corotational linear tetrahedra", .read_settings = nullptr, .build = no_build});
   registry.add({.name = "efg",
                 .summary = "meshless corotational element-free Galerkin",
                 .cuttable = true,

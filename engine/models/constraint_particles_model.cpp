@@ -72,20 +72,6 @@ physics::OwnStep explicit_step_of(const ConstraintParticlesSettings& s) {
   };
 }
 
-void make_surface(physics::BodyModel& model, physics::BodyData& body, int n) {
-  std::vector<int> surface_index(n, -1);
-  for (const auto& t : body.surface)
-    for (int v : t) surface_index[v] = 0;
-  for (int i = 0; i < n; ++i)
-    if (surface_index[i] == 0) {
-      surface_index[i] = static_cast<int>(model.surface_nodes.size());
-      model.surface_nodes.push_back(i);
-    }
-  body.render_triangles.reserve(body.surface.size() * 3);
-  for (const auto& t : body.surface)
-    for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(surface_index[v]));
-}
-
 Body build_constraint_particles_body(const BodySpec& spec, const SolverSpec& solver, const BodyShape& shape) {
   Body result;
   auto model = body_model(spec, solver);
@@ -106,7 +92,7 @@ Body build_constraint_particles_body(const BodySpec& spec, const SolverSpec& sol
   model->elements = mesh.tets.size();
   if (settings.integrator != "implicit_euler") model->own_step = explicit_step_of(settings);
   body.surface = physics::boundary_triangles(mesh.tets);
-  make_surface(*model, body, body.mechanics->node_count());
+  index_surface(*model, body, body.mechanics->node_count());
   start_at_rest(body);
   fix_nodes(body, spec, body.mechanics->rest_positions());
   body.gravity = physics::gravity_forces(body.mechanics->lumped_masses(), model->gravity);

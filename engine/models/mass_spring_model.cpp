@@ -20,22 +20,6 @@ namespace incise::engine {
 
 namespace {
 
-physics::HexMesh make_hexes(const BodySpec& spec, const BodyShape& shape) {
-  if (spec.generator && spec.generator->type == "box") {
-    std::array<int, 3> cells{};
-    for (int i = 0; i < 3; ++i)
-      cells[i] = std::max(1, static_cast<int>(std::lround((shape.hi[i] - shape.lo[i]) / spec.resolution)));
-    return physics::make_box_hexes(shape.lo, shape.hi, cells);
-  }
-  physics::HexMesh mesh = physics::make_hexes_inside(shape.inside, shape.lo, shape.hi, spec.resolution);
-  if (mesh.hexes.empty()) {
-    std::ostringstream out;
-    out << "no brick of side " << spec.resolution << " m has its centre inside the shape (a finer resolution fills it)";
-    throw std::runtime_error(out.str());
-  }
-  return mesh;
-}
-
 // Static equilibrium under gravity with the rest-shape stiffness (small strain), by CG.
 physics::Vector settle(physics::DeformableModel& model, const physics::BodyData& body) {
   if (std::none_of(body.fixed.begin(), body.fixed.end(), [](std::uint8_t f) { return f != 0; }))
@@ -57,22 +41,6 @@ physics::Vector settle(physics::DeformableModel& model, const physics::BodyData&
   return displacement;
 }
 
-void make_surface(physics::BodyModel& model, physics::BodyData& body, const physics::HexMesh& mesh) {
-  body.surface = physics::hex_boundary_triangles(mesh.hexes);
-  const int n = static_cast<int>(mesh.rest.size() / 3);
-  std::vector<int> surface_index(n, -1);
-  for (const auto& t : body.surface)
-    for (int v : t) surface_index[v] = 0;
-  for (int i = 0; i < n; ++i)
-    if (surface_index[i] == 0) {
-      surface_index[i] = static_cast<int>(model.surface_nodes.size());
-      model.surface_nodes.push_back(i);
-    }
-  body.render_triangles.reserve(body.surface.size() * 3);
-  for (const auto& t : body.surface)
-    for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(surface_index[v]));
-}
-
 Body build_mass_spring_body(const BodySpec& spec, const SolverSpec& solver, const BodyShape& shape) {
   Body result;
   auto model = body_model(spec, solver);
@@ -84,7 +52,7 @@ Body build_mass_spring_body(const BodySpec& spec, const SolverSpec& solver, cons
   physics::HexMesh mesh;
   try {
     physics::Stopwatch watch;
-    mesh = make_hexes(spec, shape);
+    mesh = hex_cells(spec, shape, "brick");
     physics::MassSpringMaterial material{spec.material.youngs_modulus, spec.material.poisson_ratio,
                                          spec.material.density, settings.damping_ratio, settings.corrections};
     body.mechanics = std::make_unique<physics::HexMassSpring>(mesh, material);
@@ -93,7 +61,8 @@ Body build_mass_spring_body(const BodySpec& spec, const SolverSpec& solver, cons
     throw std::runtime_error(where + ": " + e.what());
   }
   model->elements = mesh.hexes.size();
-  make_surface(*model, body, mesh);
+  body.surface = physics::hex_boundary_triangles(mesh.hexes);
+  index_surface(*model, body, static_cast<int>(mesh.rest.size() / 3));
   start_at_rest(body);
   fix_nodes(body, spec, body.mechanics->rest_positions());
   body.gravity = physics::gravity_forces(body.mechanics->lumped_masses(), model->gravity);

@@ -16,36 +16,6 @@ namespace incise::engine {
 
 namespace {
 
-physics::HexMesh make_lattice(const BodySpec& spec, const BodyShape& shape) {
-  if (spec.generator && spec.generator->type == "box") {
-    std::array<int, 3> cells{};
-    for (int i = 0; i < 3; ++i)
-      cells[i] = std::max(1, static_cast<int>(std::lround((shape.hi[i] - shape.lo[i]) / spec.resolution)));
-    return physics::make_box_hexes(shape.lo, shape.hi, cells);
-  }
-  physics::HexMesh mesh = physics::make_hexes_inside(shape.inside, shape.lo, shape.hi, spec.resolution);
-  if (mesh.hexes.empty()) {
-    std::ostringstream out;
-    out << "no lattice cell of side " << spec.resolution << " m has its centre inside the shape (a finer resolution fills it)";
-    throw std::runtime_error(out.str());
-  }
-  return mesh;
-}
-
-void make_surface(physics::BodyModel& model, physics::BodyData& body, const physics::HexMesh& mesh) {
-  body.surface = physics::hex_boundary_triangles(mesh.hexes);
-  std::vector<int> surface_index(mesh.rest.size() / 3, -1);
-  for (const auto& t : body.surface)
-    for (int v : t) surface_index[static_cast<std::size_t>(v)] = 0;
-  for (std::size_t i = 0; i < surface_index.size(); ++i)
-    if (surface_index[i] == 0) {
-      surface_index[i] = static_cast<int>(model.surface_nodes.size());
-      model.surface_nodes.push_back(static_cast<int>(i));
-    }
-  for (const auto& t : body.surface)
-    for (int v : t) body.render_triangles.push_back(static_cast<std::uint32_t>(surface_index[static_cast<std::size_t>(v)]));
-}
-
 std::unique_ptr<physics::DeformableModel> force_model(physics::PromayonKind kind, const BodySpec& spec,
                                                       const PromayonSettings& s, const physics::HexMesh& mesh) {
   const physics::Neighbourhood n = *physics::neighbourhood_from_name(s.neighbourhood);
@@ -84,10 +54,11 @@ Body build_promayon_body(physics::PromayonKind kind, const BodySpec& spec, const
   const auto settings = std::any_cast<PromayonSettings>(spec.settings);
   try {
     physics::Stopwatch watch;
-    const physics::HexMesh mesh = make_lattice(spec, shape);
+    const physics::HexMesh mesh = hex_cells(spec, shape, "lattice cell");
     auto forces = force_model(kind, spec, settings, mesh);
     model->elements = mesh.hexes.size();
-    make_surface(*model, body, mesh);
+    body.surface = physics::hex_boundary_triangles(mesh.hexes);
+    index_surface(*model, body, static_cast<int>(mesh.rest.size() / 3));
     physics::PromayonStepping stepping;
     stepping.implicit = settings.integrator == "implicit";
     stepping.substeps = settings.substeps;
