@@ -1025,6 +1025,44 @@ std::string bounds_text(const Sweep& sweep) {
 
 }  // namespace
 
+// The summary's line on a body as built: its nodes, the elements inverted at the start of
+// inverted_start, and the body's own note.
+std::string set_up_note(const std::string& model, const std::string& case_name, const Body& body) {
+  return model + " " + case_name + ": " + std::to_string(body.model->node_count()) + " nodes" +
+         (case_name == "inverted_start" ? ", " + std::to_string(body.inverted) + " elements inverted at the start" : "") +
+         (body.note.empty() ? "" : ", " + body.note);
+}
+
+// Resuming: every run of a body (a model, case and material) from the earlier sweep, or none
+// when one is missing (the body is then built and the missing runs made).
+std::vector<Run> all_kept(const std::map<std::string, Run>& previous, const ModelKind& kind, const std::string& case_name,
+                          double youngs_modulus, double poisson_ratio, const std::vector<double>& time_steps) {
+  std::vector<Run> kept;
+  for (const Integrator& integrator : kind.integrators)
+    for (double dt : time_steps) {
+      const auto run = previous.find(run_key(kind.name, integrator.name, case_name, youngs_modulus, poisson_ratio, dt));
+      if (run == previous.end()) return {};
+      kept.push_back(run->second);
+    }
+  return kept;
+}
+
+// The runs of a set-up the model refused (a mass-spring brick of non-positive stiffness): one
+// per integrator and dt, each counted as refused.
+std::vector<Run> refused_runs(const ModelKind& kind, const std::string& case_name, double youngs_modulus,
+                              double poisson_ratio, const std::vector<double>& time_steps) {
+  std::vector<Run> runs;
+  for (const Integrator& integrator : kind.integrators)
+    for (double dt : time_steps) {
+      Run run;
+      run.model = kind.name, run.integrator = integrator.name, run.case_name = case_name;
+      run.youngs_modulus = youngs_modulus, run.poisson_ratio = poisson_ratio, run.dt = dt;
+      run.outcome = Outcome::refused;
+      runs.push_back(std::move(run));
+    }
+  return runs;
+}
+
 // The runs of the part: every run of the bodies (a model, a case and a material, in the sweep's
 // order) whose index `in_part` takes.
 template <class InPart>
@@ -1086,21 +1124,15 @@ int run_stability_bench(const StabilityOptions& options, const std::filesystem::
                                         poisson_ratio == sweep.poisson_ratios.front();
             // Resuming: the runs of this material already done are kept as they were; the
             // body is only built when a run is missing (or for the set-up note).
-            bool missing = false;
-            for (const Integrator& integrator : kind.integrators)
-              for (double dt : sweep.time_steps)
-                missing = missing || !previous.count(run_key(kind.name, integrator.name, case_name, youngs_modulus,
-                                                             poisson_ratio, dt));
-            if (!missing && !first_material) {
-              for (const Integrator& integrator : kind.integrators)
-                for (double dt : sweep.time_steps) {
-                  const Run& run = previous.at(run_key(kind.name, integrator.name, case_name, youngs_modulus,
-                                                       poisson_ratio, dt));
-                  write_row(csv, run);
-                  runs.push_back(run);
-                  progress.advance();
-                }
-              continue;
+            if (!first_material) {
+              const std::vector<Run> kept = all_kept(previous, kind, case_name, youngs_modulus, poisson_ratio,
+                                                     sweep.time_steps);
+              for (const Run& run : kept) {
+                write_row(csv, run);
+                runs.push_back(run);
+                progress.advance();
+              }
+              if (!kept.empty()) continue;
             }
             Body body;
             try {
@@ -1109,27 +1141,14 @@ int run_stability_bench(const StabilityOptions& options, const std::filesystem::
               // The model refused the set-up (a mass-spring brick with a non-positive stiffness):
               // each of its runs is counted as refused, and the sweep goes on.
               if (first_material) set_up_notes.push_back(kind.name + " " + case_name + ": refused: " + refusal.what());
-              for (const Integrator& integrator : kind.integrators)
-                for (double dt : sweep.time_steps) {
-                  Run run;
-                  run.model = kind.name, run.integrator = integrator.name, run.case_name = case_name;
-                  run.youngs_modulus = youngs_modulus, run.poisson_ratio = poisson_ratio, run.dt = dt;
-                  run.outcome = Outcome::refused;
-                  write_row(csv, run);
-                  runs.push_back(std::move(run));
-                  progress.advance();
-                }
+              for (Run& run : refused_runs(kind, case_name, youngs_modulus, poisson_ratio, sweep.time_steps)) {
+                write_row(csv, run);
+                runs.push_back(std::move(run));
+                progress.advance();
+              }
               continue;
             }
-            if (first_material) {
-              set_up_notes.push_back(kind.name + " " + case_name + ": " +
-                                     std::to_string(body.model->node_count()) + " nodes" +
-                                     (case_name == "inverted_start"
-                                          ? ", " + std::to_string(body.inverted) +
-                                                " elements inverted at the start"
-                                          : "") +
-                                     (body.note.empty() ? "" : ", " + body.note));
-            }
+            if (first_material) set_up_notes.push_back(set_up_note(kind.name, case_name, body));
             bool used = false;
             for (const Integrator& integrator : kind.integrators) {
               for (double dt : sweep.time_steps) {
