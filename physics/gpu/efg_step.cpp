@@ -782,19 +782,7 @@ bool EfgStep::solve_velocity_change(const ImplicitEulerSettings& settings, CgRes
   // CG (cg.cpp's algorithm; the same stops).
   const int dofs = static_cast<int>(size);
   s.dot(dofs, s.rhs, s.rhs, rhs_slot);
-  double b_norm = 0;
-  {
-    double values[1] = {0};
-    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-    if (s.double_precision) {
-      glGetNamedBufferSubData(s.scalars.id, rhs_slot * 8, 8, values);
-    } else {
-      float value = 0;
-      glGetNamedBufferSubData(s.scalars.id, rhs_slot * 4, 4, &value);
-      values[0] = value;
-    }
-    b_norm = std::sqrt(values[0]);
-  }
+  const double b_norm = std::sqrt(s.read_scalars(rhs_slot)[0]);
   bool solved = false;
   if (!std::isfinite(b_norm)) {
     return false;
