@@ -26,14 +26,14 @@ struct SoakOptions {
 // its triangles at build: by then it is cut to pieces. Every sample_every_s: RSS
 // (/proc/self/statm), the bytes malloc'd and still held (glibc's mallinfo2), steps, cut events, guard events, non-finite values, rebuilds and the
 // current session's haptic period percentiles go to DIR/soak.csv; DIR/soak.png plots RSS and
-// cut events over time; a row is also taken right after each body's build (session_start 1),
-// the pages of the session before it trimmed (malloc_trim). The verdict: after the warm-up
-// (the first 20 % of the run, at least 30 s where the run is a minute or longer, extended to
-// 10 s after the first rebuild but not past half the run) the RSS at each body's build never
-// exceeds the largest at a build during the warm-up by more than rss_growth_limit (a run with
-// no build after its warm-up: every row against the warm-up's peak), and no value was
-// non-finite. Returns 0 when it holds, 1 when it does not or the session failed (the reason
-// on `progress`).
+// cut events over time; a row is also taken right after each body's build (session_start 1)
+// and between bodies (idle 1: the last session stopped and its pages trimmed by malloc_trim, no
+// body alive). The verdict: after the warm-up (the first 20 % of the run, at least 30 s where
+// the run is a minute or longer, extended to 10 s after the first rebuild but not past half
+// the run) the RSS between bodies never exceeds the largest between bodies during the warm-up
+// by more than rss_growth_limit (a run with no body finished after its warm-up: every row
+// against the warm-up's peak), and no value was non-finite. Returns 0 when it holds, 1 when
+// it does not or the session failed (the reason on `progress`).
 int run_soak_bench(const SoakOptions& options, std::ostream& progress);
 
 inline constexpr int kStrokesPerBody = 6;

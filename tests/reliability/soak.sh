@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # The soak in ctest (issue 35): `incise bench soak` for SECONDS, then its soak.csv checked here
 # independently of the bench's own verdict: a row per second or so, no non-finite value, some
-# cutting and at least one rebuild of the body, and the RSS at each body's build after the
-# warm-up (the first 20 %, at least 30 s from a minute on, extended to 10 s past the first
-# rebuild but not past half the run: bench/soak.hpp) never more than 10 % above the largest at
-# a build during it (column session_start; every row when no build follows the warm-up).
+# cutting and at least one rebuild of the body, and the RSS between bodies after the warm-up
+# (the first 20 %, at least 30 s from a minute on, extended to 10 s past the first rebuild but
+# not past half the run: bench/soak.hpp) never more than 10 % above the largest between bodies
+# during it (column idle: the last body stopped and trimmed; every row when no body finishes
+# after the warm-up).
 #
 # usage: soak.sh INCISE OUTDIR [SECONDS]
 set -uo pipefail
@@ -21,16 +22,16 @@ csv=$out/soak.csv
 grep -qi "nan\|inf" "$csv" && fail "a non-finite figure in $csv"
 awk -F, -v seconds="$seconds" '
   NR == 1 { next }
-  { rows++; t[rows] = $1; rss[rows] = $2; cuts = $5; nonfinite = $7; rebuilds = $8; start[rows] = $13
+  { rows++; t[rows] = $1; rss[rows] = $2; cuts = $5; nonfinite = $7; rebuilds = $8; idle[rows] = $14
     if (nonfinite != 0) bad = bad "non-finite " nonfinite " at " $1 " s; "
     if (rebuilds > 0 && first_rebuild == "") first_rebuild = $1 }
   END {
     warm = seconds >= 60 ? (0.2 * seconds > 30 ? 0.2 * seconds : 30) : 0.2 * seconds
     if (first_rebuild != "") { w = first_rebuild + 10; if (w > seconds / 2) w = seconds / 2; if (w > warm) warm = w }
     if (rows > 0 && t[1] > warm) warm = t[1]
-    for (i = 1; i <= rows; i++) if (start[i] == 1 && t[i] > warm) by_starts = 1
+    for (i = 1; i <= rows; i++) if (idle[i] == 1 && t[i] > warm) by_idle = 1
     for (i = 1; i <= rows; i++) {
-      if (by_starts && start[i] != 1) continue
+      if (by_idle && idle[i] != 1) continue
       if (t[i] <= warm) { if (rss[i] > peak) peak = rss[i] } else { after++; if (rss[i] > top) top = rss[i] }
     }
     if (rows < seconds / 2) bad = bad "only " rows " rows; "
@@ -38,6 +39,6 @@ awk -F, -v seconds="$seconds" '
     if (rebuilds < 1) bad = bad "the body was never rebuilt; "
     if (after < 1 || peak <= 0) bad = bad "no RSS after the warm-up; "
     else if (top > 1.10 * peak) bad = bad sprintf("RSS %.1f MiB after the warm-up, %.1f %% over its peak %.1f MiB; ", top, 100 * (top / peak - 1), peak)
-    printf "soak.csv: %d rows, %d cut events, %d rebuilds, RSS %s: warm-up (%.0f s) peak %.1f MiB, after it %.1f MiB\n", rows, cuts, rebuilds, by_starts ? "at builds" : "over every row", warm, peak, top
+    printf "soak.csv: %d rows, %d cut events, %d rebuilds, RSS %s: warm-up (%.0f s) peak %.1f MiB, after it %.1f MiB\n", rows, cuts, rebuilds, by_idle ? "between bodies" : "over every row", warm, peak, top
     if (bad != "") { print "FAIL: " bad; exit 1 } }' "$csv" || failures=$((failures + 1))
 [ "$failures" = 0 ]
