@@ -7,5 +7,7 @@ add_library(incise_gpu STATIC
   ${CMAKE_CURRENT_LIST_DIR}/compute_context.cpp
   ${CMAKE_CURRENT_LIST_DIR}/efg_kernels.cpp
   ${CMAKE_CURRENT_LIST_DIR}/efg_step.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/efg_step_device.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/efg_step_rows.cpp
 )
 target_link_libraries(incise_gpu PUBLIC incise_physics PRIVATE PkgConfig::INCISE_GPU_EGL PkgConfig::INCISE_GPU_OPENGL)
