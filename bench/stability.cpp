@@ -62,7 +62,7 @@
 //   most of the sweep's time);
 // - stable otherwise.
 // Runs are T = 1 s (beam) or 0.5 s (cubes) of simulated time; 0.25 s in quick mode.
-// Quick sweep: 3 E x 3 nu x 2 dt, 414 runs. The sweeps' outcomes: docs/status.md, "Benchmarks".
+// Quick sweep: 3 E x 3 nu x 2 dt, 1062 runs. The sweeps' outcomes: docs/status.md, "Benchmarks".
 #include "bench/stability.hpp"
 #include "bench/bench_page.hpp"
 #include "bench/plot.hpp"
