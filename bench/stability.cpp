@@ -40,7 +40,11 @@
 // HexMassSpring (cubic bricks: beam 20 x 2 x 2, cube 4 x 4 x 4; critical dashpots, no
 // corrections) with implicit Euler and the five explicit integrators, an explicit run whose dt
 // is beyond its bound 2 sqrt(m_min / k_node_max) counted as `refused` (as is a body whose bricks
-// the formulas give a non-positive stiffness; the cubic bricks never do). Damping: Rayleigh mass
+// the formulas give a non-positive stiffness; the cubic bricks never do); `constraint_particles`,
+// Dionne's ConstraintParticles (beam 20 x 2 x 2, cube 4 x 4 x 4 cubic cells of 5 tets; k_D = k_A =
+// E h^3 and k_V = E h^3 / (15 (1 - 2 nu)), make_constraint_particles_body says why) with implicit
+// Euler and the five explicit integrators, each explicit step followed by the stretch limiter
+// (Alg. 3.2), an explicit dt beyond its bound min 2 sqrt(m_i / k_i) refused. Damping: Rayleigh mass
 // damping alpha = 1/s for every integrator; implicit Euler's CG: tolerance 1e-6, at most 1000
 // iterations, warm started from the previous step's velocity change, as in the engine.
 //
@@ -58,7 +62,7 @@
 //   most of the sweep's time);
 // - stable otherwise.
 // Runs are T = 1 s (beam) or 0.5 s (cubes) of simulated time; 0.25 s in quick mode.
-// Quick sweep: 3 E x 3 nu x 2 dt, 414 runs. The sweeps' outcomes: docs/status.md, "Benchmarks".
+// Quick sweep: 3 E x 3 nu x 2 dt, 1062 runs. The sweeps' outcomes: docs/status.md, "Benchmarks".
 #include "bench/stability.hpp"
 #include "bench/bench_page.hpp"
 #include "bench/plot.hpp"
@@ -69,6 +73,7 @@
 
 #include "physics/core/explicit_integrators.hpp"
 #include "physics/core/implicit_euler.hpp"
+#include "physics/cp/cp_step.hpp"
 #include "physics/cut/volume_cut.hpp"
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/fem/corotational_fem.hpp"
@@ -201,6 +206,11 @@ struct Body {
   std::string note;  // set-up figures for the summary
   // thin_slice: the particles of each slice beyond the cut front (top, then bottom).
   std::vector<std::vector<int>> slices;
+  // The model's own explicit step, when it has one (the constraint particles' Alg. 3.2: the
+  // integrator, then the stretch limiter); empty: physics::explicit_step.
+  std::function<physics::ExplicitStepReport(ExplicitScheme, State&, const std::vector<uint8_t>&, const Vector&,
+                                            const physics::ExplicitSettings&, physics::VerletHistory&)>
+      own_explicit_step;
 };
 
 struct Run {
@@ -246,7 +256,7 @@ Sweep make_sweep(bool quick) {
 // The models this bench sets up bodies for (make_body, below the engine's builder: the cases
 // need the bare DeformableModel), with the integrators each offers.
 const std::set<std::string>& bench_models() {
-  static const std::set<std::string> names{"fem", "efg", "mass_spring"};
+  static const std::set<std::string> names{"fem", "efg", "mass_spring", "constraint_particles"};
   return names;
 }
 
@@ -267,7 +277,8 @@ std::vector<ModelKind> model_kinds(std::vector<std::string>* left_out = nullptr)
     }
     // The EFG model offers implicit Euler only (issue 7: explicit integrators "where a model
     // offers them"); any DeformableModel would take the explicit steps as well. The mass-spring
-    // takes them all, up to its explicit bound (beyond it the run is refused).
+    // and the constraint particles take them all, up to their explicit bound (beyond it the run
+    // is refused).
     kinds.push_back({name, name != "efg" ? fem : std::vector<Integrator>{{"implicit_euler", true}}});
   }
   return kinds;
@@ -524,11 +535,60 @@ Body make_mass_spring_body(const std::string& case_name, const Material& materia
   return body;
 }
 
+// Dionne's constraint particles (physics/cp): the fem's box split 5 tets per cubic cell (beam
+// 20 x 2 x 2, cube 4 x 4 x 4, h = 10 mm), the default stretch limiter (k_E 0.1 beyond 1.05 D0)
+// after each explicit step, no dashpots of its own (the sweep's mass damping only). The thesis
+// tunes k by hand; the sweep's E and nu are mapped (ours) so that an edge is a spring of about
+// E h (k_D = E h^3, as the lattice's springs; k_A the same on the surface triangles) and a tet's
+// volume energy is the continuum's K (dV / V)^2 V / 2 with K = E / (3 (1 - 2 nu)) over the
+// average tet volume h^3 / 5 (k_V = K h^3 / 5).
+Body make_constraint_particles_body(const std::string& case_name, const Material& material) {
+  constexpr double h = 0.01;
+  const std::array<int, 3> cells = is_beam(case_name) ? std::array<int, 3>{20, 2, 2} : std::array<int, 3>{4, 4, 4};
+  const TetMesh mesh = physics::make_box_tets5(case_min(case_name), case_max(case_name), cells);
+  physics::ConstraintParticleSettings settings;
+  settings.density = material.density;
+  settings.distance_stiffness = settings.area_stiffness = material.youngs_modulus * h * h * h;
+  const double bulk = material.youngs_modulus / (3 * (1 - 2 * material.poisson_ratio));
+  settings.volume_stiffness = bulk * h * h * h / 5;
+  auto model = std::make_unique<physics::ConstraintParticles>(mesh, settings);
+  Body body;
+  Vector positions = mesh.rest;
+  if (case_name == "compression_release") squeeze_heights(positions);
+  if (case_name == "inverted_start") {
+    // As the mass-spring's nodes: each flipped particle two layers down, through the layer below.
+    for (int node : nodes_to_flip(mesh.rest)) positions[3 * node + 2] -= 2 * cube_side / cells[2];
+    const physics::ConstraintParticles* particles = model.get();
+    body.count_inverted = [particles](const Vector& x) { return particles->inverted_tets(x); };
+    body.inverted = body.count_inverted(positions);
+  }
+  body.own_explicit_step = [particles = model.get()](ExplicitScheme scheme, State& state,
+                                                     const std::vector<uint8_t>& fixed, const Vector& external,
+                                                     const physics::ExplicitSettings& given,
+                                                     physics::VerletHistory& history) {
+    physics::CpStepSettings step;  // the default limiter
+    step.scheme = scheme;
+    step.dt = given.dt;
+    step.rayleigh_mass = given.rayleigh_mass;
+    const physics::CpStepReport report = physics::constraint_particles_step(*particles, state, fixed, external, step, history);
+    physics::ExplicitStepReport out = report.integrator;
+    out.nonfinite = report.nonfinite;
+    out.elastic_energy = particles->elastic_energy(state.positions);  // after the limiter
+    out.kinetic_energy = physics::kinetic_energy(particles->lumped_masses(), state.velocities);
+    return out;
+  };
+  body.initial.positions = positions;
+  body.model = std::move(model);
+  finish_body(body, case_name);
+  return body;
+}
+
 Body make_body(const std::string& model_name, const std::string& case_name,
                const Material& material) {
   if (model_name == "fem") return make_fem_body(case_name, material);
   if (model_name == "efg") return make_efg_body(case_name, material);
   if (model_name == "mass_spring") return make_mass_spring_body(case_name, material);
+  if (model_name == "constraint_particles") return make_constraint_particles_body(case_name, material);
   throw std::invalid_argument("stability bench: unknown model " + model_name);
 }
 
@@ -571,7 +631,7 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
   run.max_energy_ratio = initial_energy / reference_energy;
 
   const int steps = std::max(1, static_cast<int>(std::lround(duration / dt)));
-  // A model that knows its explicit bound (the mass-spring's) refuses a step beyond it
+  // A model that knows its explicit bound (the mass-spring's, the constraint particles') refuses a step beyond it
   // (explicit_step throws): the run is counted as refused, not taken.
   if (!integrator.implicit && dt > model.explicit_step_limit()) {
     run.outcome = Outcome::refused;
@@ -616,8 +676,11 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
           energy = report.elastic_energy + report.kinetic_energy;
         } else {
           const physics::ExplicitSettings settings{sub_dt, rayleigh_mass};
-          const physics::ExplicitStepReport report = physics::explicit_step(
-              integrator.scheme, model, state, body.fixed, body.external, settings, &history);
+          const physics::ExplicitStepReport report =
+              body.own_explicit_step
+                  ? body.own_explicit_step(integrator.scheme, state, body.fixed, body.external, settings, history)
+                  : physics::explicit_step(integrator.scheme, model, state, body.fixed, body.external, settings,
+                                           &history);
           failed = report.nonfinite;
           energy = report.elastic_energy + report.kinetic_energy;
         }
@@ -954,7 +1017,7 @@ std::string plot_script(const std::string& png, bool quick, const Sweep& sweep, 
 std::string counts_table(const std::vector<ModelKind>& kinds, const std::vector<Run>& runs) {
   std::ostringstream table;
   char line[160];
-  std::snprintf(line, sizeof line, "%-30s %8s %9s %10s %17s %8s\n", "model/integrator", "stable",
+  std::snprintf(line, sizeof line, "%-36s %8s %9s %10s %17s %8s\n", "model/integrator", "stable",
                 "diverged", "nonfinite", "cg_not_converged", "refused");
   table << line;
   for (const ModelKind& kind : kinds) {
@@ -964,7 +1027,7 @@ std::string counts_table(const std::vector<ModelKind>& kinds, const std::vector<
         if (run.model == kind.name && run.integrator == integrator.name) ++counts[run.outcome];
       }
       const std::string name = kind.name + "/" + integrator.name;
-      std::snprintf(line, sizeof line, "%-30s %8d %9d %10d %17d %8d\n", name.c_str(),
+      std::snprintf(line, sizeof line, "%-36s %8d %9d %10d %17d %8d\n", name.c_str(),
                     counts[Outcome::stable], counts[Outcome::diverged], counts[Outcome::nonfinite],
                     counts[Outcome::cg_not_converged], counts[Outcome::refused]);
       table << line;
@@ -991,7 +1054,7 @@ std::string inverted_table(const std::vector<ModelKind>& kinds, const std::vecto
       }
       if (stable == 0) continue;
       const std::string name = kind.name + "/" + integrator.name;
-      std::snprintf(line, sizeof line, "%-24s %d of %d stable inverted_start runs ended with inverted elements\n",
+      std::snprintf(line, sizeof line, "%-36s %d of %d stable inverted_start runs ended with inverted elements\n",
                     name.c_str(), still_inverted, stable);
       table << line;
     }
@@ -1017,8 +1080,8 @@ std::string bounds_text(const Sweep& sweep) {
        << format(rayleigh_mass) << "/s; gravity 9.81 m/s^2 along -z; rho " << format(density)
        << " kg/m^3.\n"
        << "refused = the model refused the run: an explicit dt beyond its stability bound (the "
-          "mass-spring's 2 sqrt(m_min / k_node_max)), or a brick its formulas give a non-positive "
-          "stiffness.\n"
+          "mass-spring's 2 sqrt(m_min / k_node_max), the constraint particles' min 2 sqrt(m_i / k_i)), or a brick "
+          "its formulas give a non-positive stiffness.\n"
        << "fast_blade and thin_slice cut, which only the efg model does: the others are not run on them.\n";
   return text.str();
 }

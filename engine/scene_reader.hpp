@@ -66,6 +66,8 @@ class Reader {
   bool has(const std::string& key) const { return node_.is_object() && node_.contains(key); }
   std::string child(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
   const std::string& path() const { return path_; }
+  // The shared error list, for a Reader of a nested block (its errors go with this one's).
+  std::vector<std::string>& errors() { return errors_; }
 
   const Json* get(const std::string& key, bool required) {
     used_.insert(key);

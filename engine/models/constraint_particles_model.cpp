@@ -43,15 +43,47 @@ physics::ConstraintParticleSettings particle_settings(const ConstraintParticlesS
   return p;
 }
 
-// The explicit step with the limiter, as the engine's solve stage calls a model's own step.
-physics::OwnStep explicit_step_of(const ConstraintParticlesSettings& s) {
+// The explicit step's settings (the limiter, the floor) but dt and damping, which come from the
+// solver; an implicit_euler body relaxes by velocity Verlet (settle_by_relaxation).
+physics::CpStepSettings cp_step_settings(const ConstraintParticlesSettings& s) {
   physics::CpStepSettings step;
-  step.scheme = *physics::explicit_scheme_from_name(s.integrator);
+  if (s.integrator != "implicit_euler") step.scheme = *physics::explicit_scheme_from_name(s.integrator);
   step.limiter.enabled = s.stretch_stiffness > 0;
   step.limiter.stiffness = s.stretch_stiffness;
   step.limiter.alpha = s.stretch_alpha;
   step.limiter.iterations = s.stretch_iterations;
   step.floor_z = s.floor_z;
+  return step;
+}
+
+// solver.start "settled": Alg. 3.2's relaxation (physics::relax) from rest under gravity with the
+// body's own step at solver.dt (for an implicit_euler body, velocity Verlet at the smaller of
+// solver.dt and 0.9 of the explicit bound) and its damping plus relax.mass_damping; returns the
+// displacement settle_if_asked adds. A relaxation that blows up or does not settle within
+// relax.max_steps is refused, with what it reached.
+physics::Vector settle_by_relaxation(physics::ConstraintParticles& particles, const physics::BodyData& body,
+                                     const physics::BodyModel& model, const ConstraintParticlesSettings& s) {
+  physics::CpStepSettings step = cp_step_settings(s);
+  step.dt = model.integrator.dt;
+  if (s.integrator == "implicit_euler") step.dt = std::min(step.dt, 0.9 * particles.explicit_step_limit());
+  step.rayleigh_mass = model.integrator.rayleigh_mass + s.relax.mass_damping;
+  physics::State state{particles.rest_positions(), physics::Vector::Zero(particles.rest_positions().size())};
+  const physics::RelaxReport report = physics::relax(particles, state, body.fixed, body.gravity, step,
+                                                     {s.relax.tolerance, s.relax.max_steps, s.relax.calm_steps});
+  particles.verlet_history() = {};  // the run starts afresh from the relaxed positions
+  if (report.nonfinite)
+    throw std::runtime_error("constraint_particles.relax: the relaxation produced a non-finite value after " +
+                             std::to_string(report.steps) + " steps (a smaller solver.dt)");
+  if (!report.converged)
+    throw std::runtime_error("constraint_particles.relax: not settled after max_steps = " + std::to_string(report.steps) +
+                             " steps (its energy still changes by tolerance or more per step; give it damping: "
+                             "relax.mass_damping, damping_coefficient or damping.mass, or more max_steps)");
+  return state.positions - particles.rest_positions();
+}
+
+// The explicit step with the limiter, as the engine's solve stage calls a model's own step.
+physics::OwnStep explicit_step_of(const ConstraintParticlesSettings& s) {
+  physics::CpStepSettings step = cp_step_settings(s);
   return [step](physics::DeformableModel& mechanics, physics::State& state, const std::vector<std::uint8_t>& fixed,
                 const physics::Vector& external, const std::vector<physics::NodalSpring>& springs,
                 const physics::ImplicitEulerSettings& given, double /*start_time*/) {
@@ -96,8 +128,8 @@ Body build_constraint_particles_body(const BodySpec& spec, const SolverSpec& sol
   start_at_rest(body);
   fix_nodes(body, spec, body.mechanics->rest_positions());
   body.gravity = physics::gravity_forces(body.mechanics->lumped_masses(), model->gravity);
-  if (solver.start == "settled")
-    throw std::runtime_error(where + ": solver.start 'settled' is not offered for constraint_particles (no static solve)");
+  auto& particles = dynamic_cast<physics::ConstraintParticles&>(*body.mechanics);
+  settle_if_asked(result, solver, where, [&] { return settle_by_relaxation(particles, body, *model, settings); });
   result.model = std::move(model);
   return result;
 }

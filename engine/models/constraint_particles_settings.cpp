@@ -24,6 +24,13 @@ void read_constraint_particles_settings(Reader& block, BodySpec& body) {
   }
   if (s.integrator == "implicit_euler" && block.has("stretch_stiffness") && s.stretch_stiffness > 0)
     block.error(block.child("stretch_stiffness"), "the stretch limiter follows the explicit integrators' step only, not 'implicit_euler'");
+  if (const Json* r = block.get("relax", false)) {
+    Reader relax(*r, block.child("relax"), block.errors());
+    s.relax.tolerance = relax.number("tolerance", false, s.relax.tolerance, 0, 1e9, true);
+    s.relax.max_steps = relax.integer("max_steps", false, s.relax.max_steps, 1, 10000000);
+    s.relax.calm_steps = relax.integer("calm_steps", false, s.relax.calm_steps, 1, 1000000);
+    s.relax.mass_damping = relax.number("mass_damping", false, s.relax.mass_damping, 0, 1e4);
+  }
   body.settings = s;
 }
 

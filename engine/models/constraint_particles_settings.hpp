@@ -11,6 +11,17 @@
 
 namespace incise::engine {
 
+// Alg. 3.2's energy-based relaxation (physics::relax), the body's `solver.start: "settled"`: the
+// body's own step under gravity until the constraints' energy changes by less than `tolerance`
+// per step over `calm_steps` steps in a row, at most `max_steps`; `mass_damping` (1/s) is added
+// to the body's damping while it relaxes only, so that an undamped body settles too.
+struct ConstraintParticlesRelax {
+  double tolerance = 1e-9;  // delta, J
+  int max_steps = 100000;
+  int calm_steps = 100;
+  double mass_damping = 0;  // 1/s
+};
+
 struct ConstraintParticlesSettings {
   // Dionne's constraint stiffnesses, J (C is dimensionless); 0 leaves that kind out. 500 is the
   // thesis's falling cube (§4.2).
@@ -27,6 +38,7 @@ struct ConstraintParticlesSettings {
   double stretch_alpha = 1.05;     // active beyond alpha D0
   int stretch_iterations = 1;      // n, with k' = 1 - (1 - k_E)^(1/n)
   std::optional<double> floor_z;   // particles stay above the plane z = floor_z (explicit integrators)
+  ConstraintParticlesRelax relax;  // the settled start's relaxation
 };
 
 // Reads the block into body.settings (a ConstraintParticlesSettings).

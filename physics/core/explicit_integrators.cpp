@@ -255,13 +255,14 @@ ExplicitStepReport explicit_step(ExplicitScheme scheme, DeformableModel& model, 
                                  const std::vector<uint8_t>& fixed_nodes,
                                  const Vector& external_forces, const ExplicitSettings& settings,
                                  VerletHistory* history) {
-  // A model that knows its stability bound (a mass-spring network's 2 sqrt(m_min / k_node_max))
+  // A model that knows its stability bound (a mass-spring network's 2 sqrt(m_min / k_node_max),
+  // the constraint particles' min 2 sqrt(m_i / k_i))
   // refuses a step beyond it rather than blowing up a few steps later.
   if (settings.dt > model.explicit_step_limit()) {
     std::ostringstream out;
     out.precision(4);
     out << "explicit_step: dt " << settings.dt << " s is beyond this model's explicit stability bound "
-        << model.explicit_step_limit() << " s (2 sqrt(m_min / k_node_max)); take dt under it or implicit Euler";
+        << model.explicit_step_limit() << " s (about 2 sqrt(m / k) on its stiffest node); take dt under it or implicit Euler";
     throw std::invalid_argument(out.str());
   }
   switch (scheme) {

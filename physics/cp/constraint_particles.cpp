@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <stdexcept>
@@ -131,6 +132,13 @@ ConstraintParticles::ConstraintParticles(const TetMesh& mesh, const ConstraintPa
     for (std::size_t t = 0; t < tets_.size(); ++t)
       add_kind(constraints_, ConstraintKind::volume, tets_[t], settings.volume_stiffness, rest_, "tet", t);
   update_rotations(rest_);
+  Vector node_stiffness = Vector::Zero(n);
+  for (std::size_t c = 0; c < constraints_.size(); ++c)
+    for (int a = 0; a < constraint_arity(constraints_[c].kind); ++a)
+      node_stiffness[constraints_[c].nodes[a]] += constraints_[c].stiffness * gradient_[c][a].squaredNorm();
+  explicit_limit_ = std::numeric_limits<double>::infinity();
+  for (Index i = 0; i < n; ++i)
+    if (node_stiffness[i] > 0) explicit_limit_ = std::min(explicit_limit_, 2 * std::sqrt(masses_[i] / node_stiffness[i]));
 }
 
 void ConstraintParticles::update_rotations(const Vector& x) {

@@ -63,6 +63,11 @@ class ConstraintParticles final : public DeformableModel {
   void add_damping_product(const Vector& p, Vector& out) const override;
   void add_damping_diagonal(Vector& diag) const override;
   double node_spacing() const override { return spacing_; }
+  // The explicit bound min_i 2 sqrt(m_i / k_i), k_i = sum over the constraints on particle i of
+  // k |grad_i C|^2 at rest (the trace of K's diagonal block, as a mass-spring's k_node is the sum
+  // of its springs): 2 / omega of the particle oscillating against still neighbours. An
+  // estimate, not a guarantee: with its neighbours moving, omega is up to about twice that.
+  double explicit_step_limit() const override { return explicit_limit_; }
   std::unique_ptr<DeformableModel> clone() const override { return std::make_unique<ConstraintParticles>(*this); }
 
   const std::vector<Constraint>& constraints() const { return constraints_; }
@@ -86,6 +91,7 @@ class ConstraintParticles final : public DeformableModel {
   std::vector<Constraint> constraints_;  // distance, then area, then volume
   std::vector<std::array<Vec3, 4>> gradient_;  // per constraint, frozen by update_rotations
   double spacing_ = 0;
+  double explicit_limit_ = 0;
   VerletHistory history_;
 };
 

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The stability sweep in its quick form (issue 7), as CI runs it: it must complete, write its
-# report, and meet the target: implicit Euler (fem, efg and mass_spring) stable in every case
-# for E <= 100 MPa, nu <= 0.49, dt <= 33 ms. What fails beyond is reported, not asserted; the
-# mass-spring's explicit runs beyond its bound are refused (counted), not run.
+# report, and meet the target: implicit Euler (fem, efg, mass_spring and constraint_particles)
+# stable in every case for E <= 100 MPa, nu <= 0.49, dt <= 33 ms. What fails beyond is reported,
+# not asserted; the mass-spring's and the constraint particles' explicit runs beyond their bound
+# are refused (counted), not run.
 # Usage: bench_stability_quick.sh INCISE WORKDIR
 set -euo pipefail
 incise=$1 work=$2
@@ -29,8 +30,10 @@ for c in fast_blade thin_slice; do
 done
 # The mass-spring runs the uncut cases with implicit Euler and the explicit integrators; only
 # explicit runs are refused, and a refused run takes no step.
-n=$(awk -F, 'NR > 1 && $1 == "mass_spring"' "$csv" | wc -l)
-[ "$n" -eq 324 ] || { echo "$n mass_spring runs, expected 324 (3 cases x 9 materials x 6 integrators x 2 dt)"; exit 1; }
+for m in mass_spring constraint_particles; do
+  n=$(awk -F, -v m="$m" 'NR > 1 && $1 == m' "$csv" | wc -l)
+  [ "$n" -eq 324 ] || { echo "$n $m runs, expected 324 (3 cases x 9 materials x 6 integrators x 2 dt)"; exit 1; }
+done
 wrong=$(awk -F, 'NR > 1 && $7 == "refused" && ($2 == "implicit_euler" || $10 != 0)' "$csv")
 [ -z "$wrong" ] || { echo "refused runs that are implicit or took steps:"; echo "$wrong"; exit 1; }
 # The thin-slice study (both rotations of the corotation) is in the summary.

@@ -436,3 +436,77 @@ TEST(ConstraintParticles, TheFallingCubeGetsItsVolumeBackWithEveryConstraint) {
   EXPECT_LT(*std::min_element(distance.volume_ratio.begin(), distance.volume_ratio.end()), 0.9);
   EXPECT_GT(*std::max_element(distance.inverted.begin(), distance.inverted.end()), 0);
 }
+
+// solver.start "settled": the body is relaxed (Alg. 3.2, physics::relax) before the run, so it
+// starts at rest: at its start positions gravity and the constraints' forces balance on every
+// free particle, and the first steps barely move it.
+TEST(ConstraintParticles, ASettledStartIsRelaxedToRest) {
+  const std::string held = R"(, "fixed": [{"min": [-1, -1, -1], "max": [1, 1, 0.0101]}])";
+  std::string text = scene_text(R"({"distance_stiffness": 1, "area_stiffness": 1, "volume_stiffness": 1,
+    "relax": {"tolerance": 1e-15, "mass_damping": 300}})", held);
+  text.replace(text.find(R"("duration")"), 0, R"("start": "settled", )");
+  engine::World world(engine::parse_scene(text, "cp.json"), std::nullopt);
+  const auto& body = world.bodies()[0].data;
+  const Vector& rest = body.mechanics->rest_positions();
+  const Vector start = body.state.positions;
+  Vector residual = body.gravity;
+  body.mechanics->add_elastic_forces(start, residual);
+  double worst = 0, sag = 0;
+  for (Eigen::Index i = 0; i < body.mechanics->node_count(); ++i)
+    if (!body.fixed[static_cast<std::size_t>(i)]) {
+      worst = std::max(worst, residual.segment<3>(3 * i).norm() / body.gravity.segment<3>(3 * i).norm());
+      sag = std::min(sag, start[3 * i + 2] - rest[3 * i + 2]);
+    }
+  EXPECT_LT(worst, 1e-3);  // of each particle's weight (3.7e-8 measured)
+  EXPECT_LT(sag, -1e-6);   // it did sag (3.2 um at its free top corner) before the run
+  EXPECT_EQ(body.state.velocities.norm(), 0);
+  for (int k = 0; k < 50; ++k) world.step();
+  EXPECT_LT((world.bodies()[0].data.state.positions - start).cwiseAbs().maxCoeff(), 1e-2 * -sag);
+}
+
+TEST(ConstraintParticles, BadRelaxationSettingsAreRefusedNamingTheKey) {
+  EXPECT_NE(refusal(R"({"relax": {"tolerance": 0}})").find("bodies[0].constraint_particles.relax.tolerance: 0 must be in (0"),
+            std::string::npos) << refusal(R"({"relax": {"tolerance": 0}})");
+  EXPECT_NE(refusal(R"({"relax": {"max_steps": 0}})").find("bodies[0].constraint_particles.relax.max_steps: 0 must be in [1"),
+            std::string::npos);
+  EXPECT_NE(refusal(R"({"relax": {"calm_steps": 1.5}})").find("bodies[0].constraint_particles.relax.calm_steps: must be an integer"),
+            std::string::npos);
+  EXPECT_NE(refusal(R"({"relax": {"mass_damping": -1}})").find("bodies[0].constraint_particles.relax.mass_damping: -1 must be in"),
+            std::string::npos);
+  EXPECT_NE(refusal(R"({"relax": {"steps": 3}})").find("bodies[0].constraint_particles.relax.steps: unknown key"), std::string::npos);
+  EXPECT_NE(refusal(R"({"relax": 3})").find("bodies[0].constraint_particles.relax: must be an object"), std::string::npos);
+  // A relaxation that cannot settle in its steps (no damping at all) is refused, naming the key.
+  std::string text = scene_text(R"({"distance_stiffness": 1, "area_stiffness": 1, "volume_stiffness": 1, "relax": {"max_steps": 50}})",
+                                R"(, "fixed": [{"min": [-1, -1, -1], "max": [1, 1, 0.0101]}])");
+  text.replace(text.find(R"("duration")"), 0, R"("start": "settled", )");
+  try {
+    engine::World world(engine::parse_scene(text, "cp.json"), std::nullopt);
+    ADD_FAILURE() << "an unsettled relaxation was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("constraint_particles.relax: not settled after max_steps = 50"), std::string::npos) << e.what();
+  }
+}
+
+// The explicit bound min_i 2 sqrt(m_i / k_i) on one right-angled tet with distance constraints
+// only: the corner at the origin has its three unit edges, k_0 = 3 k, the others 2 k (one unit
+// edge, two of length sqrt 2 at k / 2 each); every particle has rho V / 4 = rho / 24. A step
+// beyond it is refused by explicit_step.
+TEST(ConstraintParticles, TheExplicitBoundIsTheStiffestParticles) {
+  physics::TetMesh mesh;
+  mesh.rest.resize(12);
+  mesh.rest << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+  mesh.tets = {{0, 1, 2, 3}};
+  physics::ConstraintParticleSettings settings;
+  settings.density = 24;  // m = 1 per particle
+  settings.distance_stiffness = 3;
+  settings.area_stiffness = settings.volume_stiffness = 0;
+  physics::ConstraintParticles model(mesh, settings);
+  EXPECT_NEAR(model.explicit_step_limit(), 2 * std::sqrt(1.0 / 9.0), 1e-12);
+  physics::State state{mesh.rest, Vector::Zero(12)};
+  physics::ExplicitSettings step;
+  step.dt = 1.01 * model.explicit_step_limit();
+  EXPECT_THROW(physics::explicit_step(physics::ExplicitScheme::velocity_verlet, model, state, {}, Vector::Zero(12), step),
+               std::invalid_argument);
+  step.dt = 0.99 * model.explicit_step_limit();
+  EXPECT_NO_THROW(physics::explicit_step(physics::ExplicitScheme::velocity_verlet, model, state, {}, Vector::Zero(12), step));
+}
