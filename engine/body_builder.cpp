@@ -103,7 +103,9 @@ BodyShape body_shape(const BodySpec& spec) {
   } else {
     TriangleSoup soup;
     if (is_tet_mesh_file(*spec.mesh)) {
-      auto tets = std::make_shared<const physics::TetMesh>(import_tet_mesh(*spec.mesh, spec.mesh_scale, spec.mesh_up));
+      // Read once: the scene reader's copy when it read the file for the resolution.
+      auto tets = spec.tets ? spec.tets
+                            : std::make_shared<const physics::TetMesh>(import_tet_mesh(*spec.mesh, spec.mesh_scale, spec.mesh_up));
       soup = boundary_surface(*tets);
       shape.tets = std::move(tets);
     } else {
@@ -112,10 +114,12 @@ BodyShape body_shape(const BodySpec& spec) {
     // The fill, the EFG cells' volumes and the fairing ask "inside?" millions of times: the
     // exact winding number's sum over every triangle made a 4k-triangle organ take minutes.
     auto mesh = std::make_shared<const MeshShape>(soup);
+    shape.surface = std::make_shared<const TriangleSoup>(std::move(soup));
+    const TriangleSoup& surface = *shape.surface;
     shape.inside = [mesh](const physics::Vec3& p) { return mesh->inside(p); };
     shape.along = [mesh](const physics::Vec3& p, const physics::Vec3& n, double reach) { return mesh->along(p, n, reach); };
-    shape.lo = vec(soup.min);
-    shape.hi = vec(soup.max);
+    shape.lo = vec(surface.min);
+    shape.hi = vec(surface.max);
   }
   return shape;
 }

@@ -28,6 +28,9 @@ struct BodyShape {
   physics::LineQuery along;
   physics::Vec3 lo, hi;
   std::shared_ptr<const physics::TetMesh> tets;
+  // A mesh body's surface (the file's, or the tetrahedral mesh's boundary) as read for the
+  // shape: a meshless body's render surface is taken from it, not from the file again.
+  std::shared_ptr<const TriangleSoup> surface;
 };
 
 // A tetrahedral mesh's boundary faces on the nodes they use (outward, as boundary_triangles).

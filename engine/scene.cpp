@@ -104,7 +104,8 @@ void read_model_settings(Reader& r, BodySpec& b, std::vector<std::string>& error
 void tet_mesh_resolution(Reader& r, BodySpec& b) {
   if (!std::filesystem::exists(*b.mesh) || !(b.mesh_scale > 0)) return;  // refused above
   try {
-    b.resolution = mean_edge_length(import_tet_mesh(*b.mesh, b.mesh_scale, b.mesh_up));
+    b.tets = std::make_shared<const physics::TetMesh>(import_tet_mesh(*b.mesh, b.mesh_scale, b.mesh_up));
+    b.resolution = mean_edge_length(*b.tets);
   } catch (const MeshError& e) {
     r.error(r.child("mesh"), e.what());
   }

@@ -8,10 +8,15 @@
 #include <any>
 #include <array>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+namespace incise::physics {
+struct TetMesh;
+}
 
 namespace incise::engine {
 
@@ -73,6 +78,10 @@ struct BodySpec {
   std::optional<std::filesystem::path> mesh;
   double mesh_scale = 1;
   std::string mesh_up = "z";  // the file's axis that is the scene's +z (engine::turn_up)
+  // The tetrahedral mesh as the scene reader read it (for its mean edge length, when no
+  // `resolution` is given): the build takes it rather than reading and checking the file again.
+  // From `mesh`, `mesh_scale` and `mesh_up` as read; whoever changes those afterwards resets it.
+  std::shared_ptr<const physics::TetMesh> tets;
   std::optional<GeneratorSpec> generator;
   // fem: tetrahedra cell size; efg: integration cube side a (particles 2a apart), m. With a
   // tetrahedral mesh it may be left out: the mesh's mean edge length.

@@ -26,8 +26,9 @@ namespace {
 void make_render_surface(physics::BodyModel& model, physics::BodyData& body, const BodySpec& spec, const BodyShape& shape,
                          physics::Vector& rest_vertices) {
   if (spec.mesh) {
-    const TriangleSoup soup =
-        shape.tets ? boundary_surface(*shape.tets) : import_surface(*spec.mesh, spec.mesh_scale, spec.mesh_up);
+    // The surface body_shape read (the file is read once per build).
+    if (!shape.surface) throw std::logic_error("a mesh body's shape carries no surface");
+    const TriangleSoup& soup = *shape.surface;
     rest_vertices.resize(3 * static_cast<Eigen::Index>(soup.vertices.size()));
     for (std::size_t v = 0; v < soup.vertices.size(); ++v)
       for (int c = 0; c < 3; ++c) rest_vertices[3 * static_cast<Eigen::Index>(v) + c] = soup.vertices[v][c];
@@ -119,7 +120,9 @@ Body build_efg_body(const BodySpec& spec, const SolverSpec& solver, const BodySh
   }
   const physics::CorotationalEfg& efg = *body.efg;
   model->elements = static_cast<std::size_t>(efg.element_count());
-  if (!body.embedding) body.embedding = efg.embed_surface(rest_vertices);
+  // Each vertex follows a point it sees through the body: a thin fin's vertex beside another
+  // part across a narrow gap takes no point on that part (CorotationalEfg::embed_surface).
+  if (!body.embedding) body.embedding = efg.embed_surface(rest_vertices, &shape.inside);
   start_at_rest(body);
   fix_nodes(body, spec, efg.rest_positions());
   body.gravity = physics::gravity_forces(efg.lumped_masses(), model->gravity);

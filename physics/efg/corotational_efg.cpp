@@ -928,7 +928,25 @@ double CorotationalEfg::elastic_energy(const Vector& x) const {
   return energy;
 }
 
-SurfaceEmbedding CorotationalEfg::embed_surface(const Vector& rest_vertices) const {
+namespace {
+
+// Whether the segment from a surface vertex to a point stays inside the body (see embed_surface).
+bool sees_through_body(const std::function<bool(const Vec3&)>& inside, const Vec3& vertex, const Vec3& point, double a) {
+  const double length = (point - vertex).norm();
+  const int steps = std::max(1, static_cast<int>(std::ceil(length / (a / 8))));
+  for (int k = 1; k <= steps; ++k) {
+    const double along = length * k / steps;
+    if (along < a / 20) continue;
+    if (!inside(vertex + (along / length) * (point - vertex))) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+SurfaceEmbedding CorotationalEfg::embed_surface(const Vector& rest_vertices, const std::function<bool(const Vec3&)>* inside,
+                                                int* unseen) const {
+  if (unseen != nullptr) *unseen = 0;
   if (rest_vertices.size() % 3 != 0) {
     fail("embed_surface: " + std::to_string(rest_vertices.size()) +
          " coordinates, not a multiple of 3");
@@ -959,6 +977,11 @@ SurfaceEmbedding CorotationalEfg::embed_surface(const Vector& rest_vertices) con
     }
     double best_distance = std::numeric_limits<double>::infinity();
     int best = -1;
+    // With `inside`: the nearest seen point (`seen`), searched up to embed_visible_reach_rings
+    // shells beyond the one where the first point was found.
+    double seen_distance = std::numeric_limits<double>::infinity();
+    int seen = -1;
+    long long first_shell = -1;
     for (long long r = nearest_shell; r <= farthest_shell; ++r) {
       const auto low = [&](int axis) { return std::max(-r, -cube[axis]); };
       const auto high = [&](int axis) { return std::min(r, shape_->cube_counts[axis] - 1 - cube[axis]); };
@@ -974,13 +997,31 @@ SurfaceEmbedding CorotationalEfg::embed_surface(const Vector& rest_vertices) con
               best_distance = distance;
               best = e;
             }
+            if (inside != nullptr && (distance < seen_distance || (distance == seen_distance && e < seen)) &&
+                sees_through_body(*inside, vertex, shape_->centres[e], a)) {
+              seen_distance = distance;
+              seen = e;
+            }
           }
         }
       }
+      if (best >= 0 && first_shell < 0) first_shell = r;
       const double next_shell = static_cast<double>(r) * a;
-      if (best >= 0 && std::sqrt(best_distance) < next_shell) break;
+      if (inside == nullptr) {
+        if (best >= 0 && std::sqrt(best_distance) < next_shell) break;
+      } else if ((seen >= 0 && std::sqrt(seen_distance) < next_shell) ||
+                 (first_shell >= 0 && r >= first_shell + embed_visible_reach_rings)) {
+        break;
+      }
     }
     if (best < 0) fail("embed_surface: no integration point found for vertex " + std::to_string(v));
+    if (inside != nullptr) {
+      if (seen >= 0) {
+        best = seen;
+      } else if (unseen != nullptr) {
+        ++*unseen;
+      }
+    }
 
     const size_t base = static_cast<size_t>(best) * stride_;
     const int length = row_lengths_[best];

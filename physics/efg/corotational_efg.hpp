@@ -265,7 +265,17 @@ class CorotationalEfg final : public DeformableModel {
   // Surface embedding (seed-004 §2.6): each vertex (3n rest positions) maps to its nearest
   // integration point (ties to the lower index) and that point's neighbourhood, with the MLS
   // shape functions evaluated at the vertex.
-  SurfaceEmbedding embed_surface(const Vector& rest_vertices) const;
+  // With `inside` (the body's inside test), to the nearest point it sees through the body: the
+  // segment from the vertex to the point stays inside (sampled every a / 8, from a / 20 off the
+  // vertex, which lies on the surface). Without it a vertex on a thin feature (a fin, a folded
+  // edge thinner than the particle spacing) beside another part of the body across a gap may
+  // take a point on the other part, and follows it rather than its own feature. A vertex that
+  // sees no point within embed_visible_reach_rings cubes of the nearest takes the nearest, and
+  // is counted in `unseen`.
+  SurfaceEmbedding embed_surface(const Vector& rest_vertices,
+                                 const std::function<bool(const Vec3&)>* inside = nullptr,
+                                 int* unseen = nullptr) const;
+  static constexpr int embed_visible_reach_rings = 3;
   // out (resized to 3 x vertices) = the embedded vertex positions for particle positions x.
   static void surface_positions(const SurfaceEmbedding& embedding, const Vector& particle_positions,
                                 Vector& out);
