@@ -83,8 +83,9 @@ int batch_run(const BatchArgs& args) {
 
 int batch_merge(const std::string& dir) { return report_merge(batch::merge_batch(dir, std::cerr)); }
 
-int emit_bench_manifest(const std::string& bench, bool quick, int parts, const std::string& file) {
-  batch::write_atomically(file, batch::bench_manifest(bench, quick, parts));
+int emit_bench_manifest(const std::string& bench, bool quick, int parts, const std::string& file,
+                        const std::string& cases) {
+  batch::write_atomically(file, batch::bench_manifest(bench, quick, parts, cases));
   std::fprintf(stderr, "wrote %s: %s in %d parts; run it with `incise batch %s --out DIR` (or its shards), then "
                "`incise batch merge DIR` joins the sweep into DIR/bench/%s/\n",
                file.c_str(), bench.c_str(), parts, file.c_str(), bench.c_str());

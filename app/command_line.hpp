@@ -64,6 +64,9 @@ struct BatchCommand {
 struct AccuracyBenchCommand {
   bool quick = false;
   std::string out = "out/bench/accuracy";
+  std::string manifest;  // --emit-manifest: write the report's runs as a batch manifest instead
+  int parts = 4;
+  std::string cases;  // --cases: a subset of the report
   CLI::App* command = nullptr;
 };
 

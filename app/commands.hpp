@@ -71,7 +71,8 @@ int replay(const ReplayArgs& args);
 int batch_run(const BatchArgs& args);
 int batch_merge(const std::string& dir);
 // `incise bench NAME --emit-manifest FILE --parts N`: the sweep as a batch manifest.
-int emit_bench_manifest(const std::string& bench, bool quick, int parts, const std::string& file);
+int emit_bench_manifest(const std::string& bench, bool quick, int parts, const std::string& file,
+                        const std::string& cases = "");
 int check(const std::string& scene_file);
 int run(const RunArgs& args);
 int session(const SessionArgs& args);

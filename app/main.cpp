@@ -50,7 +50,15 @@ int run_command(const incise::app::Commands& c) {
   if (*t.info_command) return app::trajectory_info(t.info_file);
   if (*t.import_command) return app::trajectory_import(t.import_file, t.import_out);
   if (*t.synth_command) return app::trajectory_synth(t.synth);
-  if (*c.accuracy.command) return bench::run_accuracy_bench(c.accuracy.quick, c.accuracy.out, std::cerr);
+  const auto& accuracy = c.accuracy;
+  if (*accuracy.command && !accuracy.manifest.empty())
+    return app::emit_bench_manifest("accuracy", accuracy.quick, accuracy.parts, accuracy.manifest, accuracy.cases);
+  if (*accuracy.command) {
+    bench::AccuracyOptions options;
+    options.quick = accuracy.quick;
+    options.cases = accuracy.cases;
+    return bench::run_accuracy_bench(options, accuracy.out, std::cerr);
+  }
   const auto& stability = c.stability;
   if (*stability.command && !stability.manifest.empty())
     return app::emit_bench_manifest("stability", stability.quick, stability.parts, stability.manifest);

@@ -1,13 +1,16 @@
 #include "batch/bench_job.hpp"
 
 #include "batch/json_file.hpp"
+#include "bench/accuracy.hpp"
 #include "bench/stability.hpp"
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <tuple>
 #include <vector>
 
 namespace incise::batch {
@@ -32,14 +35,70 @@ std::string digest(const std::string& text) {
   return hex;
 }
 
+// The CSV's text without the column `name` (the accuracy report's ms_per_step: a wall time,
+// which differs from run to run, while every other column is a deterministic result).
+std::string without_column(const std::string& text, const std::string& name) {
+  std::istringstream lines(text);
+  std::string line, out;
+  int drop = -1;
+  for (bool header = true; std::getline(lines, line); header = false) {
+    std::vector<std::string> fields;
+    std::istringstream cells(line);
+    for (std::string cell; std::getline(cells, cell, ',');) fields.push_back(cell);
+    if (header) drop = static_cast<int>(std::find(fields.begin(), fields.end(), name) - fields.begin());
+    for (int i = 0; i < static_cast<int>(fields.size()); ++i)
+      if (i != drop) out += fields[i] + ",";
+    out += "\n";
+  }
+  return out;
+}
+
+// The part's rows: the bench's CSV in `dir` and the text its digest is taken of.
+std::string run_part(const BenchPart& part, const std::filesystem::path& dir, std::ostream& log, int& status) {
+  if (part.name == "accuracy") {
+    status = bench::run_accuracy_bench({part.quick, true, part.part, part.parts, part.cases, {}}, dir, log);
+    return without_column(read_text(dir / "accuracy.csv"), "ms_per_step");
+  }
+  status = bench::run_stability_bench({part.quick, false, part.part, part.parts}, dir, log);
+  return read_text(dir / "stability.csv");
+}
+
+// Joins the parts (folders by part index) into `target` with the bench itself; returns its status.
+int join_parts(const std::string& name, bool quick, const std::string& cases,
+               const std::map<int, std::filesystem::path>& done, const std::filesystem::path& target, std::ostream& log) {
+  if (name == "accuracy") {
+    std::vector<std::filesystem::path> dirs;
+    for (const auto& [index, dir] : done) dirs.push_back(dir);
+    return bench::run_accuracy_bench({quick, false, 0, 1, cases, dirs}, target, log);
+  }
+  // The parts' rows under one header; the bench's resume keeps them all, runs nothing and
+  // writes them back in the sweep's order with the summary, plot and page.
+  std::string joined;
+  for (const auto& [index, dir] : done) {
+    std::istringstream rows(read_text(dir / "stability.csv"));
+    std::string line;
+    bool header = true;
+    while (std::getline(rows, line)) {
+      if (header && joined.empty()) joined += line + "\n";
+      if (!header) joined += line + "\n";
+      header = false;
+    }
+  }
+  write_atomically(target / "stability.csv", joined);
+  return bench::run_stability_bench({quick, true, 0, 1}, target, log);
+}
+
 }  // namespace
 
-std::string bench_manifest(const std::string& bench, bool quick, int parts) {
+std::string bench_manifest(const std::string& bench, bool quick, int parts, const std::string& cases) {
   Json jobs = Json::array();
-  for (int part = 0; part < parts; ++part)
-    jobs.push_back({{"name", bench + "_part_" + std::to_string(part)},
-                    {"bench", {{"name", bench}, {"quick", quick}, {"part", part}, {"parts", parts}}}});
-  return Json{{"description", "incise bench " + bench + (quick ? " --quick" : "") + " in " + std::to_string(parts) +
+  for (int part = 0; part < parts; ++part) {
+    Json b = {{"name", bench}, {"quick", quick}, {"part", part}, {"parts", parts}};
+    if (!cases.empty()) b["cases"] = cases;
+    jobs.push_back({{"name", bench + "_part_" + std::to_string(part)}, {"bench", b}});
+  }
+  return Json{{"description", "incise bench " + bench + (quick ? " --quick" : "") +
+                                  (cases.empty() ? "" : " --cases " + cases) + " in " + std::to_string(parts) +
                                   " parts; `incise batch merge DIR` joins them into DIR/bench/" + bench + "/"},
               {"jobs", jobs}}
              .dump(2) +
@@ -48,9 +107,9 @@ std::string bench_manifest(const std::string& bench, bool quick, int parts) {
 
 void run_bench_part(const BenchPart& part, const std::filesystem::path& dir, Json& outcome) {
   std::ofstream log(dir / "bench.log");
-  const int status = bench::run_stability_bench({part.quick, false, part.part, part.parts}, dir, log);
+  int status = 1;
+  const std::string rows = run_part(part, dir, log, status);
   log.close();
-  const std::string rows = read_text(dir / "stability.csv");
   outcome["state_hash"] = digest(rows);
   outcome["steps"] = std::max<long>(0, static_cast<long>(std::count(rows.begin(), rows.end(), '\n')) - 1);  // runs
   if (status != 0) {
@@ -61,14 +120,15 @@ void run_bench_part(const BenchPart& part, const std::filesystem::path& dir, Jso
 }
 
 bool merge_bench_parts(const std::filesystem::path& out_dir, const Json& jobs_file, std::ostream& progress) {
-  // Per benchmark (and quick or not): its parts' folders, by part index.
-  std::map<std::pair<std::string, bool>, std::map<int, std::filesystem::path>> sweeps;
-  std::map<std::pair<std::string, bool>, int> expected;
+  // Per benchmark (quick or not, its cases): its parts' folders, by part index.
+  using Key = std::tuple<std::string, bool, std::string>;
+  std::map<Key, std::map<int, std::filesystem::path>> sweeps;
+  std::map<Key, int> expected;
   bool joined_all = true;
   for (const Json& job : jobs_file.at("jobs")) {
     if (!job.contains("bench")) continue;
     const Json& b = job.at("bench");
-    const auto key = std::pair{b.at("name").get<std::string>(), b.at("quick").get<bool>()};
+    const Key key{b.at("name").get<std::string>(), b.at("quick").get<bool>(), b.value("cases", "")};
     expected[key] = b.at("parts").get<int>();
     const std::filesystem::path dir = out_dir / "jobs" / job.at("name").get<std::string>();
     const std::filesystem::path outcome = dir / "outcome.json";
@@ -76,7 +136,7 @@ bool merge_bench_parts(const std::filesystem::path& out_dir, const Json& jobs_fi
       sweeps[key][b.at("part").get<int>()] = dir;
   }
   for (const auto& [key, parts] : expected) {
-    const auto& [name, quick] = key;
+    const auto& [name, quick, cases] = key;
     const auto& done = sweeps[key];
     if (static_cast<int>(done.size()) != parts) {
       progress << "bench " << name << ": " << done.size() << " of " << parts
@@ -84,25 +144,11 @@ bool merge_bench_parts(const std::filesystem::path& out_dir, const Json& jobs_fi
       joined_all = false;
       continue;
     }
-    // The parts' rows under one header; the bench's resume keeps them all, runs nothing and
-    // writes them back in the sweep's order with the summary, plot and page.
     const std::filesystem::path target = out_dir / "bench" / name;
     std::filesystem::create_directories(target);
-    std::string joined;
-    for (const auto& [index, dir] : done) {
-      std::istringstream rows(read_text(dir / "stability.csv"));
-      std::string line;
-      bool header = true;
-      while (std::getline(rows, line)) {
-        if (header && joined.empty()) joined += line + "\n";
-        if (!header) joined += line + "\n";
-        header = false;
-      }
-    }
-    write_atomically(target / "stability.csv", joined);
     std::ofstream log(target / "bench.log");
-    const int status = bench::run_stability_bench({quick, true, 0, 1}, target, log);
-    progress << "bench " << name << ": " << parts << " parts joined into " << (target / "stability.csv").string()
+    const int status = join_parts(name, quick, cases, done, target, log);
+    progress << "bench " << name << ": " << parts << " parts joined into " << (target / (name + ".csv")).string()
              << (status == 0 ? "" : " (FAILED: see " + (target / "bench.log").string() + ")") << "\n";
     joined_all = joined_all && status == 0;
   }

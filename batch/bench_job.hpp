@@ -16,7 +16,8 @@
 namespace incise::batch {
 
 // The manifest of a sweep in `parts` parts (jobs NAME_part_I), as JSON text.
-std::string bench_manifest(const std::string& bench, bool quick, int parts);
+// `cases`: the accuracy report's --cases (empty: all; the stability sweep has none).
+std::string bench_manifest(const std::string& bench, bool quick, int parts, const std::string& cases = "");
 
 // Runs the part into `dir` (its stability.csv and log); fills the job's outcome: "ok" or
 // "failed" with the error, state_hash a digest of the part's rows.

@@ -1,7 +1,10 @@
 #include "batch/manifest.hpp"
 
+#include "bench/accuracy.hpp"
+
 #include "engine/scene_reader.hpp"
 
+#include <algorithm>
 #include <fstream>
 #include <map>
 #include <set>
@@ -96,10 +99,19 @@ void read_keys(const Json& block, const std::string& path, bool grid, const Json
 BenchPart read_bench(const Json& node, const std::string& path, std::vector<std::string>& errors) {
   Reader b(node, path, errors);
   BenchPart bench;
-  bench.name = b.text("name", true, "stability", {"stability"});
+  bench.name = b.text("name", true, "stability", {"stability", "accuracy"});
   bench.quick = b.boolean("quick", false);
   bench.parts = b.integer("parts", false, 1, 1, 10000);
   bench.part = b.integer("part", true, 0, 0, 9999);
+  bench.cases = b.text("cases", false, "");
+  if (!bench.cases.empty() && bench.name != "accuracy")
+    b.error(b.child("cases"), "only the accuracy report takes cases");
+  std::stringstream names(bench.cases);
+  const std::vector<std::string> known = bench::accuracy_case_names();
+  for (std::string name; !bench.cases.empty() && std::getline(names, name, ',');) {
+    if (std::find(known.begin(), known.end(), name) == known.end())
+      b.error(b.child("cases"), "'" + name + "' is not a case (bend, stretch, bend_cut, stretch_cut, b1, traction)");
+  }
   if (bench.part >= bench.parts)
     b.error(b.child("part"), std::to_string(bench.part) + " is not below parts (" + std::to_string(bench.parts) + ")");
   return bench;
@@ -214,7 +226,7 @@ Json jobs_json(const Manifest& manifest) {
                   {"overrides", overrides}};
     if (job.bench)
       entry["bench"] = {{"name", job.bench->name}, {"quick", job.bench->quick}, {"part", job.bench->part},
-                        {"parts", job.bench->parts}};
+                        {"parts", job.bench->parts}, {"cases", job.bench->cases}};
     jobs.push_back(std::move(entry));
   }
   return {{"manifest", manifest.file.string()}, {"override_keys", manifest.override_keys}, {"jobs", jobs}};

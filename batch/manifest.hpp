@@ -21,6 +21,7 @@ struct BenchPart {
   bool quick = false;
   int part = 0;
   int parts = 1;
+  std::string cases;  // accuracy only: its --cases (comma-separated), empty for all
 };
 
 // One run: a replay of a scene into DIR/jobs/NAME/, or a part of a benchmark.

@@ -6,13 +6,35 @@
 
 #include <filesystem>
 #include <ostream>
+#include <string>
+#include <vector>
 
 namespace incise::bench {
 
-// Writes DIR/accuracy.csv, DIR/references.json, DIR/accuracy.gnuplot and (with gnuplot)
-// DIR/accuracy.png. Progress and the reference refinement checks go to `progress`.
-// Returns 0 on success, 1 on failure (with a message on `progress`).
-int run_accuracy_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress);
+// The whole report, a part of it (a batch job) or the join of the parts (the batch's merge).
+// The units of work are the bodies (a shape, cut or not, with the cases that load it), then the
+// `traction` case: a part runs the units whose index modulo `parts` is `part`, each body with
+// its own references (they serve only its cases), so no part needs another's (docs/batch.md).
+struct AccuracyOptions {
+  bool quick = false;
+  bool as_part = false;  // run the part-th of `parts` parts: DIR/accuracy_part.json and its accuracy.csv
+  int part = 0;
+  int parts = 1;
+  // Comma-separated case names (accuracy_case_names()), a subset of the report; empty: all.
+  std::string cases;
+  // Folders of the parts' accuracy_part.json: run nothing, write the whole report from them.
+  std::vector<std::filesystem::path> join;
+};
+
+// Writes DIR/accuracy.csv, DIR/references.json, DIR/accuracy.gnuplot, (with gnuplot)
+// DIR/accuracy.png and DIR/report.html; a part writes DIR/accuracy_part.json (its rows,
+// references and cutter reports, exactly) and its rows as DIR/accuracy.csv. Progress and the
+// reference refinement checks go to `progress`. Returns 0 on success, 1 on failure (with a
+// message on `progress`).
+// The report's cases, for --cases: bend, stretch, bend_cut, stretch_cut, b1, traction.
+std::vector<std::string> accuracy_case_names();
+
+int run_accuracy_bench(const AccuracyOptions& options, const std::filesystem::path& out_dir, std::ostream& progress);
 
 // The report's cut beams (bend_cut, stretch_cut: the hexagonal beam cut at x = 0.1 m from the
 // top down to z = 0, under 9.81 m/s^2 along -z and +x), for the tests: their mean tip

@@ -23,6 +23,15 @@ if(INCISE_SANITIZE STREQUAL "")
   set_tests_properties(batch_bench_parts PROPERTIES TIMEOUT 600 LABELS "batch" FIXTURES_REQUIRED stability_sweep)
 endif()
 
+# The quick accuracy report in 3 parts on the batch path, joined and compared with the unsharded
+# report the test runs first (no fixture writes one); Release only, like the stability sweep.
+if(INCISE_SANITIZE STREQUAL "")
+  add_test(NAME batch_bench_accuracy_parts
+           COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/batch_bench_accuracy_parts.sh $<TARGET_FILE:incise>
+                   ${CMAKE_CURRENT_BINARY_DIR}/batch_bench_accuracy_parts)
+  set_tests_properties(batch_bench_accuracy_parts PROPERTIES TIMEOUT 900 LABELS "batch")
+endif()
+
 # mpirun and the single-node Slurm in Release only: OpenMPI's runtime is not clean under the
 # sanitizers (LSan counts what it keeps until exit), and what they add to incise (ranks.cpp,
 # shell scripts) is not code the sanitizers look into; batch_shards runs the batch code there.
