@@ -73,10 +73,10 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
                                         {0.0028, 0.0006}, {0.0018, 0.0009}};
     // Each size with the warped rest factor and with Jacobi, side by side (--preconditioner
     // names one of them alone).
-    std::vector<std::string> preconditioners{"jacobi", "warped_cholesky", "two_level"};
+    std::vector<std::string> preconditioners{"jacobi", "warped_cholesky", "two_level", "multigrid"};
     if (preconditioner != "all") {
       if (std::find(preconditioners.begin(), preconditioners.end(), preconditioner) == preconditioners.end())
-        throw std::runtime_error("--preconditioner: '" + preconditioner + "' is not two_level, warped_cholesky, jacobi or all");
+        throw std::runtime_error("--preconditioner: '" + preconditioner + "' is not multigrid, two_level, warped_cholesky, jacobi or all");
       preconditioners = {preconditioner};
     }
     // From the press to the end of the stroke of default.traj (0.3 s .. 2.0 s): the cut face,

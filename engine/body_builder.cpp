@@ -230,8 +230,10 @@ std::shared_ptr<physics::BodyModel> body_model(const BodySpec& spec, const Solve
   model->integrator.cg.max_iterations = solver.max_iterations;
   model->preconditioner.kind = solver.preconditioner == "warped_cholesky" ? physics::PreconditionerKind::warped_cholesky
                                 : solver.preconditioner == "two_level"     ? physics::PreconditionerKind::two_level
+                                : solver.preconditioner == "multigrid"     ? physics::PreconditionerKind::multigrid
                                                                            : physics::PreconditionerKind::jacobi;
   model->preconditioner.latency = solver.preconditioner_latency;
+  model->preconditioner.smoothing = solver.multigrid_smoothing;
   model->gravity = vec(solver.gravity);
   return model;
 }

@@ -130,6 +130,7 @@ struct SolverSpec {
   // the organ sizes measured (docs/status.md, "Solver").
   std::string preconditioner = "jacobi";
   int preconditioner_latency = 4;
+  int multigrid_smoothing = 2;  // "multigrid": the Chebyshev smoother's degree
   std::string start = "rest";  // "rest", or "settled": start from static equilibrium under gravity
   // Real time (engine/real_time_budget.hpp): live sessions (`run`, `session`, `bench haptics`)
   // stop each step's CG when its time is up, after at least realtime_min_iterations; replay

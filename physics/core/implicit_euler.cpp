@@ -1,5 +1,6 @@
 #include "physics/core/implicit_euler.hpp"
 
+#include "physics/solve/multigrid.hpp"
 #include "physics/solve/warped_preconditioner.hpp"
 
 #include <cmath>
@@ -89,6 +90,34 @@ CgResult jacobi_solve(const DeformableModel& model, std::span<const NodalSpring>
   return conjugate_gradient(apply, right_hand_side, diagonal, fixed_nodes, velocity_change, settings);
 }
 
+// CG preconditioned with a rest factor warped by the node rotations: the whole factor, the
+// additive two-level (a coarse factor plus Jacobi, which takes what the coarse grid cannot
+// represent), or the V-cycle around the coarse factor (physics/solve/multigrid.hpp).
+CgResult rest_factor_solve(const DeformableModel& model, const RestFactor& factor, const LinearOperator& apply,
+                           const Vector& inverse_diagonal, const Vector& right_hand_side,
+                           const std::vector<uint8_t>& fixed_nodes, Vector& velocity_change, const CgSettings& settings) {
+  std::vector<Eigen::Quaterniond> rotations;
+  model.node_rotations(rotations);
+  if (factor.smoothing_degree() > 0) {
+    // Headroom over the rest system's estimate: the rotations, a cut since the factor's build
+    // and the springs move D^-1 A's spectrum a little, and a smoother whose interval misses
+    // its top would amplify those modes instead of damping them.
+    ChebyshevSmoother smoother;
+    smoother.degree = factor.smoothing_degree();
+    smoother.upper = 1.2 * factor.smoothing_eigenvalue();
+    VcyclePreconditioner vcycle(apply, inverse_diagonal, factor, std::move(rotations), fixed_nodes, smoother);
+    const Preconditioner cycle = [&](const Vector& r, Vector& z) { vcycle(r, z); };
+    return preconditioned_conjugate_gradient(apply, right_hand_side, cycle, fixed_nodes, velocity_change, settings);
+  }
+  Vector coarse(right_hand_side.size());
+  const Preconditioner warped = [&](const Vector& r, Vector& z) {
+    if (!factor.coarse()) return warped_solve(factor, rotations, r, z);
+    warped_solve(factor, rotations, r, coarse);
+    z = inverse_diagonal.cwiseProduct(r) + coarse;
+  };
+  return preconditioned_conjugate_gradient(apply, right_hand_side, warped, fixed_nodes, velocity_change, settings);
+}
+
 }  // namespace
 
 Vector gravity_forces(const Vector& lumped_masses, const Vec3& g) {
@@ -171,20 +200,12 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   if (velocity_change_guess && velocity_change_guess->size() == size && velocity_change_guess->allFinite())
     velocity_change = *velocity_change_guess;
   if (rest_factor && rest_factor->size() == size) {
-    std::vector<Eigen::Quaterniond> rotations;
-    model.node_rotations(rotations);
-    // A coarse factor corrects only the smooth part: Jacobi takes the rest (additive two-level).
     const Vector inverse_diagonal =
         rest_factor->coarse()
             ? jacobi_inverse(jacobi_diagonal(model, springs, masses, mass_coefficient, stiffness_coefficient, dt))
             : Vector();
-    Vector coarse(size);
-    const Preconditioner warped = [&](const Vector& r, Vector& z) {
-      if (!rest_factor->coarse()) return warped_solve(*rest_factor, rotations, r, z);
-      warped_solve(*rest_factor, rotations, r, coarse);
-      z = inverse_diagonal.cwiseProduct(r) + coarse;
-    };
-    report.cg = preconditioned_conjugate_gradient(apply, right_hand_side, warped, fixed_nodes, velocity_change, settings.cg);
+    report.cg = rest_factor_solve(model, *rest_factor, apply, inverse_diagonal, right_hand_side, fixed_nodes,
+                                  velocity_change, settings.cg);
   } else {
     report.cg = jacobi_solve(model, springs, masses, mass_coefficient, stiffness_coefficient, dt, apply, right_hand_side,
                              fixed_nodes, velocity_change, settings.cg);

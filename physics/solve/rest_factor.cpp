@@ -1,5 +1,7 @@
 #include "physics/solve/rest_factor.hpp"
 
+#include "physics/solve/multigrid.hpp"
+
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCholesky>
 
@@ -28,12 +30,17 @@ struct RestFactor::Solver {
 
 RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
                        double mass_coefficient, double stiffness_coefficient, FactorBackend backend,
-                       const CoarseSpace* coarse)
+                       const CoarseSpace* coarse, int smoothing_degree)
     : solver_(std::make_unique<Solver>()), size_(3 * stiffness.nodes()), backend_(backend) {
   const auto start = std::chrono::steady_clock::now();
   if (!(mass_coefficient > 0) || !(stiffness_coefficient >= 0))
     throw std::invalid_argument("RestFactor: the mass coefficient must be positive and the stiffness one non-negative");
   SparseMatrix matrix = stiffness.system(masses, fixed, mass_coefficient, stiffness_coefficient);
+  if (smoothing_degree > 0) {
+    if (!coarse) throw std::invalid_argument("RestFactor: a V-cycle's smoother needs a coarse space");
+    smoothing_degree_ = smoothing_degree;
+    smoothing_eigenvalue_ = largest_jacobi_eigenvalue(matrix);
+  }
   if (coarse) {
     prolongation_ = coarse->prolongation;
     SparseMatrix galerkin = SparseMatrix(prolongation_.transpose()) * (matrix * prolongation_);

@@ -35,11 +35,14 @@ FactorBackend default_factor_backend();
 
 class RestFactor {
  public:
+  // `smoothing_degree` > 0 (with a coarse space): the factor is the coarse level of a V-cycle
+  // (multigrid.hpp) whose Chebyshev smoother has that degree; the largest eigenvalue of
+  // D0^-1 A0 that bounds its interval is estimated here, off the step's critical path.
   // Throws std::runtime_error if A0 is not positive definite (a body with a free rigid mode
   // and no mass term cannot be: the mass coefficient must be positive).
   RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
              double mass_coefficient, double stiffness_coefficient, FactorBackend backend = default_factor_backend(),
-             const CoarseSpace* coarse = nullptr);
+             const CoarseSpace* coarse = nullptr, int smoothing_degree = 0);
   ~RestFactor();
   RestFactor(const RestFactor&) = delete;
   RestFactor& operator=(const RestFactor&) = delete;
@@ -51,6 +54,8 @@ class RestFactor {
   int factored_size() const { return coarse() ? static_cast<int>(prolongation_.cols()) : size_; }
 
   int size() const { return size_; }
+  int smoothing_degree() const { return smoothing_degree_; }        // 0: additive two-level
+  double smoothing_eigenvalue() const { return smoothing_eigenvalue_; }  // of D0^-1 A0
   long long factor_nonzeros() const { return factor_nonzeros_; }
   double build_ms() const { return build_ms_; }  // the matrix and its factorisation
   FactorBackend backend() const { return backend_; }
@@ -63,6 +68,8 @@ class RestFactor {
   int size_ = 0;
   long long factor_nonzeros_ = 0;
   double build_ms_ = 0;
+  int smoothing_degree_ = 0;
+  double smoothing_eigenvalue_ = 0;
   FactorBackend backend_;
 };
 

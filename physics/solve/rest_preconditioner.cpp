@@ -11,6 +11,7 @@ const char* to_string(PreconditionerKind kind) {
     case PreconditionerKind::jacobi: return "jacobi";
     case PreconditionerKind::warped_cholesky: return "warped_cholesky";
     case PreconditionerKind::two_level: return "two_level";
+    case PreconditionerKind::multigrid: return "multigrid";
   }
   return "?";
 }
@@ -26,16 +27,18 @@ RestPreconditioner::Pending RestPreconditioner::start(const DeformableModel& mod
   pending.result = std::make_shared<FactorPtr>();
   // Everything the job reads is its own copy: the model may be cut again meanwhile.
   auto assemble = model.rest_stiffness_job();
+  const bool multigrid = settings.kind == PreconditionerKind::multigrid;
   const double coarse_spacing =
-      settings.kind == PreconditionerKind::two_level ? settings.coarsening * model.node_spacing() : 0.0;
+      settings.kind == PreconditionerKind::two_level || multigrid ? settings.coarsening * model.node_spacing() : 0.0;
+  const int smoothing = multigrid ? settings.smoothing : 0;
   pending.done = executor.run_async([result = pending.result, assemble = std::move(assemble),
                                      masses = model.lumped_masses(), rest = model.rest_positions(), fixed,
-                                     mass_coefficient, stiffness_coefficient, coarse_spacing] {
+                                     mass_coefficient, stiffness_coefficient, coarse_spacing, smoothing] {
     const BlockMatrix stiffness = assemble();
     if (coarse_spacing > 0) {
       const CoarseSpace coarse = make_coarse_space(rest, coarse_spacing, fixed);
       *result = std::make_shared<const RestFactor>(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient,
-                                                   default_factor_backend(), &coarse);
+                                                   default_factor_backend(), &coarse, smoothing);
     } else {
       *result = std::make_shared<const RestFactor>(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient);
     }
@@ -49,7 +52,8 @@ const RestFactor* RestPreconditioner::prepare(const PreconditionerSettings& sett
                                               long long step, Executor& executor, PreconditionerReport& report) {
   if (settings.kind == PreconditionerKind::jacobi || unsupported_) return nullptr;
   if (!current_) {
-    if (!model.rest_stiffness_job() || (settings.kind == PreconditionerKind::two_level && !(model.node_spacing() > 0))) {
+    if (!model.rest_stiffness_job() || ((settings.kind == PreconditionerKind::two_level || settings.kind == PreconditionerKind::multigrid) &&
+                                          !(model.node_spacing() > 0))) {
       unsupported_ = true;  // the model offers no rest stiffness: Jacobi
       return nullptr;
     }

@@ -30,6 +30,9 @@ enum class PreconditionerKind {
   // Jacobi plus the coarse correction of an embedded grid twice the node spacing (additive
   // two-level: P^-1 = D^-1 + R P (P^T A0 P)^-1 P^T R^T; coarse_space.hpp), warped likewise.
   two_level,
+  // The same coarse space and factor in a multiplicative V-cycle: Chebyshev smoothing of the
+  // Jacobi-scaled operator before and after the coarse correction (multigrid.hpp).
+  multigrid,
 };
 
 const char* to_string(PreconditionerKind kind);
@@ -37,7 +40,8 @@ const char* to_string(PreconditionerKind kind);
 struct PreconditionerSettings {
   PreconditionerKind kind = PreconditionerKind::warped_cholesky;
   int latency = 4;  // steps between a topology change and its factor taking over
-  double coarsening = 2;  // two_level: the coarse grid's spacing over the model's node spacing
+  double coarsening = 2;  // two_level, multigrid: the coarse grid's spacing over the model's node spacing
+  int smoothing = 2;      // multigrid: the Chebyshev smoother's degree (A products per smoothing)
 };
 
 // What the step reports about it.

@@ -4,6 +4,7 @@
 target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/block_matrix.cpp
   ${CMAKE_CURRENT_LIST_DIR}/coarse_space.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/multigrid.cpp
   ${CMAKE_CURRENT_LIST_DIR}/rest_factor.cpp
   ${CMAKE_CURRENT_LIST_DIR}/warped_preconditioner.cpp
   ${CMAKE_CURRENT_LIST_DIR}/rest_preconditioner.cpp

@@ -426,7 +426,8 @@ TEST(WorldCut, TheFrontSurfaceKeptAcrossOtherShippedCutScenesIsTheWholeSurfacesA
   }
 }
 
-// The warped rest factors (solver.preconditioner "warped_cholesky" and "two_level"): rebuilt
+// The warped rest factors (solver.preconditioner "warped_cholesky", "two_level" and
+// "multigrid"): rebuilt
 // after each cut on a thread of their own and taking over a fixed number of steps later, they
 // replay bit-for-bit and reach the Jacobi CG's solution (same tolerance) in fewer iterations,
 // through the cut.
@@ -452,6 +453,9 @@ TEST(WorldCut, TheRestFactorsReplayBitForBitThroughCutsAndAgreeWithJacobi) {
   long long warped_iterations = 0, again_iterations = 0, jacobi_iterations = 0, age = 0, unused = 0;
   long long two_level_iterations = 0, two_level_age = 0;
   const auto two_level = run("two_level", &two_level_iterations, &two_level_age);
+  long long multigrid_iterations = 0, multigrid_again_iterations = 0, multigrid_age = 0;
+  const auto multigrid = run("multigrid", &multigrid_iterations, &multigrid_age);
+  const auto multigrid_again = run("multigrid", &multigrid_again_iterations, &unused);
   const auto warped = run("warped_cholesky", &warped_iterations, &age);
   const auto again = run("warped_cholesky", &again_iterations, &unused);
   const auto jacobi = run("jacobi", &jacobi_iterations, &unused);
@@ -466,4 +470,11 @@ TEST(WorldCut, TheRestFactorsReplayBitForBitThroughCutsAndAgreeWithJacobi) {
   EXPECT_LT(two_level_iterations, jacobi_iterations);
   EXPECT_GE(two_level_age, 1);
   EXPECT_LE((two_level.second - jacobi.second).cwiseAbs().maxCoeff(), 1e-4 * moved);
+  EXPECT_EQ(multigrid.first, multigrid_again.first);
+  EXPECT_EQ(multigrid_iterations, multigrid_again_iterations);
+  EXPECT_LT(multigrid_iterations, two_level_iterations);
+  EXPECT_GE(multigrid_age, 1);
+  EXPECT_LE((multigrid.second - jacobi.second).cwiseAbs().maxCoeff(), 1e-4 * moved);
+  std::printf("CG iterations over 30 cut steps: jacobi %lld, two_level %lld, multigrid %lld, warped %lld\n",
+              jacobi_iterations, two_level_iterations, multigrid_iterations, warped_iterations);
 }

@@ -1,0 +1,108 @@
+#include "physics/solve/multigrid.hpp"
+
+#include "physics/solve/warped_preconditioner.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+
+namespace incise::physics {
+
+double largest_jacobi_eigenvalue(const Eigen::SparseMatrix<double>& a, int steps) {
+  const Eigen::Index size = a.rows();
+  if (size == 0) return 1;
+  Vector scale = a.diagonal();
+  for (Eigen::Index i = 0; i < size; ++i) scale[i] = scale[i] > 0 ? 1 / std::sqrt(scale[i]) : 1;
+  // A start with every mode in it: not an eigenvector of a regular grid's operator.
+  Vector v(size);
+  for (Eigen::Index i = 0; i < size; ++i) v[i] = 1 + 0.5 * std::sin(0.7 * static_cast<double>(i));
+  v.normalize();
+  Vector previous = Vector::Zero(size), w(size);
+  std::vector<double> alphas, betas;
+  double beta = 0;
+  steps = static_cast<int>(std::min<Eigen::Index>(steps, size));
+  for (int k = 0; k < steps; ++k) {
+    w = scale.cwiseProduct(a * scale.cwiseProduct(v)) - beta * previous;
+    const double alpha = v.dot(w);
+    w -= alpha * v;
+    alphas.push_back(alpha);
+    beta = w.norm();
+    if (!(beta > 1e-12 * std::abs(alpha))) break;  // an invariant subspace: the Ritz values are exact
+    betas.push_back(beta);
+    previous.swap(v);
+    v = w / beta;
+  }
+  const Eigen::Index m = static_cast<Eigen::Index>(alphas.size());
+  Eigen::MatrixXd tridiagonal = Eigen::MatrixXd::Zero(m, m);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    tridiagonal(i, i) = alphas[static_cast<size_t>(i)];
+    if (i + 1 < m) tridiagonal(i, i + 1) = tridiagonal(i + 1, i) = betas[static_cast<size_t>(i)];
+  }
+  const double largest = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(tridiagonal, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+  if (!std::isfinite(largest) || !(largest > 0))
+    throw std::runtime_error("largest_jacobi_eigenvalue: the matrix is not positive definite");
+  return largest;
+}
+
+VcyclePreconditioner::VcyclePreconditioner(const LinearOperator& apply, Vector inverse_diagonal, const RestFactor& coarse,
+                                           std::vector<Eigen::Quaterniond> rotations,
+                                           const std::vector<std::uint8_t>& fixed, ChebyshevSmoother smoother)
+    : apply_(apply),
+      inverse_diagonal_(std::move(inverse_diagonal)),
+      coarse_(coarse),
+      rotations_(std::move(rotations)),
+      fixed_(fixed),
+      smoother_(smoother) {
+  if (smoother_.degree < 1 || !(smoother_.upper > 0) || !(smoother_.ratio > 1))
+    throw std::invalid_argument("VcyclePreconditioner: the smoother needs a degree >= 1, upper > 0 and ratio > 1");
+  if (!coarse_.coarse()) throw std::invalid_argument("VcyclePreconditioner: the factor is not a coarse one");
+}
+
+void VcyclePreconditioner::zero_fixed(Vector& v) const {
+  for (size_t node = 0; node < fixed_.size(); ++node)
+    if (fixed_[node] != 0) v.segment<3>(3 * static_cast<Eigen::Index>(node)).setZero();
+}
+
+// Chebyshev iteration on D^-1 A over [lower, upper] (Saad, Iterative Methods, algorithm 12.1),
+// `degree` steps from x's current value: the polynomial is the same at every call, so the
+// pre- and post-smoothers are one symmetric S.
+void VcyclePreconditioner::smooth(Vector& x, Vector& residual, bool keep_residual) {
+  const double upper = smoother_.upper, lower = upper / smoother_.ratio;
+  const double theta = (upper + lower) / 2, delta = (upper - lower) / 2, sigma = theta / delta;
+  double rho = 1 / sigma;
+  step_ = inverse_diagonal_.cwiseProduct(residual) / theta;
+  zero_fixed(step_);
+  for (int k = 0; k < smoother_.degree; ++k) {
+    if (k > 0) {
+      const double next = 1 / (2 * sigma - rho);
+      step_ = (next * rho) * step_ + (2 * next / delta) * inverse_diagonal_.cwiseProduct(residual);
+      zero_fixed(step_);
+      rho = next;
+    }
+    x += step_;
+    if (k + 1 < smoother_.degree || keep_residual) {
+      apply_(step_, product_);
+      zero_fixed(product_);
+      residual -= product_;
+    }
+  }
+}
+
+void VcyclePreconditioner::operator()(const Vector& r, Vector& z) {
+  residual_ = r;
+  zero_fixed(residual_);
+  product_.resize(r.size());
+  z.setZero(r.size());
+  smooth(z, residual_, true);
+  warped_solve(coarse_, rotations_, residual_, correction_);
+  zero_fixed(correction_);
+  z += correction_;
+  apply_(correction_, product_);
+  zero_fixed(product_);
+  residual_ -= product_;
+  smooth(z, residual_, false);
+}
+
+}  // namespace incise::physics

@@ -1,0 +1,64 @@
+// A multiplicative two-grid V-cycle preconditioner for the implicit system A (issue 29): the
+// fine level smoothed by a Chebyshev polynomial of the Jacobi-scaled operator (only A's
+// matrix-free product and its diagonal), the coarse level the warped Galerkin factor of the
+// embedded trilinear grid (coarse_space.hpp, rest_factor.hpp):
+//   pre-smooth  x = S r,           r1 = r - A x
+//   correct     x += C r1,         C = R P (P^T A0 P)^-1 P^T R^T (warped_solve)
+//   post-smooth x += S r2,         r2 = r - A x
+// S = p(D^-1 A) D^-1 is symmetric, so the cycle I - M^-1 A = (I - S A)(I - C A)(I - S A) is
+// self-adjoint in the A inner product and M^-1 symmetric: CG stays valid. It is positive
+// definite while the smoother contracts in the A norm, which the Chebyshev interval's upper end
+// (an over-estimate of the largest eigenvalue of D^-1 A) ensures.
+//
+// Unlike the additive two-level (Jacobi + C), the correction acts on the residual the
+// smoother leaves, so the smoother and the coarse grid do not fight over the smooth modes.
+#pragma once
+
+#include "physics/core/cg.hpp"
+#include "physics/solve/rest_factor.hpp"
+
+#include <Eigen/Geometry>
+#include <Eigen/SparseCore>
+
+#include <cstdint>
+#include <vector>
+
+namespace incise::physics {
+
+// The largest eigenvalue of D^-1 A for a symmetric positive definite A (D its diagonal), by
+// `steps` Lanczos iterations on D^-1/2 A D^-1/2 from a fixed start: the largest Ritz value,
+// which approaches it from below (deterministic).
+double largest_jacobi_eigenvalue(const Eigen::SparseMatrix<double>& a, int steps = 24);
+
+struct ChebyshevSmoother {
+  int degree = 2;      // A products per smoothing (1: damped Jacobi)
+  double upper = 2;    // the interval [upper / ratio, upper] whose eigenvalues of D^-1 A it damps
+  double ratio = 30;   // the low end, below which the coarse grid takes over
+};
+
+class VcyclePreconditioner {
+ public:
+  // `apply`: A; `inverse_diagonal`: D^-1 (jacobi_inverse); `coarse`: a coarse RestFactor;
+  // `rotations`: its warp (empty: none); `fixed`: per node, 1 = fixed (zeroed throughout).
+  VcyclePreconditioner(const LinearOperator& apply, Vector inverse_diagonal, const RestFactor& coarse,
+                       std::vector<Eigen::Quaterniond> rotations, const std::vector<std::uint8_t>& fixed,
+                       ChebyshevSmoother smoother);
+
+  // z = M^-1 r: 2 x degree products of A and a coarse solve. Not re-entrant (workspace).
+  void operator()(const Vector& r, Vector& z);
+
+ private:
+  // x += S residual; residual -= A (that increment) unless `keep_residual` is false.
+  void smooth(Vector& x, Vector& residual, bool keep_residual);
+  void zero_fixed(Vector& v) const;
+
+  const LinearOperator& apply_;
+  Vector inverse_diagonal_;
+  const RestFactor& coarse_;
+  std::vector<Eigen::Quaterniond> rotations_;
+  const std::vector<std::uint8_t>& fixed_;
+  ChebyshevSmoother smoother_;
+  Vector residual_, step_, product_, correction_;
+};
+
+}  // namespace incise::physics
