@@ -126,8 +126,11 @@ TEST(PromayonScenes, TheImplicitOptionProjectsTheVolumeToo) {
   // The bottom face stayed where it was.
   const auto& x = world.bodies()[0].data.state.positions;
   const auto& rest = body.rest_positions();
-  for (Eigen::Index i = 0; i < x.size() / 3; ++i)
-    if (rest[3 * i + 2] < 1e-9) EXPECT_EQ(x.segment<3>(3 * i), rest.segment<3>(3 * i));
+  for (Eigen::Index i = 0; i < x.size() / 3; ++i) {
+    if (rest[3 * i + 2] < 1e-9) {
+      EXPECT_EQ(x.segment<3>(3 * i), rest.segment<3>(3 * i));
+    }
+  }
 }
 
 // A sub-step beyond the explicit limit (seed_step_limit) is refused when the world is built,
