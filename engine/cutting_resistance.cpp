@@ -9,10 +9,7 @@
 // blade is pressed just the same), adds up. The onset is an energy criterion: cutting begins
 // in the step after that work reaches G_c times the area the crack's first advance would open
 // (physics::onset_work: the engaged length across the edge's motion, at least its rounded
-// width, times half a particle spacing), or when the edge is more than its radius inside the
-// surface (the penalty contact has let go of it: the surface gave way first). The edge where
-// it first met the tissue is kept and becomes the stroke's first sample (BladeSweep::entry),
-// so that the cut starts at the surface rather than inside it at rest. Cutting: the cut stages run as before (the ideal blade cuts where
+// width, times half a particle spacing). Cutting: the cut stages run as before (the ideal blade cuts where
 // its edge passes) and the edge feels G_c per metre of engaged edge against its motion plus
 // the flanks' friction. The blade is driven by the hand's position, so its work over a step,
 // F . dx, is exactly G_c times the crack area it opened: the crack advances only as far as
@@ -82,22 +79,14 @@ void World::resist_cutting(StepStats& stats) {
   // seeing it as the trajectory says; only its resistance is added.
   if (!scene_.tool->onset) tool_.cutting.cutting = engaged > 0;
   if (scene_.tool->onset && !tool_.cutting.cutting) {
+    // Before the onset nothing is cut: the cut stages see the blade disengaged.
+    std::fill(tool_.blade_active.begin(), tool_.blade_active.end(), std::uint8_t{0});
+    tool_.pressing = engaged > 0;
     // Where the edge meets the tissue: the cut's first sample once the onset starts it.
-    if (engaged > 0 && tool_.cutting.entry.empty()) tool_.cutting.entry = tool_.blade_poses.front();
-    // An edge more than its radius inside the surface is past what its penalty contact can
-    // hold (k radius per contact): the surface gave way before the work reached the
-    // threshold (a thin edge on a soft or yielding body), and the cut starts now.
-    const bool through = std::any_of(pieces.begin(), pieces.end(), [](const auto& p) { return p.through; });
-    if (through) {
-      tool_.cutting.cutting = true;
-    } else {
-      // Before the onset nothing is cut: the cut stages see the blade disengaged.
-      std::fill(tool_.blade_active.begin(), tool_.blade_active.end(), std::uint8_t{0});
-      tool_.pressing = engaged > 0;
-      if (!tool_.pressing) tool_.cutting.work = 0, tool_.cutting.entry.clear();
-      stats.blade_pressing = tool_.pressing;
-      return;
-    }
+    if (tool_.pressing && tool_.cutting.entry.empty()) tool_.cutting.entry = tool_.blade_poses.front();
+    if (!tool_.pressing) tool_.cutting.work = 0, tool_.cutting.entry.clear();
+    stats.blade_pressing = tool_.pressing;
+    return;
   }
   if (!tool_.cutting.cutting) return;
   const physics::CuttingForce force = physics::cutting_force(

@@ -51,10 +51,7 @@ void mark_engaged(const Vector& x, const std::vector<std::array<int, 3>>& surfac
     }
   }
   for (std::size_t i = 0; i < pieces.size(); ++i)
-    if (std::isfinite(nearest[i]) && (side[i] < 0 || nearest[i] < reach)) {
-      pieces[i].engaged = true;
-      pieces[i].through = side[i] < 0 && nearest[i] >= reach;
-    }
+    if (std::isfinite(nearest[i]) && (side[i] < 0 || nearest[i] < reach)) pieces[i].engaged = true;
 }
 
 CuttingForce cutting_force(const std::vector<EdgePiece>& pieces, const CuttingMaterial& material) {

@@ -46,17 +46,13 @@ struct EdgePiece {
   double length = 0;
   Vec3 motion = Vec3::Zero();
   bool engaged = false;
-  // Inside the outer surface and farther than `reach` from it: the edge went through the
-  // surface (a probe's penalty contact lets go of an edge its radius past the surface).
-  bool through = false;
 };
 
 // The edge (a polyline, the same points at the step's start and end) cut into pieces no
 // longer than `spacing`.
 std::vector<EdgePiece> edge_pieces(const std::vector<Vec3>& start, const std::vector<Vec3>& end, double spacing);
 
-// Marks the pieces whose point is inside a body's outer surface or within `reach` of it
-// (`through`: inside, farther than `reach`). The
+// Marks the pieces whose point is inside a body's outer surface or within `reach` of it. The
 // side is the nearest outer triangle's (its face normal against the offset from its closest
 // point; exact for a closed surface away from its creases), cut faces (`cut_face` 1) left out:
 // a blade in its own cut is still in the tissue.
