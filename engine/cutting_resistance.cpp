@@ -82,7 +82,9 @@ void World::resist_cutting(StepStats& stats) {
     // Before the onset nothing is cut: the cut stages see the blade disengaged.
     std::fill(tool_.blade_active.begin(), tool_.blade_active.end(), std::uint8_t{0});
     tool_.pressing = engaged > 0;
-    if (!tool_.pressing) tool_.cutting.work = 0;
+    // Where the edge meets the tissue: the cut's first sample once the onset starts it.
+    if (tool_.pressing && tool_.cutting.entry.empty()) tool_.cutting.entry = tool_.blade_poses.front();
+    if (!tool_.pressing) tool_.cutting.work = 0, tool_.cutting.entry.clear();
     stats.blade_pressing = tool_.pressing;
     return;
   }

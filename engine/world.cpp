@@ -113,7 +113,9 @@ void World::log_guard(const std::string& body, const std::string& kind, const st
 
 
 physics::BladeSweep World::blade_sweep() const {
-  return {tool_.blade_poses, tool_.blade_fractions, tool_.blade_active};
+  // The onset's step: the stroke starts where the edge met the tissue (BladeSweep::entry).
+  const bool onset_step = tool_.cutting.cutting && !tool_.cutting.entry.empty();
+  return {tool_.blade_poses, tool_.blade_fractions, tool_.blade_active, onset_step ? &tool_.cutting.entry : nullptr};
 }
 
 std::optional<physics::RestSweep> World::detect_cuts(Body& body, physics::CutStepReport& report) {
@@ -171,6 +173,7 @@ StepStats World::step(std::int64_t deadline_ns) {
     apply_topology(body, sweep, cut);
     add_cut_report(cut, stats);
   }
+  if (tool_.cutting.cutting) tool_.cutting.entry.clear();  // the stroke has its first sample
   std::vector<std::vector<physics::NodalSpring>> springs(bodies_.size());
   phase.restart();
   for (std::size_t b = 0; b < bodies_.size(); ++b) springs[b] = contact(bodies_[b], stats);
@@ -253,6 +256,7 @@ std::uint64_t World::state_hash() const {
     const std::uint8_t cutting = tool_.cutting.cutting ? 1 : 0;
     fnv1a(hash, &cutting, 1);
     fnv1a(hash, &tool_.cutting.work, sizeof(double));
+    for (const auto& point : tool_.cutting.entry) fnv1a(hash, point.data(), 3 * sizeof(double));
   }
   return hash;
 }

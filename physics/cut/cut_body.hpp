@@ -133,6 +133,11 @@ struct BladeSweep {
   const std::vector<std::vector<Vec3>>& poses;
   const std::vector<double>& fractions;
   const std::vector<std::uint8_t>& active;
+  // Set in the step a crack's onset starts the cut (tool.onset): the edge where it met the
+  // tissue before pressing it in (CuttingState::entry). The stroke's first sample is then
+  // taken there rather than at the dimple's bottom, which the pressing carried inside the body
+  // at rest: the crack opens from the surface the edge went through.
+  const std::vector<Vec3>* entry = nullptr;
 };
 
 // Everything a cut stage reads and writes besides the cut itself.

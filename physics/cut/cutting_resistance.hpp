@@ -33,6 +33,9 @@ struct CuttingMaterial {
 struct CuttingState {
   bool cutting = false;  // onset reached: the crack advances with the edge
   double work = 0;       // J, done by the edge's contact on the tissue since the onset began
+  // The edge (world) at the start of the first pressing step, where it met the tissue: the
+  // cut's first sample in the step the onset starts it (BladeSweep::entry); empty otherwise.
+  std::vector<Vec3> entry;
 };
 
 // A piece of the edge at the step's end: its midpoint, unit tangent, length, its motion over

@@ -68,20 +68,33 @@ std::optional<RestSweep> detect_cuts(const CutModel& cut_model, CutData& cut, co
     for (Eigen::Index p = 0; p < body.state.positions.size() / 3; ++p)
       body_motion = std::max(body_motion, (body.state.positions.segment<3>(3 * p) - cut.previous_positions.segment<3>(3 * p)).norm());
     Vector at_fraction;
+    const auto map_edge = [&](const std::vector<Vec3>& edge, double f, std::vector<Vec3>& rest, std::vector<double>& distance) {
+      at_fraction = cut.previous_positions + f * (body.state.positions - cut.previous_positions);
+      cut.cutter->to_rest(at_fraction, resample(edge), rest, &distance);
+    };
     const auto map_at = [&](std::size_t j, double f, std::vector<Vec3>& rest, std::vector<double>& distance) {
       // The blade between samples j and j + 1, at the step's fraction f.
       const double f0 = sweep.fractions[j], f1 = sweep.fractions[j + 1];
       const double s = f1 > f0 ? std::clamp((f - f0) / (f1 - f0), 0.0, 1.0) : 0.0;
       std::vector<Vec3> edge(sweep.poses[j].size());
       for (std::size_t i = 0; i < edge.size(); ++i) edge[i] = sweep.poses[j][i] + s * (sweep.poses[j + 1][i] - sweep.poses[j][i]);
-      at_fraction = cut.previous_positions + f * (body.state.positions - cut.previous_positions);
-      cut.cutter->to_rest(at_fraction, resample(edge), rest, &distance);
+      map_edge(edge, f, rest, distance);
     };
     const auto moved = [&](std::size_t j) {
       double most = 0;
       for (std::size_t i = 0; i < sweep.poses[j].size(); ++i)
         most = std::max(most, (sweep.poses[j + 1][i] - sweep.poses[j][i]).norm());
       return most;
+    };
+    const auto add_quads = [&](const std::vector<Vec3>& rest_0, const std::vector<double>& far_0,
+                               const std::vector<Vec3>& rest_1, const std::vector<double>& far_1) {
+      for (std::size_t i = 0; i + 1 < rest_0.size(); ++i) {
+        // Outside the body (every corner beyond 2a of the integration points) the mapping
+        // only extrapolates: such quads are left out.
+        if (std::min({far_0[i], far_0[i + 1], far_1[i], far_1[i + 1]}) > 2 * a) continue;
+        triangles.push_back({rest_0[i], rest_0[i + 1], rest_1[i + 1]});
+        triangles.push_back({rest_0[i], rest_1[i + 1], rest_1[i]});
+      }
     };
     std::vector<Vec3> rest_a, rest_b;
     std::vector<double> far_a, far_b;
@@ -98,7 +111,22 @@ std::optional<RestSweep> detect_cuts(const CutModel& cut_model, CutData& cut, co
         // A stroke going on from the last step: this pose is its last sample already (the
         // same blade in the same body, only mapped to rest again after the step's topology
         // change, which moves it a little and would make the sheet waver); not sampled again.
-        if (j > 0 || !cut.engaged) moments.emplace_back(rest_a, true);
+        if (j > 0 || !cut.engaged) {
+          if (j == 0 && sweep.entry && sweep.entry->size() == sweep.poses[0].size()) {
+            // The onset's step (BladeSweep::entry): the stroke starts where the edge met the
+            // tissue, mapped through the dimpled body (the tissue it pressed went in with it,
+            // so that point is out of the body again, and at rest above the surface), and
+            // goes on to the edge at the dimple's bottom: the crack opens from the surface.
+            std::vector<Vec3> rest_entry;
+            std::vector<double> far_entry;
+            map_edge(*sweep.entry, f0, rest_entry, far_entry);
+            moments.emplace_back(rest_entry, true);
+            add_quads(rest_entry, far_entry, rest_a, far_a);
+            moments.emplace_back(rest_a, false);
+          } else {
+            moments.emplace_back(rest_a, true);
+          }
+        }
       }
       const double relative = moved(j) + body_motion * (f1 - f0);
       const int pieces_in_time = std::max(1, static_cast<int>(std::ceil(relative / (0.5 * a))));
@@ -112,13 +140,7 @@ std::optional<RestSweep> detect_cuts(const CutModel& cut_model, CutData& cut, co
       for (int piece = 1; piece <= pieces_in_time; ++piece) {
         map_at(j, f0 + (f1 - f0) * piece / pieces_in_time, rest_b, far_b);
         moments.emplace_back(rest_b, false);
-        for (std::size_t i = 0; i + 1 < rest_a.size(); ++i) {
-          // Outside the body (every corner beyond 2a of the integration points) the mapping
-          // only extrapolates: such quads are left out.
-          if (std::min({far_a[i], far_a[i + 1], far_b[i], far_b[i + 1]}) > 2 * a) continue;
-          triangles.push_back({rest_a[i], rest_a[i + 1], rest_b[i + 1]});
-          triangles.push_back({rest_a[i], rest_b[i + 1], rest_b[i]});
-        }
+        add_quads(rest_a, far_a, rest_b, far_b);
         rest_a.swap(rest_b);
         far_a.swap(far_b);
       }

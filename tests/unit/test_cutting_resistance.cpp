@@ -69,6 +69,8 @@ struct DrawnRun {
   double steady_force = 0;                    // mean force against the motion, N
   double steady_length = 0;                   // mean engaged length, m
   long cut_events = 0;
+  long front_problems = 0;  // samples the surface's front could not cut
+  std::string first_front_problem;
 };
 
 DrawnRun draw(double toughness) {
@@ -96,6 +98,8 @@ DrawnRun draw(double toughness) {
     }
   }
   run.cut_events = world.cut_totals().events;
+  run.front_problems = world.cut_totals().front_problems;
+  run.first_front_problem = world.cut_totals().first_front_problem;
   if (steady > 0) run.steady_force /= steady, run.steady_length /= steady;
   return run;
 }
@@ -127,6 +131,10 @@ TEST(CuttingResistance, ADrawnBladeIsResistedByTheToughnessTimesTheEngagedLength
   EXPECT_GT(run.pressing_force.back(), run.pressing_force.front());
   // Steady cutting: the blade's tip kDepth below the top, a vertical edge moving across itself.
   EXPECT_GT(run.cut_events, 0);
+  // Not asserted yet (docs/status.md, "Cutting resistance"): the edge, still pressed down along
+  // itself when the onset starts the cut, sweeps from its entry a sheet the front surface
+  // cannot always split (a base triangle with four cut ends).
+  std::printf("front problems %ld (%s)\n", run.front_problems, run.first_front_problem.c_str());
   const double expected = toughness * kDepth;
   std::printf("steady cutting force %.3f N, G_c x depth %.3f N, engaged length %.2f mm\n", run.steady_force, expected,
               1e3 * run.steady_length);
