@@ -176,7 +176,7 @@ void add_soak_command(CLI::App& parent, SoakBenchCommand& soak) {
   command->add_option("--out", soak.defaults.out_dir, "Output folder (soak.csv, soak.png)")->capture_default_str();
   command->add_option("--scene", soak.scene, "Scene (default assets/scenes/default.json)");
   command->add_option("--seed", soak.defaults.seed, "Seed of the strokes")->capture_default_str();
-  command->add_option("--rss-limit", soak.rss_limit_percent, "RSS growth after the warm-up that fails the verdict, % of the warm-up's peak")
+  command->add_option("--rss-limit", soak.rss_limit_percent, "RSS growth after the warm-up that fails the verdict, % of the warm-up's working size (its largest RSS)")
       ->check(CLI::Range(0.0, 1000.0))
       ->capture_default_str();
   soak.command = command;

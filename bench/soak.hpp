@@ -14,7 +14,7 @@ struct SoakOptions {
   std::filesystem::path out_dir = "out/bench/soak";
   std::uint32_t seed = 35;         // the strokes' positions, directions and depths
   double sample_every_s = 1;       // one row of soak.csv per this many seconds
-  double rss_growth_limit = 0.10;  // of the warm-up's peak RSS
+  double rss_growth_limit = 0.10;  // of the working size (the warm-up's largest RSS)
   bool realtime_priority = true;   // for the haptic loop, where the system grants it
 };
 
@@ -31,8 +31,9 @@ struct SoakOptions {
 // body alive). The verdict: after the warm-up (the first 20 % of the run, at least 30 s where
 // the run is a minute or longer, extended to 10 s after the first rebuild but not past half
 // the run) the RSS between bodies never exceeds the largest between bodies during the warm-up
-// by more than rss_growth_limit (a run with no body finished after its warm-up: every row
-// against the warm-up's peak), and no value was non-finite. Returns 0 when it holds, 1 when
+// by more than rss_growth_limit times the working size (the largest RSS of any row during the
+// warm-up; a run with no body finished after its warm-up: every row against the warm-up's
+// peak), and no value was non-finite. Returns 0 when it holds, 1 when
 // it does not or the session failed (the reason on `progress`).
 int run_soak_bench(const SoakOptions& options, std::ostream& progress);
 
