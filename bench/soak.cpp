@@ -317,8 +317,9 @@ struct Verdict {
 // of seed 35, in every run, with the bytes held flat: 26 % of that base in a 2-minute run, where
 // a 30-minute one levels off at 27 MiB. RSS while a body lives
 // depends on how far it was cut, and right after a build on the fragments the build left. A
-// run with no body finished after the warm-up (a slow one: ThreadSanitizer's) is judged by
-// every row instead, against the warm-up's peak. The slope (least squares over every row
+// run with no body finished during the warm-up and another after it (a slow one:
+// ThreadSanitizer's, whose one body ends with the run) is judged by every row instead, against
+// the warm-up's peak. The slope (least squares over every row
 // after the warm-up) is reported beside it.
 Verdict judge(const std::vector<Row>& rows, double seconds, double limit) {
   Verdict v;
@@ -327,7 +328,11 @@ Verdict judge(const std::vector<Row>& rows, double seconds, double limit) {
   if (rebuilt != rows.end()) v.warmup_s = std::max(v.warmup_s, std::min(rebuilt->t_s + 10, 0.5 * seconds));
   // The first body's build is not the session: the warm-up holds at least its first row.
   if (!rows.empty()) v.warmup_s = std::max(v.warmup_s, rows.front().t_s);
-  v.by_idle = std::any_of(rows.begin(), rows.end(), [&](const Row& r) { return r.idle && r.t_s > v.warmup_s; });
+  // Between bodies only where there are rows to compare on both sides of the warm-up's end.
+  const auto idle_before = [&](bool before) {
+    return std::any_of(rows.begin(), rows.end(), [&](const Row& r) { return r.idle && (r.t_s <= v.warmup_s) == before; });
+  };
+  v.by_idle = idle_before(true) && idle_before(false);
   double n = 0, st = 0, sr = 0, stt = 0, str = 0;
   long judged = 0;
   for (const Row& r : rows) {

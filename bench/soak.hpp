@@ -32,9 +32,9 @@ struct SoakOptions {
 // the run is a minute or longer, extended to 10 s after the first rebuild but not past half
 // the run) the RSS between bodies never exceeds the largest between bodies during the warm-up
 // by more than rss_growth_limit times the working size (the largest RSS of any row during the
-// warm-up; a run with no body finished after its warm-up: every row against the warm-up's
-// peak), and no value was non-finite. Returns 0 when it holds, 1 when
-// it does not or the session failed (the reason on `progress`).
+// warm-up; a run without bodies finished both during and after its warm-up: every row against
+// the warm-up's peak), and no value was non-finite. Returns 0 when it holds, 1 when it does not
+// or the session failed (the reason on `progress`).
 int run_soak_bench(const SoakOptions& options, std::ostream& progress);
 
 inline constexpr int kStrokesPerBody = 6;

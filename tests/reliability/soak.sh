@@ -5,7 +5,7 @@
 # (the first 20 %, at least 30 s from a minute on, extended to 10 s past the first rebuild but
 # not past half the run: bench/soak.hpp) never more than 10 % of the working size (the largest
 # RSS of any row in the warm-up) above the largest between bodies during it (column idle: the
-# last body stopped and trimmed; every row when no body finishes after the warm-up).
+# last body stopped and trimmed; every row unless bodies finish both during and after the warm-up).
 #
 # usage: soak.sh INCISE OUTDIR [SECONDS]
 set -uo pipefail
@@ -29,7 +29,8 @@ awk -F, -v seconds="$seconds" '
     warm = seconds >= 60 ? (0.2 * seconds > 30 ? 0.2 * seconds : 30) : 0.2 * seconds
     if (first_rebuild != "") { w = first_rebuild + 10; if (w > seconds / 2) w = seconds / 2; if (w > warm) warm = w }
     if (rows > 0 && t[1] > warm) warm = t[1]
-    for (i = 1; i <= rows; i++) if (idle[i] == 1 && t[i] > warm) by_idle = 1
+    for (i = 1; i <= rows; i++) if (idle[i] == 1) { if (t[i] > warm) idle_after = 1; else idle_before = 1 }
+    by_idle = idle_before && idle_after
     for (i = 1; i <= rows; i++) {
       if (by_idle && idle[i] != 1) continue
       if (t[i] <= warm) { if (rss[i] > peak) peak = rss[i] } else { after++; if (rss[i] > top) top = rss[i] }
