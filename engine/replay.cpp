@@ -604,10 +604,14 @@ Json surface_json(const World& world, const CutTotals& totals) {
 }
 
 // metrics.json `mapping`: how the surface vertices were carried to the cut volume.
-Json mapping_json(const CutTotals& totals) {
+Json mapping_json(const World& world, const CutTotals& totals) {
+  long unseen = 0;  // at the build: vertices on a point they do not see through the body
+  for (const auto& body : world.bodies())
+    if (body.cut) unseen += body.cut->mapping.unseen_at_build;
   return {{"vertices_remapped", totals.vertices_remapped},
           {"relaxed_fallbacks", totals.relaxed_fallbacks},
-          {"wrong_side", totals.wrong_side}};
+          {"wrong_side", totals.wrong_side},
+          {"unseen_at_build", unseen}};
 }
 
 // metrics.json `expect`: the scene's expectations, against every metric already there.
@@ -697,7 +701,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     const CutTotals& totals = world.cut_totals();
     metrics["cut"] = cut_json(totals, run.stats);
     metrics["surface"] = surface_json(world, totals);
-    metrics["mapping"] = mapping_json(totals);
+    metrics["mapping"] = mapping_json(world, totals);
   }
   if (scene.plan) {
     try {

@@ -85,7 +85,8 @@ void make_cut(Body& result, const physics::BodyModel& model, const BodySpec& spe
   result.build_ms.surface = watch.ms();
   watch.restart();
   result.cut = std::make_unique<physics::CutData>(
-      physics::make_cut_data(model, result.data, *cut_model, std::move(initial.vertices), std::move(initial.triangles)));
+      physics::make_cut_data(model, result.data, *cut_model, std::move(initial.vertices), std::move(initial.triangles),
+                             &shape.inside));
   result.cut_model = std::move(cut_model);
   result.build_ms.cut = watch.ms();
 }

@@ -22,7 +22,7 @@ CutData::CutData(const CutData& other, CorotationalEfg& model)
 }
 
 CutData make_cut_data(const BodyModel& model, BodyData& body, const CutModel& cut_model, std::vector<Vec3> vertices,
-                      std::vector<std::array<int, 3>> triangles) {
+                      std::vector<std::array<int, 3>> triangles, const std::function<bool(const Vec3&)>* inside) {
   CutData cut;
   CorotationalEfg& efg = *body.efg;
   cut.surface = std::make_unique<FrontSurface>(std::move(vertices), std::move(triangles), cut_model.front_width());
@@ -33,8 +33,11 @@ CutData make_cut_data(const BodyModel& model, BodyData& body, const CutModel& cu
   std::vector<int> all(cut.surface->vertices().size());
   std::iota(all.begin(), all.end(), 0);
   FrontMappingReport mapping;
+  FrontVisibility through_body;
+  through_body.inside = inside;
   map_front_surface(efg, cut.surface->vertices(), cut.surface->triangles(), cut.surface->vertex_planes(), all,
-                    *body.embedding, mapping);
+                    *body.embedding, mapping, inside != nullptr ? &through_body : nullptr);
+  cut.mapping.unseen_at_build = mapping.unseen;
   cut.mapping.plane_counts.assign(all.size(), 0);
   cut.mapping.mapped_base = cut.surface->base_vertex_count();
   cut.mapping.identity.first = cut.mapping.mapped_base;

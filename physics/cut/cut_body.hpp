@@ -47,6 +47,7 @@ struct FrontMappingCache {
   // The vertices below wrong_upto whose point is across a cut face, off the crack front.
   long wrong_base = 0;
   int wrong_upto = 0;
+  int unseen_at_build = 0;  // first mapping: vertices on a point they do not see through the body
 };
 
 // The linked-across check's caches (linked_across.hpp), kept between cut events.
@@ -156,7 +157,11 @@ struct CutContext {
 // (voxel_boundary, put onto the shape): the topology graph, the front surface and its mapping
 // (set in body.embedding), the rest box of the linked-across check; the body's surface and
 // render triangles become the front's.
+// With `inside` (the body's rest shape), each vertex is first mapped to an integration point it
+// sees through the body (FrontVisibility::inside; the count of those that see none is kept in
+// mapping.unseen_at_build).
 CutData make_cut_data(const BodyModel& model, BodyData& body, const CutModel& cut_model, std::vector<Vec3> vertices,
-                      std::vector<std::array<int, 3>> triangles);
+                      std::vector<std::array<int, 3>> triangles,
+                      const std::function<bool(const Vec3&)>* inside = nullptr);
 
 }  // namespace incise::physics

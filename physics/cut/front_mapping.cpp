@@ -274,8 +274,12 @@ class Mapper {
   }
   bool visible(int v, int e) const {
     if (visibility_ == nullptr) return true;
-    if (flagged(visibility_->exempt, v)) return true;
-    return visibility_->faces->crossings((*inward_)[static_cast<size_t>(v)], model_.element_centres()[static_cast<size_t>(e)]) % 2 == 0;
+    const Vec3& point = model_.element_centres()[static_cast<size_t>(e)];
+    if (visibility_->inside != nullptr &&
+        !CorotationalEfg::sees_through_body(*visibility_->inside, vertices_[static_cast<size_t>(v)], point, model_.spacing()))
+      return false;
+    if (visibility_->faces == nullptr || flagged(visibility_->exempt, v)) return true;
+    return visibility_->faces->crossings((*inward_)[static_cast<size_t>(v)], point) % 2 == 0;
   }
   bool shares_with_neighbours(int e, std::span<const int> neighbour_elements) const {
     for (const int f : neighbour_elements)
@@ -408,7 +412,8 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
                        SurfaceEmbedding& embedding, FrontMappingReport& report, const FrontVisibility* visibility,
                        const TrianglesAround* around, ElementCubes* cubes) {
   const int n = static_cast<int>(vertices.size());
-  if (visibility != nullptr && visibility->faces == nullptr) fail("the visibility criterion has no cut faces");
+  if (visibility != nullptr && visibility->faces == nullptr && visibility->inside == nullptr)
+    fail("the visibility criterion has neither cut faces nor an inside test");
   if (visibility != nullptr && !(visibility->inset >= 0 && std::isfinite(visibility->inset)))
     fail("the visibility criterion's inset must be finite and not negative");
   const int rows = embedding.vertex_count();
@@ -446,7 +451,7 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
   fit_rows(embedding, n, std::max(embedding.stride, model.row_stride()));
   const std::vector<Vec3> normals = area_weighted_normals(vertices, triangles, wanted, remap, subset, all);
   std::vector<Vec3> inward;
-  if (visibility != nullptr) {
+  if (visibility != nullptr && visibility->faces != nullptr) {
     const std::vector<Vec3> pseudo = angle_weighted_normals(vertices, triangles, wanted, remap, subset, all);
     inward.resize(vertices.size());
     for (const int v : remap) inward[static_cast<size_t>(v)] = inset_point(vertices[static_cast<size_t>(v)], pseudo[static_cast<size_t>(v)], visibility->inset, *visibility->faces,
@@ -498,6 +503,10 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
     }
     mapper.write_row(remap[k], e, embedding);
     ++report.mapped;
+    if (visibility != nullptr && visibility->inside != nullptr &&
+        !CorotationalEfg::sees_through_body(*visibility->inside, vertices[static_cast<size_t>(remap[k])],
+                                            model.element_centres()[static_cast<size_t>(e)], model.spacing()))
+      ++report.unseen;
   }
 }
 

@@ -22,6 +22,8 @@ namespace incise::physics {
 struct FrontMappingReport {
   int mapped = 0;             // vertices whose row was computed in this call
   int relaxed_fallbacks = 0;  // vertices for which no candidate met all three criteria (counted, never silent)
+  int unseen = 0;             // with FrontVisibility::inside: vertices left on a point they do not see
+                              // through the body (none within reach did)
 };
 
 // Rows sized for `vertices` at `stride`: the existing ones kept (moved to the new stride if
@@ -116,6 +118,14 @@ class CutFaceIndex {
 // flagged in `exempt` (the crack front's, where both sides meet) are not held to it. It is
 // kept wherever criterion 3 is when relaxing (see map_front_surface), then dropped before the
 // nearest candidate is taken.
+// With `inside` (the body's rest shape), the segment from the vertex itself to the candidate's
+// rest integration point must also stay inside the body (CorotationalEfg::sees_through_body):
+// a vertex on a thin feature (a fin, an organ's folded edge, thinner than the particle spacing)
+// beside another part of the body across a gap then follows a point of its own feature, not one
+// across the gap (issue 32). `faces` may then be null (a first mapping, nothing cut yet). The
+// inside test costs up to 3 a / (a / 8) queries per candidate, so only the first mapping (at
+// the build, make_cut_data) takes it; the remaps after a cut touch the cut's surroundings and
+// keep those vertices' first criteria plus the cut faces'.
 struct FrontVisibility {
   const CutFaceIndex* faces = nullptr;
   double inset = 0;
@@ -123,6 +133,7 @@ struct FrontVisibility {
   // Per vertex, 1 on a cut face: pulled in by the full inset (the shortening is for vertices
   // off the faces that a cut passes near; a face's own wavy neighbours would shorten it).
   std::span<const std::uint8_t> on_face;
+  const std::function<bool(const Vec3&)>* inside = nullptr;
 };
 
 // How far the candidate search reaches: integration cubes up to this Chebyshev distance from

@@ -928,10 +928,8 @@ double CorotationalEfg::elastic_energy(const Vector& x) const {
   return energy;
 }
 
-namespace {
-
-// Whether the segment from a surface vertex to a point stays inside the body (see embed_surface).
-bool sees_through_body(const std::function<bool(const Vec3&)>& inside, const Vec3& vertex, const Vec3& point, double a) {
+bool CorotationalEfg::sees_through_body(const std::function<bool(const Vec3&)>& inside, const Vec3& vertex,
+                                        const Vec3& point, double a) {
   const double length = (point - vertex).norm();
   const int steps = std::max(1, static_cast<int>(std::ceil(length / (a / 8))));
   for (int k = 1; k <= steps; ++k) {
@@ -941,8 +939,6 @@ bool sees_through_body(const std::function<bool(const Vec3&)>& inside, const Vec
   }
   return true;
 }
-
-}  // namespace
 
 SurfaceEmbedding CorotationalEfg::embed_surface(const Vector& rest_vertices, const std::function<bool(const Vec3&)>* inside,
                                                 int* unseen) const {

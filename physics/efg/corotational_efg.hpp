@@ -276,6 +276,11 @@ class CorotationalEfg final : public DeformableModel {
                                  const std::function<bool(const Vec3&)>* inside = nullptr,
                                  int* unseen = nullptr) const;
   static constexpr int embed_visible_reach_rings = 3;
+  // Whether the segment from a surface vertex to a point stays inside the body (`inside`),
+  // sampled every a / 8 from a / 20 off the vertex: embed_surface's criterion, and the one
+  // map_front_surface takes for a cuttable body's first mapping (FrontVisibility::inside).
+  static bool sees_through_body(const std::function<bool(const Vec3&)>& inside, const Vec3& vertex, const Vec3& point,
+                                double a);
   // out (resized to 3 x vertices) = the embedded vertex positions for particle positions x.
   static void surface_positions(const SurfaceEmbedding& embedding, const Vector& particle_positions,
                                 Vector& out);

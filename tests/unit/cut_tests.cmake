@@ -10,6 +10,7 @@ add_executable(test_cut
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_accuracy.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_triangulate_2d.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_cut_copy.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_cut_thin_fin.cpp
 )
 target_link_libraries(test_cut PRIVATE incise_cut GTest::gtest_main)
 gtest_discover_tests(test_cut DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
