@@ -40,6 +40,7 @@ double cut_spacing(const std::vector<Body>& bodies) {
 
 void World::resist_cutting(StepStats& stats) {
   tool_.pressing = false;
+  tool_.leaving = false;
   tool_.engaged_length = 0;
   tool_.onset_width = 0;
   tool_.cutting_force.setZero();
@@ -73,8 +74,9 @@ void World::resist_cutting(StepStats& stats) {
   tool_.engaged_length = engaged;
   tool_.onset_width = across;
   stats.engaged_length = engaged;
-  // A blade that left the tissue has ended its cut: entering again starts a new onset.
-  if (tool_.cutting.cutting && engaged == 0) tool_.cutting = {};
+  // A blade that left the tissue over this step ends its cut once the cut stages have cut the
+  // step's sweep (World::step): entering again starts a new onset.
+  tool_.leaving = scene_.tool->onset && tool_.cutting.cutting && engaged == 0;
   // Without the onset (tool.onset false) the blade cuts from first contact, the cut stages
   // seeing it as the trajectory says; only its resistance is added.
   if (!scene_.tool->onset) tool_.cutting.cutting = engaged > 0;
