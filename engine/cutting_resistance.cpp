@@ -3,7 +3,8 @@
 // cut stages, and the onset's work after the solve.
 //
 // An engaged blade goes through two phases. Pressing: the edge acts as a probe (penalty
-// contact of its segments, engine/contact.cpp), the tissue dimples, no cut stage sees the
+// contact of its segments, held wherever it went a radius inside when it presses across
+// itself: engine/contact.cpp), the tissue dimples, no cut stage sees the
 // blade engaged; the work its contact does on the tissue, F . (dx_blade - dx_body) with dx_body
 // the body's mass centre's motion (the tissue's own frame: a body falling onto a resting
 // blade is pressed just the same), adds up. The onset is an energy criterion: cutting begins
@@ -15,8 +16,8 @@
 // F . dx, is exactly G_c times the crack area it opened: the crack advances only as far as
 // the hand moves, a slow hand cuts slowly. The cutting force is not applied to the tissue: in
 // steady cutting its work goes into the new crack surfaces, not into deformation. When the
-// button is released, or no piece of the edge is engaged any more, the engagement ends and
-// the next one starts pressing again. Everything here is a function of the step's state:
+// button is released, or no piece of the edge is engaged any more (once the step it left in
+// has been cut), the engagement ends and the next one starts pressing again. Everything here is a function of the step's state:
 // replays are bit for bit.
 #include "engine/world.hpp"
 
