@@ -17,8 +17,8 @@
 // the hand moves, a slow hand cuts slowly. The cutting force is not applied to the tissue: in
 // steady cutting its work goes into the new crack surfaces, not into deformation. When the
 // button is released, or no piece of the edge is engaged any more (once the step it left in
-// has been cut), the engagement ends and the next one starts pressing again. Everything here is a function of the step's state:
-// replays are bit for bit.
+// has been cut), the engagement ends and the next one starts pressing again. Everything here
+// is a function of the step's state: replays are bit for bit.
 #include "engine/world.hpp"
 
 #include <algorithm>
