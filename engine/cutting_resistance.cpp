@@ -3,7 +3,8 @@
 // cut stages, and the onset's work after the solve.
 //
 // An engaged blade goes through two phases. Pressing: the edge acts as a probe (penalty
-// contact of its segments, engine/contact.cpp), the tissue dimples, no cut stage sees the
+// contact of its segments, held wherever it went a radius inside when it presses across
+// itself: engine/contact.cpp), the tissue dimples, no cut stage sees the
 // blade engaged; the work its contact does on the tissue, F . (dx_blade - dx_body) with dx_body
 // the body's mass centre's motion (the tissue's own frame: a body falling onto a resting
 // blade is pressed just the same), adds up. The onset is an energy criterion: cutting begins
@@ -15,9 +16,9 @@
 // F . dx, is exactly G_c times the crack area it opened: the crack advances only as far as
 // the hand moves, a slow hand cuts slowly. The cutting force is not applied to the tissue: in
 // steady cutting its work goes into the new crack surfaces, not into deformation. When the
-// button is released, or no piece of the edge is engaged any more, the engagement ends and
-// the next one starts pressing again. Everything here is a function of the step's state:
-// replays are bit for bit.
+// button is released, or no piece of the edge is engaged any more (once the step it left in
+// has been cut), the engagement ends and the next one starts pressing again. Everything here
+// is a function of the step's state: replays are bit for bit.
 #include "engine/world.hpp"
 
 #include <algorithm>
@@ -40,6 +41,7 @@ double cut_spacing(const std::vector<Body>& bodies) {
 
 void World::resist_cutting(StepStats& stats) {
   tool_.pressing = false;
+  tool_.leaving = false;
   tool_.engaged_length = 0;
   tool_.onset_width = 0;
   tool_.cutting_force.setZero();
@@ -73,8 +75,9 @@ void World::resist_cutting(StepStats& stats) {
   tool_.engaged_length = engaged;
   tool_.onset_width = across;
   stats.engaged_length = engaged;
-  // A blade that left the tissue has ended its cut: entering again starts a new onset.
-  if (tool_.cutting.cutting && engaged == 0) tool_.cutting = {};
+  // A blade that left the tissue over this step ends its cut once the cut stages have cut the
+  // step's sweep (World::step): entering again starts a new onset.
+  tool_.leaving = scene_.tool->onset && tool_.cutting.cutting && engaged == 0;
   // Without the onset (tool.onset false) the blade cuts from first contact, the cut stages
   // seeing it as the trajectory says; only its resistance is added.
   if (!scene_.tool->onset) tool_.cutting.cutting = engaged > 0;

@@ -174,6 +174,7 @@ StepStats World::step(std::int64_t deadline_ns) {
     add_cut_report(cut, stats);
   }
   if (tool_.cutting.cutting) tool_.cutting.entry.clear();  // the stroke has its first sample
+  if (tool_.leaving) tool_.cutting = {};                    // the edge is out: the next entry presses
   std::vector<std::vector<physics::NodalSpring>> springs(bodies_.size());
   phase.restart();
   for (std::size_t b = 0; b < bodies_.size(); ++b) springs[b] = contact(bodies_[b], stats);

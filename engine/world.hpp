@@ -121,6 +121,9 @@ struct ToolState {
   // whether this step's edge presses on the tissue before the onset (penalty contact).
   physics::CuttingState cutting;
   bool pressing = false;
+  // Cutting, the edge left the tissue over this step: the cut stages still cut its sweep (the
+  // edge passes out through the tissue's last part), then the engagement ends.
+  bool leaving = false;
   double engaged_length = 0;  // m, at the step's end
   double onset_width = 0;     // m, the engaged length across the edge's motion
   physics::Vec3 cutting_force = physics::Vec3::Zero();  // N on the tool over the step (0 unless cutting)

@@ -15,4 +15,11 @@ namespace incise::physics {
 std::vector<NodalSpring> body_contact(const BodyData& body, const Vec3& tip, const Vec3& tail, double radius,
                                       double stiffness, int& triangles_touched);
 
+// A pressed blade's edge (a polyline of capsules of `radius`) against the body's surface: each
+// segment's capsule (probe_contact), and where a piece of the edge went more than a radius
+// inside, the hold of held_contact at its points (the edge's vertices and every `spacing`
+// along it), whatever the depth; `spacing` 0: the capsules only.
+std::vector<NodalSpring> body_edge_contact(const BodyData& body, const std::vector<Vec3>& edge, double radius,
+                                           double stiffness, double spacing, int& triangles_touched);
+
 }  // namespace incise::physics

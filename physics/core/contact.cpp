@@ -3,6 +3,8 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <map>
 
 namespace incise::physics {
@@ -95,6 +97,56 @@ ProbeContact probe_contact(const Vector& x, const std::vector<std::array<int, 3>
     ++contact.triangles_touched;
     for (int k = 0; k < 3; ++k) {
       const int node = t[k];
+      if (weights[k] <= 0 || (!fixed.empty() && fixed[node])) continue;
+      NodalSpring& spring = by_node[node];
+      spring.node = node;
+      spring.force += weights[k] * force;
+      spring.stiffness += weights[k] * stiffness * normal * normal.transpose();
+    }
+  }
+  contact.springs.reserve(by_node.size());
+  for (auto& [node, spring] : by_node) contact.springs.push_back(spring);
+  return contact;
+}
+
+ProbeContact held_contact(const Vector& x, const std::vector<std::array<int, 3>>& surface,
+                          const std::vector<std::uint8_t>& fixed, const std::vector<Vec3>& points, double radius,
+                          double stiffness) {
+  ProbeContact contact;
+  // Each point's nearest triangle (its closest point and the face normal there).
+  std::vector<double> nearest(points.size(), std::numeric_limits<double>::infinity());
+  std::vector<int> triangle(points.size(), -1);
+  std::vector<Vec3> closest(points.size(), Vec3::Zero()), outward(points.size(), Vec3::Zero());
+  for (std::size_t t = 0; t < surface.size(); ++t) {
+    const auto& tri = surface[t];
+    const Vec3 a = x.segment<3>(3 * tri[0]), b = x.segment<3>(3 * tri[1]), c = x.segment<3>(3 * tri[2]);
+    const Vec3 face = (b - a).cross(c - a);
+    if (!(face.squaredNorm() > 0)) continue;
+    const Vec3 lo = a.cwiseMin(b).cwiseMin(c), hi = a.cwiseMax(b).cwiseMax(c);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const Vec3& p = points[i];
+      // The box's distance bounds the triangle's from below: most triangles are skipped here.
+      if ((lo - p).cwiseMax(p - hi).cwiseMax(Vec3::Zero()).norm() >= nearest[i]) continue;
+      const Vec3 q = closest_point_on_triangle(p, a, b, c);
+      const double d = (p - q).norm();
+      if (d < nearest[i]) nearest[i] = d, triangle[i] = static_cast<int>(t), closest[i] = q, outward[i] = face.normalized();
+    }
+  }
+  std::map<int, NodalSpring> by_node;  // ordered: the springs come out in node order
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    // Within a radius of the surface probe_contact holds the capsule (outside, or through a face).
+    if (triangle[i] < 0 || nearest[i] < radius) continue;
+    const Vec3 offset = points[i] - closest[i];
+    if (offset.dot(outward[i]) >= 0) continue;  // outside
+    const Vec3 normal = offset / -nearest[i];   // from the tissue towards the probe: out
+    const double depth = radius + nearest[i];
+    const Vec3 force = -stiffness * depth * normal;  // on the tissue
+    contact.force_on_tool -= force;
+    ++contact.triangles_touched;
+    const auto& tri = surface[static_cast<std::size_t>(triangle[i])];
+    const Vec3 weights = barycentric(closest[i], x.segment<3>(3 * tri[0]), x.segment<3>(3 * tri[1]), x.segment<3>(3 * tri[2]));
+    for (int k = 0; k < 3; ++k) {
+      const int node = tri[k];
       if (weights[k] <= 0 || (!fixed.empty() && fixed[node])) continue;
       NodalSpring& spring = by_node[node];
       spring.node = node;

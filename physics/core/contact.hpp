@@ -33,4 +33,18 @@ ProbeContact probe_contact(const Vector& positions, const std::vector<std::array
                            const std::vector<std::uint8_t>& fixed, const Vec3& tip, const Vec3& tail,
                            double radius, double stiffness);
 
+// The hold of a pressed blade's edge (engine/contact.cpp): each of `points` that is behind its
+// nearest surface triangle (inside the body) by a radius or more, where probe_contact lets go
+// of a capsule (its axis a radius past the face), is pushed out towards that triangle's
+// closest point q with k (radius + depth), whatever the depth (at a radius, the force
+// probe_contact gave a face the axis went through): an edge
+// pressed further in a step than its width cannot slip through the surface, and the tissue
+// goes on being pressed until the crack's onset. The side is the nearest triangle's (its face normal against the offset from q; exact
+// for a closed surface away from its convex creases): a point more than half the body's
+// thickness in would be pushed out of the far side, which pressing never reaches. Each point
+// is one probe's worth of stiffness; its force goes to q's triangle by barycentric weights.
+ProbeContact held_contact(const Vector& positions, const std::vector<std::array<int, 3>>& surface,
+                          const std::vector<std::uint8_t>& fixed, const std::vector<Vec3>& points, double radius,
+                          double stiffness);
+
 }  // namespace incise::physics

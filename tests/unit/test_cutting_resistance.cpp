@@ -6,6 +6,7 @@
 #include "engine/scene.hpp"
 #include "engine/trajectory.hpp"
 #include "engine/world.hpp"
+#include "physics/core/contact.hpp"
 #include "physics/cut/cutting_resistance.hpp"
 #include "tests/unit/temp_dir.hpp"
 
@@ -13,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -144,6 +146,89 @@ TEST(CuttingResistance, ADrawnBladeIsResistedByTheToughnessTimesTheEngagedLength
   std::printf("twice the toughness: %.3f N (ratio %.3f)\n", doubled.steady_force, doubled.steady_force / run.steady_force);
   EXPECT_NEAR(doubled.steady_force / run.steady_force, 2.0, 0.2);
   EXPECT_EQ(doubled.events_before_onset, 0);
+}
+
+TEST(CuttingResistance, APointOfAPressedEdgeDeepInsideIsHeldOutOfItsNearestFaceWhateverItsDepth) {
+  // A closed 20 mm cube, its faces turned outwards. The capsule contact lets go of an axis a
+  // radius past a face; held_contact pushes such a point back out of the face nearest to it
+  // with k (radius + depth), the force the capsule gave a face its axis went through.
+  const double side = 0.02, radius = 0.0006, k = 500;
+  physics::Vector x(24);
+  for (int v = 0; v < 8; ++v) x.segment<3>(3 * v) = side * physics::Vec3(v & 1, (v >> 1) & 1, (v >> 2) & 1);
+  const std::vector<std::array<int, 4>> quads = {{0, 1, 3, 2}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 3, 7, 5}};
+  std::vector<std::array<int, 3>> surface;
+  const physics::Vec3 centre = physics::Vec3::Constant(side / 2);
+  for (const auto& q : quads)
+    for (const std::array<int, 3> t : {std::array<int, 3>{q[0], q[1], q[2]}, std::array<int, 3>{q[0], q[2], q[3]}}) {
+      const physics::Vec3 a = x.segment<3>(3 * t[0]), b = x.segment<3>(3 * t[1]), c = x.segment<3>(3 * t[2]);
+      const bool outward = (b - a).cross(c - a).dot((a + b + c) / 3 - centre) > 0;
+      surface.push_back(outward ? t : std::array<int, 3>{t[0], t[2], t[1]});
+    }
+  const auto held = [&](const physics::Vec3& p) { return physics::held_contact(x, surface, {}, {p}, radius, k); };
+  for (const double depth : {0.001, 0.004, 0.009}) {
+    // Below the top face's middle, nearer to it than to any other face.
+    const physics::ProbeContact c = held({0.011, 0.009, side - depth});
+    EXPECT_NEAR(c.force_on_tool.z(), k * (radius + depth), 1e-9) << depth;
+    EXPECT_NEAR(c.force_on_tool.head<2>().norm(), 0.0, 1e-12);
+    physics::Vec3 on_tissue = physics::Vec3::Zero();
+    for (const auto& spring : c.springs) on_tissue += spring.force;
+    EXPECT_NEAR((on_tissue + c.force_on_tool).norm(), 0.0, 1e-12) << "the tissue takes the opposite force";
+  }
+  // Near a side face the way out is through it.
+  EXPECT_NEAR(held({0.003, 0.01, 0.01}).force_on_tool.x(), -k * (radius + 0.003), 1e-9);
+  // Within a radius of the surface, or outside, it is the capsule's: no hold.
+  EXPECT_TRUE(held({0.01, 0.01, side - 0.5 * radius}).springs.empty());
+  EXPECT_TRUE(held({0.01, 0.01, side + 0.002}).springs.empty());
+}
+
+TEST(CuttingResistance, AThinEdgePressedAcrossItselfFasterThanItsWidthIsHeldUntilTheOnset) {
+  // A horizontal edge 0.6 mm in radius pressed down into the block at 2 mm a step, further than
+  // its width: the capsules alone let go of it once its axis is a radius inside, after which it
+  // sank without force, its work never reached the onset's threshold and nothing was cut.
+  TempDir dir("incise_cutting_resistance_hold");
+  std::vector<ToolSample> samples;
+  for (int k = 0; k <= 300; ++k) {
+    ToolSample s;
+    s.time = k / 1000.0;
+    s.position = {0, 0, kTop + 0.004 - 0.2 * std::min(s.time, 0.12)};
+    s.buttons = kToolButtonEngaged;
+    samples.push_back(s);
+  }
+  write_trajectory(dir.path / "press.traj", samples);
+  Json json = Json::parse(R"({
+    "name": "pressed_edge",
+    "bodies": [{
+      "name": "block", "model": "efg", "cuttable": true,
+      "generator": {"type": "box", "min": [-0.02, -0.02, 0], "max": [0.02, 0.02, 0.03]},
+      "resolution": 0.005,
+      "efg": {"surface_resolution": 0.0025},
+      "material": {"E": 5000, "nu": 0.45, "rho": 1000},
+      "fixed": [{"min": [-1, -1, -1], "max": [1, 1, 0.001]}],
+      "damping": {"mass": 2.0, "stiffness": 0.001}
+    }],
+    "tool": {"shape": "blade", "edge": [[0, -0.03, 0], [0, 0.03, 0]], "radius": 0.0006, "onset": true,
+             "trajectory": "press.traj"},
+    "solver": {"dt": 0.01, "duration": 0.3, "gravity": [0, 0, 0], "tolerance": 1e-6, "max_iterations": 500}
+  })");
+  World world(parse_scene(json.dump(), dir.path / "scene.json"), read_trajectory(dir.path / "press.traj"));
+  int pressing = 0, cutting = 0, pressing_after_cutting = 0;
+  double deepest_pressing_force = 0;
+  for (int step = 0; step < 30; ++step) {
+    const StepStats stats = world.step();
+    if (stats.blade_pressing) {
+      ++pressing;
+      if (cutting > 0) ++pressing_after_cutting;
+      deepest_pressing_force = std::hypot(stats.tool_force[0], stats.tool_force[1], stats.tool_force[2]);
+      EXPECT_GT(deepest_pressing_force, 0) << "step " << step + 1 << ": an engaged edge pressing without force";
+    }
+    if (stats.blade_cutting) ++cutting;
+  }
+  std::printf("pressing steps %d (last force %.3f N), cutting steps %d, cut events %ld\n", pressing,
+              deepest_pressing_force, cutting, world.cut_totals().events);
+  EXPECT_GE(pressing, 2) << "the edge cut at first contact";
+  EXPECT_GT(cutting, 0) << "the onset never came";
+  EXPECT_EQ(pressing_after_cutting, 0) << "the engagement started over";
+  EXPECT_GT(world.cut_totals().events, 0);
 }
 
 TEST(CuttingResistance, TheForceOfAPieceIsTheToughnessTimesItsLengthAcrossItsMotion) {
