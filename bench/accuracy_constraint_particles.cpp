@@ -65,8 +65,8 @@ TetMesh split_bricks(const physics::HexMesh& bricks, const Vec3& origin) {
   mesh.rest = bricks.rest;
   if (bricks.hexes.empty()) throw std::runtime_error("constraint particles: the body has no voxels");
   const Vec3 cell = physics::hex_edge_lengths(bricks.rest, bricks.hexes.front());
-  // make_box_tets5's corners c = a + 2b + 4d at offsets (a, b, d); the brick's local order has
-  // 0-1-2-3 round the bottom face and 4-7 above.
+  // make_box_tets5's tables: corners c = a + 2b + 4d at offsets (a, b, d); the brick's local
+  // order has 0-1-2-3 round the bottom face and 4-7 above.
   const auto local = [](int c) { const int a = c & 1, b = (c >> 1) & 1, d = (c >> 2) & 1; return 4 * d + (b == 0 ? a : 3 - a); };
   static constexpr std::array<std::array<int, 4>, 5> even{{{0, 3, 5, 6}, {1, 0, 3, 5}, {2, 0, 6, 3}, {4, 0, 5, 6}, {7, 3, 6, 5}}};
   static constexpr std::array<std::array<int, 4>, 5> odd{{{1, 2, 4, 7}, {0, 1, 2, 4}, {3, 1, 7, 2}, {5, 1, 4, 7}, {6, 2, 7, 4}}};
@@ -101,7 +101,12 @@ BeamTets beam_tets(Shape shape, double resolution) {
   } else {
     bricks = physics::make_hexes_inside([shape](const Vec3& p) { return inside_shape(shape, p); }, lo, hi, resolution);
   }
-  return {split_bricks(bricks, lo), physics::hex_edge_lengths(bricks.rest, bricks.hexes.front())};
+  BeamTets body{split_bricks(bricks, lo), physics::hex_edge_lengths(bricks.rest, bricks.hexes.front())};
+  // Neighbouring bricks' splits must share their face diagonals: then the tets' boundary is
+  // the bricks' (two triangles a face), with no face left open inside.
+  if (physics::boundary_triangles(body.mesh.tets).size() != physics::hex_boundary_triangles(bricks.hexes).size())
+    throw std::runtime_error("constraint particles: the 5-tet split of the beam's bricks does not conform");
+  return body;
 }
 
 // The lattice's moduli along x per unit k_D, with k_V = ratio k_D: the homogenised stiffness of
