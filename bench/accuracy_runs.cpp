@@ -1,6 +1,7 @@
 // The runs of `incise bench accuracy` (accuracy_runs.hpp): per body, the tet10 references on a
 // refinement sequence, then the rows of every model against them.
 #include "bench/accuracy_runs.hpp"
+#include "bench/accuracy_constraint_particles.hpp"
 
 #include "physics/core/implicit_euler.hpp"
 #include "physics/efg/efg_static.hpp"
@@ -49,6 +50,8 @@ Sweep make_sweep(bool quick) {
                     {"nb8_thesis", 8, true, 3.0, false, 4}};
   // The mass-spring (uncut bodies only: it cannot be cut): bricks across the beam's y extent.
   s.mass_spring_across = quick ? std::vector<int>{2, 4, 6} : std::vector<int>{2, 4, 6, 8};
+  // The constraint particles (uncut bodies only: no cutter here), voxels across as above.
+  s.constraint_particles_across = s.mass_spring_across;
   s.cutter_variants = {"nb8", "nb4", "novolume"};
   return s;
 }
@@ -81,7 +84,8 @@ int unit_runs(const Sweep& s, const Unit& unit) {
   return static_cast<int>((body.cut ? s.crack_levels : hexagon ? s.hexagon_levels : s.square_levels).size() +
                           (hexagon ? s.hexagon_linear : s.square_linear).size() +
                           s.efg_cells.size() * (s.efg_variants.size() + (body.cut ? s.cutter_variants.size() : 0)) +
-                          (body.cut ? 0 : mass_spring_beam_runs(s.mass_spring_across)));
+                          (body.cut ? 0 : mass_spring_beam_runs(s.mass_spring_across)) +
+                          (body.cut ? 0 : constraint_particles_runs(s.constraint_particles_across)));
 }
 
 namespace {
@@ -111,6 +115,7 @@ class BodyRuns {
     tet4_rows();
     efg_rows();
     if (!body_.cut) mass_spring_rows();
+    if (!body_.cut) constraint_particles_rows();
     const std::chrono::duration<double> elapsed = Clock::now() - start;
     progress_.note("  " + name_ + " body done in " + format(elapsed.count(), 3) + " s");
   }
@@ -140,6 +145,7 @@ class BodyRuns {
   void efg_rows();
   void efg_row(const EfgVariant& variant, bool cutter, int cells);
   void mass_spring_rows();
+  void constraint_particles_rows();
 
   const Sweep& s_;
   const Body& body_;
@@ -336,6 +342,13 @@ void BodyRuns::mass_spring_rows() {
   for (const MassSpringRow& r :
        mass_spring_beam_rows(beam, spring_cases, s_.mass_spring_across, step_timer(s_.timed_steps), progress_)) {
     results_.rows.push_back(from_mass_spring(r));
+  }
+}
+
+void BodyRuns::constraint_particles_rows() {
+  for (Row& row : accuracy::constraint_particles_rows(body_.shape, body_.cases, results_.references,
+                                                      s_.constraint_particles_across, s_.timed_steps, progress_)) {
+    results_.rows.push_back(std::move(row));
   }
 }
 

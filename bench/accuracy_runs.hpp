@@ -1,6 +1,6 @@
 // The runs of `incise bench accuracy` (accuracy_runs.cpp): the sweep's resolutions and EFG
 // variants, and the runs of one unit of work: a body (a shape, cut or not, with the cases that
-// load it: its reference levels, then its tet10, tet4, EFG and mass-spring rows) or the
+// load it: its reference levels, then its tet10, tet4, EFG, mass-spring and constraint-particle rows) or the
 // `traction` case. A body's references serve only its own cases, so the units are independent:
 // the batch's parts (docs/batch.md) each run whole units.
 #pragma once
@@ -35,6 +35,7 @@ struct Sweep {
   std::vector<EfgVariant> efg_variants;
   std::vector<std::string> cutter_variants;  // run with the cutter too on the cut cases
   std::vector<int> mass_spring_across;       // bricks across the beam (uncut bodies)
+  std::vector<int> constraint_particles_across;  // voxels across the beam (uncut bodies)
 };
 Sweep make_sweep(bool quick);
 

@@ -32,3 +32,8 @@ gtest_discover_tests(test_mass_spring_fem DISCOVERY_TIMEOUT 60 PROPERTIES LABELS
 add_executable(test_constraint_particles ${CMAKE_CURRENT_LIST_DIR}/test_constraint_particles.cpp)
 target_link_libraries(test_constraint_particles PRIVATE incise_engine GTest::gtest_main)
 gtest_discover_tests(test_constraint_particles DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
+
+# The constraint particles' calibration in the accuracy report (uses the bench library).
+add_executable(test_constraint_particles_accuracy ${CMAKE_CURRENT_LIST_DIR}/test_constraint_particles_accuracy.cpp)
+target_link_libraries(test_constraint_particles_accuracy PRIVATE incise_bench GTest::gtest_main)
+gtest_discover_tests(test_constraint_particles_accuracy DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
