@@ -6,6 +6,7 @@
 
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <map>
@@ -28,13 +29,25 @@ bool is_ply_type(const std::string& t) {
 }
 
 // A PLY file's header, checked before assimp reads the file: assimp 5.2.5 loops without end on
-// a property line it cannot parse (found by fuzz_mesh), and allocates whatever an element count
+// a property line it cannot parse (found by fuzz_mesh_ply), and allocates whatever an element count
 // says. Each line must be one the format defines, and no element may claim more entries than
 // the file has bytes. Returns the problem, naming the header line.
 std::optional<std::string> ply_header_problem(std::istream& in, std::uintmax_t file_bytes) {
   std::string line;
   for (int number = 1; std::getline(in, line) && number <= 10000; ++number) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
+    // assimp separates a header's words by spaces and tabs only: a line that read here as
+    // 'end_header' and a vertical tab was to it no end of the header, and it read the data as
+    // header lines until it hung or read out of bounds (found by fuzz_mesh_ply).
+    for (std::size_t column = 0; column < line.size(); ++column) {
+      const auto c = static_cast<unsigned char>(line[column]);
+      if ((c < 0x20 && c != '\t') || c == 0x7f) {
+        char code[8];
+        std::snprintf(code, sizeof code, "0x%02x", c);
+        return "PLY header line " + std::to_string(number) + ": control character " + code + " at column " +
+               std::to_string(column + 1) + " (words are separated by spaces or tabs)";
+      }
+    }
     std::istringstream words(line);
     std::vector<std::string> w;
     for (std::string word; words >> word;) w.push_back(word);
@@ -86,7 +99,11 @@ void check_ply(const std::filesystem::path& file) {
 // made (an index past the vertices is an import error, not an out-of-bounds read in
 // import_surface); then a face without vertices is refused and each mesh's primitive types are
 // recomputed from its faces: assimp 5.2.5's triangulation aborts the whole process on an
-// assertion when a PLY reader's empty face made it claim polygons (found by fuzz_mesh).
+// assertion when a PLY reader's empty face made it claim polygons (found by fuzz_mesh_ply),
+// and a face with more corners than its mesh has vertices, or than kMaxPolygonCorners, is
+// refused before triangulation.
+constexpr unsigned kMaxPolygonCorners = 1024;
+
 const aiScene* read_scene(Assimp::Importer& importer, const std::filesystem::path& file) {
   const aiScene* scene = importer.ReadFile(file.string(), aiProcess_ValidateDataStructure);
   if (!scene) return nullptr;
@@ -95,8 +112,17 @@ const aiScene* read_scene(Assimp::Importer& importer, const std::filesystem::pat
     unsigned types = 0;
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
       const unsigned n = mesh->mFaces[f].mNumIndices;
-      if (n == 0)
-        throw MeshError(file.string() + ": mesh " + std::to_string(m) + " face " + std::to_string(f) + " has no vertices");
+      const auto face = [&] { return file.string() + ": mesh " + std::to_string(m) + " face " + std::to_string(f); };
+      if (n == 0) throw MeshError(face() + " has no vertices");
+      // A polygon visits each of its corners once; and triangulation takes time quadratic in
+      // the corners: a PLY face claiming 32214 corners on 4 vertices held assimp for minutes
+      // (found by fuzz_mesh_ply).
+      if (n > mesh->mNumVertices)
+        throw MeshError(face() + " has " + std::to_string(n) + " corners, more than the mesh's " +
+                        std::to_string(mesh->mNumVertices) + " vertices");
+      if (n > kMaxPolygonCorners)
+        throw MeshError(face() + " has " + std::to_string(n) + " corners, more than the " +
+                        std::to_string(kMaxPolygonCorners) + " a polygon may have");
       types |= n == 1 ? aiPrimitiveType_POINT : n == 2 ? aiPrimitiveType_LINE : n == 3 ? aiPrimitiveType_TRIANGLE
                                                                                          : aiPrimitiveType_POLYGON;
     }

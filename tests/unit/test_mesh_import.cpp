@@ -109,7 +109,7 @@ TEST(MeshImport, StlAndPlyAreReadToo) {
   }
 }
 
-// assimp 5.2.5 never returns from these (fuzz/corpus/mesh/regression_ply_*): the header is
+// assimp 5.2.5 never returns from these (fuzz/corpus/mesh_ply/regression_ply_*): the header is
 // checked first and the bad line named.
 TEST(MeshImport, MalformedPlyHeadersAreRefusedBeforeAssimpReadsThem) {
   const std::string good_start = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\n";
@@ -123,6 +123,9 @@ TEST(MeshImport, MalformedPlyHeadersAreRefusedBeforeAssimpReadsThem) {
       {"ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nend_header\n",
        "PLY header line 3 ('element vertex 4000000000'): claims 4000000000 entries, more than the file's"},
       {"ply\nformat ascii 1.0\nelement vertex 4\n", "has no 'end_header' line"},
+      {good_start + "property float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\v" +
+           rest.substr(rest.find("end_header\n") + 11),
+       "PLY header line 9: control character 0x0b at column 11"},
   };
   for (const auto& [text, expected] : cases) {
     SCOPED_TRACE(expected);
@@ -139,7 +142,7 @@ TEST(MeshImport, MalformedPlyHeadersAreRefusedBeforeAssimpReadsThem) {
 }
 
 // A face list entry of zero vertices made assimp 5.2.5's PLY reader claim polygons and its
-// triangulation abort the process on an assertion (fuzz/corpus/mesh/regression_ply_empty_face_abort.ply).
+// triangulation abort the process on an assertion (fuzz/corpus/mesh_ply/regression_ply_empty_face_abort.ply).
 TEST(MeshImport, AnEmptyPlyFaceIsRefusedRatherThanAborting) {
   const std::string ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
                           "element face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
@@ -150,6 +153,26 @@ TEST(MeshImport, AnEmptyPlyFaceIsRefusedRatherThanAborting) {
     ADD_FAILURE() << "accepted";
   } catch (const MeshError& e) {
     EXPECT_NE(std::string(e.what()).find("incise_empty_face.ply: mesh 0 face 1 has no vertices"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove(path);
+}
+
+// Triangulation takes time quadratic in a polygon's corners: a PLY face claiming 32214 corners
+// on 4 vertices held assimp 5.2.5 for minutes (fuzz/corpus/mesh_ply/regression_ply_huge_face_hang.ply).
+// A face may have no more corners than its mesh has vertices, nor than 1024.
+TEST(MeshImport, APolygonWithMoreCornersThanVerticesIsRefused) {
+  const std::string header = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                             "element face 1\nproperty list int int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n";
+  std::string face = "5";
+  for (int i = 0; i < 5; ++i) face += " " + std::to_string(i % 4);
+  auto path = write_file("incise_big_face.ply", header + face + "\n");
+  try {
+    import_surface(path);
+    ADD_FAILURE() << "accepted";
+  } catch (const MeshError& e) {
+    EXPECT_NE(std::string(e.what()).find("incise_big_face.ply: mesh 0 face 0 has 5 corners, more than the mesh's 4 vertices"),
+              std::string::npos)
+        << e.what();
   }
   std::filesystem::remove(path);
 }
