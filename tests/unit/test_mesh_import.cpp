@@ -177,6 +177,34 @@ TEST(MeshImport, APolygonWithMoreCornersThanVerticesIsRefused) {
   std::filesystem::remove(path);
 }
 
+// assimp 5.2.5 allocates what a PLY list's count says: 344444444444444444 in a 235-byte ASCII
+// file took 12 GB (fuzz/corpus/mesh_ply/regression_ply_huge_list_count_oom.ply), 400000000 in
+// an 86-byte binary one 3 GB. A list may claim no more values than its line (ASCII) or the
+// file (binary) has left.
+TEST(MeshImport, APlyListClaimingMoreValuesThanTheFileHasIsRefused) {
+  const std::string vertices = "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+  const std::string ascii = "ply\nformat ascii 1.0\n" + vertices +
+                            "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n\n1 0 0\n0 1 0\n"
+                            "344444444444444444 0 1 2\n";
+  std::string binary = "ply\nformat binary_big_endian 1.0\n" + vertices +
+                       "element face 1\nproperty list int int vertex_indices\nend_header\n";
+  binary += std::string(36, '\0') + std::string("\x17\xd7\x84\x00", 4) + std::string(12, '\0');  // 400000000
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {ascii, "PLY line 14 (face 0): list 'vertex_indices' claims 344444444444444444 values, its line has 3 left"},
+      {binary, "PLY data at byte 200 (face 0): list 'vertex_indices' claims more values than the file's 12 bytes left"},
+  };
+  for (const auto& [text, expected] : cases) {
+    auto path = write_file("incise_big_list.ply", text);
+    try {
+      import_surface(path);
+      ADD_FAILURE() << "accepted";
+    } catch (const MeshError& e) {
+      EXPECT_NE(std::string(e.what()).find("incise_big_list.ply: " + expected), std::string::npos) << e.what();
+    }
+    std::filesystem::remove(path);
+  }
+}
+
 // mesh_up "y": the file's y is +z and its z is -y, a rotation (the cube keeps its volume's sign).
 TEST(MeshImport, UpAxisTurnsTheFileSoItsAxisIsZ) {
   auto path = write_file("incise_cube_up.obj", kCube);
