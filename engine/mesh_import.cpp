@@ -31,6 +31,20 @@ bool is_ply_type(const std::string& t) {
   return types.count(t) > 0;
 }
 
+// A line of a PLY header or ASCII data holds words separated by spaces or tabs.
+std::optional<std::string> control_character_problem(const std::string& line, const std::string& where) {
+  for (std::size_t column = 0; column < line.size(); ++column) {
+    const auto c = static_cast<unsigned char>(line[column]);
+    if ((c < 0x20 && c != '\t') || c == 0x7f) {
+      char code[8];
+      std::snprintf(code, sizeof code, "0x%02x", c);
+      return where + ": control character " + code + " at column " + std::to_string(column + 1) +
+             " (words are separated by spaces or tabs)";
+    }
+  }
+  return std::nullopt;
+}
+
 struct PlyProperty {
   std::string name;
   bool list = false;
@@ -104,6 +118,9 @@ std::optional<std::string> ply_ascii_data_problem(std::istream& in, const std::v
         ++number;
         if (!line.empty() && line.back() == '\r') line.pop_back();
       } while (line.empty());
+      // Numbers, spaces and tabs: NUL bytes in a data line made assimp write past a block of
+      // its own (ASan's allocator found its chunk header overwritten; found by fuzz_mesh_ply).
+      if (auto problem = control_character_problem(line, "PLY line " + std::to_string(number))) return problem;
       w.clear();  // words, split by hand: a stream per line cost a tenth of a large file's import
       for (std::size_t at = 0; at < line.size();) {
         const std::size_t begin = line.find_first_not_of(" \t", at);
@@ -143,15 +160,7 @@ std::optional<std::string> ply_header_problem(std::istream& in, std::uintmax_t f
     // assimp separates a header's words by spaces and tabs only: a line that read here as
     // 'end_header' and a vertical tab was to it no end of the header, and it read the data as
     // header lines until it hung or read out of bounds (found by fuzz_mesh_ply).
-    for (std::size_t column = 0; column < line.size(); ++column) {
-      const auto c = static_cast<unsigned char>(line[column]);
-      if ((c < 0x20 && c != '\t') || c == 0x7f) {
-        char code[8];
-        std::snprintf(code, sizeof code, "0x%02x", c);
-        return "PLY header line " + std::to_string(number) + ": control character " + code + " at column " +
-               std::to_string(column + 1) + " (words are separated by spaces or tabs)";
-      }
-    }
+    if (auto problem = control_character_problem(line, "PLY header line " + std::to_string(number))) return problem;
     std::istringstream words(line);
     std::vector<std::string> w;
     for (std::string word; words >> word;) w.push_back(word);
@@ -172,6 +181,9 @@ std::optional<std::string> ply_header_problem(std::istream& in, std::uintmax_t f
       const unsigned long long count = w.size() == 3 ? std::strtoull(w[2].c_str(), &end, 10) : 0;
       if (w.size() != 3 || !end || *end != '\0' || w[2][0] == '-')
         return where + "must be 'element NAME COUNT'";
+      // assimp reads a name's leading digits as the count: '666...6vertex 4' asked for 64 GB.
+      if (!std::isalpha(static_cast<unsigned char>(w[1][0])) && w[1][0] != '_')
+        return where + "an element's name must start with a letter or '_'";
       if (count > file_bytes)
         return where + "claims " + w[2] + " entries, more than the file's " + std::to_string(file_bytes) + " bytes";
       elements.push_back({w[1], count, {}});

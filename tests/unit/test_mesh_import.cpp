@@ -109,8 +109,9 @@ TEST(MeshImport, StlAndPlyAreReadToo) {
   }
 }
 
-// assimp 5.2.5 never returns from these (fuzz/corpus/mesh_ply/regression_ply_*): the header is
-// checked first and the bad line named.
+// assimp 5.2.5 hangs on these, reads or writes out of bounds, or asks for gigabytes
+// (fuzz/corpus/mesh_ply/regression_ply_*): the header and the ASCII data lines are checked
+// first and the bad line named.
 TEST(MeshImport, MalformedPlyHeadersAreRefusedBeforeAssimpReadsThem) {
   const std::string good_start = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\n";
   const std::string rest = "element face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
@@ -126,6 +127,11 @@ TEST(MeshImport, MalformedPlyHeadersAreRefusedBeforeAssimpReadsThem) {
       {good_start + "property float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\v" +
            rest.substr(rest.find("end_header\n") + 11),
        "PLY header line 9: control character 0x0b at column 11"},
+      {"ply\nformat ascii 1.0\nelement 66666666666vertex 4\nproperty float x\nend_header\n1\n2\n3\n4\n",
+       "PLY header line 3 ('element 66666666666vertex 4'): an element's name must start with a letter or '_'"},
+      {good_start + "property float y\nproperty float z\n" + rest.substr(0, rest.find("0 1 0\n")) + std::string("0 \0 1\n", 6) +
+           rest.substr(rest.find("0 1 0\n") + 6),
+       "PLY line 12: control character 0x00 at column 3"},
   };
   for (const auto& [text, expected] : cases) {
     SCOPED_TRACE(expected);
