@@ -118,8 +118,8 @@ std::optional<std::string> ply_ascii_data_problem(std::istream& in, const std::v
         ++number;
         if (!line.empty() && line.back() == '\r') line.pop_back();
       } while (line.empty());
-      // Numbers, spaces and tabs: NUL bytes in a data line made assimp write past a block of
-      // its own (ASan's allocator found its chunk header overwritten; found by fuzz_mesh_ply).
+      // Numbers, spaces and tabs, as in the header: assimp's parser takes a NUL for the line's
+      // end and reads the rest of it as the next entry.
       if (auto problem = control_character_problem(line, "PLY line " + std::to_string(number))) return problem;
       w.clear();  // words, split by hand: a stream per line cost a tenth of a large file's import
       for (std::size_t at = 0; at < line.size();) {
