@@ -109,9 +109,9 @@ TEST(MeshImport, StlAndPlyAreReadToo) {
   }
 }
 
-// assimp 5.2.5 hangs on these, reads or writes out of bounds, or asks for gigabytes
-// (fuzz/corpus/mesh_ply/regression_ply_*): the header and the ASCII data lines are checked
-// first and the bad line named.
+// assimp 5.2.5 hangs on these, reads out of bounds or asks for gigabytes
+// (fuzz/corpus/mesh_ply/regression_ply_*), or takes a NUL for a data line's end: the header
+// and the ASCII data lines are checked first and the bad line named.
 TEST(MeshImport, MalformedPlyHeadersAreRefusedBeforeAssimpReadsThem) {
   const std::string good_start = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\n";
   const std::string rest = "element face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
