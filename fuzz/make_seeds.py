@@ -58,15 +58,15 @@ write("udp_pose", "pose_turned.bin", pose(7, 2, 2_000_000, (0, 0, 0), (0.7071067
 write("udp_pose", "force.bin", force(7, 1, 3, 2, 3_000_000, (0.1, 0.2, -0.3)))
 
 tetra_obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
-write("mesh", "tetra.obj", b"\0" + tetra_obj.encode())
+write("mesh_obj", "tetra.obj", tetra_obj)
 tri = [((0, 0, 0), (0, 1, 0), (1, 0, 0)), ((0, 0, 0), (1, 0, 0), (0, 0, 1)), ((0, 0, 0), (0, 0, 1), (0, 1, 0)), ((1, 0, 0), (0, 1, 0), (0, 0, 1))]
 stl = "solid t\n" + "".join("facet normal 0 0 0\nouter loop\n" + "".join("vertex %g %g %g\n" % v for v in t) + "endloop\nendfacet\n" for t in tri) + "endsolid t\n"
-write("mesh", "tetra_ascii.stl", b"\1" + stl.encode())
+write("mesh_stl", "tetra_ascii.stl", stl)
 binary = bytes(80) + struct.pack("<I", len(tri)) + b"".join(struct.pack("<3f", 0, 0, 0) + b"".join(struct.pack("<3f", *v) for v in t) + b"\0\0" for t in tri)
-write("mesh", "tetra_binary.stl", b"\1" + binary)
+write("mesh_stl", "tetra_binary.stl", binary)
 ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"
-write("mesh", "tetra_ascii.ply", b"\2" + ply.encode())
-write("mesh", "open.obj", b"\0" + "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".encode())
+write("mesh_ply", "tetra_ascii.ply", ply)
+write("mesh_obj", "open.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
 
 # Tetrahedral meshes (first byte: 0 .msh, 1 .vtk, 2 .vtu; 3 and 6 are .msh too): two tetrahedra
 # on five nodes with a triangle to skip and an unused node, in each format the readers take.

@@ -109,8 +109,9 @@ TEST(MeshImport, StlAndPlyAreReadToo) {
   }
 }
 
-// assimp 5.2.5 never returns from these (fuzz/corpus/mesh/regression_ply_*): the header is
-// checked first and the bad line named.
+// assimp 5.2.5 hangs on these, reads out of bounds or asks for gigabytes
+// (fuzz/corpus/mesh_ply/regression_ply_*), or takes a NUL for a data line's end: the header
+// and the ASCII data lines are checked first and the bad line named.
 TEST(MeshImport, MalformedPlyHeadersAreRefusedBeforeAssimpReadsThem) {
   const std::string good_start = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\n";
   const std::string rest = "element face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
@@ -123,6 +124,14 @@ TEST(MeshImport, MalformedPlyHeadersAreRefusedBeforeAssimpReadsThem) {
       {"ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nend_header\n",
        "PLY header line 3 ('element vertex 4000000000'): claims 4000000000 entries, more than the file's"},
       {"ply\nformat ascii 1.0\nelement vertex 4\n", "has no 'end_header' line"},
+      {good_start + "property float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\v" +
+           rest.substr(rest.find("end_header\n") + 11),
+       "PLY header line 9: control character 0x0b at column 11"},
+      {"ply\nformat ascii 1.0\nelement 66666666666vertex 4\nproperty float x\nend_header\n1\n2\n3\n4\n",
+       "PLY header line 3 ('element 66666666666vertex 4'): an element's name must start with a letter or '_'"},
+      {good_start + "property float y\nproperty float z\n" + rest.substr(0, rest.find("0 1 0\n")) + std::string("0 \0 1\n", 6) +
+           rest.substr(rest.find("0 1 0\n") + 6),
+       "PLY line 12: control character 0x00 at column 3"},
   };
   for (const auto& [text, expected] : cases) {
     SCOPED_TRACE(expected);
@@ -139,7 +148,7 @@ TEST(MeshImport, MalformedPlyHeadersAreRefusedBeforeAssimpReadsThem) {
 }
 
 // A face list entry of zero vertices made assimp 5.2.5's PLY reader claim polygons and its
-// triangulation abort the process on an assertion (fuzz/corpus/mesh/regression_ply_empty_face_abort.ply).
+// triangulation abort the process on an assertion (fuzz/corpus/mesh_ply/regression_ply_empty_face_abort.ply).
 TEST(MeshImport, AnEmptyPlyFaceIsRefusedRatherThanAborting) {
   const std::string ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
                           "element face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
@@ -152,6 +161,54 @@ TEST(MeshImport, AnEmptyPlyFaceIsRefusedRatherThanAborting) {
     EXPECT_NE(std::string(e.what()).find("incise_empty_face.ply: mesh 0 face 1 has no vertices"), std::string::npos) << e.what();
   }
   std::filesystem::remove(path);
+}
+
+// Triangulation takes time quadratic in a polygon's corners: a PLY face claiming 32214 corners
+// on 4 vertices held assimp 5.2.5 for minutes (fuzz/corpus/mesh_ply/regression_ply_huge_face_hang.ply).
+// A face may have no more corners than its mesh has vertices, nor than 1024.
+TEST(MeshImport, APolygonWithMoreCornersThanVerticesIsRefused) {
+  const std::string header = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                             "element face 1\nproperty list int int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n";
+  std::string face = "5";
+  for (int i = 0; i < 5; ++i) face += " " + std::to_string(i % 4);
+  auto path = write_file("incise_big_face.ply", header + face + "\n");
+  try {
+    import_surface(path);
+    ADD_FAILURE() << "accepted";
+  } catch (const MeshError& e) {
+    EXPECT_NE(std::string(e.what()).find("incise_big_face.ply: mesh 0 face 0 has 5 corners, more than the mesh's 4 vertices"),
+              std::string::npos)
+        << e.what();
+  }
+  std::filesystem::remove(path);
+}
+
+// assimp 5.2.5 allocates what a PLY list's count says: 344444444444444444 in a 235-byte ASCII
+// file took 12 GB (fuzz/corpus/mesh_ply/regression_ply_huge_list_count_oom.ply), 400000000 in
+// an 86-byte binary one 3 GB. A list may claim no more values than its line (ASCII) or the
+// file (binary) has left.
+TEST(MeshImport, APlyListClaimingMoreValuesThanTheFileHasIsRefused) {
+  const std::string vertices = "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+  const std::string ascii = "ply\nformat ascii 1.0\n" + vertices +
+                            "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n\n1 0 0\n0 1 0\n"
+                            "344444444444444444 0 1 2\n";
+  std::string binary = "ply\nformat binary_big_endian 1.0\n" + vertices +
+                       "element face 1\nproperty list int int vertex_indices\nend_header\n";
+  binary += std::string(36, '\0') + std::string("\x17\xd7\x84\x00", 4) + std::string(12, '\0');  // 400000000
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {ascii, "PLY line 14 (face 0): list 'vertex_indices' claims 344444444444444444 values, its line has 3 left"},
+      {binary, "PLY data at byte 200 (face 0): list 'vertex_indices' claims more values than the file's 12 bytes left"},
+  };
+  for (const auto& [text, expected] : cases) {
+    auto path = write_file("incise_big_list.ply", text);
+    try {
+      import_surface(path);
+      ADD_FAILURE() << "accepted";
+    } catch (const MeshError& e) {
+      EXPECT_NE(std::string(e.what()).find("incise_big_list.ply: " + expected), std::string::npos) << e.what();
+    }
+    std::filesystem::remove(path);
+  }
 }
 
 // mesh_up "y": the file's y is +z and its z is -y, a rotation (the cube keeps its volume's sign).
