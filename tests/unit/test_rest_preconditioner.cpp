@@ -345,6 +345,19 @@ TEST(Multigrid, TheVcycleIsSymmetricAndPositive) {
     vcycle(smooth, msmooth);
     EXPECT_GT(smooth.dot(msmooth), 0.0) << "seed " << seed;
   }
+  // The cycle the implicit step runs (`multigrid`): the rest system's, on its block products
+  // and its own diagonal, unwarped; symmetric and positive likewise.
+  smoother.upper = 1.05 * factor.smoothing_eigenvalue();
+  const LinearOperator rest_apply = [&](const Vector& p, Vector& out) { factor.rest_product(p, out, serial_executor()); };
+  VcyclePreconditioner rest_cycle(rest_apply, factor.rest_inverse_diagonal(), factor, {}, factor.rest_fixed(), smoother);
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    const Vector x = free_random(seed), y = free_random(100 + seed);
+    Vector mx(x.size()), my(y.size());
+    rest_cycle(x, mx);
+    rest_cycle(y, my);
+    EXPECT_LE(std::abs(x.dot(my) - y.dot(mx)), 1e-10 * x.norm() * my.norm()) << "seed " << seed;
+    EXPECT_GT(x.dot(mx), 0.0) << "seed " << seed;
+  }
 }
 
 // CG with the V-cycle reaches the Jacobi CG's solution, to the tolerance, in far fewer
