@@ -92,21 +92,36 @@ CgResult jacobi_solve(const DeformableModel& model, std::span<const NodalSpring>
 
 // CG preconditioned with a rest factor warped by the node rotations: the whole factor, the
 // additive two-level (a coarse factor plus Jacobi, which takes what the coarse grid cannot
-// represent), or the V-cycle around the coarse factor (physics/solve/multigrid.hpp).
+// represent), or the rest system's V-cycle (physics/solve/multigrid.hpp) warped likewise.
 CgResult rest_factor_solve(const DeformableModel& model, const RestFactor& factor, const LinearOperator& apply,
                            const Vector& inverse_diagonal, const Vector& right_hand_side,
                            const std::vector<uint8_t>& fixed_nodes, Vector& velocity_change, const CgSettings& settings) {
   std::vector<Eigen::Quaterniond> rotations;
   model.node_rotations(rotations);
   if (factor.smoothing_degree() > 0) {
-    // Headroom over the rest system's estimate: the rotations, a cut since the factor's build
-    // and the springs move D^-1 A's spectrum a little, and a smoother whose interval misses
-    // its top would amplify those modes instead of damping them.
+    // M^-1 = R V0 R^T, V0 the V-cycle of the rest system A0 = R^T A R's approximation: its
+    // smoother multiplies by the assembled A0 (block CSR, several times cheaper than the
+    // matrix-free A), and V0 is a fixed SPD operator, so M^-1 is SPD whatever the rotations.
+    // The Chebyshev interval's top is over the Lanczos estimate of A0's own D0^-1 A0, which
+    // approaches it from below.
     ChebyshevSmoother smoother;
     smoother.degree = factor.smoothing_degree();
-    smoother.upper = 1.2 * factor.smoothing_eigenvalue();
-    VcyclePreconditioner vcycle(apply, inverse_diagonal, factor, std::move(rotations), fixed_nodes, smoother);
-    const Preconditioner cycle = [&](const Vector& r, Vector& z) { vcycle(r, z); };
+    smoother.upper = 1.05 * factor.smoothing_eigenvalue();
+    Executor& executor = model.executor();
+    const LinearOperator rest_apply = [&](const Vector& p, Vector& out) { factor.rest_product(p, out, executor); };
+    VcyclePreconditioner vcycle(rest_apply, factor.rest_inverse_diagonal(), factor, {}, factor.rest_fixed(), smoother);
+    Vector turned(right_hand_side.size()), rest_z(right_hand_side.size());
+    const Index nodes = right_hand_side.size() / 3;
+    const bool warped = !rotations.empty();
+    const Preconditioner cycle = [&](const Vector& r, Vector& z) {
+      for (Index node = 0; node < nodes; ++node)
+        turned.segment<3>(3 * node) =
+            warped ? rotations[static_cast<size_t>(node)].conjugate() * Vec3(r.segment<3>(3 * node)) : Vec3(r.segment<3>(3 * node));
+      vcycle(turned, rest_z);
+      for (Index node = 0; node < nodes; ++node)
+        z.segment<3>(3 * node) =
+            warped ? rotations[static_cast<size_t>(node)] * Vec3(rest_z.segment<3>(3 * node)) : Vec3(rest_z.segment<3>(3 * node));
+    };
     return preconditioned_conjugate_gradient(apply, right_hand_side, cycle, fixed_nodes, velocity_change, settings);
   }
   Vector coarse(right_hand_side.size());
@@ -200,8 +215,9 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   if (velocity_change_guess && velocity_change_guess->size() == size && velocity_change_guess->allFinite())
     velocity_change = *velocity_change_guess;
   if (rest_factor && rest_factor->size() == size) {
+    // The additive two-level's fine part (the V-cycle smooths with the rest system's own).
     const Vector inverse_diagonal =
-        rest_factor->coarse()
+        rest_factor->coarse() && rest_factor->smoothing_degree() == 0
             ? jacobi_inverse(jacobi_diagonal(model, springs, masses, mass_coefficient, stiffness_coefficient, dt))
             : Vector();
     report.cg = rest_factor_solve(model, *rest_factor, apply, inverse_diagonal, right_hand_side, fixed_nodes,

@@ -5,6 +5,7 @@
 // of MuJoCo's mjModel / mjData: copying or resetting a simulation is copying the State.
 #pragma once
 
+#include "physics/core/executor.hpp"
 #include "physics/solve/block_matrix.hpp"
 
 #include <Eigen/Core>
@@ -68,6 +69,9 @@ class DeformableModel {
   // The typical distance between neighbouring nodes at rest, which a two-level
   // preconditioner's coarse grid doubles (physics/solve/coarse_space.hpp). 0: unknown.
   virtual double node_spacing() const { return 0; }
+  // Where the model's loops run (physics/core/executor.hpp): a solver's own loops over the
+  // nodes (a preconditioner's products) borrow it. The calling thread unless the model has one.
+  virtual Executor& executor() const { return serial_executor(); }
   // A deep copy whose future is the same as this one's, bit for bit (copying a body's data
   // copies its model: the model changes as it steps and as it is cut). What the model only
   // borrows (an EFG model's executor) is borrowed by the copy too; its owner re-points it.

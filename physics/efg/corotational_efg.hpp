@@ -212,7 +212,7 @@ class CorotationalEfg final : public DeformableModel {
   // Where the element loops run: the given executor, which must outlive its use here, or the
   // calling thread (serial_executor) for nullptr. The model owns no thread.
   void set_executor(Executor* executor);
-  Executor& executor() const { return *executor_; }
+  Executor& executor() const override { return *executor_; }
 
   // Topology. Rows: element * row_stride() + k for k < row_lengths()[element].
   int element_count() const { return static_cast<int>(volumes_.size()); }

@@ -28,6 +28,11 @@ class BlockMatrix {
   int block_count() const { return static_cast<int>(columns_.size()); }
   // The block (row, column); it must be in the pattern (throws std::out_of_range otherwise).
   Mat3& at(int row, int column);
+  // Block row r holds the blocks k in [row_start()[r], row_start()[r + 1]), block k in
+  // column columns()[k].
+  const std::vector<int>& row_start() const { return row_start_; }
+  const std::vector<int>& columns() const { return columns_; }
+  const std::vector<Mat3>& blocks() const { return blocks_; }
 
   // The scalar matrix mass_coefficient M + stiffness_coefficient K (3n x 3n, column-major),
   // M = diag(masses) per node, with the rows and columns of nodes marked fixed (1) replaced by

@@ -1,14 +1,19 @@
-// A multiplicative two-grid V-cycle preconditioner for the implicit system A (issue 29): the
-// fine level smoothed by a Chebyshev polynomial of the Jacobi-scaled operator (only A's
-// matrix-free product and its diagonal), the coarse level the warped Galerkin factor of the
+// A multiplicative two-grid V-cycle preconditioner for a symmetric positive definite system B
+// (issue 29): the fine level smoothed by a Chebyshev polynomial of the Jacobi-scaled operator
+// (only B's product and its diagonal), the coarse level the warped Galerkin factor of the
 // embedded trilinear grid (coarse_space.hpp, rest_factor.hpp):
-//   pre-smooth  x = S r,           r1 = r - A x
+//   pre-smooth  x = S r,           r1 = r - B x
 //   correct     x += C r1,         C = R P (P^T A0 P)^-1 P^T R^T (warped_solve)
-//   post-smooth x += S r2,         r2 = r - A x
-// S = p(D^-1 A) D^-1 is symmetric, so the cycle I - M^-1 A = (I - S A)(I - C A)(I - S A) is
-// self-adjoint in the A inner product and M^-1 symmetric: CG stays valid. It is positive
-// definite while the smoother contracts in the A norm, which the Chebyshev interval's upper end
-// (an over-estimate of the largest eigenvalue of D^-1 A) ensures.
+//   post-smooth x += S r2,         r2 = r - B x
+// S = p(D^-1 B) D^-1 is symmetric, so the cycle I - M^-1 B = (I - S B)(I - C B)(I - S B) is
+// self-adjoint in the B inner product and M^-1 symmetric: CG stays valid. It is positive
+// definite while the smoother contracts in the B norm, which the Chebyshev interval's upper end
+// (an over-estimate of the largest eigenvalue of D^-1 B) ensures.
+//
+// The implicit step (physics/core/implicit_euler.cpp, `multigrid`) runs it on the rest system
+// B = A0 in the rest frame, unwarped, its products those of the assembled A0
+// (block_system.hpp), and warps the whole cycle: M^-1 = R V0 R^T. Every product is then the
+// cheap block one, and the operator fixed between factor builds.
 //
 // Unlike the additive two-level (Jacobi + C), the correction acts on the residual the
 // smoother leaves, so the smoother and the coarse grid do not fight over the smooth modes.
@@ -38,13 +43,13 @@ struct ChebyshevSmoother {
 
 class VcyclePreconditioner {
  public:
-  // `apply`: A; `inverse_diagonal`: D^-1 (jacobi_inverse); `coarse`: a coarse RestFactor;
+  // `apply`: B; `inverse_diagonal`: D^-1 (jacobi_inverse); `coarse`: a coarse RestFactor;
   // `rotations`: its warp (empty: none); `fixed`: per node, 1 = fixed (zeroed throughout).
   VcyclePreconditioner(const LinearOperator& apply, Vector inverse_diagonal, const RestFactor& coarse,
                        std::vector<Eigen::Quaterniond> rotations, const std::vector<std::uint8_t>& fixed,
                        ChebyshevSmoother smoother);
 
-  // z = M^-1 r: 2 x degree products of A and a coarse solve. Not re-entrant (workspace).
+  // z = M^-1 r: 2 x degree products of B and a coarse solve. Not re-entrant (workspace).
   void operator()(const Vector& r, Vector& z);
 
  private:

@@ -40,6 +40,9 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
     if (!coarse) throw std::invalid_argument("RestFactor: a V-cycle's smoother needs a coarse space");
     smoothing_degree_ = smoothing_degree;
     smoothing_eigenvalue_ = largest_jacobi_eigenvalue(matrix);
+    rest_system_ = BlockSystem(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient);
+    rest_inverse_diagonal_ = rest_system_.diagonal().cwiseInverse();
+    rest_fixed_ = fixed;
   }
   if (coarse) {
     prolongation_ = coarse->prolongation;

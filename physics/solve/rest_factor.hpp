@@ -8,7 +8,9 @@
 // while the next is built on another thread.
 #pragma once
 
+#include "physics/core/executor.hpp"
 #include "physics/solve/block_matrix.hpp"
+#include "physics/solve/block_system.hpp"
 #include "physics/solve/coarse_space.hpp"
 
 #include <cstdint>
@@ -58,6 +60,14 @@ class RestFactor {
   double smoothing_eigenvalue() const { return smoothing_eigenvalue_; }  // of D0^-1 A0
   long long factor_nonzeros() const { return factor_nonzeros_; }
   double build_ms() const { return build_ms_; }  // the matrix and its factorisation
+  // A V-cycle's factor (smoothing_degree() > 0) also keeps the rest system A0 itself in
+  // blocks, its smoother's operator: y = A0 x (on `executor`'s threads), D0^-1 and the nodes
+  // it fixed (empty: none). Empty for other factors.
+  void rest_product(const Eigen::VectorXd& x, Eigen::VectorXd& y, Executor& executor) const {
+    rest_system_.multiply(x, y, executor);
+  }
+  const Eigen::VectorXd& rest_inverse_diagonal() const { return rest_inverse_diagonal_; }
+  const std::vector<std::uint8_t>& rest_fixed() const { return rest_fixed_; }
   FactorBackend backend() const { return backend_; }
 
  private:
@@ -65,6 +75,9 @@ class RestFactor {
   std::unique_ptr<Solver> solver_;
   mutable std::mutex solving_;
   Eigen::SparseMatrix<double> prolongation_;  // empty: the whole system is factored
+  BlockSystem rest_system_;
+  Eigen::VectorXd rest_inverse_diagonal_;
+  std::vector<std::uint8_t> rest_fixed_;
   int size_ = 0;
   long long factor_nonzeros_ = 0;
   double build_ms_ = 0;

@@ -30,8 +30,9 @@ enum class PreconditionerKind {
   // Jacobi plus the coarse correction of an embedded grid twice the node spacing (additive
   // two-level: P^-1 = D^-1 + R P (P^T A0 P)^-1 P^T R^T; coarse_space.hpp), warped likewise.
   two_level,
-  // The same coarse space and factor in a multiplicative V-cycle: Chebyshev smoothing of the
-  // Jacobi-scaled operator before and after the coarse correction (multigrid.hpp).
+  // The same coarse space and factor in a multiplicative V-cycle of the rest system, warped:
+  // Chebyshev smoothing of the Jacobi-scaled assembled A0 before and after the coarse
+  // correction (multigrid.hpp, block_system.hpp).
   multigrid,
 };
 

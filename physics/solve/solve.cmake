@@ -3,6 +3,7 @@
 # (SuiteSparse, OpenBLAS behind it; Debian: libsuitesparse-dev libopenblas-dev).
 target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/block_matrix.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/block_system.cpp
   ${CMAKE_CURRENT_LIST_DIR}/coarse_space.cpp
   ${CMAKE_CURRENT_LIST_DIR}/multigrid.cpp
   ${CMAKE_CURRENT_LIST_DIR}/rest_factor.cpp

@@ -5,6 +5,7 @@
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/fem/corotational_fem.hpp"
 #include "physics/fem/tet_mesh.hpp"
+#include "physics/solve/block_system.hpp"
 #include "physics/solve/multigrid.hpp"
 #include "physics/solve/rest_preconditioner.hpp"
 #include "physics/solve/warped_preconditioner.hpp"
@@ -15,6 +16,7 @@
 
 #include <memory>
 #include <cstdio>
+#include <cstring>
 #include <random>
 
 namespace incise::physics {
@@ -99,6 +101,43 @@ void expect_exact_for_rigid_rotation(DeformableModel& model) {
   Vector y = Vector::Zero(rest.size());
   const Preconditioner unwarped = [&](const Vector& r, Vector& z) { warped_solve(factor, {}, r, z); };
   EXPECT_GT(preconditioned_conjugate_gradient(apply, random_vector(rest.size(), 3), unwarped, fixed, y, settings).iterations, 3);
+}
+
+// Hands a parallel_for's ranges out in small pieces, last first: what a pool of threads may
+// do, on one thread, so that a result that depended on the split would show.
+class ShufflingExecutor final : public Executor {
+ public:
+  int thread_count() const override { return 3; }
+  void parallel_for(int count, const std::function<void(int, int)>& task, int) override {
+    const int piece = 7;
+    for (int begin = (count - 1) / piece * piece; begin >= 0; begin -= piece) task(begin, std::min(count, begin + piece));
+  }
+  void run_beside(const std::function<void()>& own, const std::function<void()>& side) override {
+    side();
+    own();
+  }
+};
+
+// The V-cycle's assembled rest system (block_system.hpp) is the scalar system the factor is
+// built from (BlockMatrix::system), fixed rows and columns included, and its product has the
+// same bits however the rows are split among threads.
+TEST(BlockSystem, EqualsTheScalarSystemAndIsIndependentOfTheSplit) {
+  const auto model = small_efg();
+  const BlockMatrix k = model->rest_stiffness_job()();
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(model->node_count()), 0);
+  for (int i = 0; i < model->node_count(); i += 5) fixed[static_cast<size_t>(i)] = 1;
+  const double mass_coefficient = 1.02, stiffness_coefficient = 1e-4;
+  const BlockSystem blocks(k, model->lumped_masses(), fixed, mass_coefficient, stiffness_coefficient);
+  const Eigen::SparseMatrix<double> scalar = k.system(model->lumped_masses(), fixed, mass_coefficient, stiffness_coefficient);
+  const Vector x = random_vector(3 * model->node_count(), 7);
+  Vector serial, shuffled;
+  blocks.multiply(x, serial, serial_executor());
+  ShufflingExecutor shuffling;
+  blocks.multiply(x, shuffled, shuffling);
+  const Vector reference = scalar * x;
+  EXPECT_LE((serial - reference).cwiseAbs().maxCoeff(), 1e-12 * reference.cwiseAbs().maxCoeff());
+  EXPECT_EQ(0, std::memcmp(serial.data(), shuffled.data(), sizeof(double) * static_cast<size_t>(x.size())));
+  EXPECT_EQ(blocks.diagonal(), Vector(scalar.diagonal()));
 }
 
 TEST(WarpedPreconditioner, EfgSolvesARigidlyTurnedBodyInOneIteration) { expect_exact_for_rigid_rotation(*small_efg()); }
@@ -305,6 +344,19 @@ TEST(Multigrid, TheVcycleIsSymmetricAndPositive) {
     Vector msmooth(x.size());
     vcycle(smooth, msmooth);
     EXPECT_GT(smooth.dot(msmooth), 0.0) << "seed " << seed;
+  }
+  // The cycle the implicit step runs (`multigrid`): the rest system's, on its block products
+  // and its own diagonal, unwarped; symmetric and positive likewise.
+  smoother.upper = 1.05 * factor.smoothing_eigenvalue();
+  const LinearOperator rest_apply = [&](const Vector& p, Vector& out) { factor.rest_product(p, out, serial_executor()); };
+  VcyclePreconditioner rest_cycle(rest_apply, factor.rest_inverse_diagonal(), factor, {}, factor.rest_fixed(), smoother);
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    const Vector x = free_random(seed), y = free_random(100 + seed);
+    Vector mx(x.size()), my(y.size());
+    rest_cycle(x, mx);
+    rest_cycle(y, my);
+    EXPECT_LE(std::abs(x.dot(my) - y.dot(mx)), 1e-10 * x.norm() * my.norm()) << "seed " << seed;
+    EXPECT_GT(x.dot(mx), 0.0) << "seed " << seed;
   }
 }
 
