@@ -11,7 +11,7 @@ if(INCISE_SANITIZE STREQUAL "")
   add_test(NAME batch_score
            COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/batch_score.sh $<TARGET_FILE:incise>
                    ${PROJECT_SOURCE_DIR}/assets/batch/incision.json ${CMAKE_CURRENT_BINARY_DIR}/batch_score)
-  set_tests_properties(batch_score PROPERTIES TIMEOUT 600 LABELS "batch")
+  set_tests_properties(batch_score PROPERTIES TIMEOUT 600 LABELS "batch" COST 40)
 endif()
 
 # The quick stability sweep in 3 parts on the batch path, joined and compared with the
@@ -29,7 +29,7 @@ if(INCISE_SANITIZE STREQUAL "")
   add_test(NAME batch_bench_accuracy_parts
            COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/batch_bench_accuracy_parts.sh $<TARGET_FILE:incise>
                    ${CMAKE_CURRENT_BINARY_DIR}/batch_bench_accuracy_parts)
-  set_tests_properties(batch_bench_accuracy_parts PROPERTIES TIMEOUT 900 LABELS "batch")
+  set_tests_properties(batch_bench_accuracy_parts PROPERTIES TIMEOUT 900 LABELS "batch" COST 99)
 endif()
 
 # mpirun and the single-node Slurm in Release only: OpenMPI's runtime is not clean under the

@@ -7,7 +7,7 @@ if(INCISE_SANITIZE STREQUAL "")
            COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/kill_while_recording.sh $<TARGET_FILE:incise>
                    ${PROJECT_SOURCE_DIR}/assets/scenes/haptics_block.json ${CMAKE_CURRENT_BINARY_DIR}/kill_while_recording
                    20 3 35)
-  set_tests_properties(kill_while_recording PROPERTIES TIMEOUT 600 LABELS "reliability")
+  set_tests_properties(kill_while_recording PROPERTIES TIMEOUT 600 LABELS "reliability" COST 81)
 endif()
 
 # The soak (issue 35): two minutes of the haptic session on the lobe, cutting and rebuilding;
@@ -16,5 +16,5 @@ endif()
 if(INCISE_SANITIZE STREQUAL "")
   add_test(NAME bench_soak_2min
            COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/soak.sh $<TARGET_FILE:incise> ${CMAKE_CURRENT_BINARY_DIR}/bench_soak 120)
-  set_tests_properties(bench_soak_2min PROPERTIES TIMEOUT 400 LABELS "reliability;bench")
+  set_tests_properties(bench_soak_2min PROPERTIES TIMEOUT 400 LABELS "reliability;bench" COST 130)
 endif()

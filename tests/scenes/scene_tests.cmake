@@ -29,7 +29,7 @@ if(INCISE_SANITIZE STREQUAL "")
   add_test(NAME bench_stability_quick
            COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/bench_stability_quick.sh $<TARGET_FILE:incise>
                    ${CMAKE_CURRENT_BINARY_DIR}/bench_stability_quick)
-  set_tests_properties(bench_stability_quick PROPERTIES TIMEOUT 600 LABELS "bench" FIXTURES_SETUP stability_sweep)
+  set_tests_properties(bench_stability_quick PROPERTIES TIMEOUT 600 LABELS "bench" FIXTURES_SETUP stability_sweep COST 146)
 endif()
 include(${CMAKE_CURRENT_LIST_DIR}/cut_scenes.cmake)
 
@@ -62,5 +62,5 @@ if(INCISE_SANITIZE STREQUAL "")
            COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/check_state_hashes.sh $<TARGET_FILE:incise>
                    ${PROJECT_SOURCE_DIR}/assets/scenes ${CMAKE_CURRENT_LIST_DIR}/state_hashes.txt
                    ${CMAKE_CURRENT_BINARY_DIR}/scene_state_hashes)
-  set_tests_properties(scene_state_hashes PROPERTIES TIMEOUT 900 LABELS "scenes")
+  set_tests_properties(scene_state_hashes PROPERTIES TIMEOUT 900 LABELS "scenes" COST 60)
 endif()
