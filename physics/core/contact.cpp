@@ -49,6 +49,20 @@ Vec3 barycentric(const Vec3& q, const Vec3& a, const Vec3& b, const Vec3& c) {
   return {std::clamp(1.0 - v - w, 0.0, 1.0), std::clamp(v, 0.0, 1.0), std::clamp(w, 0.0, 1.0)};
 }
 
+// A penalty force on the tissue at a point of triangle t (its barycentric weights) shared by
+// the triangle's free nodes, with its stiffness along the normal.
+void spread_to_nodes(std::map<int, NodalSpring>& by_node, const std::array<int, 3>& t, const Vec3& weights,
+                     const Vec3& force, const Vec3& normal, double stiffness, const std::vector<std::uint8_t>& fixed) {
+  for (int k = 0; k < 3; ++k) {
+    const int node = t[k];
+    if (weights[k] <= 0 || (!fixed.empty() && fixed[node])) continue;
+    NodalSpring& spring = by_node[node];
+    spring.node = node;
+    spring.force += weights[k] * force;
+    spring.stiffness += weights[k] * stiffness * normal * normal.transpose();
+  }
+}
+
 }  // namespace
 
 ProbeContact probe_contact(const Vector& x, const std::vector<std::array<int, 3>>& surface,
@@ -95,14 +109,7 @@ ProbeContact probe_contact(const Vector& x, const std::vector<std::array<int, 3>
     const Vec3 force = -stiffness * depth * normal;  // on the tissue
     contact.force_on_tool -= force;
     ++contact.triangles_touched;
-    for (int k = 0; k < 3; ++k) {
-      const int node = t[k];
-      if (weights[k] <= 0 || (!fixed.empty() && fixed[node])) continue;
-      NodalSpring& spring = by_node[node];
-      spring.node = node;
-      spring.force += weights[k] * force;
-      spring.stiffness += weights[k] * stiffness * normal * normal.transpose();
-    }
+    spread_to_nodes(by_node, t, weights, force, normal, stiffness, fixed);
   }
   contact.springs.reserve(by_node.size());
   for (auto& [node, spring] : by_node) contact.springs.push_back(spring);
@@ -145,14 +152,7 @@ ProbeContact held_contact(const Vector& x, const std::vector<std::array<int, 3>>
     ++contact.triangles_touched;
     const auto& tri = surface[static_cast<std::size_t>(triangle[i])];
     const Vec3 weights = barycentric(closest[i], x.segment<3>(3 * tri[0]), x.segment<3>(3 * tri[1]), x.segment<3>(3 * tri[2]));
-    for (int k = 0; k < 3; ++k) {
-      const int node = tri[k];
-      if (weights[k] <= 0 || (!fixed.empty() && fixed[node])) continue;
-      NodalSpring& spring = by_node[node];
-      spring.node = node;
-      spring.force += weights[k] * force;
-      spring.stiffness += weights[k] * stiffness * normal * normal.transpose();
-    }
+    spread_to_nodes(by_node, tri, weights, force, normal, stiffness, fixed);
   }
   contact.springs.reserve(by_node.size());
   for (auto& [node, spring] : by_node) contact.springs.push_back(spring);
