@@ -124,7 +124,9 @@ TEST(CuttingResistance, ADrawnBladeIsResistedByTheToughnessTimesTheEngagedLength
   double cov = 0, var_f = 0, var_d = 0;
   for (std::size_t i = 0; i < n; ++i) {
     std::printf("pressing: indentation %.2f mm, force %.4f N\n", 1e3 * run.pressing_indent[i], run.pressing_force[i]);
-    if (i > 0) EXPECT_GT(run.pressing_indent[i], run.pressing_indent[i - 1]) << "pressing step " << i;
+    if (i > 0) {
+      EXPECT_GT(run.pressing_indent[i], run.pressing_indent[i - 1]) << "pressing step " << i;
+    }
     cov += (run.pressing_force[i] - mean_f) * (run.pressing_indent[i] - mean_d);
     var_f += (run.pressing_force[i] - mean_f) * (run.pressing_force[i] - mean_f);
     var_d += (run.pressing_indent[i] - mean_d) * (run.pressing_indent[i] - mean_d);

@@ -161,8 +161,9 @@ TEST(GpuStep, CgChecksReadBackEveryFewIterationsGiveTheSameIterate) {
     }
     std::printf("[gpu double, stop_at %d] CG iterations per step %d %d %d %d (checked every 1, 3, 8)\n", stop_at,
                 counts[0][0], counts[0][1], counts[0][2], counts[0][3]);
-    if (stop_at == 0)  // a count no batch divides: iterations were queued past the stop
+    if (stop_at == 0) {  // a count no batch divides: iterations were queued past the stop
       EXPECT_TRUE(std::any_of(counts[0].begin(), counts[0].end(), [](int n) { return n % 8 != 0 && n % 3 != 0; }));
+    }
     for (size_t k = 1; k < states.size(); ++k) {
       EXPECT_EQ(counts[k], counts[0]);
       EXPECT_EQ((states[k] - states[0]).cwiseAbs().maxCoeff(), 0.0);
