@@ -176,14 +176,16 @@ class Mapper {
       : model_(model), vertices_(vertices), normals_(normals), planes_(planes), visibility_(visibility), inward_(inward), bins_(bins) {}
 
   // The element for vertex v, given the elements its one-ring neighbours are mapped to (for
-  // criterion 1). Sets `relaxed` if no candidate met all three criteria.
-  int choose(int v, std::span<const int> neighbour_elements, bool& relaxed) {
+  // criterion 1). Sets `relaxed` if no candidate met all three criteria, and `seen` whether the
+  // one returned meets the visibility criterion.
+  int choose(int v, std::span<const int> neighbour_elements, bool& relaxed, bool& seen) {
     const Vec3& vertex = vertices_[static_cast<size_t>(v)];
     const GridCell cube = bins_.grid.cells.unclamped_cell_of(vertex);  // the lattice's: first is 0
     const double a = model_.spacing();
     candidates_.clear();
     size_t checked = 0;
     relaxed = false;
+    seen = true;
     // Ring by ring, nearest first: after ring r the candidates nearer than the bound below
     // are final (a farther ring holds none nearer), so they are checked in order as soon as
     // they are.
@@ -218,6 +220,7 @@ class Mapper {
     if (visibility_ != nullptr) {
       for (const auto& [distance, e] : candidates_)
         if (visible(v, e)) return e;
+      seen = false;
       for (const auto& [distance, e] : candidates_)
         if (below_planes(v, e)) return e;
     }
@@ -480,12 +483,12 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
     std::sort(neighbour_elements.begin(), neighbour_elements.end());
     neighbour_elements.erase(std::unique(neighbour_elements.begin(), neighbour_elements.end()), neighbour_elements.end());
   };
-  bool relaxed = false;
+  bool relaxed = false, seen = true;
   // First pass: only the neighbours not being remapped, whose rows are as given.
   std::vector<std::uint8_t> first_relaxed(remap.size(), 0);
   for (size_t k = 0; k < remap.size(); ++k) {
     gather(k, false);
-    first[k] = mapper.choose(remap[k], neighbour_elements, relaxed);
+    first[k] = mapper.choose(remap[k], neighbour_elements, relaxed, seen);
     first_relaxed[k] = relaxed ? 1 : 0;
   }
   // Second pass: every neighbour, the remapped ones at their first-pass element (a snapshot:
@@ -496,17 +499,15 @@ void map_front_surface(const CorotationalEfg& model, const std::vector<Vec3>& ve
   for (size_t k = 0; k < remap.size(); ++k) {
     gather(k, true);
     int e = first[k];
+    seen = true;  // a first-pass point kept met every criterion, visibility among them
     if (first_relaxed[k] || !std::all_of(neighbour_elements.begin(), neighbour_elements.end(),
                                          [&](int f) { return share_a_particle(model, e, f); })) {
-      e = mapper.choose(remap[k], neighbour_elements, relaxed);
+      e = mapper.choose(remap[k], neighbour_elements, relaxed, seen);
       if (relaxed) ++report.relaxed_fallbacks;
     }
     mapper.write_row(remap[k], e, embedding);
     ++report.mapped;
-    if (visibility != nullptr && visibility->inside != nullptr &&
-        !CorotationalEfg::sees_through_body(*visibility->inside, vertices[static_cast<size_t>(remap[k])],
-                                            model.element_centres()[static_cast<size_t>(e)], model.spacing()))
-      ++report.unseen;
+    if (visibility != nullptr && visibility->inside != nullptr && !seen) ++report.unseen;
   }
 }
 
