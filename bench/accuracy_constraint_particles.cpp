@@ -14,8 +14,6 @@
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <set>
-#include <tuple>
 #include <stdexcept>
 
 namespace incise::bench::accuracy {
@@ -55,6 +53,7 @@ ConstraintParticleSettings particle_settings(double distance, double volume, dou
   settings.distance_stiffness = distance;
   settings.area_stiffness = 0;  // no membrane on the skin (the header says why)
   settings.volume_stiffness = volume;
+  settings.scaling = physics::StiffnessScaling::per_volume;  // k_D, k_V in Pa (the header says why)
   return settings;
 }
 
@@ -109,7 +108,7 @@ BeamTets beam_tets(Shape shape, double resolution) {
   return body;
 }
 
-// The lattice's moduli along x per unit k_D, with k_V = ratio k_D: the homogenised stiffness of
+// The lattice's moduli along x per unit k_D (Pa, per_volume), with k_V = ratio k_D: the homogenised stiffness of
 // the periodic lattice (period 2 x 2 x 2 voxels: the split alternates), each constraint
 // linearised at rest, C = grad C . u with u = eps X + w(X), w periodic (the 8 node classes of the
 // period, the first held against the rigid translations); minimising the energy over w leaves
@@ -146,23 +145,20 @@ LatticeModuli lattice_moduli(const Vec3& cell, double ratio) {
     }
     hessian += stiffness * b * b.transpose();
   };
-  // Each tet of the period is one of the lattice's; an edge on the period's faces is also its
-  // neighbour period's, so the edges are taken once each: by the class of their start and their
-  // vector in voxels, the vector's sign fixed.
-  std::set<std::array<int, 4>> seen;
-  for (const auto& [a, b] : physics::unique_tet_edges(period.tets)) {
-    Eigen::Vector3i step = grid(b) - grid(a);
-    int start = a;
-    if (std::make_tuple(step.x(), step.y(), step.z()) < std::make_tuple(0, 0, 0)) step = -step, start = b;
-    if (!seen.insert({node_class(start), step.x(), step.y(), step.z()}).second) continue;
-    physics::Constraint c{physics::ConstraintKind::distance, {a, b, 0, 0}, 0, 1};
-    c.rest = physics::constraint_measure(c, period.rest);
-    add(c, 1);
-  }
+  // per_volume: each tet gives k_D V_t to its six edges and k_V V_t to its volume. Each tet of
+  // the period is one of the lattice's, and an edge's linearised C depends only on its vector and
+  // its ends' classes, so the tets' edge terms summed over the period (an edge on the period's
+  // faces met again as its neighbour's image) are the lattice's shared edges' exactly.
+  static constexpr std::array<std::array<int, 2>, 6> pairs{{{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}};
   for (const auto& tet : period.tets) {
-    physics::Constraint c{physics::ConstraintKind::volume, tet, 0, 1};
-    c.rest = physics::constraint_measure(c, period.rest);
-    add(c, ratio);
+    physics::Constraint v{physics::ConstraintKind::volume, tet, 0, 1};
+    v.rest = physics::constraint_measure(v, period.rest);
+    for (const auto& p : pairs) {
+      physics::Constraint c{physics::ConstraintKind::distance, {tet[p[0]], tet[p[1]], 0, 0}, 0, 1};
+      c.rest = physics::constraint_measure(c, period.rest);
+      add(c, v.rest);
+    }
+    add(v, ratio * v.rest);
   }
   const Eigen::MatrixXd ww = hessian.bottomRightCorner(21, 21);
   const Eigen::MatrixXd we = hessian.bottomLeftCorner(21, kStrains);
@@ -244,8 +240,8 @@ std::vector<Row> constraint_particles_rows(Shape shape, const std::vector<Case>&
     const ParticleCalibration calibration = calibrate_constraint_particles(body.cell, beam_material);
     ConstraintParticles model(body.mesh, particle_settings(calibration.distance_stiffness, calibration.volume_stiffness,
                                                            beam_material.density));
-    progress.note("  constraint_particles " + name + ": k_D " + format(calibration.distance_stiffness, 4) + " J, k_V " +
-                  format(calibration.volume_stiffness, 4) + " J (the lattice of its voxels: E " +
+    progress.note("  constraint_particles " + name + ": k_D " + format(calibration.distance_stiffness, 4) + " Pa, k_V " +
+                  format(calibration.volume_stiffness, 4) + " Pa per tet volume (the lattice of its voxels: E " +
                   format(calibration.measured_E, 6) + " Pa, nu " + format(calibration.measured_nu, 6) + ")");
     const std::vector<uint8_t> fixed = clamped_nodes(model.rest_positions());
     std::vector<Vector> loads;

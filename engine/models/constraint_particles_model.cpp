@@ -37,6 +37,7 @@ physics::ConstraintParticleSettings particle_settings(const ConstraintParticlesS
   p.distance_stiffness = s.distance_stiffness;
   p.area_stiffness = s.area_stiffness;
   p.volume_stiffness = s.volume_stiffness;
+  p.scaling = s.stiffness_per == "volume" ? physics::StiffnessScaling::per_volume : physics::StiffnessScaling::per_constraint;
   p.area_on_every_face = s.area_on == "every_face";
   p.damping = s.damping == "constraint" ? physics::ParticleDamping::constraint : physics::ParticleDamping::relative;
   p.damping_coefficient = s.damping_coefficient;

@@ -9,6 +9,7 @@ void read_constraint_particles_settings(Reader& block, BodySpec& body) {
   s.volume_stiffness = block.number("volume_stiffness", false, s.volume_stiffness, 0, 1e9);
   if (s.distance_stiffness == 0 && s.area_stiffness == 0 && s.volume_stiffness == 0)
     block.error(block.child("distance_stiffness"), "at least one of distance_stiffness, area_stiffness and volume_stiffness must be > 0");
+  s.stiffness_per = block.text("stiffness_per", false, s.stiffness_per, {"constraint", "volume"});
   s.area_on = block.text("area_on", false, s.area_on, {"surface", "every_face"});
   s.damping = block.text("damping", false, s.damping, {"relative", "constraint"});
   s.damping_coefficient = block.number("damping_coefficient", false, 0, 0, 1e9);

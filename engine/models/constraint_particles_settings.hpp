@@ -24,10 +24,12 @@ struct ConstraintParticlesRelax {
 
 struct ConstraintParticlesSettings {
   // Dionne's constraint stiffnesses, J (C is dimensionless); 0 leaves that kind out. 500 is the
-  // thesis's falling cube (§4.2).
+  // thesis's falling cube (§4.2). With stiffness_per "volume" they are per tet volume (k_D, k_V
+  // in Pa) and per area (k_A in N/m): physics::StiffnessScaling.
   double distance_stiffness = 500;
   double area_stiffness = 500;
   double volume_stiffness = 500;
+  std::string stiffness_per = "constraint";  // "constraint" (the thesis's) or "volume"
   std::string area_on = "surface";  // "surface" or "every_face" (the cube's 5,504 triangles)
   std::string damping = "relative";  // "relative" (eq. 1.14) or "constraint" (eq. 1.16)
   double damping_coefficient = 0;    // N s/m (relative) or J s (constraint)

@@ -26,8 +26,10 @@ void check_settings(const ConstraintParticleSettings& s) {
   require(non_negative(s.damping_coefficient), "damping must be finite and >= 0");
 }
 
+// Appends the constraint with its rest measure; `stiffness` is its k, times the rest measure
+// when `times_rest` (per_volume's area and volume constraints: k_A A0, k_V V0).
 void add_kind(std::vector<Constraint>& out, ConstraintKind kind, const std::array<int, 4>& nodes, double stiffness,
-              const Vector& rest, const char* what, std::size_t index) {
+              bool times_rest, const Vector& rest, const char* what, std::size_t index) {
   Constraint c{kind, nodes, 0, stiffness};
   c.rest = constraint_measure(c, rest);
   if (!(c.rest > 0)) {
@@ -35,6 +37,7 @@ void add_kind(std::vector<Constraint>& out, ConstraintKind kind, const std::arra
     message << what << " " << index << " has rest measure " << c.rest << " (a degenerate or inverted tet)";
     require(false, message.str());
   }
+  if (times_rest) c.stiffness *= c.rest;
   out.push_back(c);
 }
 
@@ -62,6 +65,19 @@ std::vector<std::array<int, 3>> unique_tet_faces(const std::vector<std::array<in
       std::array<int, 3> key = face;
       std::sort(key.begin(), key.end());
       if (seen.emplace(key, 0).second) out.push_back(face);
+    }
+  return out;
+}
+
+std::vector<double> shared_edge_weights(const std::vector<std::array<int, 4>>& tets, const std::vector<double>& tet_weights) {
+  static constexpr std::array<std::array<int, 2>, 6> pairs{{{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}};
+  std::map<std::pair<int, int>, std::size_t> index;
+  std::vector<double> out;
+  for (std::size_t t = 0; t < tets.size(); ++t)
+    for (const auto& p : pairs) {
+      const auto [it, fresh] = index.emplace(std::minmax(tets[t][p[0]], tets[t][p[1]]), out.size());
+      if (fresh) out.push_back(0);
+      out[it->second] += tet_weights[t];
     }
   return out;
 }
@@ -96,21 +112,42 @@ TetMesh make_box_tets5(Vec3 min, Vec3 max, std::array<int, 3> cells) {
   return mesh;
 }
 
+// per_volume (StiffnessScaling): why a block's stiffness then does not depend on its size.
+// Linearised at rest (every C is 0 there) under a homogeneous strain eps, u = eps X, the
+// constraints of A.1.3 measure C_D = n^T eps n on an edge of rest direction n (eq. 3.1),
+// C_V = tr eps on a tet (eq. 3.6, the 1/V0 of A.5.1 restored) and C_A = the in-plane trace of
+// eps on a triangle (eq. 3.3). The energy sum k C^2 / 2 (eq. 1.8) with the per_volume k regroups
+// tet by tet:
+//   E = sum_t V_t [k_D sum_{e in t} (n_e^T eps n_e)^2 + k_V (tr eps)^2] / 2
+//       + sum_f A_f k_A (tr_f eps)^2 / 2,
+// each tet's energy density fixed by its own shape, whatever the tets around it: a box of n^3
+// cells, a one-cell beam and the periodic lattice have the same energy per volume in the affine
+// field, skin and interior alike, and the membrane the same energy per area. With one k per
+// constraint instead, an edge's k is shared by the tets around it (4 cubes round an axis edge
+// inside, 1 on a box's edge), so per tet the skin's springs are up to 4 x the bulk's. What is
+// left is the relaxation away from the affine field (each tet's six springs are anisotropic and
+// the 5-tet split alternates), which the skin constrains less than the bulk: a few % on a
+// one-cell beam (test_constraint_particles_accuracy). Moduli of the lattice from k_D and k_V:
+// bench/accuracy_constraint_particles.hpp's homogenisation.
 ConstraintParticles::ConstraintParticles(const TetMesh& mesh, const ConstraintParticleSettings& settings)
     : settings_(settings), rest_(mesh.rest), tets_(mesh.tets) {
   check_settings(settings);
   require(!tets_.empty(), "the mesh has no tetrahedra");
   const Index n = rest_.size() / 3;
   masses_ = Vector::Zero(n);
+  std::vector<double> volumes(tets_.size());
   for (std::size_t t = 0; t < tets_.size(); ++t) {
     for (int a : tets_[t]) require(a >= 0 && a < n, "tet " + std::to_string(t) + " names a node out of range");
     const double v = constraint_measure({ConstraintKind::volume, tets_[t], 0, 0}, rest_);
     require(v > 0, "tet " + std::to_string(t) + " has signed volume " + std::to_string(v) + " at rest");
+    volumes[t] = v;
     for (int a : tets_[t]) masses_[a] += settings.density * v / 4;  // Alg. 3.1: |V| rho split equally
   }
   for (Index i = 0; i < n; ++i) require(masses_[i] > 0, "node " + std::to_string(i) + " is in no tet");
 
+  const bool per_volume = settings.scaling == StiffnessScaling::per_volume;
   const auto edges = unique_tet_edges(tets_);
+  const std::vector<double> shared = per_volume ? shared_edge_weights(tets_, volumes) : std::vector<double>(edges.size(), 1.0);
   double length = 0;
   for (std::size_t e = 0; e < edges.size(); ++e) {
     const std::array<int, 4> nodes{edges[e][0], edges[e][1], 0, 0};
@@ -119,18 +156,18 @@ ConstraintParticles::ConstraintParticles(const TetMesh& mesh, const ConstraintPa
     edges_.push_back({edges[e][0], edges[e][1], d0});
     length += d0;
     if (settings.distance_stiffness > 0)
-      add_kind(constraints_, ConstraintKind::distance, nodes, settings.distance_stiffness, rest_, "edge", e);
+      add_kind(constraints_, ConstraintKind::distance, nodes, settings.distance_stiffness * shared[e], false, rest_, "edge", e);
   }
   spacing_ = length / static_cast<double>(edges_.size());
   if (settings.area_stiffness > 0) {
     const auto faces = settings.area_on_every_face ? unique_tet_faces(tets_) : boundary_triangles(tets_);
     for (std::size_t f = 0; f < faces.size(); ++f)
       add_kind(constraints_, ConstraintKind::area, {faces[f][0], faces[f][1], faces[f][2], 0}, settings.area_stiffness,
-               rest_, "triangle", f);
+               per_volume, rest_, "triangle", f);
   }
   if (settings.volume_stiffness > 0)
     for (std::size_t t = 0; t < tets_.size(); ++t)
-      add_kind(constraints_, ConstraintKind::volume, tets_[t], settings.volume_stiffness, rest_, "tet", t);
+      add_kind(constraints_, ConstraintKind::volume, tets_[t], settings.volume_stiffness, per_volume, rest_, "tet", t);
   update_rotations(rest_);
   Vector node_stiffness = Vector::Zero(n);
   for (std::size_t c = 0; c < constraints_.size(); ++c)

@@ -30,11 +30,24 @@ namespace incise::physics {
 
 enum class ParticleDamping { relative, constraint };
 
+// How the settings' stiffnesses become each constraint's k.
+//   per_constraint  the thesis's: every distance constraint has k_D, every area one k_A, every
+//                   volume one k_V (J), however many tets share an edge. A unique edge inside a
+//                   block serves 2 to 6 tets but one on the skin fewer, so the skin is stiffer
+//                   per volume than the bulk (up to 4 x on a box of the 5-tet split's cubes).
+//   per_volume      a sum of per-tet elements: k_D and k_V are moduli (Pa), each tet t of rest
+//                   volume V_t gives k_D V_t to each of its 6 edges and k_V V_t to its own
+//                   volume constraint, and k_A (N/m) times its rest area goes to each area
+//                   triangle (a membrane of that surface stiffness). constraint_particles.cpp
+//                   says why this makes a block's stiffness independent of its size.
+enum class StiffnessScaling { per_constraint, per_volume };
+
 struct ConstraintParticleSettings {
   double density = 1000;           // kg/m^3
-  double distance_stiffness = 500;  // k_D, J; 0: no distance constraints
-  double area_stiffness = 500;      // k_A, J; 0: no area constraints
-  double volume_stiffness = 500;    // k_V, J; 0: no volume constraints
+  double distance_stiffness = 500;  // k_D: J per constraint, or Pa per_volume; 0: no distance constraints
+  double area_stiffness = 500;      // k_A: J per constraint, or N/m per_volume; 0: no area constraints
+  double volume_stiffness = 500;    // k_V: J per constraint, or Pa per_volume; 0: no volume constraints
+  StiffnessScaling scaling = StiffnessScaling::per_constraint;
   bool area_on_every_face = false;  // false: the surface triangles (the patient's skin); true: every unique tet face (the cube of §4.2)
   ParticleDamping damping = ParticleDamping::relative;
   double damping_coefficient = 0;  // c: N s/m (relative) or J s (constraint); 0: none
@@ -98,6 +111,8 @@ class ConstraintParticles final : public DeformableModel {
 // Unique edges and unique faces of a tet mesh, in the order first met (tet by tet).
 std::vector<std::array<int, 2>> unique_tet_edges(const std::vector<std::array<int, 4>>& tets);
 std::vector<std::array<int, 3>> unique_tet_faces(const std::vector<std::array<int, 4>>& tets);
+// Per unique edge (unique_tet_edges' order), the summed weight of the tets that share it.
+std::vector<double> shared_edge_weights(const std::vector<std::array<int, 4>>& tets, const std::vector<double>& tet_weights);
 
 // A box of cells[0] x cells[1] x cells[2] cubes, each split into 5 tets, the split alternating
 // with the parity of i + j + k so that neighbouring cells' face diagonals match (the thesis's
