@@ -6,13 +6,15 @@
 // hexagon) each split into 5 tets, the split alternating with the voxel's parity (the thesis's
 // cube, make_box_tets5). Constraints: distance on every edge and signed volume on every tet; no
 // area constraints (on the surface triangles they are a membrane on the skin, which the
-// reference's continuum has not). The thesis tunes k by hand; here k_D and k_V are calibrated
-// per voxel size on the lattice's bulk: the homogenised stiffness of the periodic lattice (2 x 2
-// x 2 voxels, each constraint linearised at rest), k_V / k_D by bisection until its nu along x
-// is the beam's, then both scaled until its E is (the stiffness is linear in them). Finite
-// blocks of the lattice are stiffer than its bulk, approaching it as 1 / n (a 3 x 3 x 3 block
-// in traction: E 1.6 x the bulk's, nu 0.23 for 0.3): the surface layer, whose corner tets
-// relax less, so the thin beams (2 to 6 voxels across) come out stiff.
+// reference's continuum has not). The thesis tunes one k per constraint by hand; here the
+// stiffness is per tet volume (physics::StiffnessScaling::per_volume: each tet gives k_D V_t to
+// its six edges and k_V V_t to its volume), so that the skin is no stiffer than the bulk, and
+// k_D and k_V (Pa) are calibrated per voxel shape on the lattice's bulk: the homogenised
+// stiffness of the periodic lattice (2 x 2 x 2 voxels, each constraint linearised at rest),
+// k_V / k_D by bisection until its nu along x is the beam's, then both scaled until its E is (the
+// stiffness is linear in them; on cubes this is k_D = 2 mu, k_V = lambda - 2 mu / 3, and nu <= 0.2
+// is out of reach). Finite blocks of the lattice in traction then have its E within 6 % (3 to 5
+// voxels across, a beam one voxel thick alike), slightly soft (test_constraint_particles_accuracy).
 //
 // Equilibrium, as every other row: the linear static solution with the network's stiffness at
 // rest (sum k grad C grad C^T, exact there as C = 0), the small-strain problem the reference
@@ -36,7 +38,7 @@
 namespace incise::bench::accuracy {
 
 struct ParticleCalibration {
-  double distance_stiffness = 0, volume_stiffness = 0;  // k_D, k_V (J)
+  double distance_stiffness = 0, volume_stiffness = 0;  // k_D, k_V (Pa, per tet volume)
   double measured_E = 0, measured_nu = 0;               // the lattice's, with them
 };
 // k_D and k_V for voxels of size `cell` (m) so that the lattice of them has the material's E

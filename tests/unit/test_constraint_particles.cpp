@@ -384,6 +384,44 @@ TEST(ConstraintParticles, BadSettingsAreRefusedNamingTheField) {
   EXPECT_NE(refusal(R"({"integrator": "implicit_euler", "floor_z": 0})").find("bodies[0].constraint_particles.floor_z"),
             std::string::npos);
   EXPECT_EQ(refusal(R"({"damping": "constraint", "damping_coefficient": 0.001, "floor_z": 0})"), "accepted");
+  EXPECT_NE(refusal(R"({"stiffness_per": "edge"})").find("bodies[0].constraint_particles.stiffness_per: 'edge' is not one of"),
+            std::string::npos);
+  EXPECT_EQ(refusal(R"({"stiffness_per": "volume", "distance_stiffness": 1e4})"), "accepted");
+}
+
+// per_volume on one cube of side h split into 5 tets (the central one h^3 / 3, four corner ones
+// h^3 / 6): an axis edge is in one corner tet (k_D h^3 / 6), a face diagonal in the central tet
+// and two corner tets (k_D 2 h^3 / 3); each volume constraint has k_V times its tet's volume, each
+// skin triangle (half a face) k_A h^2 / 2.
+TEST(ConstraintParticles, StiffnessPerVolumeSumsTheTetsRoundEachEdge) {
+  const double h = 0.02, h3 = h * h * h;
+  const physics::TetMesh cube = physics::make_box_tets5(Vec3::Zero(), Vec3::Constant(h), {1, 1, 1});
+  physics::ConstraintParticleSettings settings;
+  settings.distance_stiffness = 3e4;
+  settings.volume_stiffness = 5e4;
+  settings.area_stiffness = 7;
+  settings.scaling = physics::StiffnessScaling::per_volume;
+  const physics::ConstraintParticles model(cube, settings);
+  int axis = 0, diagonal = 0, central = 0, corner = 0, triangles = 0;
+  for (const Constraint& c : model.constraints()) {
+    if (c.kind == ConstraintKind::distance) {
+      const bool is_axis = std::abs(c.rest - h) < 1e-12;
+      EXPECT_NEAR(c.stiffness, settings.distance_stiffness * h3 * (is_axis ? 1.0 / 6 : 2.0 / 3), 1e-12);
+      ++(is_axis ? axis : diagonal);
+    } else if (c.kind == ConstraintKind::volume) {
+      const bool is_central = std::abs(c.rest - h3 / 3) < 1e-15;
+      EXPECT_NEAR(c.stiffness, settings.volume_stiffness * h3 * (is_central ? 1.0 / 3 : 1.0 / 6), 1e-12);
+      ++(is_central ? central : corner);
+    } else {
+      EXPECT_NEAR(c.stiffness, settings.area_stiffness * h * h / 2, 1e-15);
+      ++triangles;
+    }
+  }
+  EXPECT_EQ(axis, 12);
+  EXPECT_EQ(diagonal, 6);
+  EXPECT_EQ(central, 1);
+  EXPECT_EQ(corner, 4);
+  EXPECT_EQ(triangles, 12);
 }
 
 // Through the world: the 5-tet split of the box, the explicit step (own_step), a free fall at g.
