@@ -60,11 +60,11 @@ void Reader::read_vertex(const std::vector<std::string_view>& w) {
 // A corner's index of `kind`, 0-based.
 std::int64_t Reader::index(std::string_view word, Kind& kind, std::string_view corner) {
   const auto n = surface_text::integer(word);
-  const std::string what = where() + ": corner " + quote(corner) + ": " + kind.statement + " index " + quote(word);
-  if (!n || *n == 0) fail(what + " is not a nonzero integer");
+  const auto what = [&] { return where() + ": corner " + quote(corner) + ": " + kind.statement + " index " + quote(word); };
+  if (!n || *n == 0) fail(what() + " is not a nonzero integer");
   if (*n < 0) {
     if (static_cast<std::uint64_t>(-(*n + 1)) >= kind.count)  // -(n+1): no overflow at the smallest n
-      fail(what + " reaches back past the first '" + kind.statement + "' (" + std::to_string(kind.count) + " so far)");
+      fail(what() + " reaches back past the first '" + kind.statement + "' (" + std::to_string(kind.count) + " so far)");
     return static_cast<std::int64_t>(kind.count) + *n;
   }
   if (*n > kind.largest) {

@@ -91,15 +91,27 @@ class Reader {
   Roles find_roles(const Header& header);
   void check_size(const Header& header);
   void read_ascii(const Header& header, const Roles& roles);
+  void read_ascii_entry(const Element& element, std::size_t e, const Roles& roles, const std::vector<std::string_view>& w);
+  double ascii_value(Type t, const std::vector<std::string_view>& w, std::size_t& next, const std::string& name);
   void read_binary(const Header& header, const Roles& roles);
   void read_binary_element(const Element& element, std::size_t e, const Roles& roles);
-  std::uint64_t binary_bytes(Type t, const std::string& what);
-  double binary_value(Type t, const std::string& what);
-  void add_corner(std::int64_t index, const std::string& where);
+  double binary_value(Type t, const Property& property);
+  void add_corner(std::int64_t index);
+  // Where the data is, for a refusal (built only then): the line (ASCII) or the byte (binary)
+  // and the entry.
+  [[noreturn]] void fail_here(const std::string& why) const {
+    fail((ascii_ ? "PLY line " + std::to_string(line_) : "PLY data at byte " + std::to_string(item_)) + " (" +
+         element_->name + " " + std::to_string(entry_) + "): " + why);
+  }
 
   std::string file_;
   std::string data_;
-  std::size_t at_ = 0;  // binary: the next byte
+  bool ascii_ = false;
+  std::size_t at_ = 0;    // binary: the next byte
+  std::size_t item_ = 0;  // binary: the value being read
+  int line_ = 0;          // ASCII: the entry's line
+  const Element* element_ = nullptr;
+  std::uint64_t entry_ = 0;
   bool big_endian_ = false;
   std::uint64_t vertex_count_ = 0;
   SurfaceFile surface_;
@@ -222,9 +234,9 @@ void Reader::check_size(const Header& header) {
   }
 }
 
-void Reader::add_corner(std::int64_t index, const std::string& where) {
+void Reader::add_corner(std::int64_t index) {
   if (index < 0 || static_cast<std::uint64_t>(index) >= vertex_count_)
-    fail(where + ": vertex index " + std::to_string(index) + " out of range (the file has " + std::to_string(vertex_count_) + " vertices)");
+    fail_here("vertex index " + std::to_string(index) + " out of range (the file has " + std::to_string(vertex_count_) + " vertices)");
   surface_.corners.push_back(static_cast<std::uint32_t>(index));
 }
 
@@ -234,6 +246,7 @@ SurfaceFile Reader::read() {
   const Roles roles = find_roles(header);
   vertex_count_ = header.elements[roles.vertex].count;
   surface_.vertices.reserve(vertex_count_);
+  ascii_ = header.ascii;
   if (header.ascii)
     read_ascii(header, roles);
   else
@@ -243,93 +256,94 @@ SurfaceFile Reader::read() {
 
 void Reader::read_ascii(const Header& header, const Roles& roles) {
   std::size_t at = header.data_start;
-  int number = header.lines;
+  line_ = header.lines;
   std::vector<std::string_view> w;
   for (std::size_t e = 0; e < header.elements.size(); ++e) {
-    const Element& element = header.elements[e];
-    if (element.properties.empty()) continue;
-    for (std::uint64_t entry = 0; entry < element.count; ++entry) {
-      const std::string what = element.name + " " + std::to_string(entry);
+    element_ = &header.elements[e];
+    if (element_->properties.empty()) continue;
+    for (entry_ = 0; entry_ < element_->count; ++entry_) {
       do {  // the entry's line: the next that is not blank
-        if (at >= data_.size()) fail("PLY file truncated: it ends at line " + std::to_string(number) + " before " + what);
+        if (at >= data_.size())
+          fail("PLY file truncated: it ends at line " + std::to_string(line_) + " before " + element_->name + " " + std::to_string(entry_));
         const std::size_t end = std::min(data_.find('\n', at), data_.size());
         std::string_view line(data_.data() + at, end - at);
         at = std::min(end + 1, data_.size());
-        ++number;
+        ++line_;
         if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
         // A NUL or other control byte is refused, not taken for a separator or the line's end.
-        if (auto problem = surface_text::control_character(line)) fail("PLY line " + std::to_string(number) + ": " + *problem);
+        if (auto problem = surface_text::control_character(line)) fail("PLY line " + std::to_string(line_) + ": " + *problem);
         surface_text::split_words(line, w);
       } while (w.empty());
-      const std::string where = "PLY line " + std::to_string(number) + " (" + what + ")";
-      std::size_t next = 0;
-      std::array<double, 3> position{};
-      const auto value = [&](Type t, const std::string& name) -> double {
-        if (next >= w.size()) fail(where + ": the line ends before " + name);
-        const std::string_view word = w[next++];
-        if (is_integer(t)) {
-          const auto n = surface_text::integer(word);
-          const auto [low, high] = range_of(t);
-          if (!n || *n < low || *n > high) fail(where + ": " + name + " " + quote(word) + " is not an integer of the property's type");
-          return static_cast<double>(*n);
-        }
-        const auto x = surface_text::real(word);
-        if (!x) fail(where + ": " + name + " " + quote(word) + " is not a number");
-        return *x;
-      };
-      for (std::size_t p = 0; p < element.properties.size(); ++p) {
-        const Property& property = element.properties[p];
-        if (!property.list) {
-          const std::string_view word = next < w.size() ? w[next] : std::string_view();
-          const double x = value(property.type, property.name);
-          for (int i = 0; i < 3; ++i)
-            if (static_cast<int>(e) == roles.vertex && static_cast<int>(p) == roles.xyz[i]) {
-              // A float as assimp read it (surface_file.hpp); other types are exact in a double.
-              const auto single = property.type == Type::Float32 ? surface_text::single_as_assimp_read(word)
-                                                                 : surface_text::single_precision(x);
-              if (!single) fail(where + ": coordinate " + property.name + " " + quote(word) + " is not finite in single precision");
-              position[i] = *single;
-            }
-          continue;
-        }
-        if (next >= w.size()) fail(where + ": the line ends before list '" + property.name + "'");
-        const auto count = surface_text::integer(w[next]);
-        const std::size_t left = w.size() - next - 1;
-        if (count && *count >= 0 && static_cast<std::uint64_t>(*count) > left)
-          fail(where + ": list '" + property.name + "' claims " + std::string(w[next].substr(0, 40)) + " values, its line has " +
-               std::to_string(left) + " left");
-        value(property.count_type, "list '" + property.name + "' count");
-        if (*count < 0) fail(where + ": list '" + property.name + "' has a negative count");
-        const bool indices = static_cast<int>(e) == roles.face && static_cast<int>(p) == roles.indices;
-        if (indices && *count == 0) fail(where + ": a face with no vertices");
-        for (std::int64_t k = 0; k < *count; ++k) {
-          const double x = value(property.type, "list '" + property.name + "' value");
-          if (indices) add_corner(static_cast<std::int64_t>(x), where);
-        }
-        if (indices) surface_.polygon_sizes.push_back(static_cast<std::uint32_t>(*count));
-      }
-      if (next != w.size())
-        fail(where + ": " + std::to_string(w.size()) + " values, the element's properties take " + std::to_string(next));
-      if (static_cast<int>(e) == roles.vertex) surface_.vertices.push_back(position);
+      read_ascii_entry(*element_, e, roles, w);
     }
   }
 }
 
-std::uint64_t Reader::binary_bytes(Type t, const std::string& what) {
+// The next word as a value of type `t`: an integer in the type's range, or a number.
+double Reader::ascii_value(Type t, const std::vector<std::string_view>& w, std::size_t& next, const std::string& name) {
+  if (next >= w.size()) fail_here("the line ends before " + name);
+  const std::string_view word = w[next++];
+  if (is_integer(t)) {
+    const auto n = surface_text::integer(word);
+    const auto [low, high] = range_of(t);
+    if (!n || *n < low || *n > high) fail_here(name + " " + quote(word) + " is not an integer of the property's type");
+    return static_cast<double>(*n);
+  }
+  const auto x = surface_text::real(word);
+  if (!x) fail_here(name + " " + quote(word) + " is not a number");
+  return *x;
+}
+
+void Reader::read_ascii_entry(const Element& element, std::size_t e, const Roles& roles, const std::vector<std::string_view>& w) {
+  std::size_t next = 0;
+  std::array<double, 3> position{};
+  const bool vertex = static_cast<int>(e) == roles.vertex;
+  for (std::size_t p = 0; p < element.properties.size(); ++p) {
+    const Property& property = element.properties[p];
+    if (!property.list) {
+      const std::string_view word = next < w.size() ? w[next] : std::string_view();
+      const double x = ascii_value(property.type, w, next, property.name);
+      for (int i = 0; i < 3; ++i)
+        if (vertex && static_cast<int>(p) == roles.xyz[i]) {
+          // A float as assimp read it (surface_file.hpp); other types are exact in a double.
+          const auto single = property.type == Type::Float32 ? surface_text::single_as_assimp_read(word)
+                                                             : surface_text::single_precision(x);
+          if (!single) fail_here("coordinate " + property.name + " " + quote(word) + " is not finite in single precision");
+          position[i] = *single;
+        }
+      continue;
+    }
+    if (next >= w.size()) fail_here("the line ends before list '" + property.name + "'");
+    const auto claimed = surface_text::integer(w[next]);
+    const std::size_t left = w.size() - next - 1;
+    if (claimed && *claimed >= 0 && static_cast<std::uint64_t>(*claimed) > left)
+      fail_here("list '" + property.name + "' claims " + std::string(w[next].substr(0, 40)) + " values, its line has " +
+                std::to_string(left) + " left");
+    const double count = ascii_value(property.count_type, w, next, "list '" + property.name + "' count");
+    if (count < 0) fail_here("list '" + property.name + "' has a negative count");
+    const bool indices = static_cast<int>(e) == roles.face && static_cast<int>(p) == roles.indices;
+    if (indices && count == 0) fail_here("a face with no vertices");
+    for (std::size_t k = 0; k < static_cast<std::size_t>(count); ++k) {
+      const double x = ascii_value(property.type, w, next, "list '" + property.name + "' value");
+      if (indices) add_corner(static_cast<std::int64_t>(x));
+    }
+    if (indices) surface_.polygon_sizes.push_back(static_cast<std::uint32_t>(count));
+  }
+  if (next != w.size()) fail_here(std::to_string(w.size()) + " values, the element's properties take " + std::to_string(next));
+  if (vertex) surface_.vertices.push_back(position);
+}
+
+// The next value as a double (every PLY type is exact in one).
+double Reader::binary_value(Type t, const Property& property) {
+  item_ = at_;
   const std::size_t n = bytes_of(t);
   if (data_.size() - at_ < n)
-    fail("PLY file truncated: " + what + " needs bytes " + std::to_string(at_) + "-" + std::to_string(at_ + n - 1) +
-         ", the file has " + std::to_string(data_.size()));
+    fail("PLY file truncated: " + element_->name + " " + std::to_string(entry_) + "'s " + property.name + " needs bytes " +
+         std::to_string(at_) + "-" + std::to_string(at_ + n - 1) + ", the file has " + std::to_string(data_.size()));
   std::uint64_t bits = 0;
   for (std::size_t i = 0; i < n; ++i)
     bits |= static_cast<std::uint64_t>(static_cast<unsigned char>(data_[at_ + i])) << (8 * (big_endian_ ? n - 1 - i : i));
   at_ += n;
-  return bits;
-}
-
-// The value as a double (every PLY type is exact in one).
-double Reader::binary_value(Type t, const std::string& what) {
-  const std::uint64_t bits = binary_bytes(t, what);
   switch (t) {
     case Type::Int8: return static_cast<std::int8_t>(bits);
     case Type::UInt8: case Type::UInt16: case Type::UInt32: return static_cast<double>(bits);
@@ -342,46 +356,46 @@ double Reader::binary_value(Type t, const std::string& what) {
 }
 
 void Reader::read_binary_element(const Element& element, std::size_t e, const Roles& roles) {
-  for (std::uint64_t entry = 0; entry < element.count; ++entry) {
-    const std::string what = element.name + " " + std::to_string(entry);
+  const bool vertex = static_cast<int>(e) == roles.vertex;
+  for (entry_ = 0; entry_ < element.count; ++entry_) {
     std::array<double, 3> position{};
     for (std::size_t p = 0; p < element.properties.size(); ++p) {
       const Property& property = element.properties[p];
-      const std::size_t start = at_;
-      const std::string where = "PLY data at byte " + std::to_string(start) + " (" + what + ")";
       if (!property.list) {
-        const double x = binary_value(property.type, what + "'s " + property.name);
+        const double x = binary_value(property.type, property);
         for (int i = 0; i < 3; ++i)
-          if (static_cast<int>(e) == roles.vertex && static_cast<int>(p) == roles.xyz[i]) {
+          if (vertex && static_cast<int>(p) == roles.xyz[i]) {
             const auto single = surface_text::single_precision(x);
-            if (!single) fail(where + ": coordinate " + property.name + " is not finite in single precision");
+            if (!single) fail_here("coordinate " + property.name + " is not finite in single precision");
             position[i] = *single;
           }
         continue;
       }
-      const double count = binary_value(property.count_type, what + "'s list '" + property.name + "' count");
-      if (count < 0) fail(where + ": list '" + property.name + "' has a negative count");
+      const double count = binary_value(property.count_type, property);
+      if (count < 0) fail_here("list '" + property.name + "' has a negative count");
       const std::uint64_t left = data_.size() - at_;
       if (count > static_cast<double>(left / bytes_of(property.type)))
-        fail(where + ": list '" + property.name + "' claims " + std::to_string(static_cast<std::uint64_t>(count)) +
-             " values, more than the file's " + std::to_string(left) + " bytes left hold");
+        fail_here("list '" + property.name + "' claims " + std::to_string(static_cast<std::uint64_t>(count)) +
+                  " values, more than the file's " + std::to_string(left) + " bytes left hold");
       const bool indices = static_cast<int>(e) == roles.face && static_cast<int>(p) == roles.indices;
-      if (indices && count == 0) fail(where + ": a face with no vertices");
+      if (indices && count == 0) fail_here("a face with no vertices");
       for (std::uint64_t k = 0; k < static_cast<std::uint64_t>(count); ++k) {
-        const std::size_t item = at_;
-        const double x = binary_value(property.type, what);
-        if (indices) add_corner(static_cast<std::int64_t>(x), "PLY data at byte " + std::to_string(item) + " (" + what + ")");
+        const double x = binary_value(property.type, property);
+        if (indices) add_corner(static_cast<std::int64_t>(x));
       }
       if (indices) surface_.polygon_sizes.push_back(static_cast<std::uint32_t>(count));
     }
-    if (static_cast<int>(e) == roles.vertex) surface_.vertices.push_back(position);
+    if (vertex) surface_.vertices.push_back(position);
   }
 }
 
 void Reader::read_binary(const Header& header, const Roles& roles) {
   at_ = header.data_start;
   big_endian_ = header.big_endian;
-  for (std::size_t e = 0; e < header.elements.size(); ++e) read_binary_element(header.elements[e], e, roles);
+  for (std::size_t e = 0; e < header.elements.size(); ++e) {
+    element_ = &header.elements[e];
+    read_binary_element(*element_, e, roles);
+  }
 }
 
 }  // namespace
