@@ -40,20 +40,32 @@ class Reader {
   SurfaceFile surface_;
 };
 
+// x y z; x y z w, a homogeneous point (assimp divided by w in float); or x y z r g b, a
+// coloured one. assimp skipped a `v` of another count without a word, shifting every later
+// index: refused here.
 void Reader::read_vertex(const std::vector<std::string_view>& w) {
-  // x y z, then an optional w or r g b (as exporters write colours): 3 to 7 numbers.
-  if (w.size() < 4 || w.size() > 8)
-    fail(where() + ": 'v' takes 3 coordinates (and at most 4 more values), found " + std::to_string(w.size() - 1));
-  std::array<double, 3> p{};
+  const std::size_t values = w.size() - 1;
+  if (values != 3 && values != 4 && values != 6)
+    fail(where() + ": 'v' takes x y z, x y z w or x y z r g b, found " + std::to_string(values) + " values");
+  std::array<double, 4> p{0, 0, 0, 1};
   for (std::size_t i = 1; i < w.size(); ++i) {
-    const auto x = surface_text::real(w[i]);
-    if (!x) fail(where() + ": 'v' value " + quote(w[i]) + " is not a number");
-    if (i > 3) continue;
+    if (i > 4 || (i == 4 && values == 6)) {
+      if (!surface_text::real(w[i])) fail(where() + ": 'v' value " + quote(w[i]) + " is not a number");
+      continue;
+    }
     const auto single = surface_text::single_as_assimp_read(w[i]);
-    if (!single) fail(where() + ": coordinate " + quote(w[i]) + " is not finite in single precision");
+    if (!single) fail(where() + ": coordinate " + quote(w[i]) + " is not a number finite in single precision");
     p[i - 1] = *single;
   }
-  surface_.vertices.push_back(p);
+  if (values == 4) {
+    if (p[3] == 0) fail(where() + ": homogeneous coordinate w is 0");
+    for (int i = 0; i < 3; ++i) {
+      const auto single = surface_text::single_precision(static_cast<float>(p[i]) / static_cast<float>(p[3]));
+      if (!single) fail(where() + ": x y z over w is not finite in single precision");
+      p[i] = *single;
+    }
+  }
+  surface_.vertices.push_back({p[0], p[1], p[2]});
   ++positions_.count;
 }
 
@@ -75,7 +87,8 @@ std::int64_t Reader::index(std::string_view word, Kind& kind, std::string_view c
 }
 
 void Reader::read_face(const std::vector<std::string_view>& w) {
-  if (w.size() < 2) fail(where() + ": 'f' with no vertices");
+  // assimp refused a face of one or two corners (a point or line its mesh did not declare).
+  if (w.size() < 4) fail(where() + ": 'f' with " + std::to_string(w.size() - 1) + " corners, a face needs at least 3");
   for (std::size_t i = 1; i < w.size(); ++i) {
     const std::string_view corner = w[i];
     const std::size_t slash = corner.find('/');

@@ -43,6 +43,8 @@ std::string cube_obj() {
   std::string obj = "# a cube\nmtllib cube.mtl\no cube\n";
   for (const auto& p : kCorners)
     obj += "v " + std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + "\n";
+  obj.replace(obj.find("v 1.000000 1.000000 1.000000\n"), 29, "v 4 4 4 4\n");      // homogeneous: x y z over w
+  obj.replace(obj.find("v 0.000000 0.000000 0.000000\n"), 29, "v 0 0 0 1 0.5 0\n");  // with a colour
   obj += "vt 0 0\nvn 0 0 1\ng sides\nusemtl skin\ns off\n";
   const char* forms[4] = {"%d", "%d/1", "%d//1", "%d/-1/1"};
   for (int f = 0; f < 6; ++f) {
@@ -192,10 +194,13 @@ TEST(SurfaceReaders, BadFilesAreRefusedNamingTheLineOrByteAndWhy) {
       {"bad.obj", tetra + "f 1 -5 2\n", "OBJ line 5: corner '-5': v index '-5' reaches back past the first 'v' (4 so far)"},
       {"bad.obj", tetra + "f 1/2 2 3\nvt 0 0\n", "OBJ line 5: vt index 2 out of range (the file has 1 'vt')"},
       {"bad.obj", tetra + "f 1 2 x\n", "OBJ line 5: corner 'x': v index 'x' is not a nonzero integer"},
-      {"bad.obj", "v 0 0\n", "OBJ line 1: 'v' takes 3 coordinates (and at most 4 more values), found 2"},
-      {"bad.obj", "v 0 nan 0\n", "OBJ line 1: coordinate 'nan' is not finite in single precision"},
-      {"bad.obj", "v 0 0 1e39\n", "OBJ line 1: coordinate '1e39' is not finite in single precision"},
-      {"bad.obj", "v 0 0 0\nf\n", "OBJ line 2: 'f' with no vertices"},
+      {"bad.obj", "v 0 0\n", "OBJ line 1: 'v' takes x y z, x y z w or x y z r g b, found 2 values"},
+      {"bad.obj", "v 0 0 1 0.5 0.5\n", "OBJ line 1: 'v' takes x y z, x y z w or x y z r g b, found 5 values"},
+      {"bad.obj", "v 0 0 1 0\n", "OBJ line 1: homogeneous coordinate w is 0"},
+      {"bad.obj", "v 0 nan 0\n", "OBJ line 1: coordinate 'nan' is not a number finite in single precision"},
+      {"bad.obj", "v 0 0 1e39\n", "OBJ line 1: coordinate '1e39' is not a number finite in single precision"},
+      {"bad.obj", "v 0 0 0\nf\n", "OBJ line 2: 'f' with 0 corners, a face needs at least 3"},
+      {"bad.obj", tetra + "f 1 2\n", "OBJ line 5: 'f' with 2 corners, a face needs at least 3"},
       {"bad.ply", ply_start + points + "3 0 1 9\n", "PLY line 14 (face 0): vertex index 9 out of range (the file has 4 vertices)"},
       {"bad.ply", ply_start + "0 0 0\n1 0 inf\n" + padding, "PLY line 11 (vertex 1): coordinate z 'inf' is not finite in single precision"},
       {"bad.ply", ply_start + points + "   \n", "PLY file truncated: it ends at line 14 before face 0"},
