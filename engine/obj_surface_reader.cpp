@@ -1,4 +1,5 @@
-// Wavefront OBJ (paulbourke.net/dataformats/obj): `v` positions and `f` faces, each corner
+// Wavefront OBJ (paulbourke.net/dataformats/obj): `v` positions (x y z, x y z w or x y z r g b)
+// and `f` faces of at least 3 corners, each corner
 // `v`, `v/vt`, `v//vn` or `v/vt/vn`, 1-based or negative (counted back from the latest of its
 // kind). `vt` and `vn` are counted so that a corner's texture and normal indices are checked;
 // every other statement (o, g, s, usemtl, mtllib, l, p, ...) is left: objects and groups are one
