@@ -1,4 +1,5 @@
-// Closed surface meshes from files (anything assimp reads: OBJ, STL, PLY, glTF, ...), and the
+// Closed surface meshes from files (PLY and OBJ through incise's own readers,
+// engine/surface_file.hpp; STL, glTF and anything else assimp reads through assimp), and the
 // inside test that fills them with elements.
 #pragma once
 

@@ -67,6 +67,21 @@ write("mesh_stl", "tetra_binary.stl", binary)
 ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"
 write("mesh_ply", "tetra_ascii.ply", ply)
 write("mesh_obj", "open.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+# incise's own readers (engine/surface_file.hpp): binary PLY of both byte orders with other
+# coordinate, count and index types, skipped properties and elements; OBJ's corner forms,
+# relative indices, objects and groups.
+tetra_v = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+tetra_f = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+for fmt, e, c, ctype, n, ntype in [("binary_little_endian", "<", "d", "double", "B", "uchar"),
+                                   ("binary_big_endian", ">", "h", "short", "I", "uint")]:
+    header = (f"ply\nformat {fmt} 1.0\ncomment tetrahedron\nelement vertex 4\nproperty {ctype} x\nproperty uchar red\n"
+              f"property {ctype} y\nproperty {ctype} z\nelement face 4\nproperty list {ntype} int vertex_indices\n"
+              "property float quality\nelement edge 1\nproperty list uchar ushort ends\nend_header\n")
+    data = b"".join(struct.pack(e + c + "B" + c + c, v[0], 255, v[1], v[2]) for v in tetra_v)
+    data += b"".join(struct.pack(e + n + "iiif", 3, *f, 0.5) for f in tetra_f) + struct.pack(e + "BHH", 2, 0, 1)
+    write("mesh_ply", f"tetra_{fmt}.ply", header.encode() + data)
+write("mesh_obj", "tetra_forms.obj", "# tetrahedron, every corner form\no a\nv 0 0 0\nv 1 0 0 1.0\nv 0 1 0\n"
+      "v 0 0 1 0.5 0.5 0.5\nvt 0 0\nvn 0 0 1\ng b\nf 1/1 3//1 2/1/1\nf -4 -3 -1\no c\nf 1//-1 4/-1 3\nf 2 3 4 # last\n")
 
 # Tetrahedral meshes (first byte: 0 .msh, 1 .vtk, 2 .vtu; 3 and 6 are .msh too): two tetrahedra
 # on five nodes with a triangle to skip and an unused node, in each format the readers take.

@@ -1,6 +1,7 @@
-// Bytes -> import_surface through assimp, as a file named .obj, .stl or .ply (a target per
-// format, fuzz/mesh_*_fuzzer.cpp: each reaches its own executions, not a third of a mix held
-// back by the slowest reader; the importer still chooses by extension and content). A file
+// Bytes -> import_surface as a file named .obj, .stl or .ply (a target per format,
+// fuzz/mesh_*_fuzzer.cpp: each reaches its own executions, not a third of a mix held back by the
+// slowest reader): incise's own readers for OBJ and PLY (engine/surface_file.hpp), assimp for
+// STL (the importer chooses by extension and content). A file
 // that is not a closed surface is a MeshError naming it; what is accepted is a closed surface
 // whose triangles index its vertices.
 #pragma once

@@ -9,6 +9,7 @@ add_executable(test_engine
   ${PROJECT_SOURCE_DIR}/fuzz/fuzz_models.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_publication.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_mesh_import.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_surface_readers.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_tet_mesh_import.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_surface_queries.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_world.cpp
