@@ -13,25 +13,32 @@ const BlockMatrix* CorotationalEfg::current_stiffness() const {
   // alone, is V R (lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I) R^T p_b: with h = R g
   // (R orthogonal, so h_a . h_b = g_a . g_b), the block V (lambda h_a h_b^T + mu h_b h_a^T +
   // mu (h_a . h_b) I), the rest block of efg_rest_stiffness.cpp turned.
-  turned_gradients_.resize(shape_gradients_.size());
+  // Per row entry: h, V lambda h and V mu h (zero for an element taken out), so that a block
+  // costs two outer products and a dot.
+  const size_t entries = shape_gradients_.size();
+  turned_gradients_.resize(3 * entries);
   const int elements = element_count();
+  const double lambda = shape_->lambda, mu = shape_->mu;
   executor_->parallel_for(elements, [&](int begin, int end) {
     for (int e = begin; e < end; ++e) {
       const size_t base = static_cast<size_t>(e) * stride_;
-      for (int k = 0; k < row_lengths_[static_cast<size_t>(e)]; ++k)
-        turned_gradients_[base + k].noalias() = rotations_[static_cast<size_t>(e)] * shape_gradients_[base + k];
+      const double volume = volumes_[static_cast<size_t>(e)] > 0 ? volumes_[static_cast<size_t>(e)] : 0.0;
+      for (int k = 0; k < row_lengths_[static_cast<size_t>(e)]; ++k) {
+        const Vec3 turned = rotations_[static_cast<size_t>(e)] * shape_gradients_[base + k];
+        turned_gradients_[base + k] = turned;
+        turned_gradients_[entries + base + k] = (volume * lambda) * turned;
+        turned_gradients_[2 * entries + base + k] = (volume * mu) * turned;
+      }
     }
   }, std::max(1, shape_->settings.threaded_elements / 2));
-  const double lambda = shape_->lambda, mu = shape_->mu;
+  const Vec3* h = turned_gradients_.data();
+  const Vec3* lambda_h = h + entries;
+  const Vec3* mu_h = h + 2 * entries;
   const BlockMatrix& stiffness = assembly_.assemble(*executor_, [&](int e, int a, int b, Mat3& out) {
-    const double volume = volumes_[static_cast<size_t>(e)];
-    if (!(volume > 0)) return;
     const size_t base = static_cast<size_t>(e) * stride_;
-    const Vec3& ha = turned_gradients_[base + static_cast<size_t>(a)];
-    const Vec3& hb = turned_gradients_[base + static_cast<size_t>(b)];
-    out.noalias() += ((volume * lambda) * ha) * hb.transpose();
-    out.noalias() += ((volume * mu) * hb) * ha.transpose();
-    out.diagonal().array() += volume * mu * ha.dot(hb);
+    const size_t ia = base + static_cast<size_t>(a), ib = base + static_cast<size_t>(b);
+    out.noalias() += lambda_h[ia] * h[ib].transpose() + mu_h[ib] * h[ia].transpose();
+    out.diagonal().array() += mu_h[ia].dot(h[ib]);
   });
   return &stiffness;
 }
