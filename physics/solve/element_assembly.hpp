@@ -21,7 +21,9 @@ class ElementAssembly {
   // True when the plan was built for exactly these rows: element e's nodes are
   // neighbours[e * stride + k], k < lengths[e].
   bool matches(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours) const;
-  // Builds the plan: the pattern where every pair of an element's nodes couples.
+  // Builds the plan: the pattern where every pair of an element's nodes couples. For rows that
+  // changed since the last build (a cut) whose pairs are all in the pattern already, only their
+  // block indices and the incidence lists are redone: blocks no row uses any more stay, zero.
   void build(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours);
 
   // Refills the matrix: block (row, column) = sum over the elements e holding both, in element
