@@ -232,4 +232,3 @@ TEST(CurrentSystem, TheCurrentVcycleIsSymmetricPositiveAndConverges) {
 
 }  // namespace
 }  // namespace incise::physics
-
