@@ -143,8 +143,8 @@ void add_performance_command(CLI::App& parent, PerformanceBenchCommand& performa
   command->add_flag("--quick", performance.quick, "Two resolutions only: the coarsest and 20k elements");
   command->add_option("--out", performance.out, "Output folder (performance.csv)")->capture_default_str();
   command->add_option("--preconditioner", performance.preconditioner,
-                      "CG's preconditioner: all side by side, or multigrid, two_level, warped_cholesky or jacobi (the Jacobi CG) alone")
-      ->check(CLI::IsMember({"all", "multigrid", "two_level", "warped_cholesky", "jacobi"}))
+                      "CG's preconditioner: all side by side, or multigrid, multigrid_current, two_level, warped_cholesky or jacobi (the Jacobi CG) alone")
+      ->check(CLI::IsMember({"all", "multigrid", "multigrid_current", "two_level", "warped_cholesky", "jacobi"}))
       ->capture_default_str();
   command->add_flag("--report-only", performance.report_only,
                     "Run nothing: write OUT/report.html from the OUT/performance.csv already there");

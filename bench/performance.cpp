@@ -73,10 +73,13 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
                                         {0.0028, 0.0006}, {0.0018, 0.0009}};
     // Each size with the warped rest factor and with Jacobi, side by side (--preconditioner
     // names one of them alone).
+    // multigrid_current (the assembled current system) only when named.
     std::vector<std::string> preconditioners{"jacobi", "warped_cholesky", "two_level", "multigrid"};
     if (preconditioner != "all") {
-      if (std::find(preconditioners.begin(), preconditioners.end(), preconditioner) == preconditioners.end())
-        throw std::runtime_error("--preconditioner: '" + preconditioner + "' is not multigrid, two_level, warped_cholesky, jacobi or all");
+      if (preconditioner != "multigrid_current" &&
+          std::find(preconditioners.begin(), preconditioners.end(), preconditioner) == preconditioners.end())
+        throw std::runtime_error("--preconditioner: '" + preconditioner +
+                                 "' is not multigrid, multigrid_current, two_level, warped_cholesky, jacobi or all");
       preconditioners = {preconditioner};
     }
     // From the press to the end of the stroke of default.traj (0.3 s .. 2.0 s): the cut face,
@@ -92,7 +95,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
                            "ms_front_cut", "ms_cut_cpu", "ms_cut_cpu_last_quarter", "preconditioner", "cg_iterations",
                            "ms_per_iteration", "ms_total_p95", "ms_total_p95_uncut", "cg_iterations_uncut",
                            "preconditioner_age_max", "preconditioner_build_ms", "preconditioner_wait_ms_max",
-                           "ms_solve_ratio_to_jacobi"});
+                           "ms_solve_ratio_to_jacobi", "ms_assembly"});
     // --backend gpu: every size runs on the cpu and then on the gpu (single precision).
     std::vector<std::string> backends{"cpu"};
     if (backend == "gpu") backends.push_back("gpu");
@@ -118,7 +121,8 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
       const long first = std::lround(0.3 / scene.solver.dt);
       const long last = std::lround(2.0 / scene.solver.dt);
       std::vector<double> ccd, topology, solve, surface, total, cut, mapping, checks, front_cut, cut_cpu;
-      std::vector<double> iterations, per_iteration, uncut_total, uncut_iterations;
+      std::vector<double> iterations, per_iteration, uncut_total, uncut_iterations, assembly, outside_solve, tool_input,
+          contact, other;
       long events = 0;
       double topology_max = 0, build_ms = 0, wait_max = 0;
       long long cut_step_bytes = 0, age_max = 0;
@@ -145,6 +149,13 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
         front_cut.push_back(stats.ms_front_cut);
         cut_cpu.push_back(cut.back() - stats.ms_front_wait + stats.ms_front_cut);
         solve.push_back(stats.ms_solve);
+        assembly.push_back(stats.ms_assembly);
+        // Where a step's time outside the solve goes (the step's phases, engine/world.cpp).
+        outside_solve.push_back(stats.ms_total - stats.ms_solve);
+        tool_input.push_back(stats.ms_tool_input);
+        contact.push_back(stats.ms_contact);
+        other.push_back(stats.ms_total - stats.ms_solve - stats.ms_tool_input - stats.ms_contact - stats.ms_ccd -
+                        stats.ms_topology - stats.ms_surface);
         surface.push_back(stats.ms_surface);
         total.push_back(stats.ms_total);
         topology_max = std::max(topology_max, stats.ms_topology);
@@ -167,7 +178,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
               "\"" + device + "\"", bytes_per_cut_step, full_upload, row_surface, median(cut), median(mapping),
               median(checks), cut_first, cut_last, median(front_cut), median(cut_cpu), cut_cpu_last, used_preconditioner,
               median(iterations), median(per_iteration), p95, uncut_p95, median(uncut_iterations), age_max, build_ms,
-              wait_max, solve_ratio);
+              wait_max, solve_ratio, median(assembly));
       csv.flush();
       progress << std::fixed << std::setprecision(2) << std::setw(8) << 1e3 * resolution.spacing << std::setw(8)
                << 1e3 * resolution.surface << std::setw(9) << body.model->elements << std::setw(10) << body.data.surface.size()
@@ -189,6 +200,11 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
         progress << ", factor age max " << age_max << " steps, built in " << std::setprecision(1) << build_ms
                  << " ms, waited max " << wait_max << " ms";
       if (solve_ratio > 0) progress << ", solve / jacobi's x" << std::setprecision(3) << solve_ratio;
+      if (median(assembly) > 0) progress << ", assembly " << std::setprecision(2) << median(assembly) << " ms of the solve";
+      progress << "\n" << std::setw(33) << "outside the solve" << ": " << std::setprecision(2) << median(outside_solve)
+               << " ms (tool input " << median(tool_input) << ", ccd " << median(ccd) << ", topology " << median(topology)
+               << ", contact " << median(contact) << ", surface " << median(surface) << ", the rest " << median(other)
+               << "; medians)";
       progress << "\n";
     }
     }

@@ -231,9 +231,12 @@ std::shared_ptr<physics::BodyModel> body_model(const BodySpec& spec, const Solve
   model->preconditioner.kind = solver.preconditioner == "warped_cholesky" ? physics::PreconditionerKind::warped_cholesky
                                 : solver.preconditioner == "two_level"     ? physics::PreconditionerKind::two_level
                                 : solver.preconditioner == "multigrid"     ? physics::PreconditionerKind::multigrid
+                                : solver.preconditioner == "multigrid_current" ? physics::PreconditionerKind::multigrid_current
                                                                            : physics::PreconditionerKind::jacobi;
   model->preconditioner.latency = solver.preconditioner_latency;
   model->preconditioner.smoothing = solver.multigrid_smoothing;
+  // The current system assembled once per step, its products CG's and the smoother's.
+  model->integrator.assembled_system = solver.preconditioner == "multigrid_current";
   model->gravity = vec(solver.gravity);
   return model;
 }

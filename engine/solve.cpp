@@ -75,6 +75,7 @@ void World::solve(Body& body, const std::vector<physics::NodalSpring>& springs,
                                : physics::implicit_euler_step(*body.data.mechanics, state, body.data.fixed, external, springs,
                                                               settings, velocity_change, factor);
     budget_.solved(report.cg);
+    stats.ms_assembly += report.assembly_ms;
     if (!report.nonfinite) clock += given.dt;
     return report;
   };

@@ -41,6 +41,7 @@ struct StepStats {
   double ms_tool_input = 0;
   double ms_contact = 0;
   double ms_solve = 0;
+  double ms_assembly = 0;  // of ms_solve: assembling the current system (solver.preconditioner "multigrid_current")
   double ms_surface = 0;
   double ms_total = 0;
   int cg_iterations = 0;  // summed over bodies and retried sub-steps

@@ -17,6 +17,12 @@ struct ImplicitEulerSettings {
   double rayleigh_mass = 0;       // alpha, 1/s
   double rayleigh_stiffness = 0;  // beta, s
   CgSettings cg;
+  // Assemble the current system A in 3x3 blocks once per step (DeformableModel::
+  // current_stiffness; physics/solve/current_system.hpp) and multiply by it, in CG and in a
+  // V-cycle's smoother, instead of the matrix-free product. Off: the models' own products
+  // (solver.preconditioner "multigrid_current" turns it on). Models without an assembly or
+  // with dashpots of their own stay matrix-free.
+  bool assembled_system = false;
 };
 
 struct StepReport {
@@ -24,6 +30,7 @@ struct StepReport {
   bool nonfinite = false;     // the step was rejected and the State left unchanged
   double elastic_energy = 0;  // of the new state
   double kinetic_energy = 0;  // of the new state
+  double assembly_ms = 0;     // assembling the current system (assembled_system)
 };
 
 // Solves

@@ -63,6 +63,12 @@ class DeformableModel {
   // on another thread while the model changes (a cut). Empty: the model offers none, and its
   // solves are Jacobi-preconditioned.
   virtual std::function<BlockMatrix()> rest_stiffness_job() const { return {}; }
+  // K, the stiffness with the rotations frozen by update_rotations, assembled in 3x3 blocks
+  // (both triangles): what add_stiffness_product multiplies by, to round-off. Valid until the
+  // next call or a change of the model. nullptr: the model offers none (the step's products
+  // stay matrix-free). Not called unless a solver asks for it (solver.preconditioner
+  // "multigrid_current").
+  virtual const BlockMatrix* current_stiffness() const { return nullptr; }
   // Per node, the mean of the frozen rotations of the elements around it (unit quaternions):
   // the warp of a rest-shape preconditioner. Empty: the identity.
   virtual void node_rotations(std::vector<Eigen::Quaterniond>& out) const { out.clear(); }

@@ -48,6 +48,7 @@
 #include "physics/core/executor.hpp"
 #include "physics/core/model.hpp"
 #include "physics/fem/material.hpp"
+#include "physics/solve/element_assembly.hpp"
 
 #include <Eigen/Geometry>
 
@@ -205,6 +206,7 @@ class CorotationalEfg final : public DeformableModel {
   // With rotations extracted from x itself, so it is invariant under rigid motions of x.
   double elastic_energy(const Vector& x) const override;
   std::function<BlockMatrix()> rest_stiffness_job() const override;
+  const BlockMatrix* current_stiffness() const override;  // efg_current_stiffness.cpp
   void node_rotations(std::vector<Eigen::Quaterniond>& out) const override;
   double node_spacing() const override;
   std::unique_ptr<DeformableModel> clone() const override;
@@ -350,6 +352,9 @@ class CorotationalEfg final : public DeformableModel {
   static constexpr int partition_count = 4;
   mutable std::array<Vector, partition_count> partition_buffers_;
   mutable std::vector<double> element_energies_;
+  // current_stiffness's plan (rebuilt when the rows change) and each row's turned gradients.
+  mutable ElementAssembly assembly_;
+  mutable std::vector<Vec3> turned_gradients_;
   Executor* executor_ = &serial_executor();
 };
 

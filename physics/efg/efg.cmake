@@ -6,4 +6,5 @@ target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/efg_embedding.cpp
   ${CMAKE_CURRENT_LIST_DIR}/efg_static.cpp
   ${CMAKE_CURRENT_LIST_DIR}/efg_rest_stiffness.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/efg_current_stiffness.cpp
 )

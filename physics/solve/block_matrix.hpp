@@ -33,6 +33,7 @@ class BlockMatrix {
   const std::vector<int>& row_start() const { return row_start_; }
   const std::vector<int>& columns() const { return columns_; }
   const std::vector<Mat3>& blocks() const { return blocks_; }
+  Mat3* mutable_blocks() { return blocks_.data(); }
 
   // The scalar matrix mass_coefficient M + stiffness_coefficient K (3n x 3n, column-major),
   // M = diag(masses) per node, with the rows and columns of nodes marked fixed (1) replaced by

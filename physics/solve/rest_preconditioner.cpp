@@ -12,6 +12,7 @@ const char* to_string(PreconditionerKind kind) {
     case PreconditionerKind::warped_cholesky: return "warped_cholesky";
     case PreconditionerKind::two_level: return "two_level";
     case PreconditionerKind::multigrid: return "multigrid";
+    case PreconditionerKind::multigrid_current: return "multigrid_current";
   }
   return "?";
 }
@@ -27,7 +28,8 @@ RestPreconditioner::Pending RestPreconditioner::start(const DeformableModel& mod
   pending.result = std::make_shared<FactorPtr>();
   // Everything the job reads is its own copy: the model may be cut again meanwhile.
   auto assemble = model.rest_stiffness_job();
-  const bool multigrid = settings.kind == PreconditionerKind::multigrid;
+  const bool multigrid =
+      settings.kind == PreconditionerKind::multigrid || settings.kind == PreconditionerKind::multigrid_current;
   const double coarse_spacing =
       settings.kind == PreconditionerKind::two_level || multigrid ? settings.coarsening * model.node_spacing() : 0.0;
   const int smoothing = multigrid ? settings.smoothing : 0;
@@ -52,7 +54,8 @@ const RestFactor* RestPreconditioner::prepare(const PreconditionerSettings& sett
                                               long long step, Executor& executor, PreconditionerReport& report) {
   if (settings.kind == PreconditionerKind::jacobi || unsupported_) return nullptr;
   if (!current_) {
-    if (!model.rest_stiffness_job() || ((settings.kind == PreconditionerKind::two_level || settings.kind == PreconditionerKind::multigrid) &&
+    if (!model.rest_stiffness_job() || ((settings.kind == PreconditionerKind::two_level || settings.kind == PreconditionerKind::multigrid ||
+                                         settings.kind == PreconditionerKind::multigrid_current) &&
                                           !(model.node_spacing() > 0))) {
       unsupported_ = true;  // the model offers no rest stiffness: Jacobi
       return nullptr;

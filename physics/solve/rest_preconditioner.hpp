@@ -34,6 +34,10 @@ enum class PreconditionerKind {
   // Chebyshev smoothing of the Jacobi-scaled assembled A0 before and after the coarse
   // correction (multigrid.hpp, block_system.hpp).
   multigrid,
+  // The same factor, but the cycle of the current system: the step assembles A in blocks
+  // (ImplicitEulerSettings::assembled_system), multiplies by it in CG and smooths with it; only
+  // the coarse correction is warped (physics/core/implicit_euler.cpp).
+  multigrid_current,
 };
 
 const char* to_string(PreconditionerKind kind);
