@@ -1,6 +1,8 @@
 #include "physics/core/implicit_euler.hpp"
 
+#include "physics/core/extra_stiffness.hpp"
 #include "physics/core/stopwatch.hpp"
+#include "physics/solve/bicgstab.hpp"
 #include "physics/solve/current_system.hpp"
 #include "physics/solve/multigrid.hpp"
 #include "physics/solve/warped_preconditioner.hpp"
@@ -61,7 +63,8 @@ void check_inputs(const DeformableModel& model, const State& state,
 }
 
 // The diagonal of A = m_coefficient M + k_coefficient K (the springs' included) + d_coefficient D
-// (a model's own dashpots, where it has them).
+// (a model's own dashpots, where it has them) + d_coefficient^2 K_extra (where it has one: the
+// step's d_coefficient is dt).
 Vector jacobi_diagonal(const DeformableModel& model, std::span<const NodalSpring> springs, const Vector& masses,
                        double mass_coefficient, double stiffness_coefficient, double damping_coefficient) {
   Vector stiffness_diagonal = Vector::Zero(3 * masses.size());
@@ -79,7 +82,24 @@ Vector jacobi_diagonal(const DeformableModel& model, std::span<const NodalSpring
     model.add_damping_diagonal(damping_diagonal);
     diagonal += damping_coefficient * damping_diagonal;
   }
+  if (const ExtraStiffness* extra_part = extra_stiffness(model)) {
+    Vector extra = Vector::Zero(diagonal.size());
+    extra_part->add_extra_stiffness_diagonal(extra);
+    diagonal += damping_coefficient * damping_coefficient * extra;
+  }
   return diagonal;
+}
+
+// Jacobi-preconditioned BiCGSTAB, for a model whose extra stiffness is not symmetric.
+CgResult nonsymmetric_solve(const DeformableModel& model, std::span<const NodalSpring> springs, const Vector& masses,
+                            double mass_coefficient, double stiffness_coefficient, double dt,
+                            const LinearOperator& apply,
+                            const Vector& right_hand_side, const std::vector<uint8_t>& fixed_nodes,
+                            Vector& velocity_change, const CgSettings& settings) {
+  const Vector inverse =
+      jacobi_inverse(jacobi_diagonal(model, springs, masses, mass_coefficient, stiffness_coefficient, dt));
+  const Preconditioner jacobi = [&](const Vector& r, Vector& out) { out = inverse.cwiseProduct(r); };
+  return bicgstab(apply, right_hand_side, jacobi, fixed_nodes, velocity_change, settings);
 }
 
 // CG preconditioned with that diagonal.
@@ -213,6 +233,17 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
     right_hand_side -= dt * damping_velocity;
     damping_p.resize(size);
   }
+  // The model's extra stiffness (has_extra_stiffness), in the force's linearisation only:
+  // f(x + dt v') ~ f(x) - dt K_extra v', so A gains dt^2 K_extra and the right -dt^2 K_extra v
+  // (Rayleigh's beta K stays on K).
+  const ExtraStiffness* extra = extra_stiffness(model);
+  Vector extra_p;
+  if (extra) {
+    Vector extra_velocity = Vector::Zero(size);
+    extra->add_extra_stiffness_product(state.velocities, extra_velocity);
+    right_hand_side -= dt * dt * extra_velocity;
+    extra_p.resize(size);
+  }
   if (!right_hand_side.allFinite()) {
     report.nonfinite = true;
     return report;
@@ -234,12 +265,17 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
       model.add_damping_product(p, damping_p);
       out += dt * damping_p;
     }
+    if (extra) {
+      extra_p.setZero();
+      extra->add_extra_stiffness_product(p, extra_p);
+      out += dt * dt * extra_p;
+    }
   };
 
   // The assembled current system (settings.assembled_system), which then replaces `apply`.
   const BlockMatrix* current = nullptr;
   std::optional<CurrentSystem> system;
-  if (settings.assembled_system && !damped) {
+  if (settings.assembled_system && !damped && !extra) {  // (the assembled system holds K only)
     const Stopwatch assembly;
     current = model.current_stiffness();
     report.assembly_ms = assembly.ms();
@@ -252,7 +288,11 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   Vector velocity_change = Vector::Zero(size);
   if (velocity_change_guess && velocity_change_guess->size() == size && velocity_change_guess->allFinite())
     velocity_change = *velocity_change_guess;
-  if (system && rest_factor && rest_factor->size() == size && rest_factor->smoothing_degree() > 0) {
+  if (extra && !extra->extra_stiffness_symmetric()) {
+    // No rest factor here: its warped preconditioners are built for CG's SPD systems.
+    report.cg = nonsymmetric_solve(model, springs, masses, mass_coefficient, stiffness_coefficient, dt, apply,
+                                   right_hand_side, fixed_nodes, velocity_change, settings.cg);
+  } else if (system && rest_factor && rest_factor->size() == size && rest_factor->smoothing_degree() > 0) {
     report.cg = current_vcycle_solve(model, *rest_factor, product, *system, right_hand_side, fixed_nodes, velocity_change,
                                      settings.cg);
   } else if (rest_factor && rest_factor->size() == size) {

@@ -21,7 +21,7 @@ struct ImplicitEulerSettings {
   // current_stiffness; physics/solve/current_system.hpp) and multiply by it, in CG and in a
   // V-cycle's smoother, instead of the matrix-free product. Off: the models' own products
   // (solver.preconditioner "multigrid_current" turns it on). Models without an assembly or
-  // with dashpots of their own stay matrix-free.
+  // with dashpots or an extra stiffness of their own stay matrix-free.
   bool assembled_system = false;
 };
 
@@ -39,6 +39,10 @@ struct StepReport {
 // then v += dv, x += dt v, where K is the model stiffness plus the springs' 3x3 stiffnesses
 // (penalty contacts are integrated implicitly for stability). A model with dashpots of its own
 // (DeformableModel::has_damping, f = -D v) adds dt D to the matrix and -dt D v to the right.
+// A model with an extra stiffness (physics/core/extra_stiffness.hpp: the mass-spring's
+// correction forces) adds dt^2 K_extra to the matrix and -dt^2 K_extra v to the right; where it
+// is not symmetric the system is solved by Jacobi-preconditioned BiCGSTAB
+// (physics/solve/bicgstab.hpp, the CG's settings and report; `rest_factor` unused).
 // - Calls model.update_rotations(x) first.
 // - `fixed_nodes`: one entry per node, 1 = fixed (empty = none); fixed nodes keep their
 //   position and get zero velocity.

@@ -97,6 +97,7 @@ HexMassSpring::HexMassSpring(const HexMesh& mesh, const MassSpringMaterial& mate
     springs_.push_back(s);
   }
   corrections_ = material.corrections;
+  tangent_mode_ = material.correction_tangent;
   explicit_limit_ = mass_spring_explicit_limit(masses_, node_stiffness_);
   update_rotations(rest_);
 }
@@ -118,6 +119,65 @@ void HexMassSpring::update_rotations(const Vector& x) {
     tangent_[s] = spring.stiffness * (axial + transverse * (Mat3::Identity() - axial));
     direction_[s] = u;
   }
+  if (corrections_) {
+    frozen_ = x;
+    correction_tangent_stale_ = true;
+  }
+}
+
+const std::vector<HexMassSpring::BrickMatrix>& HexMassSpring::correction_tangents() const {
+  if (!corrections_ || !correction_tangent_stale_) return correction_tangent_;
+  correction_tangent_.resize(hexes_.size());
+  Vector probe = frozen_;
+  const double h = 1e-7 * spacing_;
+  for (std::size_t e = 0; e < hexes_.size(); ++e) {
+    const auto& hex = hexes_[e];
+    for (int column = 0; column < 24; ++column) {
+      const Index d = 3 * static_cast<Index>(hex[column / 3]) + column % 3;
+      probe[d] = frozen_[d] + h;
+      const Eigen::Matrix<double, 24, 1> plus = brick_correction_forces(probe, e);
+      probe[d] = frozen_[d] - h;
+      const Eigen::Matrix<double, 24, 1> minus = brick_correction_forces(probe, e);
+      probe[d] = frozen_[d];
+      correction_tangent_[e].col(column) = -(plus - minus) / (2 * h);
+    }
+  }
+  correction_tangent_stale_ = false;
+  return correction_tangent_;
+}
+
+bool HexMassSpring::has_extra_stiffness() const {
+  return corrections_ && tangent_mode_ != CorrectionTangent::explicit_forces;
+}
+
+void HexMassSpring::add_extra_stiffness_product(const Vector& p, Vector& out) const {
+  if (!has_extra_stiffness()) return;
+  const auto& tangents = correction_tangents();
+  Eigen::Matrix<double, 24, 1> local, product;
+  for (std::size_t e = 0; e < hexes_.size(); ++e) {
+    for (int a = 0; a < 8; ++a) local.segment<3>(3 * a) = p.segment<3>(3 * static_cast<Index>(hexes_[e][a]));
+    product = tangents[e] * local;
+    if (tangent_mode_ == CorrectionTangent::symmetric) product = 0.5 * (product + tangents[e].transpose() * local);
+    for (int a = 0; a < 8; ++a) out.segment<3>(3 * static_cast<Index>(hexes_[e][a])) += product.segment<3>(3 * a);
+  }
+}
+
+void HexMassSpring::add_extra_stiffness_diagonal(Vector& diag) const {
+  if (!has_extra_stiffness()) return;
+  const auto& tangents = correction_tangents();
+  for (std::size_t e = 0; e < hexes_.size(); ++e)
+    for (int a = 0; a < 8; ++a)
+      diag.segment<3>(3 * static_cast<Index>(hexes_[e][a])) += tangents[e].diagonal().segment<3>(3 * a);
+}
+
+void HexMassSpring::add_correction_triplets(std::vector<Eigen::Triplet<double>>& out) const {
+  if (!corrections_) return;
+  const auto& tangents = correction_tangents();
+  out.reserve(out.size() + 576 * hexes_.size());
+  const auto dof = [&](std::size_t e, int local) { return 3 * static_cast<Index>(hexes_[e][local / 3]) + local % 3; };
+  for (std::size_t e = 0; e < hexes_.size(); ++e)
+    for (int c = 0; c < 24; ++c)
+      for (int r = 0; r < 24; ++r) out.emplace_back(dof(e, r), dof(e, c), tangents[e](r, c));
 }
 
 void HexMassSpring::add_elastic_forces(const Vector& x, Vector& f) const {

@@ -7,9 +7,12 @@
 // As a DeformableModel for the shared implicit Euler + CG: the elastic force is the full
 // nonlinear spring force; update_rotations(x) freezes each spring's direction and length,
 // from which the stiffness K (the spring's tangent, its transverse part clamped at zero under
-// compression so that K stays positive semi-definite) and the damping D are applied.
+// compression so that K stays positive semi-definite) and the damping D are applied. With
+// corrections, their non-symmetric derivative is the step's extra stiffness
+// (physics/core/extra_stiffness.hpp), and the step is solved by BiCGSTAB.
 #pragma once
 
+#include "physics/core/extra_stiffness.hpp"
 #include "physics/core/model.hpp"
 #include "physics/mss/baudet_stiffness.hpp"
 #include "physics/mss/hex_mesh.hpp"
@@ -21,6 +24,18 @@
 
 namespace incise::physics {
 
+// How the implicit step takes the derivative of Baudet's corrections, K_c = -d(corrections)/dx
+// (non-symmetric: the corrections are no potential's gradient). `full` by measurement
+// (test_mass_spring_implicit, docs/status.md): dt = 10 s steps reach the static solve's
+// equilibrium in the fewest steps (12 and 8 against the symmetric part's 17 and 8; explicit: 21,
+// and diverging at nu 0.45), and the stability sweep with corrections on keeps 44 of 54
+// implicit runs stable (symmetric part 29, explicit 18). The others are for that comparison.
+enum class CorrectionTangent {
+  explicit_forces,  // left out: the corrections ride explicitly in the step
+  symmetric,        // (K_c + K_c^T) / 2 added to the CG's matrix
+  full,             // K_c itself, the step solved by BiCGSTAB
+};
+
 struct MassSpringMaterial {
   double youngs_modulus = 0;  // Pa
   double poisson_ratio = 0;
@@ -31,6 +46,7 @@ struct MassSpringMaterial {
   double damping_ratio = 1;
   // Baudet's correction forces (add_correction_forces); off: springs only.
   bool corrections = false;
+  CorrectionTangent correction_tangent = CorrectionTangent::full;
 };
 
 struct Spring {
@@ -40,7 +56,7 @@ struct Spring {
   double damping = 0;    // N s/m, on the relative velocity projected on the spring
 };
 
-class HexMassSpring final : public DeformableModel {
+class HexMassSpring final : public DeformableModel, public ExtraStiffness {
  public:
   // Throws std::invalid_argument naming the brick (index, size, aspect ratio) whose formulas
   // give a non-positive stiffness, or a bad material.
@@ -57,6 +73,11 @@ class HexMassSpring final : public DeformableModel {
   bool has_damping() const override { return true; }
   void add_damping_product(const Vector& p, Vector& out) const override;
   void add_damping_diagonal(Vector& diag) const override;
+  // The corrections' derivative at the frozen positions, as correction_tangent asks.
+  bool has_extra_stiffness() const override;
+  bool extra_stiffness_symmetric() const override { return tangent_mode_ != CorrectionTangent::full; }
+  void add_extra_stiffness_product(const Vector& p, Vector& out) const override;
+  void add_extra_stiffness_diagonal(Vector& diag) const override;
   double explicit_step_limit() const override { return explicit_limit_; }
   double node_spacing() const override { return spacing_; }
   std::unique_ptr<DeformableModel> clone() const override { return std::make_unique<HexMassSpring>(*this); }
@@ -70,13 +91,23 @@ class HexMassSpring final : public DeformableModel {
   // mid-plane normal to i, plus the corrections along i on that half's 4 nodes, which depend on
   // the other loads: F = S - 8 C^T F, solved per brick (axial_loads). In a traction test this is
   // the applied load along the pull and zero across it, exactly. Added by add_elastic_forces
-  // when the material asks for them; they are explicit in the implicit step (not in K), and
-  // conserve momentum (each edge's two nodes get opposite forces).
+  // when the material asks for them; not in K (the springs' tangent) but in the implicit step's
+  // matrix through the extra stiffness (correction_tangent), and they conserve momentum (each
+  // edge's two nodes get opposite forces).
   void add_correction_forces(const Vector& x, Vector& f) const;
   // Brick e's share of them, on its 8 nodes in the local order (24 values).
   Eigen::Matrix<double, 24, 1> brick_correction_forces(const Vector& x, std::size_t e) const;
   // Brick e's axial loads F_x, F_y, F_z at x (tension positive), N.
   Vec3 axial_loads(const Vector& x, std::size_t e) const;
+
+  using BrickMatrix = Eigen::Matrix<double, 24, 24>;
+  // Per brick, K_c = -d(its corrections)/d(its 8 nodes) at the positions frozen by
+  // update_rotations (central differences, step 1e-7 x the node spacing: the corrections are
+  // smooth and each brick's depend on its own nodes only). Computed on first use after
+  // update_rotations, so that the explicit integrators, which never ask, do not pay for it.
+  const std::vector<BrickMatrix>& correction_tangents() const;
+  // K_c of every brick as triplets of the 3n x 3n matrix (the static solve's Newton tangent).
+  void add_correction_triplets(std::vector<Eigen::Triplet<double>>& out) const;
 
   // K (the springs' tangent frozen by update_rotations, as add_stiffness_product applies it) as
   // triplets of the 3n x 3n matrix, for a sparse direct solve (mss_static.hpp).
@@ -96,6 +127,10 @@ class HexMassSpring final : public DeformableModel {
   std::vector<BrickSprings> bricks_;  // per brick, its own stiffnesses and correction ratios
   std::vector<Mat3> load_from_springs_;  // per brick, (I + 8 C^T)^-1 (axial_loads)
   bool corrections_ = false;
+  CorrectionTangent tangent_mode_ = CorrectionTangent::full;
+  Vector frozen_;  // the positions update_rotations froze
+  mutable std::vector<BrickMatrix> correction_tangent_;  // per brick, K_c at frozen_ (lazy)
+  mutable bool correction_tangent_stale_ = true;
   std::vector<Spring> springs_;
   std::vector<Mat3> tangent_;  // per spring, K_s frozen by update_rotations
   std::vector<Vec3> direction_;  // per spring, its unit direction frozen by update_rotations

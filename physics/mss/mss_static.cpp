@@ -23,28 +23,6 @@ std::vector<Index> free_dofs(const std::vector<uint8_t>& fixed, Index nodes) {
   return free;
 }
 
-// The derivative of Baudet's corrections as stiffness triplets, -d(corrections)/dx, brick by
-// brick (each brick's corrections depend on its own 8 nodes only) by central differences.
-void add_correction_tangent(const HexMassSpring& model, const Vector& x, std::vector<Eigen::Triplet<double>>& out) {
-  Vector probe = x;
-  const double h = 1e-7 * model.node_spacing();
-  for (std::size_t e = 0; e < model.hexes().size(); ++e) {
-    const auto& hex = model.hexes()[e];
-    for (int a = 0; a < 8; ++a)
-      for (int c = 0; c < 3; ++c) {
-        const Index d = 3 * static_cast<Index>(hex[a]) + c;
-        probe[d] = x[d] + h;
-        const Eigen::Matrix<double, 24, 1> plus = model.brick_correction_forces(probe, e);
-        probe[d] = x[d] - h;
-        const Eigen::Matrix<double, 24, 1> minus = model.brick_correction_forces(probe, e);
-        probe[d] = x[d];
-        const Eigen::Matrix<double, 24, 1> column = -(plus - minus) / (2 * h);
-        for (int b = 0; b < 8; ++b)
-          for (int r = 0; r < 3; ++r) out.emplace_back(3 * static_cast<Index>(hex[b]) + r, d, column[3 * b + r]);
-      }
-  }
-}
-
 }  // namespace
 
 MassSpringStatic solve_mass_spring_static(HexMassSpring& model, const std::vector<uint8_t>& fixed,
@@ -78,10 +56,9 @@ MassSpringStatic solve_mass_spring_static(HexMassSpring& model, const std::vecto
       residual = rhs.norm();
       if (first_residual < 0) first_residual = residual;
       {
-        const Vector& at = result.positions;
         std::vector<Eigen::Triplet<double>> all, reduced;
         model.add_stiffness_triplets(all);
-        if (corrected) add_correction_tangent(model, at, all);
+        if (corrected) model.add_correction_triplets(all);
         reduced.reserve(all.size());
         for (const auto& t : all) {
           const Index r = slot[static_cast<std::size_t>(t.row())], c = slot[static_cast<std::size_t>(t.col())];

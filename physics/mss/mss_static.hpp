@@ -25,8 +25,8 @@ struct MassSpringStatic {
 // The network's equilibrium with the nodes `fixed` moved by `prescribed` (3n, read there;
 // empty: held at rest) under the nodal forces `load` (3n or empty), the springs' full nonlinear
 // forces and, when the model has them, Baudet's corrections. Newton with the springs' tangent
-// (sparse LDLT) plus, with corrections, their derivative brick by brick (central differences;
-// non-symmetric: sparse LU). The prescribed motion and
+// (sparse LDLT) plus, with corrections, their derivative brick by brick (the model's
+// correction_tangents, central differences; non-symmetric: sparse LU). The prescribed motion and
 // the load are applied in `increments` equal steps, each iterated until the update is below
 // `tolerance` x the largest displacement. The tangent is the current one, whose transverse
 // spring terms (1 - L0 / L) carry the network's near-mechanisms: at rest they vanish, and a

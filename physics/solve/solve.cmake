@@ -1,7 +1,9 @@
-# Linear solvers beyond the CG (physics/solve): the rest-shape factor and its warp. Included
-# by physics/CMakeLists.txt after add_library(incise_physics ...). The factor is CHOLMOD's
-# (SuiteSparse, OpenBLAS behind it; Debian: libsuitesparse-dev libopenblas-dev).
+# Linear solvers beyond the CG (physics/solve): BiCGSTAB for non-symmetric steps, the rest-shape
+# factor and its warp. Included by physics/CMakeLists.txt after add_library(incise_physics ...).
+# The factor is CHOLMOD's (SuiteSparse, OpenBLAS behind it; Debian: libsuitesparse-dev
+# libopenblas-dev).
 target_sources(incise_physics PRIVATE
+  ${CMAKE_CURRENT_LIST_DIR}/bicgstab.cpp
   ${CMAKE_CURRENT_LIST_DIR}/block_matrix.cpp
   ${CMAKE_CURRENT_LIST_DIR}/block_system.cpp
   ${CMAKE_CURRENT_LIST_DIR}/coarse_space.cpp

@@ -38,3 +38,8 @@ gtest_discover_tests(test_constraint_particles DISCOVERY_TIMEOUT 60 PROPERTIES L
 add_executable(test_constraint_particles_accuracy ${CMAKE_CURRENT_LIST_DIR}/test_constraint_particles_accuracy.cpp)
 target_link_libraries(test_constraint_particles_accuracy PRIVATE incise_bench GTest::gtest_main)
 gtest_discover_tests(test_constraint_particles_accuracy DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
+
+# Baudet's correction forces in the implicit step's matrix (issue 31).
+add_executable(test_mass_spring_implicit ${CMAKE_CURRENT_LIST_DIR}/test_mass_spring_implicit.cpp)
+target_link_libraries(test_mass_spring_implicit PRIVATE incise_physics GTest::gtest_main)
+gtest_discover_tests(test_mass_spring_implicit DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
@@ -9,6 +10,7 @@
 
 #include "physics/core/cg.hpp"
 #include "physics/core/stopwatch.hpp"
+#include "physics/solve/bicgstab.hpp"
 
 namespace incise::physics {
 namespace {
@@ -236,4 +238,48 @@ TEST(ConjugateGradient, RejectsMismatchedSizes) {
 }
 
 }  // namespace
+// BiCGSTAB (physics/solve/bicgstab.hpp) on a non-symmetric system, SPD plus a skew part as
+// large as its symmetric one, two nodes fixed: the free part against a dense LU of the free
+// rows and columns, zero on the fixed ones, and a guess that is the solution ends at once.
+TEST(Bicgstab, SolvesANonSymmetricSystemWithFixedNodes) {
+  const int size = 36;
+  const Dense spd = make_spd(size, 5);
+  Dense skew = Dense::Zero(size, size);
+  Sequence sequence(6);
+  for (int i = 0; i < size; ++i)
+    for (int j = 0; j < i; ++j) {
+      skew(i, j) = 0.5 * sequence.next() * std::sqrt(spd(i, i) * spd(j, j));
+      skew(j, i) = -skew(i, j);
+    }
+  const Dense a = spd + skew;
+  ASSERT_GT((a - a.transpose()).norm(), 0.1 * a.norm());
+  const Vector b = make_vector(size, 7);
+  const std::vector<uint8_t> fixed = {0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0};
+  const Vector inverse = jacobi_inverse(a.diagonal());
+  const Preconditioner jacobi = [&](const Vector& r, Vector& out) { out = inverse.cwiseProduct(r); };
+  CgSettings settings;
+  settings.tolerance = 1e-10;
+  settings.max_iterations = 500;
+  Vector x = Vector::Ones(size);
+  const CgResult result = bicgstab(dense_operator(a), b, jacobi, fixed, x, settings);
+  ASSERT_TRUE(result.converged);
+  EXPECT_LE(result.relative_residual, 1e-10);
+  std::vector<int> free;
+  for (int d = 0; d < size; ++d)
+    if (!fixed[d / 3]) free.push_back(d);
+    else EXPECT_EQ(x[d], 0.0) << "fixed dof " << d;
+  Dense reduced(free.size(), free.size());
+  Vector rhs(free.size());
+  for (size_t r = 0; r < free.size(); ++r) {
+    rhs[r] = b[free[r]];
+    for (size_t c = 0; c < free.size(); ++c) reduced(r, c) = a(free[r], free[c]);
+  }
+  const Vector reference = reduced.partialPivLu().solve(rhs);
+  for (size_t r = 0; r < free.size(); ++r) EXPECT_NEAR(x[free[r]], reference[r], 1e-8 * reference.norm());
+  Vector again = x;
+  const CgResult restart = bicgstab(dense_operator(a), b, jacobi, fixed, again, settings);
+  EXPECT_TRUE(restart.converged);
+  EXPECT_EQ(restart.iterations, 0);
+}
+
 }  // namespace incise::physics

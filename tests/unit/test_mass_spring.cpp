@@ -334,9 +334,9 @@ TEST(MassSpringModel, CorrectionForcesConserveMomentumAndFollowTheBrick) {
 }
 
 TEST(MassSpringTraction, TheStepsSettleACorrectedCubeAtTheTargetEAndNu) {
-  // The corrections ride explicitly in the implicit steps: pulled apart by F on its two x faces
-  // (free, the loads balanced), a corrected cube comes to rest at the strain E and nu give,
-  // within the geometric nonlinearity of a 1e-4 strain.
+  // With the corrections' derivative in the implicit steps (BiCGSTAB): pulled apart by F on its
+  // two x faces (free, the loads balanced), a corrected cube comes to rest at the strain E and
+  // nu give, within the geometric nonlinearity of a 1e-4 strain.
   const physics::HexMesh mesh = physics::make_box_hexes(Vec3::Zero(), Vec3::Constant(0.1), {1, 1, 1});
   physics::MassSpringMaterial properties = material(0.3);
   properties.corrections = true;
