@@ -104,7 +104,8 @@ class HexMassSpring final : public DeformableModel, public ExtraStiffness {
   // Per brick, K_c = -d(its corrections)/d(its 8 nodes) at the positions frozen by
   // update_rotations (central differences, step 1e-7 x the node spacing: the corrections are
   // smooth and each brick's depend on its own nodes only). Computed on first use after
-  // update_rotations, so that the explicit integrators, which never ask, do not pay for it.
+  // update_rotations, so that the explicit integrators, which never ask, do not pay for it (the
+  // first use writes the cache: one thread per model, as the step is).
   const std::vector<BrickMatrix>& correction_tangents() const;
   // K_c of every brick as triplets of the 3n x 3n matrix (the static solve's Newton tangent).
   void add_correction_triplets(std::vector<Eigen::Triplet<double>>& out) const;
