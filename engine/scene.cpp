@@ -223,7 +223,7 @@ ToolSpec read_tool(const Json& tool, const std::filesystem::path& file, std::vec
   t.stiffness = tr.number("stiffness", false, 500, 0, 1e9, true);
   t.flank_friction = tr.number("flank_friction", false, physics::kDefaultFlankFriction, 0, 1e7);
   if (!blade && tr.has("flank_friction")) tr.error(tr.child("flank_friction"), "only a blade has flanks");
-  t.onset = tr.boolean("onset", false);
+  t.onset = tr.boolean("onset", blade);  // a blade presses until the crack's onset unless told not to
   if (!blade && tr.has("onset")) tr.error(tr.child("onset"), "only a blade cuts");
   if (const Json* edge = tr.get("edge", blade)) read_edge(tr, *edge, blade, t.edge);
   // Optional: a replay needs one (or --trajectory); a live session's device drives the tool.

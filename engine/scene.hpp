@@ -103,9 +103,9 @@ struct ToolSpec {
   // Blade: the flanks' Coulomb-like friction per metre of engaged edge, N/m
   // (physics/cut/cutting_resistance.hpp).
   double flank_friction = 20;
-  // Blade: whether it presses like a probe until the crack's onset (engine/cutting_resistance.cpp);
-  // off, it cuts from first contact, resisted all the same.
-  bool onset = false;
+  // Blade: whether it presses like a probe until the crack's onset (engine/cutting_resistance.cpp),
+  // the default; off, it cuts from first contact (an ideal blade), resisted all the same.
+  bool onset = true;
   std::optional<std::filesystem::path> trajectory;
   // Blade: the cutting edge, a polyline in the tool's frame (m; the trajectory's position is
   // the frame's origin). An ideal blade (seed 004 §2.2): no volume, no force, it cuts the

@@ -172,6 +172,11 @@ StepStats World::step(std::int64_t deadline_ns) {
     const auto sweep = detect_cuts(body, cut);
     apply_topology(body, sweep, cut);
     add_cut_report(cut, stats);
+    // The edge cut its way out of the body: with the onset, the engagement ends as when it
+    // leaves the tissue, so that tissue it meets again (a freed piece swinging back onto it)
+    // is pressed first and cut from where the edge met it (CuttingState::entry), not from a
+    // new stroke's first sample inside it.
+    if (cut.cut_through && scene_.tool->onset && tool_.cutting.cutting) tool_.leaving = true;
   }
   if (tool_.cutting.cutting) tool_.cutting.entry.clear();  // the stroke has its first sample
   if (tool_.leaving) tool_.cutting = {};                    // the edge is out: the next entry presses

@@ -48,7 +48,10 @@ int cut_front(CutContext& ctx, const RestSweep& sweep) {
         totals.first_front_problem = "step " + std::to_string(ctx.step) + ": " + sample.problems.front();
     }
     if (sample.crossings + sample.tips > 0) ++faces;
-    if (sample.ok() && sample.crossings > 0 && !sample.front_in_body) close_stroke(ctx, 0);
+    if (sample.ok() && sample.crossings > 0 && !sample.front_in_body) {
+      close_stroke(ctx, 0);
+      ctx.report.cut_through = true;
+    }
   }
   return faces;
 }

@@ -116,6 +116,9 @@ struct CutTotals {
 struct CutStepReport {
   bool tested = false;  // the blade was engaged near the body: CCD ran
   bool event = false;   // the topology changed
+  // A stroke's front left the body over the step (the edge cut its way out): its stroke ended
+  // there (apply_topology.cpp, cut_front), and a later sample starts another.
+  bool cut_through = false;
   double ms_ccd = 0;    // broad phase, continuous collision
   double ms_topology = 0;  // all of the topology's time on the step's critical path; its parts:
   // the sweep mapped to rest and the surface's cut, the volume's re-selection (MLS, masses),
