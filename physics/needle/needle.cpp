@@ -87,10 +87,11 @@ void Needle::grip(int j, const NeedlePose& pose, const Vector& x, std::vector<Ve
   for (std::size_t i = 0; i < zone.size(); ++i) {
     const int atom = zone[i].atom;
     const double share = stick ? w[i] : (friction > 0 ? tissue_.friction[atom] * w[i] / friction : w[i]);
-    on_tissue[atom] -= share * axial * pose.axis + w[i] * lateral;
+    on_tissue[atom] -= share * axial * pose.axis + (stick ? w[i] : 0.0) * lateral;
   }
-  // Slip: the particle slides along the axis to where its pull equals the kinetic friction.
-  if (!stick) particle.offset -= ((a - axial) / settings_.stick_stiffness) * pose.axis;
+  // Slip: the particle is put back on the shaft beside the node, where its pull is the kinetic
+  // friction along the axis and nothing across it.
+  if (!stick) particle.offset -= ((a - axial) / settings_.stick_stiffness) * pose.axis + lateral / settings_.stick_stiffness;
   out.friction += axial;
   grips_[j] = stick ? NodeGrip::stick : NodeGrip::slip;
   if (was == NodeGrip::stick && !stick) ++stick_to_slip_;
