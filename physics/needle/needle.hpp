@@ -14,8 +14,9 @@
 //      the node is F_v = k_v (A - p_j). The axial part a = F_v . axis is static friction while
 //      |a| <= F: the node sticks, a goes to the needle and -a w_i to the tissue. Beyond F the node
 //      slips: kinetic friction F sign(a) goes to the needle, -F_i sign(a) to the tissue
-//      (F_i = k_f^i w_i), and the particle slides along the axis until |a| = F. The lateral part
-//      of F_v always acts (the shaft cannot move sideways through the tissue without cutting it).
+//      (F_i = k_f^i w_i), and the particle is put back beside the node on the shaft, where its
+//      pull is F along the axis and nothing across. While the node sticks the lateral part of
+//      F_v acts too (the seed's whole virtual force in stick; the shaft's lateral constraint).
 // Every force on the tissue has its opposite on the needle: the needle's force is minus their
 // sum (to round-off).
 //
@@ -25,7 +26,7 @@
 // non-collinear zone nodes; it is kept while the node sticks and re-anchored by the slip, rather
 // than put back on the node every step, so that a needle at rest is held (stick) and a moving
 // one slides with a friction of F, not of a sawtooth below it; and stick / slip compares the
-// axial part of F_v with F, the lateral part being the shaft's lateral constraint.
+// axial part of F_v with F (the seed: all of it).
 #pragma once
 
 #include "physics/needle/needle_settings.hpp"
