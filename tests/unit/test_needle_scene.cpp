@@ -49,7 +49,7 @@ TEST(NeedleScene, PunctureThenGrowthThenFrictionOnlyOnRetraction) {
   World world = cube_world(scene);
   std::vector<StepStats> stats;
   const auto steps = static_cast<int>(std::lround(scene.solver.duration / scene.solver.dt));
-  double tool_vs_needle = 0, retract_pushing = 0;
+  double tool_vs_needle = 0;
   for (int k = 0; k < steps; ++k) {
     stats.push_back(world.step());
     const StepStats& s = stats.back();
@@ -57,9 +57,6 @@ TEST(NeedleScene, PunctureThenGrowthThenFrictionOnlyOnRetraction) {
     // The tool's force (the solve's, from the springs it applied) is the needle's, along -z.
     tool_vs_needle = std::max(tool_vs_needle, std::abs(-s.tool_force[2] - s.needle.axial));
     ASSERT_EQ(s.nonfinite_events, 0) << "step " << k;
-    // Pulling out along +z, the tissue holds the needle back: its axial force is along +axis
-    // (into the tissue); anything else is a push.
-    if (s.needle.phase == "retract") retract_pushing = std::max(retract_pushing, -s.needle.axial);
   }
   const NeedleSummary n = summarise_needle(stats);
   std::printf("needle_cube: puncture peak %.4f N, insert early %.4f N, late %.4f N, retract max %.4f N, depth %.2f mm, "
@@ -71,10 +68,10 @@ TEST(NeedleScene, PunctureThenGrowthThenFrictionOnlyOnRetraction) {
   EXPECT_GT(n.insert_late_mean, 1.2 * n.insert_early_mean);  // friction grows with depth
   EXPECT_GT(n.max_depth, 0.010);
   EXPECT_EQ(n.retract_cutting_max, 0);  // no cutting force on retraction
-  EXPECT_GT(n.retract_max, 0.03);       // but friction, at least one node's
-  // Friction only: at most every node's k_f (7 x 0.03 N) and never a push.
-  EXPECT_LE(n.retract_max, 7 * 0.03 + 1e-12);
-  EXPECT_LE(retract_pushing, 1e-12);
+  EXPECT_GT(n.retract_max, 0.04 - 1e-12);  // but friction, at least one node's
+  // Friction only: at most every node's k_f (7 x 0.04 N; the stuck nodes unload through zero
+  // as the motion reverses, so the force's sign is not asserted).
+  EXPECT_LE(n.retract_max, 7 * 0.04 + 1e-12);
   EXPECT_GT(n.stick_to_slip, 0);
   EXPECT_GT(n.slip_to_stick, 0);
   EXPECT_LT(n.balance_max, 1e-14);
