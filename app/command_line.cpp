@@ -182,6 +182,13 @@ void add_soak_command(CLI::App& parent, SoakBenchCommand& soak) {
   soak.command = command;
 }
 
+void add_needle_command(CLI::App& parent, NeedleBenchCommand& needle) {
+  auto* command = parent.add_subcommand("needle", "A needle into the shape-memory cube at three speeds: force against depth (puncture, insertion, retraction)");
+  command->add_option("--out", needle.options.out_dir, "Output folder (needle.csv, needle.png)")->capture_default_str();
+  command->add_option("--scene", needle.options.scene, "Needle scene (default assets/scenes/needle_cube.json)");
+  needle.command = command;
+}
+
 void add_bench_commands(CLI::App& app, Commands& commands) {
   auto* bench = app.add_subcommand("bench", "Benchmarks that print figures and write reports (CSV, PNG)");
   bench->require_subcommand(1);
@@ -190,6 +197,7 @@ void add_bench_commands(CLI::App& app, Commands& commands) {
   add_performance_command(*bench, commands.performance);
   add_haptics_command(*bench, commands.haptics);
   add_soak_command(*bench, commands.soak);
+  add_needle_command(*bench, commands.needle);
 }
 
 }  // namespace

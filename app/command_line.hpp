@@ -5,6 +5,7 @@
 
 #include "app/commands.hpp"
 #include "bench/haptics.hpp"
+#include "bench/needle.hpp"
 #include "bench/soak.hpp"
 
 #include <CLI/CLI.hpp>
@@ -120,6 +121,12 @@ struct SoakBenchCommand {
   }
 };
 
+// `incise bench needle`.
+struct NeedleBenchCommand {
+  bench::NeedleBenchOptions options;
+  CLI::App* command = nullptr;
+};
+
 struct Commands {
   ReplayCommand replay;
   CheckCommand check;
@@ -133,6 +140,7 @@ struct Commands {
   PerformanceBenchCommand performance;
   HapticsBenchCommand haptics;
   SoakBenchCommand soak;
+  NeedleBenchCommand needle;
 };
 
 // Adds every command to `app`, bound to `commands` (which must outlive the parse), in the

@@ -5,6 +5,7 @@
 #include "bench/haptics.hpp"
 #include "bench/performance.hpp"
 #include "bench/performance_report.hpp"
+#include "bench/needle.hpp"
 #include "bench/soak.hpp"
 #include "bench/stability.hpp"
 
@@ -45,6 +46,7 @@ int run_command(const incise::app::Commands& c) {
   if (*c.report.command) return app::report(c.report.run_dir);
   if (*c.haptics.command) return bench::run_haptics_bench(c.haptics.options(), std::cerr);
   if (*c.soak.command) return bench::run_soak_bench(c.soak.options(), std::cerr);
+  if (*c.needle.command) return bench::run_needle_bench(c.needle.options, std::cerr);
   const auto& t = c.trajectory;
   if (*t.export_command) return app::trajectory_export(t.export_file, t.export_out);
   if (*t.info_command) return app::trajectory_info(t.info_file);

@@ -12,7 +12,8 @@
 namespace incise::engine {
 
 std::vector<physics::NodalSpring> World::contact(const Body& body, StepStats& stats) const {
-  if (!tool_.present) return {};
+  // A needle touches nothing: its forces are its zones' (engine/insert_needle.cpp).
+  if (!tool_.present || needle()) return {};
   if (blade()) {
     if (!tool_.pressing || !body.cut || tool_.blade_poses.empty()) return {};
     // An edge pressed across itself (engaged wider than its rounded width across its motion) is

@@ -65,7 +65,7 @@ void World::fill_frame(render::Frame& frame, int width, int height) const {
     }
   } else if (tool_.present) {
     render::ToolShape shape;
-    shape.kind = scene_.tool->shape == "capsule" ? render::ToolShape::Kind::capsule
+    shape.kind = scene_.tool->shape == "capsule" || scene_.tool->shape == "needle" ? render::ToolShape::Kind::capsule
                                                  : render::ToolShape::Kind::sphere;
     for (int i = 0; i < 3; ++i) {
       shape.a[i] = static_cast<float>(tool_.tip[i]);

@@ -6,6 +6,7 @@
 #include "engine/incision_score.hpp"
 #include "engine/publication.hpp"
 #include "engine/trajectory.hpp"
+#include "engine/needle_summary.hpp"
 #include "engine/world.hpp"
 #include "physics/cp/constraint_particles.hpp"
 #include "physics/gpu/efg_step.hpp"
@@ -554,6 +555,25 @@ bool any_cuttable(const World& world) {
   return cuttable;
 }
 
+// metrics.json `needle` (engine/needle_summary.hpp); the ratios are what a scene's expect
+// block bounds: the puncture's peak over the resistance just past it, and the growth with depth.
+Json needle_json(const NeedleSummary& s) {
+  const auto ratio = [](double a, double b) { return b > 0 ? a / b : 0.0; };
+  return {{"puncture_peak_N", s.puncture_peak},
+          {"insert_early_mean_N", s.insert_early_mean},
+          {"insert_late_mean_N", s.insert_late_mean},
+          {"peak_over_early", ratio(s.puncture_peak, s.insert_early_mean)},
+          {"late_over_early", ratio(s.insert_late_mean, s.insert_early_mean)},
+          {"retract_max_N", s.retract_max},
+          {"retract_cutting_max_N", s.retract_cutting_max},
+          {"lateral_max_N", s.lateral_max},
+          {"max_depth_m", s.max_depth},
+          {"force_balance_max_N", s.balance_max},
+          {"stick_to_slip", s.stick_to_slip},
+          {"slip_to_stick", s.slip_to_stick},
+          {"steps", {{"puncture", s.puncture_steps}, {"insert", s.insert_steps}, {"retract", s.retract_steps}}}};
+}
+
 // metrics.json `cut`: the events, and what the CCD and the topology cost on the steps the
 // blade was tested.
 Json cut_json(const CutTotals& totals, const std::vector<StepStats>& stats) {
@@ -703,6 +723,7 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     metrics["surface"] = surface_json(world, totals);
     metrics["mapping"] = mapping_json(world, totals);
   }
+  if (world.needle()) metrics["needle"] = needle_json(summarise_needle(run.stats));
   if (scene.plan) {
     try {
       const IncisionScore score = score_incision(*scene.plan, world, run.stats, scene.solver.dt);

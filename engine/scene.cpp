@@ -213,14 +213,35 @@ void read_edge(Reader& tr, const Json& edge, bool blade, std::vector<Point>& out
   }
 }
 
+// The needle's own keys (seed 002 §2.3; physics/needle/needle_settings.hpp), refused on other tools.
+void read_needle(Reader& tr, bool needle, ToolSpec& t) {
+  physics::NeedleSettings& n = t.needle;
+  const physics::NeedleSettings d;
+  n.nodes = tr.integer("nodes", false, d.nodes, 2, 10000);
+  n.cutting_radius = tr.number("cutting_radius", false, d.cutting_radius, 0, 1, true);
+  n.friction_radius = tr.number("friction_radius", false, d.friction_radius, 0, 1, true);
+  n.cutting_force = tr.number("cutting_force", false, d.cutting_force, 0, 1e4);
+  n.puncture_force = tr.number("puncture_force", false, d.puncture_force, 0, 1e4);
+  n.friction_force = tr.number("friction_force", false, d.friction_force, 0, 1e4);
+  n.stick_stiffness = tr.number("stick_stiffness", false, d.stick_stiffness, 0, 1e9, true);
+  n.length = t.length;
+  if (needle) return;
+  for (const char* key : {"nodes", "cutting_radius", "friction_radius", "cutting_force", "puncture_force", "friction_force",
+                          "stick_stiffness"})
+    if (tr.has(key)) tr.error(tr.child(key), "only a needle has it");
+}
+
 ToolSpec read_tool(const Json& tool, const std::filesystem::path& file, std::vector<std::string>& errors) {
   Reader tr(tool, "tool", errors);
   ToolSpec t;
-  t.shape = tr.text("shape", true, "sphere", {"sphere", "capsule", "blade"});
+  t.shape = tr.text("shape", true, "sphere", {"sphere", "capsule", "blade", "needle"});
   const bool blade = t.shape == "blade";
-  t.radius = tr.number("radius", !blade, blade ? 0.0005 : 0.005, 0, 1, true);
-  t.length = tr.number("length", t.shape == "capsule", 0, 0, 10);
+  const bool needle = t.shape == "needle";
+  t.radius = tr.number("radius", !blade && !needle, blade || needle ? 0.0005 : 0.005, 0, 1, true);
+  t.length = tr.number("length", t.shape == "capsule" || needle, 0, 0, 10, needle);
   t.stiffness = tr.number("stiffness", false, 500, 0, 1e9, true);
+  if (needle && tr.has("stiffness")) tr.error(tr.child("stiffness"), "a needle has no penalty contact (its forces are its zones', docs/scenes.md \"Needle\")");
+  read_needle(tr, needle, t);
   t.flank_friction = tr.number("flank_friction", false, physics::kDefaultFlankFriction, 0, 1e7);
   if (!blade && tr.has("flank_friction")) tr.error(tr.child("flank_friction"), "only a blade has flanks");
   t.onset = tr.boolean("onset", blade);  // a blade presses until the crack's onset unless told not to

@@ -5,6 +5,8 @@
 // the errors of a file are reported together so a user fixes them in one pass.
 #pragma once
 
+#include "physics/needle/needle_settings.hpp"
+
 #include <any>
 #include <array>
 #include <filesystem>
@@ -96,7 +98,9 @@ struct BodySpec {
 };
 
 struct ToolSpec {
-  std::string shape;  // "sphere", "capsule" (probes, penalty contact) or "blade" (cuts, no force)
+  // "sphere", "capsule" (probes, penalty contact), "blade" (cuts, no force) or "needle" (seed 002
+  // §2.3: zones of influence, no contact; physics/needle/needle.hpp)
+  std::string shape;
   double radius = 0;
   double length = 0;  // capsule: along the tool's local -z from the tip... see docs
   double stiffness = 0;  // penalty contact stiffness per surface node, N/m
@@ -111,6 +115,8 @@ struct ToolSpec {
   // the frame's origin). An ideal blade (seed 004 §2.2): no volume, no force, it cuts the
   // cuttable bodies wherever its edge passes while engaged (trajectory buttons bit 0).
   std::vector<Point> edge;
+  // Needle: its nodes, zones and the tissue's intensities (`length` above is the needle's too).
+  physics::NeedleSettings needle;
 };
 
 struct SolverSpec {

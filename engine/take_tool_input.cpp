@@ -63,7 +63,7 @@ void World::take_tool_input(double time) {
     for (std::size_t j = 1; j < tool_.blade_fractions.size(); ++j)
       tool_.blade_fractions[j] = std::max(tool_.blade_fractions[j], tool_.blade_fractions[j - 1]);
   }
-  if (scene_.tool->shape == "capsule") {
+  if (scene_.tool->shape == "capsule" || scene_.tool->shape == "needle") {
     auto axis = rotate(tool_.pose.orientation, {0, 0, scene_.tool->length});
     for (int i = 0; i < 3; ++i) tool_.tail[i] = tool_.tip[i] + axis[i];
   }

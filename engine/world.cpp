@@ -66,6 +66,7 @@ void World::build() {
     tool_.radius = scene_.tool->radius;
   }
   take_tool_input(0.0);
+  build_needle();
 }
 
 void World::reset() {
@@ -183,6 +184,10 @@ StepStats World::step(std::int64_t deadline_ns) {
   std::vector<std::vector<physics::NodalSpring>> springs(bodies_.size());
   phase.restart();
   for (std::size_t b = 0; b < bodies_.size(); ++b) springs[b] = contact(bodies_[b], stats);
+  if (needle()) {
+    auto pushed = insert_needle(stats);
+    for (std::size_t b = 0; b < bodies_.size(); ++b) springs[b].insert(springs[b].end(), pushed[b].begin(), pushed[b].end());
+  }
   stats.ms_contact = phase.ms();
   phase.restart();
   const std::vector<physics::Vec3> centres = tool_.pressing ? mass_centres() : std::vector<physics::Vec3>{};
@@ -263,6 +268,21 @@ std::uint64_t World::state_hash() const {
     fnv1a(hash, &cutting, 1);
     fnv1a(hash, &tool_.cutting.work, sizeof(double));
     for (const auto& point : tool_.cutting.entry) fnv1a(hash, point.data(), 3 * sizeof(double));
+  }
+  if (needle()) {
+    // The needle's zones and its virtual particles decide the next steps' forces.
+    fnv1a(hash, needle_.last_tip.data(), 3 * sizeof(double));
+    for (const physics::Needle& n : needle_.bodies) {
+      fnv1a(hash, n.grips());
+      for (const auto& m : n.zones().cutting) fnv1a(hash, &m.atom, sizeof(int));
+      for (const auto& zone : n.zones().friction)
+        for (const auto& m : zone) fnv1a(hash, &m.atom, sizeof(int));
+      for (const auto& p : n.particles()) {
+        fnv1a(hash, p.atoms);
+        fnv1a(hash, p.weights);
+        fnv1a(hash, p.offset.data(), 3 * sizeof(double));
+      }
+    }
   }
   return hash;
 }

@@ -18,6 +18,7 @@
 #include "physics/cut/cut_body.hpp"
 #include "physics/cut/cutting_resistance.hpp"
 #include "physics/cut/detect_cuts.hpp"
+#include "physics/needle/needle.hpp"
 #include "render/frame.hpp"
 
 #include <array>
@@ -34,6 +35,23 @@ namespace incise::engine {
 // Raised when a step stays non-finite after every retry; names the body and the step.
 class NonFiniteError : public std::runtime_error {
   using std::runtime_error::runtime_error;
+};
+
+// The needle's step (engine/insert_needle.cpp): its phase, how deep the tip is past where it first
+// met the tissue, the force on it (also in StepStats::tool_force) along and across its axis, the
+// cutting and friction parts, and its nodes' grip.
+struct NeedleStepStats {
+  bool present = false;
+  std::string phase = "approach";  // approach, puncture, insert, retract
+  double depth = 0;                // m, along the axis from the first contact point
+  double speed = 0;                // m/s along the axis (negative: retracting)
+  double axial = 0;                // N, the tissue's force on the needle along its axis
+  double lateral = 0;              // N, across it
+  double cutting = 0;              // C, N (resisting the needle)
+  double friction = 0;             // N along the axis, static and kinetic
+  double balance = 0;              // N, |force on the needle + forces on the tissue| (round-off)
+  int sticking = 0, slipping = 0;  // nodes
+  long stick_to_slip = 0, slip_to_stick = 0;  // since the start
 };
 
 // Where time went in one step, and what the solver said.
@@ -85,6 +103,7 @@ struct StepStats {
   int links_severed = 0;
   double elastic_energy = 0;
   double kinetic_energy = 0;
+  NeedleStepStats needle;
   // GPU backend: bytes uploaded this step, and of them the rows (element, incidence, surface).
   long long gpu_bytes = 0;
   long long gpu_row_bytes = 0;
@@ -171,6 +190,9 @@ class World {
   const GuardCounts& guard_counts() const { return guard_counts_; }
   const CutTotals& cut_totals() const { return cut_totals_; }
   bool blade() const { return tool_.present && scene_.tool->shape == "blade"; }
+  bool needle() const { return tool_.present && scene_.tool->shape == "needle"; }
+  // Needle: per body, the needle in it (physics/needle/needle.hpp).
+  const std::vector<physics::Needle>& needles() const { return needle_.bodies; }
   // The first kGuardLogLimit events; guard_counts() has them all.
   const std::vector<GuardEvent>& guard_events() const { return guard_events_; }
   static constexpr std::size_t kGuardLogLimit = 200;
@@ -201,6 +223,9 @@ class World {
   std::vector<physics::Vec3> mass_centres() const;
   void advance_onset(const std::vector<physics::Vec3>& centres_before, StepStats& stats);
   void update_surface(Body& body) const;
+  // The needle's forces on every body this step (engine/insert_needle.cpp), as explicit springs.
+  void build_needle();
+  std::vector<std::vector<physics::NodalSpring>> insert_needle(StepStats& stats);
   // solver.backend "gpu": the body's GPU step (throws naming the field when it cannot be).
   void make_gpu_backend(Body& body, std::size_t index) const;
   // The cut stages of one cuttable body (physics/cut/detect_cuts.hpp, apply_topology.hpp).
@@ -216,6 +241,14 @@ class World {
   std::optional<Trajectory> trajectory_;
   std::optional<Trajectory> initial_trajectory_;  // for reset()
   ToolState tool_;
+  // Needle: one per body, the tip at the last step, where it first met the tissue, the phase.
+  struct NeedleTrack {
+    std::vector<physics::Needle> bodies;
+    physics::Vec3 last_tip = physics::Vec3::Zero();
+    bool touched = false;
+    physics::Vec3 entry = physics::Vec3::Zero();
+    std::string phase = "approach";
+  } needle_;
   double time_ = 0;
   std::uint64_t steps_ = 0;
   std::array<double, 3> bounds_min_{}, bounds_max_{};

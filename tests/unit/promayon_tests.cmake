@@ -10,3 +10,15 @@ add_executable(test_promayon_scenes ${CMAKE_CURRENT_LIST_DIR}/test_promayon_scen
 target_link_libraries(test_promayon_scenes PRIVATE incise_engine GTest::gtest_main)
 target_compile_definitions(test_promayon_scenes PRIVATE INCISE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
 gtest_discover_tests(test_promayon_scenes DISCOVERY_TIMEOUT 60)
+
+# The needle (physics/needle, seed 002 §2.3) on a still lattice, and through the engine into the
+# shape-memory cube (test_needle_scene: assets/scenes/needle_cube.json).
+add_executable(test_needle ${CMAKE_CURRENT_LIST_DIR}/test_needle.cpp)
+target_link_libraries(test_needle PRIVATE incise_physics GTest::gtest_main)
+gtest_discover_tests(test_needle DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
+
+add_executable(test_needle_scene ${CMAKE_CURRENT_LIST_DIR}/test_needle_scene.cpp)
+target_link_libraries(test_needle_scene PRIVATE incise_engine GTest::gtest_main)
+target_compile_definitions(test_needle_scene PRIVATE INCISE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+# The cube scene runs 39000 steps of the Moore shape memory (714 s on the shared 2-core machine).
+gtest_discover_tests(test_needle_scene DISCOVERY_TIMEOUT 60 PROPERTIES TIMEOUT 1500 COST 720)

@@ -1,0 +1,48 @@
+#include "engine/needle_summary.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace incise::engine {
+
+NeedleSummary summarise_needle(const std::vector<StepStats>& stats) {
+  NeedleSummary s;
+  double punctured_at = -1e300;  // the depth where the last puncture step ended
+  for (const auto& step : stats) {
+    const NeedleStepStats& n = step.needle;
+    if (!n.present) continue;
+    s.max_depth = std::max(s.max_depth, n.depth);
+    s.balance_max = std::max(s.balance_max, n.balance);
+    s.lateral_max = std::max(s.lateral_max, n.lateral);
+    s.stick_to_slip = n.stick_to_slip;
+    s.slip_to_stick = n.slip_to_stick;
+    if (n.phase == "puncture") {
+      s.puncture_peak = std::max(s.puncture_peak, -n.axial);
+      punctured_at = n.depth;
+      ++s.puncture_steps;
+    } else if (n.phase == "retract") {
+      s.retract_max = std::max(s.retract_max, std::abs(n.axial));
+      s.retract_cutting_max = std::max(s.retract_cutting_max, n.cutting);
+      ++s.retract_steps;
+    }
+  }
+  // Advancing past the puncture: the resistance over the first and the last third of that depth.
+  double deepest = punctured_at;
+  for (const auto& step : stats)
+    if (step.needle.phase == "insert" && step.needle.speed > 0) deepest = std::max(deepest, step.needle.depth);
+  const double third = (deepest - punctured_at) / 3;
+  double early = 0, late = 0;
+  int n_early = 0, n_late = 0;
+  for (const auto& step : stats) {
+    const NeedleStepStats& n = step.needle;
+    if (n.phase != "insert" || !(n.speed > 0) || n.depth < punctured_at) continue;
+    ++s.insert_steps;
+    if (n.depth <= punctured_at + third) early += -n.axial, ++n_early;
+    if (n.depth >= deepest - third) late += -n.axial, ++n_late;
+  }
+  s.insert_early_mean = n_early ? early / n_early : 0;
+  s.insert_late_mean = n_late ? late / n_late : 0;
+  return s;
+}
+
+}  // namespace incise::engine
