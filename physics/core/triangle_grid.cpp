@@ -89,7 +89,11 @@ void TriangleGrid::candidates(const Vec3& p, std::vector<int>& out) {
     rings = std::max({rings, centre[k], dims_[k] - 1 - centre[k]});
   }
   double best = std::numeric_limits<double>::infinity();
+  const auto reach = [&] { return best * (1 + 1e-6) + slack_; };
   const auto visit = [&](int i, int j, int l) {
+    // A cell farther than the nearest so far (with the margins) holds no triangle that matters.
+    const Vec3 cell_lo = origin_ + cell_ * Vec3(i, j, l), cell_hi = cell_lo + Vec3::Constant(cell_);
+    if ((cell_lo - p).cwiseMax(p - cell_hi).cwiseMax(Vec3::Zero()).norm() > reach()) return;
     const std::size_t c = (static_cast<std::size_t>(l) * dims_[1] + j) * dims_[0] + i;
     for (int n = start_[c]; n < start_[c + 1]; ++n) {
       const int t = items_[static_cast<std::size_t>(n)];
@@ -111,8 +115,14 @@ void TriangleGrid::candidates(const Vec3& p, std::vector<int>& out) {
       }
     // Every cell not yet seen is at least ring cells away: its triangles' boxes are farther
     // than the nearest by the margins (when one is found), so none of them can matter.
-    if (static_cast<double>(ring) * cell_ > best * (1 + 1e-6) + slack_) break;
+    if (static_cast<double>(ring) * cell_ > reach()) break;
   }
+  // Of those seen, the ones whose box is within the nearest's distance (with the margins).
+  const double within = reach();
+  std::erase_if(out, [&](int t) {
+    const std::size_t s = static_cast<std::size_t>(t);
+    return (lo_[s] - p).cwiseMax(p - hi_[s]).cwiseMax(Vec3::Zero()).norm() > within;
+  });
   std::sort(out.begin(), out.end());
 }
 

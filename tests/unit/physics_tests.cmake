@@ -38,3 +38,9 @@ gtest_discover_tests(test_constraint_particles DISCOVERY_TIMEOUT 60 PROPERTIES L
 add_executable(test_constraint_particles_accuracy ${CMAKE_CURRENT_LIST_DIR}/test_constraint_particles_accuracy.cpp)
 target_link_libraries(test_constraint_particles_accuracy PRIVATE incise_bench GTest::gtest_main)
 gtest_discover_tests(test_constraint_particles_accuracy DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
+
+# The surface grid of the nearest-triangle scans (mark_engaged, held_contact) against a scan of
+# every triangle.
+add_executable(test_triangle_grid ${CMAKE_CURRENT_LIST_DIR}/test_triangle_grid.cpp)
+target_link_libraries(test_triangle_grid PRIVATE incise_physics GTest::gtest_main)
+gtest_discover_tests(test_triangle_grid DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
