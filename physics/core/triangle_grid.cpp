@@ -19,7 +19,7 @@ constexpr double kCellsPerTriangle = 4.0;
 TriangleGrid::TriangleGrid(const Vector& x, const std::vector<std::array<int, 3>>& surface,
                            const std::vector<std::uint8_t>& use)
     : x_(x), surface_(surface), lo_(surface.size(), Vec3::Zero()), hi_(surface.size(), Vec3::Zero()),
-      stamp_(surface.size(), 0) {
+      stamp_(surface.size(), 0), seen_(surface.size(), -1) {
   Vec3 low = Vec3::Constant(std::numeric_limits<double>::infinity()), high = -low;
   double extent_sum = 0;
   for (std::size_t t = 0; t < surface.size(); ++t) {
@@ -101,7 +101,11 @@ void TriangleGrid::candidates(const Vec3& p, std::vector<int>& out) {
       stamp_[static_cast<std::size_t>(t)] = query_;
       out.push_back(t);
       const std::size_t s = static_cast<std::size_t>(t);
-      if ((lo_[s] - p).cwiseMax(p - hi_[s]).cwiseMax(Vec3::Zero()).norm() < best) best = std::min(best, distance(p, t));
+      seen_[s] = -1;  // its distance not computed: its box was no nearer than the nearest then
+      if ((lo_[s] - p).cwiseMax(p - hi_[s]).cwiseMax(Vec3::Zero()).norm() < best) {
+        seen_[s] = distance(p, t);
+        best = std::min(best, seen_[s]);
+      }
     }
   };
   for (int ring = 0; ring <= rings; ++ring) {
@@ -117,11 +121,13 @@ void TriangleGrid::candidates(const Vec3& p, std::vector<int>& out) {
     // than the nearest by the margins (when one is found), so none of them can matter.
     if (static_cast<double>(ring) * cell_ > reach()) break;
   }
-  // Of those seen, the ones whose box is within the nearest's distance (with the margins).
+  // Of those seen, the ones within the nearest's distance (with the margins): their box, and
+  // their own distance where it was computed. The others, farther by more than rounding, can
+  // neither be the nearest nor make the scan skip it.
   const double within = reach();
   std::erase_if(out, [&](int t) {
     const std::size_t s = static_cast<std::size_t>(t);
-    return (lo_[s] - p).cwiseMax(p - hi_[s]).cwiseMax(Vec3::Zero()).norm() > within;
+    return seen_[s] > within || (lo_[s] - p).cwiseMax(p - hi_[s]).cwiseMax(Vec3::Zero()).norm() > within;
   });
   std::sort(out.begin(), out.end());
 }

@@ -46,6 +46,7 @@ class TriangleGrid {
   std::array<int, 3> dims_{0, 0, 0};
   std::vector<int> start_, items_;  // cell c's triangles: items_[start_[c] .. start_[c + 1]), in order
   std::vector<int> stamp_;          // per triangle: the query that last saw it
+  std::vector<double> seen_;        // per triangle: its distance in that query (-1: not computed)
   int query_ = 0;
 };
 

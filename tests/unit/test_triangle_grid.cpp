@@ -101,7 +101,9 @@ TEST(TriangleGrid, ItsCandidatesGiveTheSameNearestTriangleAsAScanOfEveryTriangle
     const Nearest all = scan(s, grid, p, every), near = scan(s, grid, p, candidates);
     // Near the surface the grid leaves most of it out (deep inside, a point is nearly as far
     // from much of it).
-    if (all.distance < 0.005) EXPECT_LT(candidates.size(), every.size() / 20);
+    if (all.distance < 0.005) {
+      EXPECT_LT(candidates.size(), every.size() / 20);
+    }
     ASSERT_EQ(near.triangle, all.triangle) << "at " << p.transpose();
     ASSERT_EQ(near.distance, all.distance) << "at " << p.transpose();
     ++checked;
