@@ -122,7 +122,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
       const long last = std::lround(2.0 / scene.solver.dt);
       std::vector<double> ccd, topology, solve, surface, total, cut, mapping, checks, front_cut, cut_cpu;
       std::vector<double> iterations, per_iteration, uncut_total, uncut_iterations, assembly, outside_solve, tool_input,
-          contact, other;
+          resistance, contact, other;
       long events = 0;
       double topology_max = 0, build_ms = 0, wait_max = 0;
       long long cut_step_bytes = 0, age_max = 0;
@@ -153,8 +153,9 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
         // Where a step's time outside the solve goes (the step's phases, engine/world.cpp).
         outside_solve.push_back(stats.ms_total - stats.ms_solve);
         tool_input.push_back(stats.ms_tool_input);
+        resistance.push_back(stats.ms_resistance);
         contact.push_back(stats.ms_contact);
-        other.push_back(stats.ms_total - stats.ms_solve - stats.ms_tool_input - stats.ms_contact - stats.ms_ccd -
+        other.push_back(stats.ms_total - stats.ms_solve - stats.ms_tool_input - stats.ms_resistance - stats.ms_contact - stats.ms_ccd -
                         stats.ms_topology - stats.ms_surface);
         surface.push_back(stats.ms_surface);
         total.push_back(stats.ms_total);
@@ -202,7 +203,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
       if (solve_ratio > 0) progress << ", solve / jacobi's x" << std::setprecision(3) << solve_ratio;
       if (median(assembly) > 0) progress << ", assembly " << std::setprecision(2) << median(assembly) << " ms of the solve";
       progress << "\n" << std::setw(33) << "outside the solve" << ": " << std::setprecision(2) << median(outside_solve)
-               << " ms (tool input " << median(tool_input) << ", ccd " << median(ccd) << ", topology " << median(topology)
+               << " ms (tool input " << median(tool_input) << ", resistance " << median(resistance) << ", ccd " << median(ccd) << ", topology " << median(topology)
                << ", contact " << median(contact) << ", surface " << median(surface) << ", the rest " << median(other)
                << "; medians)";
       progress << "\n";

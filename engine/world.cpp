@@ -165,7 +165,9 @@ StepStats World::step(std::int64_t deadline_ns) {
   stats.ms_tool_input = phase.ms();
   stats.tool_tip = tool_.tip;
   stats.blade_engaged = std::find(tool_.blade_active.begin(), tool_.blade_active.end(), 1) != tool_.blade_active.end();
+  phase.restart();
   resist_cutting(stats);
+  stats.ms_resistance = phase.ms();
   budget_.begin_step(steps_ + 1, deadline_ns > 0 ? deadline_ns - static_cast<std::int64_t>(ms_after_solve_ * 1e6) : 0);
   for (auto& body : bodies_) {
     if (!body.cut || !blade()) continue;  // a body is cut by a blade only

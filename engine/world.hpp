@@ -57,6 +57,7 @@ struct NeedleStepStats {
 // Where time went in one step, and what the solver said.
 struct StepStats {
   double ms_tool_input = 0;
+  double ms_resistance = 0;  // resist_cutting: the edge pieces in the tissue (physics::mark_engaged)
   double ms_contact = 0;
   double ms_solve = 0;
   double ms_assembly = 0;  // of ms_solve: assembling the current system (solver.preconditioner "multigrid_current")

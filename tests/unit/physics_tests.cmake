@@ -43,3 +43,9 @@ gtest_discover_tests(test_constraint_particles_accuracy DISCOVERY_TIMEOUT 60 PRO
 add_executable(test_mass_spring_implicit ${CMAKE_CURRENT_LIST_DIR}/test_mass_spring_implicit.cpp)
 target_link_libraries(test_mass_spring_implicit PRIVATE incise_physics GTest::gtest_main)
 gtest_discover_tests(test_mass_spring_implicit DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
+
+# The surface grid of the nearest-triangle scans (mark_engaged, held_contact) against a scan of
+# every triangle.
+add_executable(test_triangle_grid ${CMAKE_CURRENT_LIST_DIR}/test_triangle_grid.cpp)
+target_link_libraries(test_triangle_grid PRIVATE incise_physics GTest::gtest_main)
+gtest_discover_tests(test_triangle_grid DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
