@@ -1,7 +1,5 @@
 #include "engine/thread_pool.hpp"
 
-#include <future>
-
 #include <algorithm>
 #include <stdexcept>
 #include <string>
@@ -176,7 +174,7 @@ void ThreadPoolExecutor::run_beside(const std::function<void()>& own,
 }
 
 std::shared_future<void> ThreadPoolExecutor::run_async(std::function<void()> job) {
-  return std::async(std::launch::async, std::move(job)).share();
+  return background_.post(std::move(job));
 }
 
 std::uint64_t ThreadPoolExecutor::side_taken_by_helper() const {

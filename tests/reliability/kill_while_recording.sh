@@ -95,10 +95,16 @@ tear() {
 
 # --- the headless session ---
 reference_csv=$work/reference.csv
-start=$(now_ms)
-"$incise" session "$scene" --steps "$steps" --record "$work/reference.traj" --out "$work/reference" --quiet ||
-  { echo "FAIL: the uninterrupted session failed"; exit 1; }
-full_ms=$(($(now_ms) - start))
+# The uninterrupted run's time, the shorter of two runs: a session keeps to real time, and one
+# started beside a busy neighbour (ctest runs two tests at once) may take several times longer.
+full_ms=
+for pass in 1 2; do
+  start=$(now_ms)
+  "$incise" session "$scene" --steps "$steps" --record "$work/reference.traj" --out "$work/reference" --quiet ||
+    { echo "FAIL: the uninterrupted session failed"; exit 1; }
+  took=$(($(now_ms) - start))
+  if [ -z "$full_ms" ] || [ "$took" -lt "$full_ms" ]; then full_ms=$took; fi
+done
 "$incise" trajectory export "$work/reference.traj" --csv --out "$reference_csv" || exit 1
 echo "uninterrupted session: $steps steps in $full_ms ms, $(($(wc -l <"$reference_csv") - 1)) samples"
 
@@ -115,7 +121,11 @@ for i in $(seq 1 "$kills"); do
   kill -KILL "$pid" 2>/dev/null
   wait "$pid" 2>/dev/null
   rc=$?
-  if [ "$rc" = 137 ]; then killed=$((killed + 1)); label="kill $i at ${delay} ms"; else label="run $i (finished before its kill at ${delay} ms, exit $rc)"; fi
+  if [ "$rc" = 137 ]; then killed=$((killed + 1)); label="kill $i at ${delay} ms"; else
+    label="run $i (finished before its kill at ${delay} ms, exit $rc)"
+    # It ran faster than the reference: draw the next kills within its time.
+    full_ms=$((delay * 6 / 7))
+  fi
   check "$file" "$label" "$reference_csv"
   [ "$info_rc" = 2 ] && torn_by_kill=$((torn_by_kill + 1))
   [ "${kept_samples:-0}" = 0 ] && empty=$((empty + 1))
