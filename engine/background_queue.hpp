@@ -3,8 +3,8 @@
 // own, and glibc a malloc arena of its own now and then: the freed factors' memory stayed in
 // those arenas, out of malloc_trim's reach, and a long session's RSS grew with the cuts (the
 // soak, +11 % in two minutes, flat with MALLOC_ARENA_MAX=1). One thread keeps one arena,
-// reused build after build. Started at the first post, so a body that never builds a factor
-// has no thread.
+// reused build after build; ThreadPoolExecutor keeps one for the process. Started at the first
+// post, so a process that never builds a factor has no such thread.
 #pragma once
 
 #include <condition_variable>

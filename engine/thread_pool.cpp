@@ -174,7 +174,11 @@ void ThreadPoolExecutor::run_beside(const std::function<void()>& own,
 }
 
 std::shared_future<void> ThreadPoolExecutor::run_async(std::function<void()> job) {
-  return background_.post(std::move(job));
+  // One thread for the whole process, never destroyed (its jobs own what they read): a thread
+  // per body, started and ended with it, let a long session's RSS grow with every rebuilt body
+  // (each new thread's first factor left memory behind: malloc arenas, BLAS buffers).
+  static BackgroundQueue* const queue = new BackgroundQueue;
+  return queue->post(std::move(job));
 }
 
 std::uint64_t ThreadPoolExecutor::side_taken_by_helper() const {

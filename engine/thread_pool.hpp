@@ -95,8 +95,8 @@ class ThreadPoolExecutor final : public physics::Executor {
   void parallel_for(int count, const std::function<void(int begin, int end)>& task,
                     int minimum_per_thread = 1) override;
   void run_beside(const std::function<void()>& own, const std::function<void()>& side) override;
-  // On the executor's background thread (BackgroundQueue: one, jobs in order), beside the
-  // pool's and the helper's.
+  // On the process's background thread (BackgroundQueue: one for every executor, jobs in
+  // order), beside the pool's and the helper's.
   std::shared_future<void> run_async(std::function<void()> job) override;
 
   bool has_side_helper() const { return side_ != nullptr; }
@@ -106,7 +106,6 @@ class ThreadPoolExecutor final : public physics::Executor {
  private:
   WorkerPool pool_;
   std::unique_ptr<SideRunner> side_;
-  BackgroundQueue background_;
 };
 
 }  // namespace incise::engine

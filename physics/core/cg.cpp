@@ -8,13 +8,44 @@
 
 namespace incise::physics {
 
-namespace {
-
-void zero_fixed(const std::vector<uint8_t>& fixed_nodes, Vector& v) {
+void zero_fixed_nodes(const std::vector<uint8_t>& fixed_nodes, Vector& v) {
   for (size_t node = 0; node < fixed_nodes.size(); ++node) {
     if (fixed_nodes[node] != 0) v.segment<3>(3 * static_cast<Eigen::Index>(node)).setZero();
   }
 }
+
+bool start_krylov(const char* who, const Vector& b, const std::vector<uint8_t>& fixed_nodes, Vector& x,
+                  Vector& filtered_b, double& b_norm, CgResult& result) {
+  const Eigen::Index size = b.size();
+  if (x.size() != size) {
+    throw std::invalid_argument(std::string(who) + ": x (" + std::to_string(x.size()) +
+                                ") must have the size of b (" + std::to_string(size) + ")");
+  }
+  if (!fixed_nodes.empty() && static_cast<Eigen::Index>(3 * fixed_nodes.size()) != size) {
+    throw std::invalid_argument(std::string(who) + ": fixed_nodes has " +
+                                std::to_string(fixed_nodes.size()) + " nodes, b has " +
+                                std::to_string(size) + " entries (3 per node expected)");
+  }
+  zero_fixed_nodes(fixed_nodes, x);
+  if (!x.allFinite()) x.setZero();  // a non-finite guess carries no information
+  filtered_b = b;
+  zero_fixed_nodes(fixed_nodes, filtered_b);
+  b_norm = filtered_b.norm();
+  if (!std::isfinite(b_norm)) {
+    result.nonfinite = true;
+    return false;
+  }
+  if (b_norm == 0.0) {
+    x.setZero();
+    result.converged = true;
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+void zero_fixed(const std::vector<uint8_t>& fixed_nodes, Vector& v) { zero_fixed_nodes(fixed_nodes, v); }
 
 // The initial guess x0 (the previous step's dv) scaled to the multiple a x0 nearest the
 // solution in the A-norm, a = x0.b / x0.A x0, from the product CG needs anyway. a = 1 is the
@@ -63,32 +94,10 @@ CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const 
 CgResult preconditioned_conjugate_gradient(const LinearOperator& apply, const Vector& b, const Preconditioner& precondition,
                             const std::vector<uint8_t>& fixed_nodes, Vector& x, const CgSettings& settings) {
   const Eigen::Index size = b.size();
-  if (x.size() != size) {
-    throw std::invalid_argument("conjugate_gradient: x (" + std::to_string(x.size()) +
-                                ") must have the size of b (" + std::to_string(size) + ")");
-  }
-  if (!fixed_nodes.empty() && static_cast<Eigen::Index>(3 * fixed_nodes.size()) != size) {
-    throw std::invalid_argument("conjugate_gradient: fixed_nodes has " +
-                                std::to_string(fixed_nodes.size()) + " nodes, b has " +
-                                std::to_string(size) + " entries (3 per node expected)");
-  }
-
   CgResult result;
-  zero_fixed(fixed_nodes, x);
-  if (!x.allFinite()) x.setZero();  // a non-finite guess carries no information
-
-  Vector filtered_b = b;
-  zero_fixed(fixed_nodes, filtered_b);
-  const double b_norm = filtered_b.norm();
-  if (!std::isfinite(b_norm)) {
-    result.nonfinite = true;
-    return result;
-  }
-  if (b_norm == 0.0) {
-    x.setZero();
-    result.converged = true;
-    return result;
-  }
+  Vector filtered_b;
+  double b_norm = 0;
+  if (!start_krylov("conjugate_gradient", b, fixed_nodes, x, filtered_b, b_norm, result)) return result;
 
   Vector product(size);
   apply(x, product);

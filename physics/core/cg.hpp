@@ -67,4 +67,14 @@ Vector jacobi_inverse(const Vector& diagonal);
 CgResult preconditioned_conjugate_gradient(const LinearOperator& apply, const Vector& b, const Preconditioner& precondition,
                             const std::vector<uint8_t>& fixed_nodes, Vector& x, const CgSettings& settings = {});
 
+// What the Krylov solvers share (this CG, solve/bicgstab.cpp). zero_fixed_nodes: v's entries of
+// the fixed nodes set to 0. start_krylov: checks the sizes (`who` names the solver in the
+// message), zeroes the fixed entries of the guess x (a non-finite guess, which carries no
+// information, becomes 0) and returns b with them zeroed in `filtered_b` and its norm in
+// `b_norm`; false with `result` final when b is non-finite (result.nonfinite) or zero (x = 0,
+// converged): the solver returns it as it is.
+void zero_fixed_nodes(const std::vector<uint8_t>& fixed_nodes, Vector& v);
+bool start_krylov(const char* who, const Vector& b, const std::vector<uint8_t>& fixed_nodes, Vector& x,
+                  Vector& filtered_b, double& b_norm, CgResult& result);
+
 }  // namespace incise::physics

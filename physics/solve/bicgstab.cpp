@@ -6,42 +6,16 @@
 
 namespace incise::physics {
 
-namespace {
-
-void zero_fixed(const std::vector<uint8_t>& fixed_nodes, Vector& v) {
-  for (size_t node = 0; node < fixed_nodes.size(); ++node)
-    if (fixed_nodes[node] != 0) v.segment<3>(3 * static_cast<Eigen::Index>(node)).setZero();
-}
-
-}  // namespace
-
 CgResult bicgstab(const LinearOperator& apply, const Vector& b, const Preconditioner& precondition,
                   const std::vector<uint8_t>& fixed_nodes, Vector& x, const CgSettings& settings) {
   const Eigen::Index size = b.size();
-  if (x.size() != size)
-    throw std::invalid_argument("bicgstab: x (" + std::to_string(x.size()) + ") must have the size of b (" +
-                                std::to_string(size) + ")");
-  if (!fixed_nodes.empty() && static_cast<Eigen::Index>(3 * fixed_nodes.size()) != size)
-    throw std::invalid_argument("bicgstab: fixed_nodes has " + std::to_string(fixed_nodes.size()) + " nodes, b has " +
-                                std::to_string(size) + " entries (3 per node expected)");
   CgResult result;
-  zero_fixed(fixed_nodes, x);
-  if (!x.allFinite()) x.setZero();
-  Vector filtered_b = b;
-  zero_fixed(fixed_nodes, filtered_b);
-  const double b_norm = filtered_b.norm();
-  if (!std::isfinite(b_norm)) {
-    result.nonfinite = true;
-    return result;
-  }
-  if (b_norm == 0.0) {
-    x.setZero();
-    result.converged = true;
-    return result;
-  }
+  Vector filtered_b;
+  double b_norm = 0;
+  if (!start_krylov("bicgstab", b, fixed_nodes, x, filtered_b, b_norm, result)) return result;
   Vector v(size), residual(size);
   apply(x, v);
-  zero_fixed(fixed_nodes, v);
+  zero_fixed_nodes(fixed_nodes, v);
   // The guess's multiple with the least residual, a = (A x0).b / |A x0|^2 (the CG's A-norm
   // scaling needs a symmetric A): never worse than the guess as given or a zero start.
   if (const double vv = v.squaredNorm(); vv > 0 && std::isfinite(vv)) {
@@ -66,9 +40,9 @@ CgResult bicgstab(const LinearOperator& apply, const Vector& b, const Preconditi
     rho = rho_next;
     direction = residual + beta * (direction - omega * v);
     precondition(direction, y);
-    zero_fixed(fixed_nodes, y);
+    zero_fixed_nodes(fixed_nodes, y);
     apply(y, v);
-    zero_fixed(fixed_nodes, v);
+    zero_fixed_nodes(fixed_nodes, v);
     const double shadow_v = shadow.dot(v);
     if (shadow_v == 0.0 || !std::isfinite(shadow_v)) break;
     alpha = rho / shadow_v;
@@ -81,9 +55,9 @@ CgResult bicgstab(const LinearOperator& apply, const Vector& b, const Preconditi
     }
     if (result.nonfinite) return result;
     precondition(s, z);
-    zero_fixed(fixed_nodes, z);
+    zero_fixed_nodes(fixed_nodes, z);
     apply(z, t);
-    zero_fixed(fixed_nodes, t);
+    zero_fixed_nodes(fixed_nodes, t);
     const double tt = t.squaredNorm();
     omega = tt > 0 ? t.dot(s) / tt : 0.0;
     x += alpha * y + omega * z;

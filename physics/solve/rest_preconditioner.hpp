@@ -73,6 +73,14 @@ class RestPreconditioner {
  private:
   using FactorPtr = std::shared_ptr<const RestFactor>;
   struct Pending {
+    // A build still running when its body goes waits to be done: the executor's thread may
+    // outlive the body (engine::BackgroundQueue), and the process must not end mid-build.
+    Pending() = default;
+    Pending(Pending&&) = default;
+    Pending& operator=(Pending&&) = default;
+    ~Pending() {
+      if (done.valid()) done.wait();
+    }
     std::shared_ptr<FactorPtr> result;  // written by the job
     std::shared_future<void> done;
     std::uint64_t revision = 0;
