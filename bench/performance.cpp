@@ -59,6 +59,17 @@ struct Resolution {
   double surface;   // s, m
 };
 
+// Each size with every preconditioner, Jacobi first, side by side; --preconditioner names one
+// alone. multigrid_current (the assembled current system) only when named.
+std::vector<std::string> preconditioners_to_run(const std::string& preconditioner) {
+  const std::vector<std::string> all{"jacobi", "warped_cholesky", "two_level", "multigrid"};
+  if (preconditioner == "all") return all;
+  if (preconditioner != "multigrid_current" && std::find(all.begin(), all.end(), preconditioner) == all.end())
+    throw std::runtime_error("--preconditioner: '" + preconditioner +
+                             "' is not multigrid, multigrid_current, two_level, warped_cholesky, jacobi or all");
+  return {preconditioner};
+}
+
 }  // namespace
 
 int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress,
@@ -71,17 +82,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
         quick ? std::vector<Resolution>{{0.005, 0.0025}, {0.0028, 0.0014}}
               : std::vector<Resolution>{{0.005, 0.0025}, {0.0035, 0.00175}, {0.0028, 0.0014},
                                         {0.0028, 0.0006}, {0.0018, 0.0009}};
-    // Each size with the warped rest factor and with Jacobi, side by side (--preconditioner
-    // names one of them alone).
-    // multigrid_current (the assembled current system) only when named.
-    std::vector<std::string> preconditioners{"jacobi", "warped_cholesky", "two_level", "multigrid"};
-    if (preconditioner != "all") {
-      if (preconditioner != "multigrid_current" &&
-          std::find(preconditioners.begin(), preconditioners.end(), preconditioner) == preconditioners.end())
-        throw std::runtime_error("--preconditioner: '" + preconditioner +
-                                 "' is not multigrid, multigrid_current, two_level, warped_cholesky, jacobi or all");
-      preconditioners = {preconditioner};
-    }
+    const std::vector<std::string> preconditioners = preconditioners_to_run(preconditioner);
     // From the press to the end of the stroke of default.traj (0.3 s .. 2.0 s): the cut face,
     // and with it whatever grows with the stroke, at its full size.
     if (backend != "cpu" && backend != "gpu")
