@@ -69,6 +69,9 @@ struct EfgSpec {
   bool estimate_volumes = true;  // false: every touched cube counts a full a^3
   int threads = 2;               // element loop threads (results do not depend on it)
   std::optional<double> surface_resolution;  // render surface cell size (generated bodies), m
+  // A cuttable mesh body's first surface: the voxel boundary put onto the shape (false), or the
+  // mesh's own triangles (true: `"base_surface": "mesh"`).
+  bool base_surface_mesh = false;
 };
 
 struct BodySpec {

@@ -14,6 +14,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace incise::engine {
@@ -71,17 +72,48 @@ physics::EfgSettings efg_settings(const BodySpec& spec) {
   return settings;
 }
 
-// A cuttable body's cut state, its first surface the voxel boundary at the surface resolution
-// put onto the shape: no element carries this surface, so its vertices go onto the shape and
-// even out along it (the voxel snap stops short where its tetrahedra would flatten).
+// The mesh's own triangles as a cut surface, and their mean edge length (the cut face's
+// triangles are made about as wide: CutModel::surface_cell).
+physics::TriangleSurface mesh_surface(const TriangleSoup& soup, double& mean_edge) {
+  physics::TriangleSurface surface;
+  surface.vertices.reserve(soup.vertices.size());
+  for (const auto& v : soup.vertices) surface.vertices.push_back(physics::Vec3(v[0], v[1], v[2]));
+  surface.triangles = soup.triangles;
+  // The front wants its triangles counter-clockwise seen from outside: a file wound the
+  // other way (negative enclosed volume) is turned.
+  double volume = 0;
+  for (const auto& t : surface.triangles)
+    volume += surface.vertices[t[0]].dot(surface.vertices[t[1]].cross(surface.vertices[t[2]]));
+  if (volume < 0)
+    for (auto& t : surface.triangles) std::swap(t[1], t[2]);
+  double sum = 0;
+  for (const auto& t : surface.triangles)
+    for (int k = 0; k < 3; ++k) sum += (surface.vertices[t[k]] - surface.vertices[t[(k + 1) % 3]]).norm();
+  mean_edge = surface.triangles.empty() ? 0 : sum / (3.0 * static_cast<double>(surface.triangles.size()));
+  return surface;
+}
+
+// A cuttable body's cut state. Its first surface is the voxel boundary at the surface
+// resolution put onto the shape (no element carries this surface, so its vertices go onto the
+// shape and even out along it; the voxel snap stops short where its tetrahedra would flatten),
+// or with `base_surface: mesh` the mesh's own triangles: an edge thinner than a surface cell
+// keeps the mesh's shape rather than a voxel boundary faired onto it (serrated).
 void make_cut(Body& result, const physics::BodyModel& model, const BodySpec& spec, const BodyShape& shape) {
   auto cut_model = std::make_shared<physics::CutModel>();
   cut_model->spacing = spec.resolution;
   cut_model->surface_cell = spec.efg.surface_resolution.value_or(0.5 * spec.resolution);
   physics::Stopwatch watch;
-  physics::TriangleSurface initial = physics::voxel_boundary(shape.inside, shape.lo, shape.hi, cut_model->surface_cell);
-  physics::fair_surface_onto_shape(initial.vertices, initial.triangles, shape.inside, cut_model->surface_cell, 3,
-                                   shape.along);
+  physics::TriangleSurface initial;
+  if (spec.efg.base_surface_mesh) {
+    if (!shape.surface) throw std::logic_error("a mesh body's shape carries no surface");
+    double mean_edge = 0;
+    initial = mesh_surface(*shape.surface, mean_edge);
+    if (!spec.efg.surface_resolution) cut_model->surface_cell = mean_edge;
+  } else {
+    initial = physics::voxel_boundary(shape.inside, shape.lo, shape.hi, cut_model->surface_cell);
+    physics::fair_surface_onto_shape(initial.vertices, initial.triangles, shape.inside, cut_model->surface_cell, 3,
+                                     shape.along);
+  }
   result.build_ms.surface = watch.ms();
   watch.restart();
   result.cut = std::make_unique<physics::CutData>(

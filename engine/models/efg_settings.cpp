@@ -13,6 +13,14 @@ void read_efg_settings(Reader& er, BodySpec& b) {
   b.efg.threads = er.integer("threads", false, 2, 1, 64);
   if (er.has("surface_resolution"))
     b.efg.surface_resolution = er.number("surface_resolution", false, 0.005, 1e-4, 10, true);
+  // A thin edge (thinner than a surface cell) comes out serrated from the voxel boundary; a
+  // closed surface mesh is already the surface the blade should cut.
+  const bool base_given = er.has("base_surface");
+  b.efg.base_surface_mesh = er.text("base_surface", false, "voxel", {"voxel", "mesh"}) == "mesh";
+  if (base_given && !b.cuttable)
+    er.error(er.child("base_surface"), "only cuttable bodies (\"cuttable\": true) have a base surface to cut");
+  if (b.efg.base_surface_mesh && !b.mesh)
+    er.error(er.child("base_surface"), "'mesh' needs the body's surface from a `mesh` file");
   const bool cut_surface_given = er.has("cut_surface");
   // One cut-surface design: the voxel boundary separated along the cut gave way to the
   // thesis's front (seed 004 §2.5), which follows the blade's path rather than cells.
