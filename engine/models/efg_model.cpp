@@ -14,7 +14,6 @@
 
 #include <stdexcept>
 #include <string>
-#include <utility>
 #include <vector>
 
 namespace incise::engine {
@@ -73,19 +72,14 @@ physics::EfgSettings efg_settings(const BodySpec& spec) {
 }
 
 // The mesh's own triangles as a cut surface, and their mean edge length (the cut face's
-// triangles are made about as wide: CutModel::surface_cell).
+// triangles are made about as wide: CutModel::surface_cell). They are counter-clockwise seen
+// from outside, as the front wants: a file wound inward has a winding number of -1 inside and
+// was refused by the shape as having no interior.
 physics::TriangleSurface mesh_surface(const TriangleSoup& soup, double& mean_edge) {
   physics::TriangleSurface surface;
   surface.vertices.reserve(soup.vertices.size());
   for (const auto& v : soup.vertices) surface.vertices.push_back(physics::Vec3(v[0], v[1], v[2]));
   surface.triangles = soup.triangles;
-  // The front wants its triangles counter-clockwise seen from outside: a file wound the
-  // other way (negative enclosed volume) is turned.
-  double volume = 0;
-  for (const auto& t : surface.triangles)
-    volume += surface.vertices[t[0]].dot(surface.vertices[t[1]].cross(surface.vertices[t[2]]));
-  if (volume < 0)
-    for (auto& t : surface.triangles) std::swap(t[1], t[2]);
   double sum = 0;
   for (const auto& t : surface.triangles)
     for (int k = 0; k < 3; ++k) sum += (surface.vertices[t[k]] - surface.vertices[t[(k + 1) % 3]]).norm();

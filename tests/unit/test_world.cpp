@@ -9,11 +9,13 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 
 using namespace incise::engine;
@@ -318,6 +320,48 @@ TEST(World, ASurfaceWithNoInteriorAtTheResolutionIsRefused) {
                 std::string::npos)
           << model << ": " << message;
     }
+  }
+}
+
+// A cuttable EFG body with `base_surface: mesh` cuts the file's own triangles (a thin edge keeps
+// the mesh's shape rather than a voxel boundary faired onto it): the body's first surface is
+// the file's, its vertices embedded where the file has them. Without the key, the voxel
+// boundary at resolution / 2: more triangles than the file's 12.
+TEST(World, ACuttableBodysBaseSurfaceCanBeTheMeshItself) {
+  TempDir dir("incise_world_base_surface");
+  const std::vector<std::array<int, 3>> outward = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}, {4, 6, 7}, {0, 1, 5}, {0, 5, 4},
+                                                   {1, 2, 6}, {1, 6, 5}, {2, 3, 7}, {2, 7, 6}, {3, 0, 4}, {3, 4, 7}};
+  {
+    std::ofstream obj(dir.path / "cube.obj");
+    obj << "v 0 0 0\nv 0.02 0 0\nv 0.02 0.02 0\nv 0 0.02 0\n"
+           "v 0 0 0.02\nv 0.02 0 0.02\nv 0.02 0.02 0.02\nv 0 0.02 0.02\n";
+    for (const auto& t : outward) obj << "f " << t[0] + 1 << " " << t[1] + 1 << " " << t[2] + 1 << "\n";
+  }
+  for (const bool from_mesh : {true, false}) {
+    Json json = block_scene(false);
+    json["bodies"][0].erase("generator");
+    json["bodies"][0]["model"] = "efg";
+    json["bodies"][0]["cuttable"] = true;
+    json["bodies"][0]["mesh"] = "cube.obj";
+    if (from_mesh) json["bodies"][0]["efg"] = {{"base_surface", "mesh"}};
+    const World world(write_scene(dir, json), std::nullopt);
+    const auto& body = world.bodies()[0];
+    if (!from_mesh) {
+      EXPECT_GT(body.data.surface.size(), 12u) << "the voxel boundary";
+      continue;
+    }
+    // The reader numbers an OBJ's vertices in the order the faces first use them: the
+    // triangles are compared corner by corner, where they sit.
+    ASSERT_EQ(body.data.surface.size(), outward.size());
+    ASSERT_EQ(body.data.surface_positions.size(), 24);
+    for (std::size_t t = 0; t < outward.size(); ++t)
+      for (int k = 0; k < 3; ++k) {
+        const int v = outward[t][k];
+        const physics::Vec3 file((v == 1 || v == 2 || v == 5 || v == 6) ? 0.02 : 0, (v % 4 >= 2) ? 0.02 : 0, v >= 4 ? 0.02 : 0);
+        // The embedding's weights reproduce a rest point to rounding (sums over its particles).
+        EXPECT_LT((body.data.surface_positions.segment<3>(3 * body.data.surface[t][k]) - file).norm(), 1e-8)
+            << "triangle " << t << ", corner " << k;
+      }
   }
 }
 
