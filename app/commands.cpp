@@ -137,7 +137,11 @@ int check(const std::string& scene_file) {
                   body.model->snap.boundary_nodes, body.model->snap.moved, body.model->snap.moved_partly, body.model->snap.left,
                   100 * body.model->snap.min_volume_ratio);
   }
-  if (world.tool().present) std::printf("  tool: %s, radius %.4g m\n", scene.tool->shape.c_str(), scene.tool->radius);
+  if (world.tool().present) {
+    std::printf("  tool: %s, radius %.4g m", scene.tool->shape.c_str(), scene.tool->radius);
+    if (world.needle_count() > 1) std::printf(", %zu needles (tool.needles)", world.needle_count());
+    std::printf("\n");
+  }
   return 0;
 }
 

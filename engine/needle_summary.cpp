@@ -5,12 +5,15 @@
 
 namespace incise::engine {
 
-NeedleSummary summarise_needle(const std::vector<StepStats>& stats) {
+namespace {
+
+NeedleSummary summarise(const std::vector<const NeedleStepStats*>& steps) {
   NeedleSummary s;
   double punctured_at = -1e300;  // the depth where the last puncture step ended
-  for (const auto& step : stats) {
-    const NeedleStepStats& n = step.needle;
+  for (const NeedleStepStats* step : steps) {
+    const NeedleStepStats& n = *step;
     if (!n.present) continue;
+    s.axial_displacement_peak = std::max(s.axial_displacement_peak, n.axial_displacement);
     s.max_depth = std::max(s.max_depth, n.depth);
     s.balance_max = std::max(s.balance_max, n.balance);
     s.lateral_max = std::max(s.lateral_max, n.lateral);
@@ -28,13 +31,13 @@ NeedleSummary summarise_needle(const std::vector<StepStats>& stats) {
   }
   // Advancing past the puncture: the resistance over the first and the last third of that depth.
   double deepest = punctured_at;
-  for (const auto& step : stats)
-    if (step.needle.phase == "insert" && step.needle.speed > 0) deepest = std::max(deepest, step.needle.depth);
+  for (const NeedleStepStats* n : steps)
+    if (n->phase == "insert" && n->speed > 0) deepest = std::max(deepest, n->depth);
   const double third = (deepest - punctured_at) / 3;
   double early = 0, late = 0;
   int n_early = 0, n_late = 0;
-  for (const auto& step : stats) {
-    const NeedleStepStats& n = step.needle;
+  for (const NeedleStepStats* step : steps) {
+    const NeedleStepStats& n = *step;
     if (n.phase != "insert" || !(n.speed > 0) || n.depth < punctured_at) continue;
     ++s.insert_steps;
     if (n.depth <= punctured_at + third) early += -n.axial, ++n_early;
@@ -43,6 +46,23 @@ NeedleSummary summarise_needle(const std::vector<StepStats>& stats) {
   s.insert_early_mean = n_early ? early / n_early : 0;
   s.insert_late_mean = n_late ? late / n_late : 0;
   return s;
+}
+
+}  // namespace
+
+NeedleSummary summarise_needle(const std::vector<StepStats>& stats) {
+  std::vector<const NeedleStepStats*> steps;
+  steps.reserve(stats.size());
+  for (const auto& step : stats) steps.push_back(&step.needle);
+  return summarise(steps);
+}
+
+NeedleSummary summarise_needle(const std::vector<StepStats>& stats, std::size_t k) {
+  std::vector<const NeedleStepStats*> steps;
+  steps.reserve(stats.size());
+  for (const auto& step : stats)
+    if (k < step.needles.size()) steps.push_back(&step.needles[k]);
+  return summarise(steps);
 }
 
 }  // namespace incise::engine

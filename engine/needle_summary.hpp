@@ -4,6 +4,7 @@
 
 #include "engine/world.hpp"
 
+#include <cstddef>
 #include <vector>
 
 namespace incise::engine {
@@ -20,8 +21,14 @@ struct NeedleSummary {
   double balance_max = 0;         // N, the worst |force on the needle + forces on the tissue|
   long stick_to_slip = 0, slip_to_stick = 0;
   int puncture_steps = 0, insert_steps = 0, retract_steps = 0;
+  // The largest mean displacement of the bodies' nodes along the needle axis, m (seed 002 §5.8's
+  // deformation along the needle axis; NeedleStepStats::axial_displacement).
+  double axial_displacement_peak = 0;
 };
 
+// The needle's (a template's: its forces summed, StepStats::needle).
 NeedleSummary summarise_needle(const std::vector<StepStats>& stats);
+// The k-th needle of a template of several (StepStats::needles; no axial displacement).
+NeedleSummary summarise_needle(const std::vector<StepStats>& stats, std::size_t k);
 
 }  // namespace incise::engine

@@ -571,6 +571,7 @@ Json needle_json(const NeedleSummary& s) {
           {"force_balance_max_N", s.balance_max},
           {"stick_to_slip", s.stick_to_slip},
           {"slip_to_stick", s.slip_to_stick},
+          {"axial_displacement_peak_mm", 1e3 * s.axial_displacement_peak},
           {"steps", {{"puncture", s.puncture_steps}, {"insert", s.insert_steps}, {"retract", s.retract_steps}}}};
 }
 
@@ -723,7 +724,19 @@ ReplayResult run_replay(const Scene& scene, const ReplayOptions& options) {
     metrics["surface"] = surface_json(world, totals);
     metrics["mapping"] = mapping_json(world, totals);
   }
-  if (world.needle()) metrics["needle"] = needle_json(summarise_needle(run.stats));
+  if (world.needle()) {
+    metrics["needle"] = needle_json(summarise_needle(run.stats));
+    // A template of several needles: the block above sums their forces; each its own here.
+    if (world.needle_count() > 1) {
+      Json each = Json::array();
+      for (std::size_t k = 0; k < world.needle_count(); ++k) {
+        Json one = needle_json(summarise_needle(run.stats, k));
+        one.erase("axial_displacement_peak_mm");
+        each.push_back(std::move(one));
+      }
+      metrics["needle"]["needles"] = std::move(each);
+    }
+  }
   if (scene.plan) {
     try {
       const IncisionScore score = score_incision(*scene.plan, world, run.stats, scene.solver.dt);

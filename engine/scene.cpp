@@ -213,6 +213,33 @@ void read_edge(Reader& tr, const Json& edge, bool blade, std::vector<Point>& out
   }
 }
 
+// `tool.needles`: 1 to 64 needles driven by the one trajectory, each an `offset` (m, the tool's
+// frame) and a `delay` (s); without it, one needle at the origin.
+void read_needle_template(Reader& tr, std::vector<NeedleEntry>& out) {
+  const Json* needles = tr.get("needles", false);
+  if (!needles) {
+    out.assign(1, NeedleEntry{});
+    return;
+  }
+  if (!needles->is_array() || needles->empty() || needles->size() > 64) {
+    tr.error(tr.child("needles"), "must be an array of 1 to 64 needles {\"offset\": [x, y, z], \"delay\": s}");
+    return;
+  }
+  for (std::size_t i = 0; i < needles->size(); ++i) {
+    Reader nr((*needles)[i], tr.child("needles") + "[" + std::to_string(i) + "]", tr.errors());
+    NeedleEntry e;
+    if (const Json* offset = nr.get("offset", false)) {
+      bool ok = offset->is_array() && offset->size() == 3;
+      for (std::size_t c = 0; ok && c < 3; ++c)
+        ok = (*offset)[c].is_number() && std::isfinite((*offset)[c].get<double>()) && std::abs((*offset)[c].get<double>()) <= 1;
+      if (ok) e.offset = {(*offset)[0].get<double>(), (*offset)[1].get<double>(), (*offset)[2].get<double>()};
+      else nr.error(nr.child("offset"), "must be an array of 3 finite numbers within [-1, 1] m (the tip in the tool's frame)");
+    }
+    e.delay = nr.number("delay", false, 0, 0, 1e4);
+    out.push_back(e);
+  }
+}
+
 // The needle's own keys (seed 002 §2.3; physics/needle/needle_settings.hpp), refused on other tools.
 void read_needle(Reader& tr, bool needle, ToolSpec& t) {
   physics::NeedleSettings& n = t.needle;
@@ -225,7 +252,11 @@ void read_needle(Reader& tr, bool needle, ToolSpec& t) {
   n.friction_force = tr.number("friction_force", false, d.friction_force, 0, 1e4);
   n.stick_stiffness = tr.number("stick_stiffness", false, d.stick_stiffness, 0, 1e9, true);
   n.length = t.length;
-  if (needle) return;
+  if (needle) {
+    read_needle_template(tr, t.needles);
+    return;
+  }
+  if (tr.has("needles")) tr.error(tr.child("needles"), "only a needle tool has it");
   for (const char* key : {"nodes", "cutting_radius", "friction_radius", "cutting_force", "puncture_force", "friction_force",
                           "stick_stiffness"})
     if (tr.has(key)) tr.error(tr.child(key), "only a needle has it");

@@ -100,6 +100,13 @@ struct BodySpec {
   double damping_stiffness = 0;  // Rayleigh beta, s
 };
 
+// A needle tool's needle (seed 002 §2.3: "any number of needles"): where it sits in the tool's
+// frame and how far behind the shared trajectory it follows it.
+struct NeedleEntry {
+  Point offset{0, 0, 0};  // m, its tip in the tool's frame (the trajectory's position the origin)
+  double delay = 0;       // s: at time t it is where the tool was at t - delay (the first sample before it)
+};
+
 struct ToolSpec {
   // "sphere", "capsule" (probes, penalty contact), "blade" (cuts, no force) or "needle" (seed 002
   // §2.3: zones of influence, no contact; physics/needle/needle.hpp)
@@ -120,6 +127,8 @@ struct ToolSpec {
   std::vector<Point> edge;
   // Needle: its nodes, zones and the tissue's intensities (`length` above is the needle's too).
   physics::NeedleSettings needle;
+  // Needle: the template the trajectory drives (`needles`; one at the origin without it).
+  std::vector<NeedleEntry> needles;
 };
 
 struct SolverSpec {

@@ -67,6 +67,21 @@ void World::take_tool_input(double time) {
     auto axis = rotate(tool_.pose.orientation, {0, 0, scene_.tool->length});
     for (int i = 0; i < 3; ++i) tool_.tail[i] = tool_.tip[i] + axis[i];
   }
+  if (scene_.tool->shape == "needle") {
+    // The template: each needle where the tool was `delay` earlier, its tip at its offset.
+    const auto& needles = scene_.tool->needles;
+    tool_.needle_tips.resize(needles.size());
+    tool_.needle_tails.resize(needles.size());
+    for (std::size_t k = 0; k < needles.size(); ++k) {
+      const ToolSample at = needles[k].delay > 0 ? sample_at(trajectory_->samples, time - needles[k].delay) : tool_.pose;
+      const auto offset = rotate(at.orientation, needles[k].offset);
+      const auto shaft = rotate(at.orientation, {0, 0, scene_.tool->length});
+      for (int i = 0; i < 3; ++i) {
+        tool_.needle_tips[k][i] = at.position[i] + offset[i];
+        tool_.needle_tails[k][i] = tool_.needle_tips[k][i] + shaft[i];
+      }
+    }
+  }
 }
 
 void World::append_tool_samples(std::span<const ToolSample> samples) {
@@ -89,7 +104,11 @@ void World::append_tool_samples(std::span<const ToolSample> samples) {
   // The next step starts at time_ (computed there as end - dt, which may round below time_):
   // it needs the last sample at or before its start (sample_at's left neighbour) and
   // everything after it. Keeping from one step further back is safe; what is older can go.
-  const auto keep = std::upper_bound(held.begin(), held.end(), time_ - scene_.solver.dt,
+  // A needle template's delayed needles look further back.
+  double behind = 0;
+  if (scene_.tool->shape == "needle")
+    for (const NeedleEntry& e : scene_.tool->needles) behind = std::max(behind, e.delay);
+  const auto keep = std::upper_bound(held.begin(), held.end(), time_ - scene_.solver.dt - behind,
                                      [](double t, const ToolSample& s) { return t < s.time; });
   if (keep - held.begin() > 1) held.erase(held.begin(), keep - 1);
 }

@@ -273,16 +273,18 @@ std::uint64_t World::state_hash() const {
   }
   if (needle()) {
     // The needle's zones and its virtual particles decide the next steps' forces.
-    fnv1a(hash, needle_.last_tip.data(), 3 * sizeof(double));
-    for (const physics::Needle& n : needle_.bodies) {
-      fnv1a(hash, n.grips());
-      for (const auto& m : n.zones().cutting) fnv1a(hash, &m.atom, sizeof(int));
-      for (const auto& zone : n.zones().friction)
-        for (const auto& m : zone) fnv1a(hash, &m.atom, sizeof(int));
-      for (const auto& p : n.particles()) {
-        fnv1a(hash, p.atoms);
-        fnv1a(hash, p.weights);
-        fnv1a(hash, p.offset.data(), 3 * sizeof(double));
+    for (const NeedleTrack& track : needle_) {
+      fnv1a(hash, track.last_tip.data(), 3 * sizeof(double));
+      for (const physics::Needle& n : track.bodies) {
+        fnv1a(hash, n.grips());
+        for (const auto& m : n.zones().cutting) fnv1a(hash, &m.atom, sizeof(int));
+        for (const auto& zone : n.zones().friction)
+          for (const auto& m : zone) fnv1a(hash, &m.atom, sizeof(int));
+        for (const auto& p : n.particles()) {
+          fnv1a(hash, p.atoms);
+          fnv1a(hash, p.weights);
+          fnv1a(hash, p.offset.data(), 3 * sizeof(double));
+        }
       }
     }
   }

@@ -52,6 +52,9 @@ struct NeedleStepStats {
   double balance = 0;              // N, |force on the needle + forces on the tissue| (round-off)
   int sticking = 0, slipping = 0;  // nodes
   long stick_to_slip = 0, slip_to_stick = 0;  // since the start
+  // m, the mean displacement of the bodies' nodes from rest along the axis (the template's: the
+  // first needle's), at the step's start: the deformation along the needle axis (seed 002 §5.8).
+  double axial_displacement = 0;
 };
 
 // Where time went in one step, and what the solver said.
@@ -104,7 +107,8 @@ struct StepStats {
   int links_severed = 0;
   double elastic_energy = 0;
   double kinetic_energy = 0;
-  NeedleStepStats needle;
+  NeedleStepStats needle;                // the needle, or the template's sum (engine/insert_needle.cpp)
+  std::vector<NeedleStepStats> needles;  // each needle of a template of several
   // GPU backend: bytes uploaded this step, and of them the rows (element, incidence, surface).
   long long gpu_bytes = 0;
   long long gpu_row_bytes = 0;
@@ -136,6 +140,8 @@ struct ToolState {
   std::vector<std::uint8_t> blade_active;
   std::array<double, 3> tip{};
   std::array<double, 3> tail{};  // capsule end (= tip for a sphere)
+  // Needle: each needle of the template (ToolSpec::needles) at the step's end, its tip and hub.
+  std::vector<std::array<double, 3>> needle_tips, needle_tails;
   double radius = 0;
   bool present = false;
   // Blade: the crack's onset and whether it advances (physics/cut/cutting_resistance.hpp), and
@@ -192,8 +198,11 @@ class World {
   const CutTotals& cut_totals() const { return cut_totals_; }
   bool blade() const { return tool_.present && scene_.tool->shape == "blade"; }
   bool needle() const { return tool_.present && scene_.tool->shape == "needle"; }
-  // Needle: per body, the needle in it (physics/needle/needle.hpp).
-  const std::vector<physics::Needle>& needles() const { return needle_.bodies; }
+  // Needle: per body, the (first) needle in it (physics/needle/needle.hpp).
+  const std::vector<physics::Needle>& needles() const { return needle_.front().bodies; }
+  // The template's needles (ToolSpec::needles), and per body the k-th one in it.
+  std::size_t needle_count() const { return needle_.size(); }
+  const std::vector<physics::Needle>& needle_bodies(std::size_t k) const { return needle_.at(k).bodies; }
   // The first kGuardLogLimit events; guard_counts() has them all.
   const std::vector<GuardEvent>& guard_events() const { return guard_events_; }
   static constexpr std::size_t kGuardLogLimit = 200;
@@ -242,14 +251,21 @@ class World {
   std::optional<Trajectory> trajectory_;
   std::optional<Trajectory> initial_trajectory_;  // for reset()
   ToolState tool_;
-  // Needle: one per body, the tip at the last step, where it first met the tissue, the phase.
+  // Needle: per needle of the template, one per body, the tip at the last step, where it first
+  // met the tissue, the phase.
   struct NeedleTrack {
     std::vector<physics::Needle> bodies;
     physics::Vec3 last_tip = physics::Vec3::Zero();
     bool touched = false;
     physics::Vec3 entry = physics::Vec3::Zero();
     std::string phase = "approach";
-  } needle_;
+  };
+  std::vector<NeedleTrack> needle_;
+  std::string needles_phase_ = "approach";  // the template's, from its needles' (insert_needle.cpp)
+  // One needle's step on every body: its forces added to `springs`, its figures in `out`; returns
+  // the tissue's force on it.
+  physics::Vec3 step_needle(NeedleTrack& track, const physics::NeedlePose& pose,
+                            std::vector<std::vector<physics::NodalSpring>>& springs, NeedleStepStats& out);
   double time_ = 0;
   std::uint64_t steps_ = 0;
   std::array<double, 3> bounds_min_{}, bounds_max_{};

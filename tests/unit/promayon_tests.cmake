@@ -22,3 +22,15 @@ target_link_libraries(test_needle_scene PRIVATE incise_engine GTest::gtest_main)
 target_compile_definitions(test_needle_scene PRIVATE INCISE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
 # The cube scene runs 39000 steps of the Moore shape memory (112 s of CPU, Release only).
 gtest_discover_tests(test_needle_scene DISCOVERY_TIMEOUT 60 PROPERTIES TIMEOUT 1500 COST 150)
+
+# Several needles on one trajectory (tool.needles) into the fast cube (needle_cube_fast.json),
+# and the brachytherapy protocols (needle_brachytherapy.json: four runs of 6 needles).
+add_executable(test_needle_template ${CMAKE_CURRENT_LIST_DIR}/test_needle_template.cpp)
+target_link_libraries(test_needle_template PRIVATE incise_engine GTest::gtest_main)
+target_compile_definitions(test_needle_template PRIVATE INCISE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+gtest_discover_tests(test_needle_template DISCOVERY_TIMEOUT 60 PROPERTIES TIMEOUT 600 COST 20)
+
+add_executable(test_needle_brachytherapy ${CMAKE_CURRENT_LIST_DIR}/test_needle_brachytherapy.cpp)
+target_link_libraries(test_needle_brachytherapy PRIVATE incise_engine GTest::gtest_main)
+target_compile_definitions(test_needle_brachytherapy PRIVATE INCISE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+gtest_discover_tests(test_needle_brachytherapy DISCOVERY_TIMEOUT 60 PROPERTIES TIMEOUT 1500 COST 100)
