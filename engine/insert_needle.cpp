@@ -3,8 +3,11 @@
 // its shaft along the tool's local +z for `length`, so it goes in along local -z); each body's
 // Needle (physics/needle/needle.hpp) gives the forces on its nodes from the positions the last
 // step left, applied as explicit point forces in the solve, and the opposite force on the
-// needle, which is the tool's force.
+// needle, which is the tool's force. A meshless body's tissue is its integration points, their
+// forces passed to the particles by the MLS shape functions (physics/needle/needle_efg.hpp).
 #include "engine/world.hpp"
+
+#include "physics/needle/needle_efg.hpp"
 
 #include <cmath>
 #include <stdexcept>
@@ -23,22 +26,28 @@ void World::build_needle() {
   const physics::NeedleSettings& settings = scene_.tool->needle;
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const Body& body = bodies_[b];
-    // The needle acts on the nodes as the tissue's particles: a meshless body's particles are
-    // not where its surface is (seed 004 §2.6), so it waits for the EFG glue (docs/status.md).
-    if (body.data.embedding)
-      throw std::runtime_error(scene_.file.string() + ": tool.shape: 'needle': bodies[" + std::to_string(b) + "] ('" +
-                               body.model->name + "') has model '" + body.model->kind +
-                               "'; the needle acts on bodies whose nodes are the tissue (shape_memory, spring_network, "
-                               "mass_spring, fem), not yet on a meshless one");
     try {
-      needle_.bodies.emplace_back(settings, physics::make_needle_tissue(body.data.mechanics->rest_positions(),
-                                                                        body.data.mechanics->node_spacing(),
-                                                                        body.data.surface, settings));
+      if (body.data.efg) {
+        needle_.bodies.emplace_back(settings, physics::make_efg_needle_tissue(*body.data.efg, settings));
+      } else {
+        needle_.bodies.emplace_back(settings, physics::make_needle_tissue(body.data.mechanics->rest_positions(),
+                                                                          body.data.mechanics->node_spacing(),
+                                                                          body.data.surface, settings));
+      }
     } catch (const std::invalid_argument& e) {
       throw std::runtime_error(scene_.file.string() + ": tool: bodies[" + std::to_string(b) + "]: " + e.what());
     }
   }
+  needle_.points.assign(bodies_.size(), {});
   needle_.last_tip = vec(tool_.tip);
+}
+
+physics::Vector World::needle_tissue_positions(std::size_t b) const {
+  const Body& body = bodies_[b];
+  if (!body.data.efg) return body.data.state.positions;
+  physics::Vector points;
+  physics::efg_point_positions(*body.data.efg, body.data.state.positions, points);
+  return points;
 }
 
 std::vector<std::vector<physics::NodalSpring>> World::insert_needle(StepStats& stats) {
@@ -59,7 +68,10 @@ std::vector<std::vector<physics::NodalSpring>> World::insert_needle(StepStats& s
   physics::Vec3 on_needle = physics::Vec3::Zero(), on_tissue = physics::Vec3::Zero();
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     physics::Needle& n = needle_.bodies[b];
-    const physics::NeedleForces f = n.step(pose, speed, bodies_[b].data.state.positions);
+    const physics::BodyData& data = bodies_[b].data;
+    if (data.efg) physics::efg_point_positions(*data.efg, data.state.positions, needle_.points[b]);
+    const physics::Vector& tissue = data.efg ? needle_.points[b] : data.state.positions;
+    const physics::NeedleForces f = n.step(pose, speed, tissue);
     if (f.in_tissue && !needle_.touched) {
       // The first contact: depth is measured from the nearest zone node's level on the axis.
       needle_.touched = true;
@@ -68,13 +80,17 @@ std::vector<std::vector<physics::NodalSpring>> World::insert_needle(StepStats& s
       for (const auto& m : n.zones().cutting)
         if (m.distance < nearest) {
           nearest = m.distance;
-          const physics::Vec3 x = bodies_[b].data.state.positions.segment<3>(3 * m.atom);
+          const physics::Vec3 x = tissue.segment<3>(3 * m.atom);
           needle_.entry = pose.tip + (x - pose.tip).dot(pose.axis) * pose.axis;
         }
     }
-    for (const auto& [node, force] : f.tissue) {
-      springs[b].push_back({node, force, physics::Mat3::Zero()});
-      on_tissue += force;
+    // The balance is the needle's: its force against those on the tissue points (an EFG
+    // point's force reaches a fixed particle too, where the support takes it).
+    for (const auto& [node, force] : f.tissue) on_tissue += force;
+    if (data.efg) {
+      springs[b] = physics::efg_point_forces_on_particles(*data.efg, f.tissue, data.fixed);
+    } else {
+      for (const auto& [node, force] : f.tissue) springs[b].push_back({node, force, physics::Mat3::Zero()});
     }
     on_needle += f.on_needle;
     in_tissue = in_tissue || f.in_tissue;

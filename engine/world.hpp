@@ -194,6 +194,9 @@ class World {
   bool needle() const { return tool_.present && scene_.tool->shape == "needle"; }
   // Needle: per body, the needle in it (physics/needle/needle.hpp).
   const std::vector<physics::Needle>& needles() const { return needle_.bodies; }
+  // The positions of body b's tissue points, those its needle's zones name: its nodes, or a
+  // meshless body's integration points (physics/needle/needle_efg.hpp), 3 x points.
+  physics::Vector needle_tissue_positions(std::size_t b) const;
   // The first kGuardLogLimit events; guard_counts() has them all.
   const std::vector<GuardEvent>& guard_events() const { return guard_events_; }
   static constexpr std::size_t kGuardLogLimit = 200;
@@ -245,6 +248,7 @@ class World {
   // Needle: one per body, the tip at the last step, where it first met the tissue, the phase.
   struct NeedleTrack {
     std::vector<physics::Needle> bodies;
+    std::vector<physics::Vector> points;  // per body: a meshless body's integration points now (else empty)
     physics::Vec3 last_tip = physics::Vec3::Zero();
     bool touched = false;
     physics::Vec3 entry = physics::Vec3::Zero();
