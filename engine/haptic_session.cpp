@@ -55,6 +55,8 @@ std::vector<Vec3> tool_points(const World& world) {
 
 // N/s: how fast the rendered cutting resistance may rise or fall (HapticSession::publish).
 constexpr double kCuttingForceRamp = 10;
+// N/s: how fast the needle's levels may fall (HapticSession::publish).
+constexpr double kNeedleForceRamp = 10;
 
 }  // namespace
 
@@ -82,6 +84,11 @@ haptics::ContactModel build_contact_model(const World& world, const ContactBuild
   if (search <= 0)
     for (const auto& spec : scene.bodies) search = std::max(search, 3 * spec.resolution);
   if (model.valid_radius <= 0) model.valid_radius = search;
+  if (world.needle()) {
+    model.needle = needle_resistance(world);
+    haptics::validate(model);
+    return model;
+  }
   const std::vector<Vec3> points = tool_points(world);
   if (points.empty()) return model;
   Vec3 lo = points.front(), hi = points.front();
@@ -288,6 +295,7 @@ void HapticSession::publish(std::uint64_t step) {
   // cutting or leaves the tissue lets the load ahead of its edge go over a few steps (the
   // previous direction kept), where the loop's spring would otherwise drop it in a tick.
   const haptics::CuttingResistance previous = last_model_.cutting;
+  const haptics::NeedleResistance previous_needle = last_model_.needle;
   if (previous.force > 0) build.cutting_direction = previous.direction;
   last_model_ = build_contact_model(*world_, build);
   haptics::CuttingResistance& cutting = last_model_.cutting;
@@ -297,6 +305,16 @@ void HapticSession::publish(std::uint64_t step) {
     const double level = previous.force - most;
     if (cutting.force == 0) cutting = previous;  // no blade cutting now: the last one's direction
     cutting.force = level;
+  }
+  // The needle's levels fall at most kNeedleForceRamp N/s while it stays in the tissue (they
+  // rise through the loop's friction spring anyway): the puncture giving way is felt over a few
+  // steps rather than in the one tick the loop's fade takes at a short physics step. Leaving the
+  // tissue, the last node's friction goes with the fade.
+  haptics::NeedleResistance& needle = last_model_.needle;
+  const double fall = kNeedleForceRamp * world_->dt();
+  if (needle.stiffness > 0 && previous_needle.stiffness > 0) {
+    needle.insert_force = std::max(needle.insert_force, previous_needle.insert_force - fall);
+    needle.retract_force = std::max(needle.retract_force, previous_needle.retract_force - fall);
   }
   channel_.write(last_model_);
 }

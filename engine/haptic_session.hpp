@@ -70,6 +70,18 @@ struct ContactBuild {
 inline constexpr double kDefaultBladeStiffness = 400;  // N/m, whole edge
 haptics::ContactModel build_contact_model(const World& world, const ContactBuild& build);
 
+// A needle's term (haptics::NeedleResistance; engine/needle_haptics.cpp), zero when the needle
+// is out of the tissue. Along the shaft: insert_force the cutting zone's intensity C (its
+// members' k_c by their inverse-distance shares, whether or not the needle advanced over the
+// step: the hand meets the same tissue ahead) plus the kinetic friction of the gripping nodes,
+// retract_force that friction alone. Across: each gripping node (and the tip while its cutting
+// zone holds tissue) a spring of its virtual particle's stick_stiffness in series with the
+// tissue's compliance (the contacts' Boussinesq punch), the stiffness their sum, the line through
+// the device's position shifted by their mean lateral pull (their virtual particles' offsets
+// from their nodes, across the axis), so the force at the step's pose is the tissue's grip.
+// A needle has no surface contacts: it enters the tissue through its zones.
+haptics::NeedleResistance needle_resistance(const World& world);
+
 // A tick as a trajectory sample: time since t0, pose, buttons, the force rendered. The device
 // state goes into buttons bits 8-9 and the clamp into bit 10 (docs/trajectory.md: bits above
 // 0 are free for devices); the World reads bit 0 only.

@@ -6,8 +6,11 @@
 // needle, which is the tool's force. A template of several needles (ToolSpec::needles, each at its
 // offset and delay along the trajectory: take_tool_input) gives each its own Needle per body
 // (zones, virtual particles, stick-slip), all from the same positions; their forces add up on
-// the tissue and on the tool.
+// the tissue and on the tool. A meshless body's tissue is its integration points, their forces
+// passed to the particles by the MLS shape functions (physics/needle/needle_efg.hpp).
 #include "engine/world.hpp"
+
+#include "physics/needle/needle_efg.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -29,17 +32,14 @@ void World::build_needle() {
   NeedleTrack track;
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const Body& body = bodies_[b];
-    // The needle acts on the nodes as the tissue's particles: a meshless body's particles are
-    // not where its surface is (seed 004 §2.6), so it waits for the EFG glue (docs/status.md).
-    if (body.data.embedding)
-      throw std::runtime_error(scene_.file.string() + ": tool.shape: 'needle': bodies[" + std::to_string(b) + "] ('" +
-                               body.model->name + "') has model '" + body.model->kind +
-                               "'; the needle acts on bodies whose nodes are the tissue (shape_memory, spring_network, "
-                               "mass_spring, fem), not yet on a meshless one");
     try {
-      track.bodies.emplace_back(settings, physics::make_needle_tissue(body.data.mechanics->rest_positions(),
-                                                                      body.data.mechanics->node_spacing(),
-                                                                      body.data.surface, settings));
+      if (body.data.efg) {
+        track.bodies.emplace_back(settings, physics::make_efg_needle_tissue(*body.data.efg, settings));
+      } else {
+        track.bodies.emplace_back(settings, physics::make_needle_tissue(body.data.mechanics->rest_positions(),
+                                                                        body.data.mechanics->node_spacing(),
+                                                                        body.data.surface, settings));
+      }
     } catch (const std::invalid_argument& e) {
       throw std::runtime_error(scene_.file.string() + ": tool: bodies[" + std::to_string(b) + "]: " + e.what());
     }
@@ -47,6 +47,15 @@ void World::build_needle() {
   // Each needle of the template its own zones, virtual particles and stick-slip state.
   needle_.assign(scene_.tool->needles.size(), track);
   for (std::size_t k = 0; k < needle_.size(); ++k) needle_[k].last_tip = vec(tool_.needle_tips[k]);
+  needle_points_.assign(bodies_.size(), {});
+}
+
+physics::Vector World::needle_tissue_positions(std::size_t b) const {
+  const Body& body = bodies_[b];
+  if (!body.data.efg) return body.data.state.positions;
+  physics::Vector points;
+  physics::efg_point_positions(*body.data.efg, body.data.state.positions, points);
+  return points;
 }
 
 physics::Vec3 World::step_needle(NeedleTrack& track, const physics::NeedlePose& pose,
@@ -60,7 +69,9 @@ physics::Vec3 World::step_needle(NeedleTrack& track, const physics::NeedlePose& 
   physics::Vec3 on_needle = physics::Vec3::Zero(), on_tissue = physics::Vec3::Zero();
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     physics::Needle& n = track.bodies[b];
-    const physics::NeedleForces f = n.step(pose, speed, bodies_[b].data.state.positions);
+    const physics::BodyData& data = bodies_[b].data;
+    const physics::Vector& tissue = data.efg ? needle_points_[b] : data.state.positions;
+    const physics::NeedleForces f = n.step(pose, speed, tissue);
     if (f.in_tissue && !track.touched) {
       // The first contact: depth is measured from the nearest zone node's level on the axis.
       track.touched = true;
@@ -69,13 +80,19 @@ physics::Vec3 World::step_needle(NeedleTrack& track, const physics::NeedlePose& 
       for (const auto& m : n.zones().cutting)
         if (m.distance < nearest) {
           nearest = m.distance;
-          const physics::Vec3 x = bodies_[b].data.state.positions.segment<3>(3 * m.atom);
+          const physics::Vec3 x = tissue.segment<3>(3 * m.atom);
           track.entry = pose.tip + (x - pose.tip).dot(pose.axis) * pose.axis;
         }
     }
-    for (const auto& [node, force] : f.tissue) {
-      springs[b].push_back({node, force, physics::Mat3::Zero()});
-      on_tissue += force;
+    // The balance is the needle's: its force against those on the tissue points (an EFG
+    // point's force reaches a fixed particle too, where the support takes it).
+    for (const auto& [node, force] : f.tissue) on_tissue += force;
+    if (data.efg) {
+      const std::vector<physics::NodalSpring> on_particles =
+          physics::efg_point_forces_on_particles(*data.efg, f.tissue, data.fixed);
+      springs[b].insert(springs[b].end(), on_particles.begin(), on_particles.end());
+    } else {
+      for (const auto& [node, force] : f.tissue) springs[b].push_back({node, force, physics::Mat3::Zero()});
     }
     on_needle += f.on_needle;
     in_tissue = in_tissue || f.in_tissue;
@@ -155,6 +172,9 @@ double axial_displacement(const std::vector<Body>& bodies, const physics::Vec3& 
 std::vector<std::vector<physics::NodalSpring>> World::insert_needle(StepStats& stats) {
   std::vector<std::vector<physics::NodalSpring>> springs(bodies_.size());
   if (!needle()) return springs;
+  // A meshless body's tissue points where the last step left them, once for every needle.
+  for (std::size_t b = 0; b < bodies_.size(); ++b)
+    if (bodies_[b].data.efg) physics::efg_point_positions(*bodies_[b].data.efg, bodies_[b].data.state.positions, needle_points_[b]);
   const physics::NeedleSettings& settings = scene_.tool->needle;
   std::vector<physics::NeedlePose> poses(needle_.size());
   for (std::size_t k = 0; k < needle_.size(); ++k) {

@@ -203,6 +203,9 @@ class World {
   // The template's needles (ToolSpec::needles), and per body the k-th one in it.
   std::size_t needle_count() const { return needle_.size(); }
   const std::vector<physics::Needle>& needle_bodies(std::size_t k) const { return needle_.at(k).bodies; }
+  // The positions of body b's tissue points, those its needles' zones name: its nodes, or a
+  // meshless body's integration points (physics/needle/needle_efg.hpp), 3 x points.
+  physics::Vector needle_tissue_positions(std::size_t b) const;
   // The first kGuardLogLimit events; guard_counts() has them all.
   const std::vector<GuardEvent>& guard_events() const { return guard_events_; }
   static constexpr std::size_t kGuardLogLimit = 200;
@@ -261,6 +264,7 @@ class World {
     std::string phase = "approach";
   };
   std::vector<NeedleTrack> needle_;
+  std::vector<physics::Vector> needle_points_;  // per body: a meshless body's integration points this step (else empty)
   std::string needles_phase_ = "approach";  // the template's, from its needles' (insert_needle.cpp)
   // One needle's step on every body: its forces added to `springs`, its figures in `out`; returns
   // the tissue's force on it.

@@ -42,6 +42,19 @@ void validate(const ContactModel& model) {
   const double length = std::sqrt(dot(cut.direction, cut.direction));
   if (cut.force > 0 && std::abs(length - 1) > 1e-6)
     throw std::invalid_argument("ContactModel.cutting.direction is not unit (|d| = " + std::to_string(length) + ")");
+  const NeedleResistance& needle = model.needle;
+  require_finite_vector(needle.axis, "ContactModel.needle.axis");
+  require_finite_vector(needle.line, "ContactModel.needle.line");
+  require_finite(needle.insert_force, "ContactModel.needle.insert_force");
+  require_finite(needle.retract_force, "ContactModel.needle.retract_force");
+  require_finite(needle.stiffness, "ContactModel.needle.stiffness");
+  if (!(needle.insert_force >= 0) || !(needle.retract_force >= 0) || !(needle.stiffness >= 0))
+    throw std::invalid_argument("ContactModel.needle: insert_force " + std::to_string(needle.insert_force) + ", retract_force " +
+                                std::to_string(needle.retract_force) + " and stiffness " + std::to_string(needle.stiffness) +
+                                " must be >= 0");
+  const double axis = std::sqrt(dot(needle.axis, needle.axis));
+  if (needle.stiffness > 0 && std::abs(axis - 1) > 1e-6)
+    throw std::invalid_argument("ContactModel.needle.axis is not unit (|a| = " + std::to_string(axis) + ")");
   require_finite_vector(model.linearised_at, "ContactModel.linearised_at");
   require_finite(model.valid_radius, "ContactModel.valid_radius");
   if (!(model.valid_radius >= 0))

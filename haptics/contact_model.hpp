@@ -53,6 +53,21 @@ struct CuttingResistance {
   double stiffness = 500;      // N/m, > 0
 };
 
+// A needle in the tissue (seed 002 §2.3; engine/haptic_session.cpp builds it from the needle's
+// zones), as the hand meets it at 1 kHz (haptics/needle_proxy.hpp): along the shaft, a friction
+// spring of `stiffness` that slips at `insert_force` pushing in (the cutting zone's intensity C
+// plus the nodes' kinetic friction) or at `retract_force` pulling out (friction only: no cutting
+// on retraction); across it, the tissue's grip, a spring of the same stiffness pulling the
+// device's reference point (the tip) back onto the line through `line` along `axis`. All zero
+// (stiffness 0) while the needle is outside the tissue.
+struct NeedleResistance {
+  Vector3 axis{0, 0, -1};      // unit, the way the needle goes in (hub to tip)
+  Vector3 line{};              // m, a point of the line the tissue holds the tip on
+  double insert_force = 0;     // N, >= 0
+  double retract_force = 0;    // N, >= 0
+  double stiffness = 0;        // N/m, >= 0; 0: the needle is not in the tissue
+};
+
 struct ContactModel {
   static constexpr int kCapacity = 16;
   std::array<ContactPoint, kCapacity> contacts{};
@@ -67,6 +82,7 @@ struct ContactModel {
   double valid_radius = 0;  // m, >= 0
 
   CuttingResistance cutting{};
+  NeedleResistance needle{};
 
   bool has_proxy = false;  // false: no tool proxy yet, the coupling force is zero
   Vector3 proxy_position{};  // m
@@ -77,7 +93,8 @@ struct ContactModel {
 
 // Throws std::invalid_argument naming the field (e.g. "contacts[2].normal is not unit
 // (|n| = 0.5)") on a non-finite number, a count outside [0, kCapacity], a non-unit normal,
-// stiffness <= 0 or compliance < 0. Physics calls it before publishing.
+// stiffness <= 0 or compliance < 0, a needle with a negative level or stiffness or, in the
+// tissue, a non-unit axis. Physics calls it before publishing.
 void validate(const ContactModel& model);
 
 // Force on the hand (N) of the model's contacts at device position x, with the velocity x_dot

@@ -142,6 +142,8 @@ TickSample HapticLoop::step(std::int64_t now_ns) {
   const BlendedCutting cutting = blend_cutting(model, has_fading_ ? &fading_ : nullptr, weight, x);
   s.cutting_force = cutting_proxy_.tick(cutting.term, cutting.level, x, period_s_);
   for (int i = 0; i < 3; ++i) s.contact_force[i] += s.cutting_force[i];
+  s.needle_force = needle_proxy_.tick(model, has_fading_ ? &fading_ : nullptr, weight, x);
+  for (int i = 0; i < 3; ++i) s.contact_force[i] += s.needle_force[i];
   for (int i = 0; i < 3; ++i) total[i] += s.contact_force[i];
 
   if (!std::isfinite(total[0]) || !std::isfinite(total[1]) || !std::isfinite(total[2]))

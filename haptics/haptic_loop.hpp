@@ -37,6 +37,7 @@
 
 #include "haptics/contact_model.hpp"
 #include "haptics/cutting_proxy.hpp"
+#include "haptics/needle_proxy.hpp"
 #include "haptics/device.hpp"
 #include "haptics/passivity.hpp"
 #include "haptics/period_statistics.hpp"
@@ -102,6 +103,7 @@ struct TickSample {
   Vector3 force{};            // written to the device, N (after the clamp)
   Vector3 contact_force{};    // its contact part before the clamp, N
   Vector3 cutting_force{};    // of which the cutting resistance (ContactModel::cutting), N
+  Vector3 needle_force{};     // and the needle's (ContactModel::needle: axial friction, lateral grip), N
   DeviceState state = DeviceState::closed;
   bool clamped = false;       // the clamp reduced the force
   std::uint64_t contact_step = 0;  // ContactModel::step in effect
@@ -177,6 +179,7 @@ class HapticLoop {
   // when it took effect and how long the one before had lasted.
   ContactModel shown_{}, fading_{};
   CuttingProxy cutting_proxy_;  // the crack front the hand pushes against (cutting_proxy.hpp)
+  NeedleProxy needle_proxy_;    // the needle's friction anchor (needle_proxy.hpp)
   bool has_shown_ = false, has_fading_ = false;
   std::int64_t shown_since_ns_ = 0, blend_over_ns_ = 0;
   bool has_previous_ = false;

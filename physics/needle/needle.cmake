@@ -5,4 +5,5 @@ target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/needle_tissue.cpp
   ${CMAKE_CURRENT_LIST_DIR}/needle_zones.cpp
   ${CMAKE_CURRENT_LIST_DIR}/needle.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/needle_efg.cpp
 )

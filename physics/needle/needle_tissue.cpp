@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
+#include <utility>
 
 namespace incise::physics {
 
@@ -45,16 +46,25 @@ std::vector<std::vector<int>> neighbours_within(const Vector& rest, double reach
 
 NeedleTissue make_needle_tissue(const Vector& rest, double spacing, const std::vector<std::array<int, 3>>& surface,
                                 const NeedleSettings& settings) {
-  if (!(spacing > 0)) throw std::invalid_argument("needle: the body's node spacing " + std::to_string(spacing) + " is not positive");
   const int n = static_cast<int>(rest.size() / 3);
-  NeedleTissue tissue;
-  tissue.neighbours = neighbours_within(rest, 1.8 * spacing);
-  tissue.boundary.assign(n, 0);
+  std::vector<std::uint8_t> boundary(n, 0);
   for (const auto& triangle : surface)
     for (int v : triangle) {
       if (v < 0 || v >= n) throw std::invalid_argument("needle: a surface triangle names node " + std::to_string(v) + " of " + std::to_string(n));
-      tissue.boundary[v] = 1;
+      boundary[v] = 1;
     }
+  return make_needle_tissue_with_boundary(rest, spacing, std::move(boundary), settings);
+}
+
+NeedleTissue make_needle_tissue_with_boundary(const Vector& rest, double spacing, std::vector<std::uint8_t> boundary,
+                                              const NeedleSettings& settings) {
+  if (!(spacing > 0)) throw std::invalid_argument("needle: the body's node spacing " + std::to_string(spacing) + " is not positive");
+  const int n = static_cast<int>(rest.size() / 3);
+  if (static_cast<int>(boundary.size()) != n)
+    throw std::invalid_argument("needle: " + std::to_string(boundary.size()) + " boundary flags for " + std::to_string(n) + " nodes");
+  NeedleTissue tissue;
+  tissue.neighbours = neighbours_within(rest, 1.8 * spacing);
+  tissue.boundary = std::move(boundary);
   tissue.cutting.resize(n);
   for (int i = 0; i < n; ++i) tissue.cutting[i] = tissue.boundary[i] ? settings.puncture_force : settings.cutting_force;
   tissue.friction.assign(n, settings.friction_force);

@@ -29,4 +29,9 @@ struct NeedleTissue {
 NeedleTissue make_needle_tissue(const Vector& rest, double spacing, const std::vector<std::array<int, 3>>& surface,
                                 const NeedleSettings& settings);
 
+// make_needle_tissue with the boundary given per node (1 on the body's surface): a meshless body's
+// integration points (needle_efg.hpp), which no triangle names.
+NeedleTissue make_needle_tissue_with_boundary(const Vector& rest, double spacing, std::vector<std::uint8_t> boundary,
+                                              const NeedleSettings& settings);
+
 }  // namespace incise::physics

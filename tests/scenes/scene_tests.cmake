@@ -40,6 +40,17 @@ add_test(NAME replay_probe_tet_mesh
                  --quiet --out ${CMAKE_CURRENT_BINARY_DIR}/replay_probe_tet_mesh)
 set_tests_properties(replay_probe_tet_mesh PROPERTIES TIMEOUT 600 LABELS "scenes")
 
+# The needle in the EFG lobe (issue 30): the replay's `expect` block (puncture peak, resistance
+# growing with depth, friction only on retraction), and `incise session` on it (the scripted
+# virtual device, the needle's force through the haptic loop). A few seconds each in Release.
+add_test(NAME replay_needle_lobe
+         COMMAND incise replay ${PROJECT_SOURCE_DIR}/assets/scenes/needle_lobe.json --check --capture-every 0
+                 --quiet --out ${CMAKE_CURRENT_BINARY_DIR}/replay_needle_lobe)
+add_test(NAME session_needle_lobe
+         COMMAND incise session ${PROJECT_SOURCE_DIR}/assets/scenes/needle_lobe.json --quiet
+                 --out ${CMAKE_CURRENT_BINARY_DIR}/session_needle_lobe)
+set_tests_properties(replay_needle_lobe session_needle_lobe PROPERTIES TIMEOUT 600 LABELS "scenes")
+
 # The GPU backend from the command line (issue 6), on llvmpipe here: cut_organ until its
 # first cuts (step 60; links are first severed at step 55), and the refusal when compute is
 # unavailable. Under the sanitizers a shorter replay (the compute runs uninstrumented in Mesa).

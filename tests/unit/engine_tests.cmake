@@ -27,3 +27,9 @@ add_executable(test_haptic_session ${CMAKE_CURRENT_LIST_DIR}/test_haptic_session
 target_link_libraries(test_haptic_session PRIVATE incise_engine GTest::gtest_main)
 target_compile_definitions(test_haptic_session PRIVATE INCISE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
 gtest_discover_tests(test_haptic_session DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "haptics")
+
+# The needle's force at 1 kHz (issue 30): a session on assets/scenes/needle_lobe.json.
+add_executable(test_haptic_needle ${CMAKE_CURRENT_LIST_DIR}/test_haptic_needle.cpp)
+target_link_libraries(test_haptic_needle PRIVATE incise_engine GTest::gtest_main)
+target_compile_definitions(test_haptic_needle PRIVATE INCISE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+gtest_discover_tests(test_haptic_needle DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "haptics")

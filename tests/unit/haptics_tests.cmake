@@ -9,6 +9,7 @@ add_executable(test_haptics
   ${CMAKE_CURRENT_LIST_DIR}/test_haptics_channels.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_haptics_loop.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_haptics_passivity.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_haptics_needle.cpp
 )
 target_link_libraries(test_haptics PRIVATE incise_haptics GTest::gtest_main)
 # The bridge round-trip test runs the real incise-bridge program.

@@ -34,3 +34,8 @@ add_executable(test_needle_brachytherapy ${CMAKE_CURRENT_LIST_DIR}/test_needle_b
 target_link_libraries(test_needle_brachytherapy PRIVATE incise_engine GTest::gtest_main)
 target_compile_definitions(test_needle_brachytherapy PRIVATE INCISE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
 gtest_discover_tests(test_needle_brachytherapy DISCOVERY_TIMEOUT 60 PROPERTIES TIMEOUT 1500 COST 100)
+
+# The needle on the EFG body (physics/needle/needle_efg.hpp): integration points as its tissue.
+add_executable(test_needle_efg ${CMAKE_CURRENT_LIST_DIR}/test_needle_efg.cpp)
+target_link_libraries(test_needle_efg PRIVATE incise_physics GTest::gtest_main)
+gtest_discover_tests(test_needle_efg DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
