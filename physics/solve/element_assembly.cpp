@@ -38,7 +38,7 @@ void ElementAssembly::build(int nodes, int stride, const std::vector<int>& lengt
     pair_start_[static_cast<size_t>(g) + 1] = pair_start_[static_cast<size_t>(g)] + length * (length + 1) / 2;
     gradient_offset_[static_cast<size_t>(g) + 1] = gradient_offset_[static_cast<size_t>(g)] + static_cast<size_t>(3 * length * members);
   }
-  gradients_.assign(gradient_offset_.back(), 0.0);
+  gradients_.resize(gradient_offset_.back());
   pattern_rebuilt_ = matrix_.nodes() != nodes || !index_pairs();
   if (pattern_rebuilt_) {
     matrix_ = BlockMatrix(nodes, [&](const std::function<void(std::span<const int>)>& visit) {
@@ -70,10 +70,13 @@ bool ElementAssembly::index_pairs() {
 void ElementAssembly::index_mirrors() {
   const std::vector<int>& start = matrix_.row_start();
   const std::vector<int>& columns = matrix_.columns();
+  // The pattern is symmetric: visiting the rows in order meets the blocks (j, i) of each row j
+  // in its column order.
   mirror_.assign(columns.size(), -1);
+  std::vector<int> next(start.begin(), start.end() - 1);
   for (int row = 0; row < matrix_.nodes(); ++row)
     for (int k = start[static_cast<size_t>(row)]; k < start[static_cast<size_t>(row) + 1]; ++k)
-      mirror_[static_cast<size_t>(k)] = find_block(matrix_, columns[static_cast<size_t>(k)], row);  // symmetric pattern
+      mirror_[static_cast<size_t>(k)] = next[static_cast<size_t>(columns[static_cast<size_t>(k)])]++;
 }
 
 void ElementAssembly::list_incidences() {
