@@ -352,9 +352,10 @@ class CorotationalEfg final : public DeformableModel {
   static constexpr int partition_count = 4;
   mutable std::array<Vector, partition_count> partition_buffers_;
   mutable std::vector<double> element_energies_;
-  // current_stiffness's plan (rebuilt when the rows change) and each row's turned gradients.
+  // current_stiffness's plan (rebuilt when the rows change; it holds the turned gradients) and
+  // each element's weight in it (its volume, 0 for an element taken out).
   mutable ElementAssembly assembly_;
-  mutable std::vector<Vec3> turned_gradients_;
+  mutable std::vector<double> element_weights_;
   Executor* executor_ = &serial_executor();
 };
 

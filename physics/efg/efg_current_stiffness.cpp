@@ -11,34 +11,25 @@ const BlockMatrix* CorotationalEfg::current_stiffness() const {
     assembly_.build(node_count(), stride_, row_lengths_, neighbours_);
   // add_stiffness_product's element term V R sigma(sym(R^T p g^T)) g_a, for p = p_b at node b
   // alone, is V R (lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I) R^T p_b: with h = R g
-  // (R orthogonal, so h_a . h_b = g_a . g_b), the block V (lambda h_a h_b^T + mu h_b h_a^T +
-  // mu (h_a . h_b) I), the rest block of efg_rest_stiffness.cpp turned.
-  // Per row entry: h, V lambda h and V mu h (zero for an element taken out), so that a block
-  // costs two outer products and a dot.
-  const size_t entries = shape_gradients_.size();
-  turned_gradients_.resize(3 * entries);
+  // (R orthogonal, so h_a . h_b = g_a . g_b) and S = V h_a h_b^T, the block
+  // lambda S + mu S^T + mu tr(S) I, the rest block of efg_rest_stiffness.cpp turned. It is
+  // linear in S, so the assembly sums S over the integration points of a particle cell (one
+  // neighbourhood) and turns the sum into a block once per cell and pair (element_assembly.hpp).
   const int elements = element_count();
-  const double lambda = shape_->lambda, mu = shape_->mu;
+  element_weights_.resize(static_cast<size_t>(elements));
   executor_->parallel_for(elements, [&](int begin, int end) {
     for (int e = begin; e < end; ++e) {
       const size_t base = static_cast<size_t>(e) * stride_;
-      const double volume = volumes_[static_cast<size_t>(e)] > 0 ? volumes_[static_cast<size_t>(e)] : 0.0;
-      for (int k = 0; k < row_lengths_[static_cast<size_t>(e)]; ++k) {
-        const Vec3 turned = rotations_[static_cast<size_t>(e)] * shape_gradients_[base + k];
-        turned_gradients_[base + k] = turned;
-        turned_gradients_[entries + base + k] = (volume * lambda) * turned;
-        turned_gradients_[2 * entries + base + k] = (volume * mu) * turned;
-      }
+      element_weights_[static_cast<size_t>(e)] = volumes_[static_cast<size_t>(e)] > 0 ? volumes_[static_cast<size_t>(e)] : 0.0;
+      double* turned = assembly_.gradients(e);
+      for (int k = 0; k < row_lengths_[static_cast<size_t>(e)]; ++k)
+        Eigen::Map<Vec3>(turned + 3 * assembly_.local(e, k)) = rotations_[static_cast<size_t>(e)] * shape_gradients_[base + k];
     }
   }, std::max(1, shape_->settings.threaded_elements / 2));
-  const Vec3* h = turned_gradients_.data();
-  const Vec3* lambda_h = h + entries;
-  const Vec3* mu_h = h + 2 * entries;
-  const BlockMatrix& stiffness = assembly_.assemble(*executor_, [&](int e, int a, int b, Mat3& out) {
-    const size_t base = static_cast<size_t>(e) * stride_;
-    const size_t ia = base + static_cast<size_t>(a), ib = base + static_cast<size_t>(b);
-    out.noalias() += lambda_h[ia] * h[ib].transpose() + mu_h[ib] * h[ia].transpose();
-    out.diagonal().array() += mu_h[ia].dot(h[ib]);
+  const double lambda = shape_->lambda, mu = shape_->mu;
+  const BlockMatrix& stiffness = assembly_.assemble(*executor_, element_weights_, [&](const Mat3& s, Mat3& out) {
+    out.noalias() += lambda * s + mu * s.transpose();
+    out.diagonal().array() += mu * s.trace();
   });
   return &stiffness;
 }

@@ -1,0 +1,89 @@
+#include "physics/solve/element_groups.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <stdexcept>
+#include <unordered_map>
+#include <utility>
+
+namespace incise::physics {
+
+namespace {
+
+std::uint64_t hash_nodes(const std::vector<std::pair<int, int>>& sorted) {
+  std::uint64_t hash = 1469598103934665603ull;  // FNV-1a over the node indices
+  for (const auto& [node, k] : sorted) {
+    hash ^= static_cast<std::uint32_t>(node);
+    hash *= 1099511628211ull;
+  }
+  return hash;
+}
+
+bool same_nodes(const std::vector<std::pair<int, int>>& sorted, const int* nodes, int length) {
+  if (static_cast<int>(sorted.size()) != length) return false;
+  for (int a = 0; a < length; ++a)
+    if (sorted[static_cast<size_t>(a)].first != nodes[a]) return false;
+  return true;
+}
+
+// Lists each group's members in increasing element order (a counting sort by group).
+void list_members(ElementGroups& groups) {
+  const int count = groups.count();
+  groups.member_start.assign(static_cast<size_t>(count) + 1, 0);
+  for (int g : groups.group_of) ++groups.member_start[static_cast<size_t>(g) + 1];
+  for (int g = 0; g < count; ++g) groups.member_start[static_cast<size_t>(g) + 1] += groups.member_start[static_cast<size_t>(g)];
+  groups.members.assign(groups.group_of.size(), 0);
+  groups.member_of.assign(groups.group_of.size(), 0);
+  std::vector<int> next(groups.member_start.begin(), groups.member_start.end() - 1);
+  for (int e = 0; e < static_cast<int>(groups.group_of.size()); ++e) {
+    const int g = groups.group_of[static_cast<size_t>(e)];
+    const int slot = next[static_cast<size_t>(g)]++;
+    groups.members[static_cast<size_t>(slot)] = e;
+    groups.member_of[static_cast<size_t>(e)] = slot - groups.member_start[static_cast<size_t>(g)];
+  }
+}
+
+}  // namespace
+
+ElementGroups group_elements(int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours) {
+  if (stride < 1 || neighbours.size() != lengths.size() * static_cast<size_t>(stride))
+    throw std::invalid_argument("group_elements: the rows need lengths.size() x stride neighbours");
+  const int elements = static_cast<int>(lengths.size());
+  ElementGroups groups;
+  groups.node_start.push_back(0);
+  groups.group_of.assign(static_cast<size_t>(elements), 0);
+  groups.local.assign(neighbours.size(), 0);
+  // Per hash, the first group with it; further groups with the same hash are chained.
+  std::unordered_map<std::uint64_t, int> first_with_hash;
+  first_with_hash.reserve(static_cast<size_t>(elements) / 4 + 1);
+  std::vector<int> next_with_hash;
+  std::vector<std::pair<int, int>> sorted;  // (node, k), by node then k
+  for (int e = 0; e < elements; ++e) {
+    const size_t base = static_cast<size_t>(e) * stride;
+    const int length = lengths[static_cast<size_t>(e)];
+    if (length < 0 || length > stride) throw std::invalid_argument("group_elements: a row length is outside [0, stride]");
+    sorted.clear();
+    for (int k = 0; k < length; ++k) sorted.emplace_back(neighbours[base + static_cast<size_t>(k)], k);
+    std::sort(sorted.begin(), sorted.end());
+    const std::uint64_t hash = hash_nodes(sorted);
+    const auto [found, inserted] = first_with_hash.try_emplace(hash, groups.count());
+    int group = inserted ? -1 : found->second;
+    while (group >= 0 && !same_nodes(sorted, groups.nodes.data() + groups.node_start[static_cast<size_t>(group)], groups.length(group)))
+      group = next_with_hash[static_cast<size_t>(group)];
+    if (group < 0) {
+      group = groups.count();
+      // A new group of an existing hash goes to the chain's head; chains only decide which
+      // groups are compared, not the order of anything.
+      next_with_hash.push_back(inserted ? -1 : found->second);
+      if (!inserted) found->second = group;
+      for (const auto& entry : sorted) groups.nodes.push_back(entry.first);
+      groups.node_start.push_back(static_cast<int>(groups.nodes.size()));
+    }
+    groups.group_of[static_cast<size_t>(e)] = group;
+    for (int a = 0; a < length; ++a) groups.local[base + static_cast<size_t>(sorted[static_cast<size_t>(a)].second)] = a;
+  }
+  list_members(groups);
+  return groups;
+}
+
+}  // namespace incise::physics

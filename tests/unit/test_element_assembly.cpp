@@ -1,0 +1,185 @@
+// The grouped assembly of Gram-type element blocks (physics/solve/element_assembly.hpp): elements
+// that share a node set in different orders, a repeated node, an element of weight zero, against
+// a sum of every element's own blocks; the pattern kept or rebuilt through edits; the bits the
+// same however the rows are split and whatever edits led to the rows.
+#include "physics/core/model.hpp"
+#include "physics/solve/element_assembly.hpp"
+#include "physics/solve/element_groups.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstring>
+#include <map>
+#include <random>
+#include <utility>
+
+namespace incise::physics {
+namespace {
+
+constexpr double lambda = 3.0, mu = 0.7;
+
+// C(S) = lambda S + mu S^T + mu tr(S) I, the corotated EFG's block.
+void combine(const Mat3& s, Mat3& out) {
+  out += lambda * s + mu * s.transpose();
+  out.diagonal().array() += mu * s.trace();
+}
+
+// Hands a parallel_for's ranges out in small pieces, last first, on one thread.
+class ShufflingExecutor final : public Executor {
+ public:
+  int thread_count() const override { return 3; }
+  void parallel_for(int count, const std::function<void(int, int)>& task, int) override {
+    const int piece = 3;
+    for (int begin = (count - 1) / piece * piece; begin >= 0; begin -= piece) task(begin, std::min(count, begin + piece));
+  }
+  void run_beside(const std::function<void()>& own, const std::function<void()>& side) override {
+    side();
+    own();
+  }
+};
+
+struct Elements {
+  int nodes = 12, stride = 5;
+  std::vector<int> lengths, neighbours;
+  std::vector<std::vector<Vec3>> vectors;  // per element, per entry k
+  std::vector<double> weights;
+
+  void add(std::vector<int> row, std::mt19937& random) {
+    std::uniform_real_distribution<double> uniform(-1, 1);
+    lengths.push_back(static_cast<int>(row.size()));
+    row.resize(static_cast<size_t>(stride), 0);
+    neighbours.insert(neighbours.end(), row.begin(), row.end());
+    vectors.emplace_back();
+    for (int k = 0; k < lengths.back(); ++k) vectors.back().emplace_back(uniform(random), uniform(random), uniform(random));
+    weights.push_back(1.0 + uniform(random));
+  }
+};
+
+Elements sample_elements() {
+  std::mt19937 random(3);
+  Elements elements;
+  elements.add({0, 1, 2, 3}, random);
+  elements.add({4, 5, 6, 7, 8}, random);
+  elements.add({3, 1, 0, 2}, random);  // the first's nodes, in another order
+  elements.add({2, 9, 10, 11}, random);
+  elements.add({1, 2, 3, 0}, random);
+  elements.add({5, 5, 6, 7}, random);  // a repeated node
+  elements.add({8, 7, 6, 5, 4}, random);
+  elements.weights[4] = 0;  // taken out
+  return elements;
+}
+
+// The blocks summed element by element, every pair (a, b).
+std::map<std::pair<int, int>, Mat3> reference_blocks(const Elements& elements) {
+  std::map<std::pair<int, int>, Mat3> blocks;
+  for (size_t e = 0; e < elements.lengths.size(); ++e) {
+    const int* row = elements.neighbours.data() + e * static_cast<size_t>(elements.stride);
+    for (int a = 0; a < elements.lengths[e]; ++a)
+      for (int b = 0; b < elements.lengths[e]; ++b) {
+        auto [entry, inserted] = blocks.try_emplace({row[a], row[b]}, Mat3::Zero());
+        combine(elements.weights[e] * elements.vectors[e][static_cast<size_t>(a)] * elements.vectors[e][static_cast<size_t>(b)].transpose(),
+                entry->second);
+      }
+  }
+  return blocks;
+}
+
+// The index of block (row, column), -1 when it is outside the pattern.
+int find_block(const BlockMatrix& matrix, int row, int column) {
+  for (int k = matrix.row_start()[static_cast<size_t>(row)]; k < matrix.row_start()[static_cast<size_t>(row) + 1]; ++k)
+    if (matrix.columns()[static_cast<size_t>(k)] == column) return k;
+  return -1;
+}
+
+const BlockMatrix& assemble(ElementAssembly& assembly, const Elements& elements, Executor& executor) {
+  if (!assembly.matches(elements.nodes, elements.stride, elements.lengths, elements.neighbours))
+    assembly.build(elements.nodes, elements.stride, elements.lengths, elements.neighbours);
+  for (size_t e = 0; e < elements.lengths.size(); ++e)
+    for (int k = 0; k < elements.lengths[e]; ++k)
+      Eigen::Map<Vec3>(assembly.gradients(static_cast<int>(e)) + 3 * assembly.local(static_cast<int>(e), k)) =
+          elements.vectors[e][static_cast<size_t>(k)];
+  return assembly.assemble(executor, elements.weights, combine);
+}
+
+void expect_equals_reference(const BlockMatrix& matrix, const Elements& elements) {
+  const auto reference = reference_blocks(elements);
+  for (int row = 0; row < matrix.nodes(); ++row)
+    for (int k = matrix.row_start()[static_cast<size_t>(row)]; k < matrix.row_start()[static_cast<size_t>(row) + 1]; ++k) {
+      const auto found = reference.find({row, matrix.columns()[static_cast<size_t>(k)]});
+      const Mat3 expected = found == reference.end() ? Mat3::Zero() : found->second;
+      EXPECT_LE((matrix.blocks()[static_cast<size_t>(k)] - expected).cwiseAbs().maxCoeff(), 1e-13)
+          << "block (" << row << ", " << matrix.columns()[static_cast<size_t>(k)] << ")";
+    }
+  for (const auto& [pair, block] : reference) EXPECT_GE(find_block(matrix, pair.first, pair.second), 0);
+}
+
+TEST(ElementGroups, ElementsWithTheSameNodesInAnyOrderShareAGroup) {
+  const Elements elements = sample_elements();
+  const ElementGroups groups = group_elements(elements.stride, elements.lengths, elements.neighbours);
+  EXPECT_EQ(groups.count(), 4);
+  EXPECT_EQ(groups.group_of, (std::vector<int>{0, 1, 0, 2, 0, 3, 1}));
+  EXPECT_EQ(groups.member_of, (std::vector<int>{0, 0, 1, 0, 2, 0, 1}));
+  EXPECT_EQ(std::vector<int>(groups.nodes.begin() + groups.node_start[3], groups.nodes.begin() + groups.node_start[4]),
+            (std::vector<int>{5, 5, 6, 7}));
+  // Element 2's row is {3, 1, 0, 2}: its entries sit at the sorted positions 3, 1, 0, 2.
+  EXPECT_EQ(std::vector<int>(groups.local.begin() + 2 * elements.stride, groups.local.begin() + 2 * elements.stride + 4),
+            (std::vector<int>{3, 1, 0, 2}));
+}
+
+TEST(ElementAssembly, EqualsTheElementByElementSum) {
+  const Elements elements = sample_elements();
+  ElementAssembly assembly;
+  expect_equals_reference(assemble(assembly, elements, serial_executor()), elements);
+  EXPECT_TRUE(assembly.pattern_rebuilt());
+  // Off the diagonal the matrix is symmetric to the bit.
+  const BlockMatrix& k = assembly.matrix();
+  for (int row = 0; row < k.nodes(); ++row)
+    for (int i = k.row_start()[static_cast<size_t>(row)]; i < k.row_start()[static_cast<size_t>(row) + 1]; ++i) {
+      const int column = k.columns()[static_cast<size_t>(i)];
+      if (column == row) continue;
+      const Mat3 mirrored = k.blocks()[static_cast<size_t>(find_block(k, column, row))].transpose();
+      EXPECT_EQ(0, std::memcmp(k.blocks()[static_cast<size_t>(i)].data(), mirrored.data(), sizeof(Mat3)));
+    }
+}
+
+TEST(ElementAssembly, KeepsThePatternThroughEditsInsideItAndGrowsItForNewPairs) {
+  Elements elements = sample_elements();
+  ElementAssembly assembly;
+  assemble(assembly, elements, serial_executor());
+  const int blocks = assembly.matrix().block_count();
+  // Element 3 drops node 11: its pairs are all in the pattern already.
+  elements.lengths[3] = 3;
+  expect_equals_reference(assemble(assembly, elements, serial_executor()), elements);
+  EXPECT_FALSE(assembly.pattern_rebuilt());
+  EXPECT_EQ(assembly.matrix().block_count(), blocks);
+  // Element 6 reaches node 0: new pairs.
+  elements.neighbours[6 * static_cast<size_t>(elements.stride)] = 0;
+  expect_equals_reference(assemble(assembly, elements, serial_executor()), elements);
+  EXPECT_TRUE(assembly.pattern_rebuilt());
+}
+
+TEST(ElementAssembly, HasTheSameBitsHoweverTheRowsAreSplitAndWhateverEditsLedThere) {
+  Elements elements = sample_elements();
+  ElementAssembly edited;
+  assemble(edited, elements, serial_executor());
+  elements.lengths[3] = 3;
+  std::swap(elements.neighbours[1 * static_cast<size_t>(elements.stride)], elements.neighbours[1 * static_cast<size_t>(elements.stride) + 4]);
+  std::swap(elements.vectors[1][0], elements.vectors[1][4]);
+  const BlockMatrix& serial = assemble(edited, elements, serial_executor());
+  EXPECT_FALSE(edited.pattern_rebuilt());
+  ElementAssembly fresh;
+  ShufflingExecutor shuffling;
+  const BlockMatrix& shuffled = assemble(fresh, elements, shuffling);
+  // The edited plan keeps the pairs of node 11, now zero; every block of the fresh one is there.
+  EXPECT_GT(serial.block_count(), shuffled.block_count());
+  for (int row = 0; row < shuffled.nodes(); ++row)
+    for (int k = shuffled.row_start()[static_cast<size_t>(row)]; k < shuffled.row_start()[static_cast<size_t>(row) + 1]; ++k) {
+      const int column = shuffled.columns()[static_cast<size_t>(k)];
+      EXPECT_EQ(0, std::memcmp(shuffled.blocks()[static_cast<size_t>(k)].data(),
+                               serial.blocks()[static_cast<size_t>(find_block(serial, row, column))].data(), sizeof(Mat3)));
+    }
+}
+
+}  // namespace
+}  // namespace incise::physics
