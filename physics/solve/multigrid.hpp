@@ -41,6 +41,16 @@ struct ChebyshevSmoother {
   double ratio = 30;   // the low end, below which the coarse grid takes over
 };
 
+// The Chebyshev iteration's steps on D^-1 A over [upper / ratio, upper] (Saad, Iterative
+// Methods, algorithm 12.1): s_0 = D^-1 r_0 / theta, then s_k = a_k s_(k-1) + b_k D^-1 r_k,
+// x += s_k, r_(k+1) = r_k - A s_k. The same for every call, so pre- and post-smoothing are
+// one symmetric S.
+struct ChebyshevSteps {
+  explicit ChebyshevSteps(const ChebyshevSmoother& smoother);
+  double theta = 1;
+  std::vector<double> a, b;  // a[k], b[k] for k = 1 .. degree - 1 (index 0 unused)
+};
+
 class VcyclePreconditioner {
  public:
   // `apply`: B; `inverse_diagonal`: D^-1 (jacobi_inverse); `coarse`: a coarse RestFactor;
