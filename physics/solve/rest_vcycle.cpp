@@ -15,18 +15,34 @@ RestVcycle::RestVcycle(const RestFactor& factor, const std::vector<Eigen::Quater
 }
 
 void RestVcycle::smooth(Vector* output) {
-  const Vector& inverse_diagonal = factor_.rest_inverse_diagonal();
   const BlockSystem& system = factor_.rest_system();
+  const double* inverse_diagonal = factor_.rest_inverse_diagonal().data();
+  const double* residual = residual_.data();
+  double* step = step_.data();
+  double* x = x_.data();
   const Eigen::Index size = residual_.size();
+  const double theta = steps_.theta;
+  // One pass per step, its branches outside the loops (they vectorise).
+  auto pass = [&](auto next_step, bool add_to_x) {
+    if (add_to_x) {
+      for (Eigen::Index i = 0; i < size; ++i) {
+        step[i] = next_step(i);
+        x[i] += step[i];
+      }
+    } else {
+      for (Eigen::Index i = 0; i < size; ++i) step[i] = next_step(i);
+    }
+  };
   const int degree = smoother_.degree;
   for (int k = 0; k < degree; ++k) {
-    if (k > 0) system.subtract_product(step_, residual_, executor_);
-    const bool last = k + 1 == degree;
-    const double a = k > 0 ? steps_.a[static_cast<size_t>(k)] : 0, b = k > 0 ? steps_.b[static_cast<size_t>(k)] : 0;
-    for (Eigen::Index i = 0; i < size; ++i) {
-      step_[i] = k == 0 ? inverse_diagonal[i] * residual_[i] / steps_.theta : a * step_[i] + b * (inverse_diagonal[i] * residual_[i]);
-      if (!(last && output)) x_[i] += step_[i];
+    const bool add_to_x = !(k + 1 == degree && output);  // the last step of the post-smoothing goes to *output
+    if (k == 0) {
+      pass([&](Eigen::Index i) { return inverse_diagonal[i] * residual[i] / theta; }, add_to_x);
+      continue;
     }
+    system.subtract_product(step_, residual_, executor_);
+    const double a = steps_.a[static_cast<size_t>(k)], b = steps_.b[static_cast<size_t>(k)];
+    pass([&](Eigen::Index i) { return a * step[i] + b * (inverse_diagonal[i] * residual[i]); }, add_to_x);
   }
   if (!output) {
     system.subtract_product(step_, residual_, executor_);
