@@ -184,7 +184,9 @@ TEST(BlockSystem, TheVectorisedAndPortableKernelsAgreeBitForBit) {
     blocks.multiply(x, portable, serial_executor());
     set_block_product_vectorised(true);
     EXPECT_TRUE(same_bits(vectorised, portable)) << (single ? "float" : "double");
-    if (!single) EXPECT_TRUE(same_bits(portable, eigen_blocks));
+    if (!single) {
+      EXPECT_TRUE(same_bits(portable, eigen_blocks));
+    }
   }
   std::printf("block product: %s kernel\n", block_product_vectorised() ? "AVX2" : "portable");
 }
