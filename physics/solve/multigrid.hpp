@@ -10,10 +10,12 @@
 // definite while the smoother contracts in the B norm, which the Chebyshev interval's upper end
 // (an over-estimate of the largest eigenvalue of D^-1 B) ensures.
 //
-// The implicit step (physics/core/implicit_euler.cpp, `multigrid`) runs it on the rest system
-// B = A0 in the rest frame, unwarped, its products those of the assembled A0
+// The implicit step (physics/core/implicit_euler.cpp, `multigrid`) runs this cycle on the rest
+// system B = A0 in the rest frame, unwarped, its products those of the assembled A0
 // (block_system.hpp), and warps the whole cycle: M^-1 = R V0 R^T. Every product is then the
-// cheap block one, and the operator fixed between factor builds.
+// cheap block one, and the operator fixed between factor builds. It runs it as RestVcycle
+// (rest_vcycle.hpp), the same operations with the passes fused; `multigrid_current` and the
+// tests run this class.
 //
 // Unlike the additive two-level (Jacobi + C), the correction acts on the residual the
 // smoother leaves, so the smoother and the coarse grid do not fight over the smooth modes.
