@@ -146,6 +146,12 @@ void add_performance_command(CLI::App& parent, PerformanceBenchCommand& performa
                       "CG's preconditioner: all side by side, or multigrid, multigrid_current, two_level, warped_cholesky or jacobi (the Jacobi CG) alone")
       ->check(CLI::IsMember({"all", "multigrid", "multigrid_current", "two_level", "warped_cholesky", "jacobi"}))
       ->capture_default_str();
+  command->add_option("--multigrid-smoothing", performance.multigrid_smoothing,
+                      "The multigrid smoother's degree (scene solver.multigrid_smoothing; default: the scene's)")
+      ->check(CLI::Range(1, 8));
+  command->add_option("--multigrid-precision", performance.multigrid_precision,
+                      "The multigrid smoother's copy of the rest system (scene solver.multigrid_precision; default: the scene's)")
+      ->check(CLI::IsMember({"double", "float"}));
   command->add_flag("--report-only", performance.report_only,
                     "Run nothing: write OUT/report.html from the OUT/performance.csv already there");
   command->add_option("--backend", performance.backend, "gpu: also run every size on the GPU backend")

@@ -83,6 +83,8 @@ struct PerformanceBenchCommand {
   bool quick = false;
   std::string out = "out/bench/performance";
   std::string preconditioner = "all";
+  int multigrid_smoothing = 0;       // 0: the scene's
+  std::string multigrid_precision;  // "": the scene's
   bool report_only = false;
   std::string backend = "cpu";
   CLI::App* command = nullptr;

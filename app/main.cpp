@@ -71,7 +71,8 @@ int run_command(const incise::app::Commands& c) {
     return 0;
   }
   if (*performance.command)
-    return bench::run_performance_bench(performance.quick, performance.out, std::cerr, performance.backend, performance.preconditioner);
+    return bench::run_performance_bench(performance.quick, performance.out, std::cerr, performance.backend, performance.preconditioner,
+                                        {performance.multigrid_smoothing, performance.multigrid_precision});
   return 0;
 }
 

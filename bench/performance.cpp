@@ -73,7 +73,8 @@ std::vector<std::string> preconditioners_to_run(const std::string& preconditione
 }  // namespace
 
 int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress,
-                          const std::string& backend, const std::string& preconditioner) {
+                          const std::string& backend, const std::string& preconditioner,
+                          const MultigridOverrides& multigrid) {
   try {
     std::filesystem::create_directories(out_dir);
     const std::filesystem::path scene_file = find_repo_file("assets/scenes/default.json", "performance");
@@ -96,7 +97,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
                            "ms_front_cut", "ms_cut_cpu", "ms_cut_cpu_last_quarter", "preconditioner", "cg_iterations",
                            "ms_per_iteration", "ms_total_p95", "ms_total_p95_uncut", "cg_iterations_uncut",
                            "preconditioner_age_max", "preconditioner_build_ms", "preconditioner_wait_ms_max",
-                           "ms_solve_ratio_to_jacobi", "ms_assembly"});
+                           "ms_solve_ratio_to_jacobi", "ms_assembly", "multigrid_smoothing", "multigrid_precision"});
     // --backend gpu: every size runs on the cpu and then on the gpu (single precision).
     std::vector<std::string> backends{"cpu"};
     if (backend == "gpu") backends.push_back("gpu");
@@ -112,6 +113,8 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
       engine::Scene scene = base;
       scene.solver.backend = row_backend;
       scene.solver.preconditioner = row_preconditioner;
+      if (multigrid.smoothing > 0) scene.solver.multigrid_smoothing = multigrid.smoothing;
+      if (!multigrid.precision.empty()) scene.solver.multigrid_precision = multigrid.precision;
       scene.bodies[0].resolution = resolution.spacing;
       scene.bodies[0].efg.surface_resolution = resolution.surface;
       scene.render.capture_every = 0;
@@ -180,7 +183,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
               "\"" + device + "\"", bytes_per_cut_step, full_upload, row_surface, median(cut), median(mapping),
               median(checks), cut_first, cut_last, median(front_cut), median(cut_cpu), cut_cpu_last, used_preconditioner,
               median(iterations), median(per_iteration), p95, uncut_p95, median(uncut_iterations), age_max, build_ms,
-              wait_max, solve_ratio, median(assembly));
+              wait_max, solve_ratio, median(assembly), scene.solver.multigrid_smoothing, scene.solver.multigrid_precision);
       csv.flush();
       progress << std::fixed << std::setprecision(2) << std::setw(8) << 1e3 * resolution.spacing << std::setw(8)
                << 1e3 * resolution.surface << std::setw(9) << body.model->elements << std::setw(10) << body.data.surface.size()
@@ -194,7 +197,11 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
       if (body.gpu)
         progress << " on " << device << ", " << std::setprecision(0) << bytes_per_cut_step
                  << " bytes uploaded per cut step, a full upload of the rows " << full_upload;
-      progress << ")\n" << std::setw(33) << used_preconditioner << ": CG iterations " << std::setprecision(1)
+      const std::string shown_preconditioner =
+          used_preconditioner == "multigrid" ? "multigrid (degree " + std::to_string(scene.solver.multigrid_smoothing) + ", " +
+                                                   scene.solver.multigrid_precision + ")"
+                                             : used_preconditioner;
+      progress << ")\n" << std::setw(33) << shown_preconditioner << ": CG iterations " << std::setprecision(1)
                << median(iterations) << " (uncut " << median(uncut_iterations) << "), " << std::setprecision(3)
                << median(per_iteration) << " ms per iteration, step p95 " << std::setprecision(2) << p95 << " ms (uncut "
                << uncut_p95 << ", x" << (uncut_p95 > 0 ? p95 / uncut_p95 : 0.0) << ")";

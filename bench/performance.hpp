@@ -16,7 +16,14 @@ namespace incise::bench {
 // Returns 0 on success, 1 on failure (with a message on `progress`).
 // backend "gpu": each size also runs on the GPU backend (rows with backend=gpu, the device
 // and the bytes uploaded per cut step). The cut_surface column is "front", the one design.
+// `multigrid`: the scene's multigrid_smoothing and multigrid_precision for every row
+// (0 and "": the scene's own); the csv's last two columns name the ones used.
+struct MultigridOverrides {
+  int smoothing = 0;
+  std::string precision;
+};
 int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress,
-                          const std::string& backend = "cpu", const std::string& preconditioner = "all");
+                          const std::string& backend = "cpu", const std::string& preconditioner = "all",
+                          const MultigridOverrides& multigrid = {});
 
 }  // namespace incise::bench

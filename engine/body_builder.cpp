@@ -235,6 +235,7 @@ std::shared_ptr<physics::BodyModel> body_model(const BodySpec& spec, const Solve
                                                                            : physics::PreconditionerKind::jacobi;
   model->preconditioner.latency = solver.preconditioner_latency;
   model->preconditioner.smoothing = solver.multigrid_smoothing;
+  model->preconditioner.single_precision = solver.multigrid_precision == "float";
   // The current system assembled once per step, its products CG's and the smoother's.
   model->integrator.assembled_system = solver.preconditioner == "multigrid_current";
   model->gravity = vec(solver.gravity);

@@ -304,6 +304,7 @@ void read_solver(const Json& solver, SolverSpec& s, std::vector<std::string>& er
   s.max_retries = sr.integer("max_retries", false, 3, 0, 20);
   s.preconditioner = sr.text("preconditioner", false, "multigrid", {"jacobi", "warped_cholesky", "two_level", "multigrid", "multigrid_current"});
   s.multigrid_smoothing = sr.integer("multigrid_smoothing", false, 2, 1, 8);
+  s.multigrid_precision = sr.text("multigrid_precision", false, "double", {"double", "float"});
   s.preconditioner_latency = sr.integer("preconditioner_latency", false, 4, 0, 1000);
   s.start = sr.text("start", false, "rest", {"rest", "settled"});
   s.realtime = sr.boolean("realtime", true);

@@ -150,6 +150,9 @@ struct SolverSpec {
   std::string preconditioner = "multigrid";
   int preconditioner_latency = 4;
   int multigrid_smoothing = 2;  // "multigrid": the Chebyshev smoother's degree
+  // "multigrid": the smoother's copy of the rest system, "double" or "float" (rounded once per
+  // factor build; changes the iterates' round-off, so not the default).
+  std::string multigrid_precision = "double";
   std::string start = "rest";  // "rest", or "settled": start from static equilibrium under gravity
   // Real time (engine/real_time_budget.hpp): live sessions (`run`, `session`, `bench haptics`)
   // stop each step's CG when its time is up, after at least realtime_min_iterations; replay

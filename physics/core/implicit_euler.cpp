@@ -5,6 +5,7 @@
 #include "physics/solve/bicgstab.hpp"
 #include "physics/solve/current_system.hpp"
 #include "physics/solve/multigrid.hpp"
+#include "physics/solve/rest_vcycle.hpp"
 #include "physics/solve/warped_preconditioner.hpp"
 
 #include <cmath>
@@ -127,24 +128,12 @@ CgResult rest_factor_solve(const DeformableModel& model, const RestFactor& facto
     // matrix-free A), and V0 is a fixed SPD operator, so M^-1 is SPD whatever the rotations.
     // The Chebyshev interval's top is over the Lanczos estimate of A0's own D0^-1 A0, which
     // approaches it from below.
+    // RestVcycle fuses the warps and the Chebyshev recurrences into the cycle's passes.
     ChebyshevSmoother smoother;
     smoother.degree = factor.smoothing_degree();
     smoother.upper = 1.05 * factor.smoothing_eigenvalue();
-    Executor& executor = model.executor();
-    const LinearOperator rest_apply = [&](const Vector& p, Vector& out) { factor.rest_product(p, out, executor); };
-    VcyclePreconditioner vcycle(rest_apply, factor.rest_inverse_diagonal(), factor, {}, factor.rest_fixed(), smoother);
-    Vector turned(right_hand_side.size()), rest_z(right_hand_side.size());
-    const Index nodes = right_hand_side.size() / 3;
-    const bool warped = !rotations.empty();
-    const Preconditioner cycle = [&](const Vector& r, Vector& z) {
-      for (Index node = 0; node < nodes; ++node)
-        turned.segment<3>(3 * node) =
-            warped ? rotations[static_cast<size_t>(node)].conjugate() * Vec3(r.segment<3>(3 * node)) : Vec3(r.segment<3>(3 * node));
-      vcycle(turned, rest_z);
-      for (Index node = 0; node < nodes; ++node)
-        z.segment<3>(3 * node) =
-            warped ? rotations[static_cast<size_t>(node)] * Vec3(rest_z.segment<3>(3 * node)) : Vec3(rest_z.segment<3>(3 * node));
-    };
+    RestVcycle vcycle(factor, rotations, smoother, model.executor());
+    const Preconditioner cycle = [&](const Vector& r, Vector& z) { vcycle(r, z); };
     return preconditioned_conjugate_gradient(apply, right_hand_side, cycle, fixed_nodes, velocity_change, settings);
   }
   Vector coarse(right_hand_side.size());

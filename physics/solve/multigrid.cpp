@@ -4,6 +4,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <utility>
@@ -46,6 +47,20 @@ double largest_jacobi_eigenvalue(const Eigen::SparseMatrix<double>& a, int steps
   return largest;
 }
 
+ChebyshevSteps::ChebyshevSteps(const ChebyshevSmoother& smoother)
+    : a(static_cast<size_t>(std::max(smoother.degree, 1)), 0.0), b(a.size(), 0.0) {
+  const double upper = smoother.upper, lower = upper / smoother.ratio;
+  const double delta = (upper - lower) / 2, sigma = (upper + lower) / 2 / delta;
+  theta = (upper + lower) / 2;
+  double rho = 1 / sigma;
+  for (size_t k = 1; k < a.size(); ++k) {
+    const double next = 1 / (2 * sigma - rho);
+    a[k] = next * rho;
+    b[k] = 2 * next / delta;
+    rho = next;
+  }
+}
+
 VcyclePreconditioner::VcyclePreconditioner(const LinearOperator& apply, Vector inverse_diagonal, const RestFactor& coarse,
                                            std::vector<Eigen::Quaterniond> rotations,
                                            const std::vector<std::uint8_t>& fixed, ChebyshevSmoother smoother)
@@ -65,21 +80,15 @@ void VcyclePreconditioner::zero_fixed(Vector& v) const {
     if (fixed_[node] != 0) v.segment<3>(3 * static_cast<Eigen::Index>(node)).setZero();
 }
 
-// Chebyshev iteration on D^-1 A over [lower, upper] (Saad, Iterative Methods, algorithm 12.1),
-// `degree` steps from x's current value: the polynomial is the same at every call, so the
-// pre- and post-smoothers are one symmetric S.
+// `degree` Chebyshev steps (ChebyshevSteps) from x's current value.
 void VcyclePreconditioner::smooth(Vector& x, Vector& residual, bool keep_residual) {
-  const double upper = smoother_.upper, lower = upper / smoother_.ratio;
-  const double theta = (upper + lower) / 2, delta = (upper - lower) / 2, sigma = theta / delta;
-  double rho = 1 / sigma;
-  step_ = inverse_diagonal_.cwiseProduct(residual) / theta;
+  const ChebyshevSteps steps(smoother_);
+  step_ = inverse_diagonal_.cwiseProduct(residual) / steps.theta;
   zero_fixed(step_);
   for (int k = 0; k < smoother_.degree; ++k) {
     if (k > 0) {
-      const double next = 1 / (2 * sigma - rho);
-      step_ = (next * rho) * step_ + (2 * next / delta) * inverse_diagonal_.cwiseProduct(residual);
+      step_ = steps.a[static_cast<size_t>(k)] * step_ + steps.b[static_cast<size_t>(k)] * inverse_diagonal_.cwiseProduct(residual);
       zero_fixed(step_);
-      rho = next;
     }
     x += step_;
     if (k + 1 < smoother_.degree || keep_residual) {

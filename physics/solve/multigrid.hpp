@@ -10,10 +10,12 @@
 // definite while the smoother contracts in the B norm, which the Chebyshev interval's upper end
 // (an over-estimate of the largest eigenvalue of D^-1 B) ensures.
 //
-// The implicit step (physics/core/implicit_euler.cpp, `multigrid`) runs it on the rest system
-// B = A0 in the rest frame, unwarped, its products those of the assembled A0
+// The implicit step (physics/core/implicit_euler.cpp, `multigrid`) runs this cycle on the rest
+// system B = A0 in the rest frame, unwarped, its products those of the assembled A0
 // (block_system.hpp), and warps the whole cycle: M^-1 = R V0 R^T. Every product is then the
-// cheap block one, and the operator fixed between factor builds.
+// cheap block one, and the operator fixed between factor builds. It runs it as RestVcycle
+// (rest_vcycle.hpp), the same operations with the passes fused; `multigrid_current` and the
+// tests run this class.
 //
 // Unlike the additive two-level (Jacobi + C), the correction acts on the residual the
 // smoother leaves, so the smoother and the coarse grid do not fight over the smooth modes.
@@ -39,6 +41,16 @@ struct ChebyshevSmoother {
   int degree = 2;      // A products per smoothing (1: damped Jacobi)
   double upper = 2;    // the interval [upper / ratio, upper] whose eigenvalues of D^-1 A it damps
   double ratio = 30;   // the low end, below which the coarse grid takes over
+};
+
+// The Chebyshev iteration's steps on D^-1 A over [upper / ratio, upper] (Saad, Iterative
+// Methods, algorithm 12.1): s_0 = D^-1 r_0 / theta, then s_k = a_k s_(k-1) + b_k D^-1 r_k,
+// x += s_k, r_(k+1) = r_k - A s_k. The same for every call, so pre- and post-smoothing are
+// one symmetric S.
+struct ChebyshevSteps {
+  explicit ChebyshevSteps(const ChebyshevSmoother& smoother);
+  double theta = 1;
+  std::vector<double> a, b;  // a[k], b[k] for k = 1 .. degree - 1 (index 0 unused)
 };
 
 class VcyclePreconditioner {

@@ -30,7 +30,7 @@ struct RestFactor::Solver {
 
 RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
                        double mass_coefficient, double stiffness_coefficient, FactorBackend backend,
-                       const CoarseSpace* coarse, int smoothing_degree)
+                       const CoarseSpace* coarse, int smoothing_degree, bool single_precision_smoother)
     : solver_(std::make_unique<Solver>()), size_(3 * stiffness.nodes()), backend_(backend) {
   const auto start = std::chrono::steady_clock::now();
   if (!(mass_coefficient > 0) || !(stiffness_coefficient >= 0))
@@ -40,8 +40,9 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
     if (!coarse) throw std::invalid_argument("RestFactor: a V-cycle's smoother needs a coarse space");
     smoothing_degree_ = smoothing_degree;
     smoothing_eigenvalue_ = largest_jacobi_eigenvalue(matrix);
-    rest_system_ = BlockSystem(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient);
+    rest_system_ = BlockSystem(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient, single_precision_smoother);
     rest_inverse_diagonal_ = rest_system_.diagonal().cwiseInverse();
+    if (single_precision_smoother) rest_inverse_diagonal_ = rest_inverse_diagonal_.cast<float>().cast<double>();
     rest_fixed_ = fixed;
   }
   if (coarse) {

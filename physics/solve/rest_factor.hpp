@@ -40,11 +40,13 @@ class RestFactor {
   // `smoothing_degree` > 0 (with a coarse space): the factor is the coarse level of a V-cycle
   // (multigrid.hpp) whose Chebyshev smoother has that degree; the largest eigenvalue of
   // D0^-1 A0 that bounds its interval is estimated here, off the step's critical path.
+  // `single_precision_smoother`: the smoother's copy of A0 (and D0^-1) rounded to float
+  // (block_system.hpp); the factor and the estimate stay double.
   // Throws std::runtime_error if A0 is not positive definite (a body with a free rigid mode
   // and no mass term cannot be: the mass coefficient must be positive).
   RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
              double mass_coefficient, double stiffness_coefficient, FactorBackend backend = default_factor_backend(),
-             const CoarseSpace* coarse = nullptr, int smoothing_degree = 0);
+             const CoarseSpace* coarse = nullptr, int smoothing_degree = 0, bool single_precision_smoother = false);
   ~RestFactor();
   RestFactor(const RestFactor&) = delete;
   RestFactor& operator=(const RestFactor&) = delete;
@@ -66,6 +68,7 @@ class RestFactor {
   void rest_product(const Eigen::VectorXd& x, Eigen::VectorXd& y, Executor& executor) const {
     rest_system_.multiply(x, y, executor);
   }
+  const BlockSystem& rest_system() const { return rest_system_; }
   const Eigen::VectorXd& rest_inverse_diagonal() const { return rest_inverse_diagonal_; }
   const std::vector<std::uint8_t>& rest_fixed() const { return rest_fixed_; }
   FactorBackend backend() const { return backend_; }

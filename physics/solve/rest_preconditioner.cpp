@@ -33,14 +33,15 @@ RestPreconditioner::Pending RestPreconditioner::start(const DeformableModel& mod
   const double coarse_spacing =
       settings.kind == PreconditionerKind::two_level || multigrid ? settings.coarsening * model.node_spacing() : 0.0;
   const int smoothing = multigrid ? settings.smoothing : 0;
+  const bool single = settings.kind == PreconditionerKind::multigrid && settings.single_precision;
   pending.done = executor.run_async([result = pending.result, assemble = std::move(assemble),
                                      masses = model.lumped_masses(), rest = model.rest_positions(), fixed,
-                                     mass_coefficient, stiffness_coefficient, coarse_spacing, smoothing] {
+                                     mass_coefficient, stiffness_coefficient, coarse_spacing, smoothing, single] {
     const BlockMatrix stiffness = assemble();
     if (coarse_spacing > 0) {
       const CoarseSpace coarse = make_coarse_space(rest, coarse_spacing, fixed);
       *result = std::make_shared<const RestFactor>(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient,
-                                                   default_factor_backend(), &coarse, smoothing);
+                                                   default_factor_backend(), &coarse, smoothing, single);
     } else {
       *result = std::make_shared<const RestFactor>(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient);
     }

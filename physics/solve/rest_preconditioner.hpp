@@ -47,6 +47,7 @@ struct PreconditionerSettings {
   int latency = 4;  // steps between a topology change and its factor taking over
   double coarsening = 2;  // two_level, multigrid: the coarse grid's spacing over the model's node spacing
   int smoothing = 2;      // multigrid: the Chebyshev smoother's degree (A products per smoothing)
+  bool single_precision = false;  // multigrid: the smoother's copy of A0 and D0^-1 in float
 };
 
 // What the step reports about it.

@@ -5,9 +5,11 @@
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/fem/corotational_fem.hpp"
 #include "physics/fem/tet_mesh.hpp"
+#include "physics/solve/block_product.hpp"
 #include "physics/solve/block_system.hpp"
 #include "physics/solve/multigrid.hpp"
 #include "physics/solve/rest_preconditioner.hpp"
+#include "physics/solve/rest_vcycle.hpp"
 #include "physics/solve/warped_preconditioner.hpp"
 
 #include <gtest/gtest.h>
@@ -138,6 +140,75 @@ TEST(BlockSystem, EqualsTheScalarSystemAndIsIndependentOfTheSplit) {
   EXPECT_LE((serial - reference).cwiseAbs().maxCoeff(), 1e-12 * reference.cwiseAbs().maxCoeff());
   EXPECT_EQ(0, std::memcmp(serial.data(), shuffled.data(), sizeof(double) * static_cast<size_t>(x.size())));
   EXPECT_EQ(blocks.diagonal(), Vector(scalar.diagonal()));
+  // The residual's update is the product subtracted, bit for bit.
+  Vector residual = random_vector(x.size(), 8), expected = residual - serial;
+  blocks.subtract_product(x, residual, shuffling);
+  EXPECT_EQ(0, std::memcmp(residual.data(), expected.data(), sizeof(double) * static_cast<size_t>(x.size())));
+}
+
+bool same_bits(const Vector& a, const Vector& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
+}
+
+// The block product's AVX2 kernel (where the CPU has it) and its portable one have the same
+// bits, in double and in float, and in double those of the product before them: Eigen's
+// `sum += Matrix3d * x.segment<3>()` per block, summed in column order.
+TEST(BlockSystem, TheVectorisedAndPortableKernelsAgreeBitForBit) {
+  const auto model = small_efg();
+  const BlockMatrix k = model->rest_stiffness_job()();
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(model->node_count()), 0);
+  for (int i = 0; i < model->node_count(); i += 7) fixed[static_cast<size_t>(i)] = 1;
+  const double mass_coefficient = 1.02, stiffness_coefficient = 1e-4;
+  const Vector x = random_vector(3 * model->node_count(), 9);
+  // The blocks as BlockSystem forms them, multiplied as it did before its kernels.
+  Vector eigen_blocks(x.size());
+  for (int row = 0; row < model->node_count(); ++row) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int b = k.row_start()[static_cast<size_t>(row)]; b < k.row_start()[static_cast<size_t>(row) + 1]; ++b) {
+      const int column = k.columns()[static_cast<size_t>(b)];
+      if (fixed[static_cast<size_t>(row)] != 0 && column != row) continue;
+      if (fixed[static_cast<size_t>(column)] != 0 && column != row) continue;
+      Mat3 block = stiffness_coefficient * k.blocks()[static_cast<size_t>(b)];
+      if (column == row) block.diagonal().array() += mass_coefficient * model->lumped_masses()[row];
+      if (fixed[static_cast<size_t>(row)] != 0) block = Mat3::Identity();
+      sum.noalias() += block * x.segment<3>(3 * column);
+    }
+    eigen_blocks.segment<3>(3 * row) = sum;
+  }
+  for (bool single : {false, true}) {
+    const BlockSystem blocks(k, model->lumped_masses(), fixed, mass_coefficient, stiffness_coefficient, single);
+    Vector vectorised, portable;
+    set_block_product_vectorised(true);
+    blocks.multiply(x, vectorised, serial_executor());
+    set_block_product_vectorised(false);
+    blocks.multiply(x, portable, serial_executor());
+    set_block_product_vectorised(true);
+    EXPECT_TRUE(same_bits(vectorised, portable)) << (single ? "float" : "double");
+    if (!single) {
+      EXPECT_TRUE(same_bits(portable, eigen_blocks));
+    }
+  }
+  std::printf("block product: %s kernel\n", block_product_vectorised() ? "AVX2" : "portable");
+}
+
+// The float copy is the system with every entry rounded to float, multiplied in double.
+TEST(BlockSystem, TheFloatCopyIsTheRoundedSystem) {
+  const auto model = small_efg();
+  const BlockMatrix k = model->rest_stiffness_job()();
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(model->node_count()), 0);
+  for (int i = 0; i < model->node_count(); i += 5) fixed[static_cast<size_t>(i)] = 1;
+  const double mass_coefficient = 1.02, stiffness_coefficient = 1e-4;
+  const BlockSystem single(k, model->lumped_masses(), fixed, mass_coefficient, stiffness_coefficient, true);
+  Eigen::SparseMatrix<double> rounded = k.system(model->lumped_masses(), fixed, mass_coefficient, stiffness_coefficient);
+  for (Eigen::Index i = 0; i < rounded.nonZeros(); ++i)
+    rounded.valuePtr()[i] = static_cast<double>(static_cast<float>(rounded.valuePtr()[i]));
+  const Vector x = random_vector(3 * model->node_count(), 10);
+  Vector y;
+  single.multiply(x, y, serial_executor());
+  const Vector reference = rounded * x;
+  EXPECT_LE((y - reference).cwiseAbs().maxCoeff(), 1e-12 * reference.cwiseAbs().maxCoeff());
+  EXPECT_EQ(single.diagonal(), Vector(rounded.diagonal()));
+  EXPECT_TRUE(single.single());
 }
 
 TEST(WarpedPreconditioner, EfgSolvesARigidlyTurnedBodyInOneIteration) { expect_exact_for_rigid_rotation(*small_efg()); }
@@ -315,6 +386,8 @@ TEST(Multigrid, TheVcycleIsSymmetricAndPositive) {
   model.update_rotations(model.rest_positions());
   const RestFactor factor(model.rest_stiffness_job()(), model.lumped_masses(), ball.fixed, mass_coefficient,
                           stiffness_coefficient, default_factor_backend(), &space, 3);
+  const RestFactor single(model.rest_stiffness_job()(), model.lumped_masses(), ball.fixed, mass_coefficient,
+                          stiffness_coefficient, default_factor_backend(), &space, 3, true);
   model.update_rotations(ball.x);
   ASSERT_GT(factor.smoothing_eigenvalue(), 1.0);  // D^-1 A has unit mean diagonal: its top is above 1
   std::vector<Eigen::Quaterniond> rotations;
@@ -346,17 +419,36 @@ TEST(Multigrid, TheVcycleIsSymmetricAndPositive) {
     EXPECT_GT(smooth.dot(msmooth), 0.0) << "seed " << seed;
   }
   // The cycle the implicit step runs (`multigrid`): the rest system's, on its block products
-  // and its own diagonal, unwarped; symmetric and positive likewise.
+  // and its own diagonal, warped as a whole (RestVcycle), symmetric and positive likewise, with
+  // the smoother's copy of A0 in double and in float. In double it has the bits of the
+  // unfused cycle of A0 between the warps, R VcyclePreconditioner(A0)(R^T r).
   smoother.upper = 1.05 * factor.smoothing_eigenvalue();
   const LinearOperator rest_apply = [&](const Vector& p, Vector& out) { factor.rest_product(p, out, serial_executor()); };
   VcyclePreconditioner rest_cycle(rest_apply, factor.rest_inverse_diagonal(), factor, {}, factor.rest_fixed(), smoother);
-  for (unsigned seed = 1; seed <= 5; ++seed) {
-    const Vector x = free_random(seed), y = free_random(100 + seed);
-    Vector mx(x.size()), my(y.size());
-    rest_cycle(x, mx);
-    rest_cycle(y, my);
-    EXPECT_LE(std::abs(x.dot(my) - y.dot(mx)), 1e-10 * x.norm() * my.norm()) << "seed " << seed;
-    EXPECT_GT(x.dot(mx), 0.0) << "seed " << seed;
+  RestVcycle fused(factor, rotations, smoother, serial_executor());
+  const Eigen::Index nodes = ball.x.size() / 3;
+  for (unsigned seed = 1; seed <= 3; ++seed) {
+    const Vector r = free_random(seed);
+    Vector turned(r.size()), rest_z(r.size()), unfused(r.size()), z(r.size());
+    for (Eigen::Index i = 0; i < nodes; ++i)
+      turned.segment<3>(3 * i) = rotations[static_cast<size_t>(i)].conjugate() * Vec3(r.segment<3>(3 * i));
+    rest_cycle(turned, rest_z);
+    for (Eigen::Index i = 0; i < nodes; ++i)
+      unfused.segment<3>(3 * i) = rotations[static_cast<size_t>(i)] * Vec3(rest_z.segment<3>(3 * i));
+    fused(r, z);
+    EXPECT_TRUE(same_bits(z, unfused)) << "seed " << seed;
+  }
+  for (const RestFactor* cycle_factor : {&factor, &single}) {
+    RestVcycle cycle(*cycle_factor, rotations, smoother, serial_executor());
+    const char* precision = cycle_factor == &single ? "float" : "double";
+    for (unsigned seed = 1; seed <= 5; ++seed) {
+      const Vector x = free_random(seed), y = free_random(100 + seed);
+      Vector mx(x.size()), my(y.size());
+      cycle(x, mx);
+      cycle(y, my);
+      EXPECT_LE(std::abs(x.dot(my) - y.dot(mx)), 1e-10 * x.norm() * my.norm()) << precision << " seed " << seed;
+      EXPECT_GT(x.dot(mx), 0.0) << precision << " seed " << seed;
+    }
   }
 }
 

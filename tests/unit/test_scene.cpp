@@ -105,6 +105,8 @@ TEST(Scene, BrokenScenesAreRefusedWithTheFieldNamed) {
          s["bodies"][0]["efg"] = {{"kernel", "gauss"}};
        }, "bodies[0].efg.kernel: unknown key"},
       {"unknown backend", [](Json& s) { s["solver"]["backend"] = "cuda"; }, "solver.backend: 'cuda' is not one of: cpu, gpu"},
+      {"unknown multigrid precision", [](Json& s) { s["solver"]["multigrid_precision"] = "half"; },
+       "solver.multigrid_precision: 'half' is not one of: double, float"},
       {"no bodies", [](Json& s) { s["bodies"] = Json::array(); }, "bodies: must be a non-empty array"},
       {"mesh and generator", [](Json& s) { s["bodies"][0]["mesh"] = "../meshes/cube.obj"; },
        "bodies[0]: give either 'mesh' or 'generator', not both"},
