@@ -242,6 +242,9 @@ class World {
   std::optional<Trajectory> trajectory_;
   std::optional<Trajectory> initial_trajectory_;  // for reset()
   ToolState tool_;
+  // Per body, the triangles nearest to the blade's pieces at the last resist_cutting: a hint
+  // that spares mark_engaged work (physics/core/nearest_triangles.hpp), never a result's bit.
+  std::vector<std::vector<int>> engaged_hints_;
   // Needle: one per body, the tip at the last step, where it first met the tissue, the phase.
   struct NeedleTrack {
     std::vector<physics::Needle> bodies;
