@@ -242,9 +242,6 @@ class World {
   std::optional<Trajectory> trajectory_;
   std::optional<Trajectory> initial_trajectory_;  // for reset()
   ToolState tool_;
-  // Per body, the triangles nearest to the blade's pieces at the last resist_cutting: a hint
-  // that spares mark_engaged work (physics/core/nearest_triangles.hpp), never a result's bit.
-  std::vector<std::vector<int>> engaged_hints_;
   // Needle: one per body, the tip at the last step, where it first met the tissue, the phase.
   struct NeedleTrack {
     std::vector<physics::Needle> bodies;
@@ -261,6 +258,9 @@ class World {
   std::vector<GuardEvent> guard_events_;
   RealTimeBudget budget_;
   double ms_after_solve_ = 0;  // the last step's surface update: what a CG deadline leaves room for
+  // Per body, the triangles nearest to the blade's pieces at the last resist_cutting: a hint
+  // that spares mark_engaged work (physics/core/nearest_triangles.hpp), never a result's bit.
+  std::vector<std::vector<int>> engaged_hints_;
   void log_guard(const std::string& body, const std::string& kind, const std::string& detail);
 };
 
