@@ -55,10 +55,12 @@ void World::resist_cutting(StepStats& stats) {
   // step, engaged where it is in a cuttable body or touches it (within the blade's radius).
   std::vector<physics::EdgePiece> pieces =
       physics::edge_pieces(tool_.blade_poses.front(), tool_.blade_poses.back(), 0.25 * spacing);
-  for (const auto& body : bodies_) {
+  engaged_hints_.resize(bodies_.size());
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const auto& body = bodies_[b];
     if (!body.cut) continue;
     const physics::Vector& x = body.data.embedding ? body.data.surface_positions : body.data.state.positions;
-    physics::mark_engaged(x, body.data.surface, body.data.render_cut_face, tool_.radius, pieces);
+    physics::mark_engaged(x, body.data.surface, body.data.render_cut_face, tool_.radius, pieces, &engaged_hints_[b]);
   }
   // The engaged length, and its part across the edge's mean motion: the width of the crack its
   // first advance would open (a blade pushed along its own edge opens only its rounded width).

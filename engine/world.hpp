@@ -278,6 +278,9 @@ class World {
   std::vector<GuardEvent> guard_events_;
   RealTimeBudget budget_;
   double ms_after_solve_ = 0;  // the last step's surface update: what a CG deadline leaves room for
+  // Per body, the triangles nearest to the blade's pieces at the last resist_cutting: a hint
+  // that spares mark_engaged work (physics/core/nearest_triangles.hpp), never a result's bit.
+  std::vector<std::vector<int>> engaged_hints_;
   void log_guard(const std::string& body, const std::string& kind, const std::string& detail);
 };
 

@@ -1,6 +1,6 @@
 #include "physics/core/contact.hpp"
 
-#include "physics/core/triangle_grid.hpp"
+#include "physics/core/nearest_triangles.hpp"
 
 #include <Eigen/Geometry>
 
@@ -120,36 +120,18 @@ ProbeContact probe_contact(const Vector& x, const std::vector<std::array<int, 3>
 
 ProbeContact held_contact(const Vector& x, const std::vector<std::array<int, 3>>& surface,
                           const std::vector<std::uint8_t>& fixed, const std::vector<Vec3>& points, double radius,
-                          double stiffness) {
+                          double stiffness, std::vector<int>* hint) {
   ProbeContact contact;
-  // Each point's nearest triangle (its closest point and the face normal there), scanning
-  // only the triangles near it (physics/core/triangle_grid.hpp), in the same order.
-  std::vector<double> nearest(points.size(), std::numeric_limits<double>::infinity());
-  std::vector<int> triangle(points.size(), -1);
-  std::vector<Vec3> closest(points.size(), Vec3::Zero()), outward(points.size(), Vec3::Zero());
   if (points.empty()) return contact;
-  std::vector<std::uint8_t> use(surface.size(), 0);
-  std::vector<Vec3> faces(surface.size(), Vec3::Zero());
-  for (std::size_t t = 0; t < surface.size(); ++t) {
-    const auto& tri = surface[t];
-    const Vec3 a = x.segment<3>(3 * tri[0]), b = x.segment<3>(3 * tri[1]), c = x.segment<3>(3 * tri[2]);
-    faces[t] = (b - a).cross(c - a);
-    use[t] = faces[t].squaredNorm() > 0;
-  }
-  TriangleGrid grid(x, surface, use);
-  std::vector<int> candidates;
+  // Each point's nearest triangle (its closest point and the face normal there), from only the
+  // triangles near it (physics/core/nearest_triangles.hpp).
+  const std::vector<NearestTriangle> found = nearest_triangles(x, surface, {}, points, hint);
+  std::vector<double> nearest(points.size());
+  std::vector<int> triangle(points.size());
+  std::vector<Vec3> closest(points.size()), outward(points.size(), Vec3::Zero());
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const Vec3& p = points[i];
-    grid.candidates(p, candidates);
-    for (int t : candidates) {
-      const std::size_t s = static_cast<std::size_t>(t);
-      // The box's distance bounds the triangle's from below: most triangles are skipped here.
-      if ((grid.lo(t) - p).cwiseMax(p - grid.hi(t)).cwiseMax(Vec3::Zero()).norm() >= nearest[i]) continue;
-      const auto& tri = surface[s];
-      const Vec3 q = closest_point_on_triangle(p, x.segment<3>(3 * tri[0]), x.segment<3>(3 * tri[1]), x.segment<3>(3 * tri[2]));
-      const double d = (p - q).norm();
-      if (d < nearest[i]) nearest[i] = d, triangle[i] = t, closest[i] = q, outward[i] = faces[s].normalized();
-    }
+    nearest[i] = found[i].distance, triangle[i] = found[i].triangle, closest[i] = found[i].closest;
+    if (triangle[i] >= 0) outward[i] = face_normal(x, surface[static_cast<std::size_t>(triangle[i])]).normalized();
   }
   std::map<int, NodalSpring> by_node;  // ordered: the springs come out in node order
   for (std::size_t i = 0; i < points.size(); ++i) {

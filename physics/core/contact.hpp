@@ -43,8 +43,10 @@ ProbeContact probe_contact(const Vector& positions, const std::vector<std::array
 // for a closed surface away from its convex creases): a point more than half the body's
 // thickness in would be pushed out of the far side, which pressing never reaches. Each point
 // is one probe's worth of stiffness; its force goes to q's triangle by barycentric weights.
+// hint (optional, in and out): the points' nearest triangles at the previous call, which only
+// spare work (physics/core/nearest_triangles.hpp).
 ProbeContact held_contact(const Vector& positions, const std::vector<std::array<int, 3>>& surface,
                           const std::vector<std::uint8_t>& fixed, const std::vector<Vec3>& points, double radius,
-                          double stiffness);
+                          double stiffness, std::vector<int>* hint = nullptr);
 
 }  // namespace incise::physics

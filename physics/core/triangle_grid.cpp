@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <utility>
 
 namespace incise::physics {
 
@@ -18,29 +19,42 @@ constexpr double kCellsPerTriangle = 4.0;
 
 TriangleGrid::TriangleGrid(const Vector& x, const std::vector<std::array<int, 3>>& surface,
                            const std::vector<std::uint8_t>& use)
-    : x_(x), surface_(surface), lo_(surface.size(), Vec3::Zero()), hi_(surface.size(), Vec3::Zero()),
-      stamp_(surface.size(), 0), seen_(surface.size(), -1) {
+    : x_(x), surface_(surface) {
+  for (std::size_t t = 0; t < surface.size(); ++t)
+    if (t >= use.size() || use[t]) used_.push_back(static_cast<int>(t));
+  build();
+}
+
+TriangleGrid::TriangleGrid(const Vector& x, const std::vector<std::array<int, 3>>& surface, std::vector<int> triangles)
+    : x_(x), surface_(surface), used_(std::move(triangles)) {
+  build();
+}
+
+void TriangleGrid::build() {
+  const std::size_t count = used_.size();
+  lo_.resize(count);
+  hi_.resize(count);
+  stamp_.assign(count, 0);
+  seen_.assign(count, -1);
   Vec3 low = Vec3::Constant(std::numeric_limits<double>::infinity()), high = -low;
   double extent_sum = 0;
-  for (std::size_t t = 0; t < surface.size(); ++t) {
-    if (t < use.size() && !use[t]) continue;
-    const auto& tri = surface[t];
-    const Vec3 a = x.segment<3>(3 * tri[0]), b = x.segment<3>(3 * tri[1]), c = x.segment<3>(3 * tri[2]);
-    lo_[t] = a.cwiseMin(b).cwiseMin(c);
-    hi_[t] = a.cwiseMax(b).cwiseMax(c);
-    if (!lo_[t].allFinite() || !hi_[t].allFinite()) finite_ = false;
-    low = low.cwiseMin(lo_[t]);
-    high = high.cwiseMax(hi_[t]);
-    extent_sum += (hi_[t] - lo_[t]).maxCoeff();
-    used_.push_back(static_cast<int>(t));
+  for (std::size_t s = 0; s < count; ++s) {
+    const auto& tri = surface_[static_cast<std::size_t>(used_[s])];
+    const Vec3 a = x_.segment<3>(3 * tri[0]), b = x_.segment<3>(3 * tri[1]), c = x_.segment<3>(3 * tri[2]);
+    lo_[s] = a.cwiseMin(b).cwiseMin(c);
+    hi_[s] = a.cwiseMax(b).cwiseMax(c);
+    if (!lo_[s].allFinite() || !hi_[s].allFinite()) finite_ = false;
+    low = low.cwiseMin(lo_[s]);
+    high = high.cwiseMax(hi_[s]);
+    extent_sum += (hi_[s] - lo_[s]).maxCoeff();
   }
   if (used_.empty() || !finite_) return;
   const Vec3 size = high - low;
   slack_ = 1e-9 * size.norm() + std::numeric_limits<double>::min();
   // Cells about twice a triangle's box, coarser where that would make too many of them.
-  cell_ = std::max(2.0 * extent_sum / static_cast<double>(used_.size()), 1e-6 * size.maxCoeff());
+  cell_ = std::max(2.0 * extent_sum / static_cast<double>(count), 1e-6 * size.maxCoeff());
   if (!(cell_ > 0)) cell_ = 1.0;
-  const double budget = kCellsPerTriangle * static_cast<double>(used_.size()) + 1;
+  const double budget = kCellsPerTriangle * static_cast<double>(count) + 1;
   while (((size / cell_).array().floor() + 1).prod() > budget) cell_ *= 1.25;
   origin_ = low;
   for (int k = 0; k < 3; ++k) dims_[k] = static_cast<int>(std::floor(size[k] / cell_)) + 1;
@@ -49,32 +63,34 @@ TriangleGrid::TriangleGrid(const Vector& x, const std::vector<std::array<int, 3>
   };
   const auto index = [&](int i, int j, int l) { return (static_cast<std::size_t>(l) * dims_[1] + j) * dims_[0] + i; };
   start_.assign(static_cast<std::size_t>(dims_[0]) * dims_[1] * dims_[2] + 1, 0);
-  // Two passes (count, then fill in triangle order): each cell's list comes out sorted.
+  // Two passes (count, then fill in slot order): each cell's list comes out sorted.
   for (int pass = 0; pass < 2; ++pass) {
     if (pass == 1) {
       for (std::size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
       items_.resize(static_cast<std::size_t>(start_.back()));
     }
     std::vector<int> fill = pass == 1 ? std::vector<int>(start_.begin(), start_.end() - 1) : std::vector<int>{};
-    for (int t : used_) {
-      const std::size_t s = static_cast<std::size_t>(t);
+    for (std::size_t s = 0; s < count; ++s) {
       for (int l = range(lo_[s], 2); l <= range(hi_[s], 2); ++l)
         for (int j = range(lo_[s], 1); j <= range(hi_[s], 1); ++j)
           for (int i = range(lo_[s], 0); i <= range(hi_[s], 0); ++i) {
             if (pass == 0) ++start_[index(i, j, l) + 1];
-            else items_[static_cast<std::size_t>(fill[index(i, j, l)]++)] = t;
+            else items_[static_cast<std::size_t>(fill[index(i, j, l)]++)] = static_cast<int>(s);
           }
     }
   }
 }
 
-double TriangleGrid::distance(const Vec3& p, int t) const {
-  const auto& tri = surface_[static_cast<std::size_t>(t)];
+double TriangleGrid::distance(const Vec3& p, int slot) const {
+  const auto& tri = surface_[static_cast<std::size_t>(used_[static_cast<std::size_t>(slot)])];
   const Vec3 a = x_.segment<3>(3 * tri[0]), b = x_.segment<3>(3 * tri[1]), c = x_.segment<3>(3 * tri[2]);
   return (p - closest_point_on_triangle(p, a, b, c)).norm();
 }
 
-void TriangleGrid::all(std::vector<int>& out) const { out = used_; }
+void TriangleGrid::all(std::vector<int>& out) const {
+  out.resize(used_.size());
+  for (std::size_t s = 0; s < out.size(); ++s) out[s] = static_cast<int>(s);
+}
 
 void TriangleGrid::candidates(const Vec3& p, std::vector<int>& out) {
   out.clear();
@@ -96,14 +112,14 @@ void TriangleGrid::candidates(const Vec3& p, std::vector<int>& out) {
     if ((cell_lo - p).cwiseMax(p - cell_hi).cwiseMax(Vec3::Zero()).norm() > reach()) return;
     const std::size_t c = (static_cast<std::size_t>(l) * dims_[1] + j) * dims_[0] + i;
     for (int n = start_[c]; n < start_[c + 1]; ++n) {
-      const int t = items_[static_cast<std::size_t>(n)];
-      if (stamp_[static_cast<std::size_t>(t)] == query_) continue;
-      stamp_[static_cast<std::size_t>(t)] = query_;
-      out.push_back(t);
-      const std::size_t s = static_cast<std::size_t>(t);
+      const int slot = items_[static_cast<std::size_t>(n)];
+      const std::size_t s = static_cast<std::size_t>(slot);
+      if (stamp_[s] == query_) continue;
+      stamp_[s] = query_;
+      out.push_back(slot);
       seen_[s] = -1;  // its distance not computed: its box was no nearer than the nearest then
       if ((lo_[s] - p).cwiseMax(p - hi_[s]).cwiseMax(Vec3::Zero()).norm() < best) {
-        seen_[s] = distance(p, t);
+        seen_[s] = distance(p, slot);
         best = std::min(best, seen_[s]);
       }
     }
@@ -125,8 +141,8 @@ void TriangleGrid::candidates(const Vec3& p, std::vector<int>& out) {
   // their own distance where it was computed. The others, farther by more than rounding, can
   // neither be the nearest nor make the scan skip it.
   const double within = reach();
-  std::erase_if(out, [&](int t) {
-    const std::size_t s = static_cast<std::size_t>(t);
+  std::erase_if(out, [&](int slot) {
+    const std::size_t s = static_cast<std::size_t>(slot);
     return seen_[s] > within || (lo_[s] - p).cwiseMax(p - hi_[s]).cwiseMax(Vec3::Zero()).norm() > within;
   });
   std::sort(out.begin(), out.end());

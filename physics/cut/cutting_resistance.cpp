@@ -1,7 +1,7 @@
 #include "physics/cut/cutting_resistance.hpp"
 
 #include "physics/core/contact.hpp"
-#include "physics/core/triangle_grid.hpp"
+#include "physics/core/nearest_triangles.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -31,36 +31,21 @@ std::vector<EdgePiece> edge_pieces(const std::vector<Vec3>& start, const std::ve
 }
 
 void mark_engaged(const Vector& x, const std::vector<std::array<int, 3>>& surface,
-                  const std::vector<std::uint8_t>& cut_face, double reach, std::vector<EdgePiece>& pieces) {
+                  const std::vector<std::uint8_t>& cut_face, double reach, std::vector<EdgePiece>& pieces,
+                  std::vector<int>* hint) {
   if (pieces.empty()) return;
-  // The faces the scan looks at (not a cut face, not degenerate), in a grid: each piece scans
-  // only the triangles near it (physics/core/triangle_grid.hpp), in the same order.
-  std::vector<std::uint8_t> use(surface.size(), 0);
-  std::vector<Vec3> faces(surface.size(), Vec3::Zero());
-  for (std::size_t t = 0; t < surface.size(); ++t) {
-    if (t < cut_face.size() && cut_face[t]) continue;
-    const auto& tri = surface[t];
-    const Vec3 a = x.segment<3>(3 * tri[0]), b = x.segment<3>(3 * tri[1]), c = x.segment<3>(3 * tri[2]);
-    faces[t] = (b - a).cross(c - a);
-    use[t] = faces[t].squaredNorm() > 0;
-  }
-  TriangleGrid grid(x, surface, use);
-  std::vector<int> candidates;
-  for (EdgePiece& piece : pieces) {
-    const Vec3& p = piece.point;
-    double nearest = std::numeric_limits<double>::infinity(), side = 1.0;
-    grid.candidates(p, candidates);
-    for (int t : candidates) {
-      // The box's distance bounds the triangle's from below: most triangles are skipped here.
-      const double box = (grid.lo(t) - p).cwiseMax(p - grid.hi(t)).cwiseMax(Vec3::Zero()).norm();
-      if (box >= nearest) continue;
-      const auto& tri = surface[static_cast<std::size_t>(t)];
-      const Vec3 a = x.segment<3>(3 * tri[0]), b = x.segment<3>(3 * tri[1]), c = x.segment<3>(3 * tri[2]);
-      const Vec3 q = closest_point_on_triangle(p, a, b, c);
-      const double d = (p - q).norm();
-      if (d < nearest) nearest = d, side = (p - q).dot(faces[static_cast<std::size_t>(t)]) < 0 ? -1.0 : 1.0;
-    }
-    if (std::isfinite(nearest) && (side < 0 || nearest < reach)) piece.engaged = true;
+  // The faces the scan looks at (not a cut face, not degenerate): each piece's nearest, from
+  // only the triangles near it (physics/core/nearest_triangles.hpp).
+  std::vector<Vec3> points;
+  points.reserve(pieces.size());
+  for (const EdgePiece& piece : pieces) points.push_back(piece.point);
+  const std::vector<NearestTriangle> nearest = nearest_triangles(x, surface, cut_face, points, hint);
+  for (std::size_t i = 0; i < pieces.size(); ++i) {
+    const NearestTriangle& n = nearest[i];
+    if (n.triangle < 0) continue;
+    const double side = (pieces[i].point - n.closest).dot(face_normal(x, surface[static_cast<std::size_t>(n.triangle)])) < 0
+                            ? -1.0 : 1.0;
+    if (side < 0 || n.distance < reach) pieces[i].engaged = true;
   }
 }
 

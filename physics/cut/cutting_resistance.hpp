@@ -55,9 +55,11 @@ std::vector<EdgePiece> edge_pieces(const std::vector<Vec3>& start, const std::ve
 // Marks the pieces whose point is inside a body's outer surface or within `reach` of it. The
 // side is the nearest outer triangle's (its face normal against the offset from its closest
 // point; exact for a closed surface away from its creases), cut faces (`cut_face` 1) left out:
-// a blade in its own cut is still in the tissue.
+// a blade in its own cut is still in the tissue. hint (optional, in and out): the triangles
+// nearest to the pieces at the previous call, which only spare work (nearest_triangles).
 void mark_engaged(const Vector& positions, const std::vector<std::array<int, 3>>& surface,
-                  const std::vector<std::uint8_t>& cut_face, double reach, std::vector<EdgePiece>& pieces);
+                  const std::vector<std::uint8_t>& cut_face, double reach, std::vector<EdgePiece>& pieces,
+                  std::vector<int>* hint = nullptr);
 
 struct CuttingForce {
   Vec3 on_tool = Vec3::Zero();  // N, against the edge's motion

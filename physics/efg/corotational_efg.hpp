@@ -338,6 +338,13 @@ class CorotationalEfg final : public DeformableModel {
   int deactivated_ = 0;
   int masses_floored_ = 0;
   std::vector<Eigen::Quaterniond> orientations_;  // the same rotations, warm starts
+  // elastic_energy's rotations, kept for the next update_rotations: a step's energy is taken at
+  // the positions the next step starts from, from the same warm starts, so that extraction
+  // would be repeated bit for bit. Valid while the positions are bitwise those below and, per
+  // element, until set_neighbourhood changes its row (or update_rotations its warm start).
+  mutable Vector energy_positions_;
+  mutable std::vector<Eigen::Quaterniond> energy_orientations_;
+  mutable std::vector<std::uint8_t> energy_valid_;  // per element
 
   // Rows (ELL).
   int stride_ = 0;
