@@ -7,6 +7,7 @@
 #include "physics/cut/front_recompute.hpp"
 #include "physics/cut/front_stroke.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <optional>
@@ -145,6 +146,33 @@ void FrontSurface::restore_base() {
   crack_front_.resize(base_vertices_.size());
 }
 
+namespace {
+
+// A sample whose points moved less than this times w across the blade's segments since the
+// stroke's last sample is not taken either: an edge pushed along itself (a stab) sweeps cells
+// of no width, and the draw that follows a stab of such cells crossed a base triangle with
+// four cut ends (the drawn-blade test, CuttingResistance).
+constexpr double kMinimumWidth = 0.1;
+
+// How far the blade's points moved across its segments from `last` to `blade` (the largest):
+// the width of the sheet's cells between the two samples.
+double sweep_width(const std::vector<Vec3>& last, std::span<const Vec3> blade) {
+  double width = 0;
+  for (size_t i = 0; i + 1 < blade.size(); ++i) {
+    const Vec3 along = last[i + 1] - last[i];
+    const double length = along.norm();
+    if (!(length > 0)) continue;
+    const Vec3 u = along / length;
+    for (const size_t k : {i, i + 1}) {
+      const Vec3 motion = blade[k] - last[k];
+      width = std::max(width, (motion - motion.dot(u) * u).norm());
+    }
+  }
+  return width;
+}
+
+}  // namespace
+
 FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
   if (blade.size() < 2) throw std::invalid_argument("FrontSurface::advance: the blade needs at least two points");
   if (!samples_.empty() && blade.size() != samples_.front().size())
@@ -169,6 +197,8 @@ FrontCutReport FrontSurface::advance(std::span<const Vec3> blade) {
   // roundoff moves the body (0.1-1 um per step in single precision on the GPU); such a sample
   // would set the direction the next ones must follow, at random (see below).
   if (!(moved > minimum_motion * front_width_)) return last_report_;
+  // Moved along the edge only: the motion adds up until it has width (kMinimumWidth).
+  if (!(sweep_width(samples_.back(), blade) > kMinimumWidth * front_width_)) return last_report_;
   if (samples_.size() >= 2) {
     // Back over what the stroke has cut (at rest the blade retreats when the body moves
     // onto it and back, or the hand does): nothing new to cut, and the sheet would fold
