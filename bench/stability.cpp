@@ -72,6 +72,7 @@
 #include "common/progress_bar.hpp"
 #include "engine/model_registry.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <fstream>
 #include <map>
@@ -101,7 +102,7 @@ Sweep make_sweep(bool quick) {
 // The models this bench sets up bodies for (make_body, below the engine's builder: the cases
 // need the bare DeformableModel), with the integrators each offers.
 const std::set<std::string>& bench_models() {
-  static const std::set<std::string> names{"fem", "efg", "mass_spring", "constraint_particles"};
+  static const std::set<std::string> names{"fem", "efg", "mass_spring", "constraint_particles", "shape_memory"};
   return names;
 }
 
@@ -124,6 +125,14 @@ std::vector<ModelKind> model_kinds(std::vector<std::string>* left_out) {
     // offers them"); any DeformableModel would take the explicit steps as well. The mass-spring
     // and the constraint particles take them all, up to their explicit bound (beyond it the run
     // is refused).
+    // The shape memory: implicit Euler and the seed's own explicit step in its two schemes.
+    if (name == "shape_memory") {
+      kinds.push_back({name,
+                       {{"implicit_euler", true},
+                        {"seed_explicit_euler", false, ExplicitScheme::explicit_euler, physics::SeedScheme::explicit_euler},
+                        {"seed_symplectic_euler", false, ExplicitScheme::explicit_euler, physics::SeedScheme::symplectic_euler}}});
+      continue;
+    }
     kinds.push_back({name, name != "efg" ? fem : std::vector<Integrator>{{"implicit_euler", true}}});
   }
   return kinds;
@@ -304,20 +313,22 @@ int run_stability_bench(const StabilityOptions& options, const std::filesystem::
     progress.finish();
     const std::string slices = options.parts > 1 ? "Thin-slice study: run by the merge of the parts.\n"
                                                  : thin_slice_report(quick, progress_stream);
+    const bool shape_memory = std::any_of(kinds.begin(), kinds.end(), [](const ModelKind& k) { return k.name == "shape_memory"; });
+    const std::string limits = options.parts > 1 || !shape_memory ? "" : shape_memory_limits_report(quick, progress_stream);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
     const std::string counts = counts_table(kinds, runs);
     progress_stream << "outcome counts (" << runs.size() << " runs, " << format(seconds, 3)
                     << " s):\n"
-                    << counts << inverted_table(kinds, runs) << slices;
+                    << counts << inverted_table(kinds, runs) << slices << limits;
     std::ofstream summary(out_dir / "stability_summary.txt");
     summary << "incise bench stability" << (quick ? " --quick" : "") << "\n\n"
             << bounds_text(sweep) << "\nSet-up:\n";
     for (const std::string& note : set_up_notes) summary << "  " << note << "\n";
     summary << "\nOutcome counts (" << runs.size() << " runs, " << format(seconds, 3) << " s):\n"
             << counts << "\nInverted elements at the end of the stable inverted_start runs:\n"
-            << inverted_table(kinds, runs) << "\n" << slices;
+            << inverted_table(kinds, runs) << "\n" << slices << "\n" << limits;
 
     draw_with_gnuplot(out_dir, "stability.gnuplot", plot_script("stability.png", quick, sweep, kinds, runs),
                       "stability.png", progress_stream);
