@@ -7,7 +7,8 @@
 // epsilon_REN over the 343 interior atoms against the quadratic-tet FEM (nu 0.49) on 8^3 cells,
 // volume_change_pct the block's. Models: mass_spring_vn1, mass_spring_moore (variant moore, and
 // moore_volume with the exact projection), shape_memory (VN1: every non-collinear triplet),
-// shape_memory_volume (the same with the projection), fem tet10 (the reference, error 0; 4^3
+// shape_memory_volume (the same with the projection), in the full report both again with the
+// unmirrored triplet selection (variant vn1_unmirrored, shape_memory.hpp), fem tet10 (the reference, error 0; 4^3
 // cells against it, and in the full report 12^3 cells, which shows it converged). ms_per_step:
 // the seed's explicit step's wall time in the relaxation (fem: 0, a static solve only).
 //

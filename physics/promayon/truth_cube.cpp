@@ -95,7 +95,7 @@ CompressionResult relax_truth_cube(const TruthCube& cube, const Vector& referenc
   std::unique_ptr<DeformableModel> model;
   long long elements = 0;
   if (spec.kind == PromayonKind::shape_memory) {
-    auto sm = std::make_unique<ShapeMemory>(mesh.rest, neighbours, masses, 1, 1);
+    auto sm = std::make_unique<ShapeMemory>(mesh.rest, neighbours, masses, 1, 1, spec.selection);
     elements = static_cast<long long>(sm->triplet_count());
     model = std::move(sm);
   } else {

@@ -11,6 +11,7 @@
 
 #include "physics/mss/hex_mesh.hpp"
 #include "physics/promayon/calibration.hpp"
+#include "physics/promayon/shape_memory.hpp"
 #include "physics/promayon/volume_projection.hpp"
 
 #include <cstdint>
@@ -61,6 +62,7 @@ struct TruthCubeModel {
   PromayonKind kind = PromayonKind::shape_memory;
   Neighbourhood neighbourhood = Neighbourhood::vn1;
   bool volume_control = false;  // the exact projection onto the rest volume after every step
+  TripletSelection selection = TripletSelection::all;  // the shape memory's
 };
 
 // The model (unit masses and stiffness) relaxed by the seed's symplectic step (dt 0.2, damping

@@ -339,3 +339,31 @@ TEST(ShapeMemory, AnInteriorAtomIgnoresAnyAffineMap) {
   EXPECT_GT(pull_at(1, face), 1e-4);
   EXPECT_NEAR(pull_at(1e-3, face) / pull_at(5e-4, face), 2, 0.01);
 }
+
+// The unmirrored triplet selection (shape_memory.hpp): half the interior atom's triplets, and
+// the one left of each mirror pair no longer cancels, so the interior atom is pulled under a
+// homogeneous strain (linearly for small strains); forces still sum to zero.
+TEST(ShapeMemory, TheUnmirroredSelectionPullsAnInteriorAtomUnderAnAffineMap) {
+  const Block b = block(4);
+  const physics::ShapeMemory all(b.mesh.rest, b.neighbours, b.masses, 1, 0.01);
+  const physics::ShapeMemory half(b.mesh.rest, b.neighbours, b.masses, 1, 0.01, physics::TripletSelection::unmirrored);
+  // 5^3 atoms: 27 interior (20 triplets each, 10 kept), 54 face (10, 8 kept), 36 edge (4), 8 corners (1).
+  EXPECT_EQ(all.triplet_count(), 27u * 20 + 54 * 10 + 36 * 4 + 8);
+  EXPECT_EQ(half.triplet_count(), 27u * 10 + 54 * 8 + 36 * 4 + 8);
+  Eigen::Matrix3d strain;
+  strain << 0.3, 0.1, -0.05, 0.1, -0.2, 0.07, -0.05, 0.07, 0.15;
+  const int centre = 2 + 5 * (2 + 5 * 2);
+  const auto pull_at = [&](const physics::ShapeMemory& model, double scale) {
+    Vector x = b.mesh.rest;
+    for (Eigen::Index i = 0; i < x.size(); i += 3) x.segment<3>(i) += scale * strain * b.mesh.rest.segment<3>(i);
+    return (model.attractor(x, centre) - x.segment<3>(3 * centre)).norm();
+  };
+  std::printf("interior atom's pull at strain scale 1: all triplets %.2e m, unmirrored %.2e m\n", pull_at(all, 1),
+              pull_at(half, 1));
+  EXPECT_LT(pull_at(all, 1), 1e-15);
+  EXPECT_GT(pull_at(half, 1), 1e-4);
+  EXPECT_NEAR(pull_at(half, 1e-3) / pull_at(half, 5e-4), 2, 0.01);
+  Vector f = Vector::Zero(b.mesh.rest.size());
+  half.add_elastic_forces(jiggled(b.mesh.rest, 1e-3, 3), f);
+  EXPECT_LT(total(f).norm(), 1e-12 * f.norm());
+}
