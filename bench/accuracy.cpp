@@ -60,7 +60,9 @@
 // forces) on the uncut cases, and the `traction` case of the spring networks' measured E and nu
 // with Van Gelder's springs beside (bench/accuracy_mass_spring.hpp); constraint_particles
 // (Dionne's particles on the same voxels split 5 tets each, k_D and k_V per tet volume calibrated
-// on the lattice's homogenised E and nu; bench/accuracy_constraint_particles.hpp) on the uncut cases.
+// on the lattice's homogenised E and nu; bench/accuracy_constraint_particles.hpp) on the uncut cases;
+// shape_memory (Promayon's VN1 lattice, k_e from E by the calibration) on b1, and the
+// `compression` case of Promayon's models against the FEM (bench/accuracy_shape_memory.hpp).
 //
 // Equilibrium: each model's linear static solution (sparse direct solve of its stiffness at
 // rest), i.e. the small-strain problem the reference solves. ms_per_step: the mean wall time
