@@ -18,7 +18,8 @@
 // is the linear static solution: the tangent at rest by central differences of the forces (the
 // normals' rotation included, which the model's own frozen-normal K leaves out; colours of
 // atoms 5 apart so that no atom's force sees two perturbed atoms), solved by sparse LU (the
-// redistributed forces derive from no energy: the tangent is not symmetric). ms_per_step: the
+// redistributed forces derive from no energy: the tangent is not symmetric; at 10 mm the tip is
+// the seed's step relaxed with k_a to 1e-5 relative, docs/status.md). ms_per_step: the
 // report's implicit Euler timing with the model's frozen-normal K.
 #pragma once
 
