@@ -115,10 +115,10 @@ void add_accuracy_command(CLI::App& parent, AccuracyBenchCommand& accuracy) {
   command->add_flag("--quick", accuracy.quick, "A smaller sweep (about 3 minutes here)");
   command->add_option("--out", accuracy.out, "Output folder (accuracy.csv, accuracy.png, references.json)")->capture_default_str();
   command->add_option("--cases", accuracy.cases,
-                      "Only these cases, comma-separated (bend, stretch, bend_cut, stretch_cut, b1, traction)");
+                      "Only these cases, comma-separated (bend, stretch, bend_cut, stretch_cut, b1, traction, compression)");
   command->add_option("--emit-manifest", accuracy.manifest,
                       "Write a batch manifest of the runs in --parts jobs instead of running them (docs/batch.md)");
-  command->add_option("--parts", accuracy.parts, "Jobs of the emitted manifest (4 units of work: more leave parts empty)")
+  command->add_option("--parts", accuracy.parts, "Jobs of the emitted manifest (5 units of work: more leave parts empty)")
       ->check(CLI::Range(1, 10000))
       ->capture_default_str();
   accuracy.command = command;

@@ -110,7 +110,7 @@ BenchPart read_bench(const Json& node, const std::string& path, std::vector<std:
   const std::vector<std::string> known = bench::accuracy_case_names();
   for (std::string name; !bench.cases.empty() && std::getline(names, name, ',');) {
     if (std::find(known.begin(), known.end(), name) == known.end())
-      b.error(b.child("cases"), "'" + name + "' is not a case (bend, stretch, bend_cut, stretch_cut, b1, traction)");
+      b.error(b.child("cases"), "'" + name + "' is not a case (" + bench::accuracy_case_list() + ")");
   }
   if (bench.part >= bench.parts)
     b.error(b.child("part"), std::to_string(bench.part) + " is not below parts (" + std::to_string(bench.parts) + ")");

@@ -60,7 +60,9 @@
 // forces) on the uncut cases, and the `traction` case of the spring networks' measured E and nu
 // with Van Gelder's springs beside (bench/accuracy_mass_spring.hpp); constraint_particles
 // (Dionne's particles on the same voxels split 5 tets each, k_D and k_V per tet volume calibrated
-// on the lattice's homogenised E and nu; bench/accuracy_constraint_particles.hpp) on the uncut cases.
+// on the lattice's homogenised E and nu; bench/accuracy_constraint_particles.hpp) on the uncut cases;
+// shape_memory (Promayon's VN1 lattice, k_e from E by the calibration) on b1, and the
+// `compression` case of Promayon's models against the FEM (bench/accuracy_shape_memory.hpp).
 //
 // Equilibrium: each model's linear static solution (sparse direct solve of its stiffness at
 // rest), i.e. the small-strain problem the reference solves. ms_per_step: the mean wall time
@@ -102,7 +104,7 @@ std::string title(const AccuracyOptions& options) {
 }
 
 // The parts' results into one report: every case must have its reference (all parts joined).
-void join_parts(const AccuracyOptions& options, const std::vector<Case>& cases, bool traction,
+void join_parts(const AccuracyOptions& options, const std::vector<Case>& cases, bool traction, bool compression,
                 const std::filesystem::path& out_dir,
                 std::chrono::steady_clock::time_point start, std::ostream& progress) {
   Results results;
@@ -113,23 +115,27 @@ void join_parts(const AccuracyOptions& options, const std::vector<Case>& cases, 
   }
   if (traction && std::none_of(results.rows.begin(), results.rows.end(), [](const Row& r) { return r.case_name == "traction"; }))
     missing += " traction";
+  if (compression &&
+      std::none_of(results.rows.begin(), results.rows.end(), [](const Row& r) { return r.case_name == "compression"; }))
+    missing += " compression";
   if (!missing.empty()) throw std::runtime_error("the joined parts have no rows for the cases" + missing);
   progress << title(options) << ": " << options.join.size()
            << " parts joined, " << results.rows.size() << " rows\n";
   write_report(title(options), cases, results, out_dir, start, progress);
 }
 
-// The cases --cases names (all without it), in the report's order; whether traction is among them.
-std::vector<Case> select_cases(const std::string& names, bool& traction) {
+// The cases --cases names (all without it), in the report's order; whether traction and
+// compression are among them.
+std::vector<Case> select_cases(const std::string& names, bool& traction, bool& compression) {
   const std::vector<Case> all = all_cases();
-  traction = names.empty();
+  traction = compression = names.empty();
   if (names.empty()) return all;
   std::vector<std::string> wanted;
   std::stringstream list(names);
   for (std::string name; std::getline(list, name, ',');) {
     const std::vector<std::string> known = accuracy_case_names();
     if (std::find(known.begin(), known.end(), name) == known.end())
-      throw std::runtime_error("--cases: '" + name + "' is not a case (bend, stretch, bend_cut, stretch_cut, b1, traction)");
+      throw std::runtime_error("--cases: '" + name + "' is not a case (" + accuracy_case_list() + ")");
     wanted.push_back(name);
   }
   std::vector<Case> cases;
@@ -137,6 +143,7 @@ std::vector<Case> select_cases(const std::string& names, bool& traction) {
     if (std::find(wanted.begin(), wanted.end(), c.name) != wanted.end()) cases.push_back(c);
   }
   traction = std::find(wanted.begin(), wanted.end(), "traction") != wanted.end();
+  compression = std::find(wanted.begin(), wanted.end(), "compression") != wanted.end();
   return cases;
 }
 
@@ -146,17 +153,24 @@ std::vector<std::string> accuracy_case_names() {
   std::vector<std::string> names;
   for (const Case& c : all_cases()) names.push_back(c.name);
   names.push_back("traction");
+  names.push_back("compression");
   return names;
+}
+
+std::string accuracy_case_list() {
+  std::string list;
+  for (const std::string& name : accuracy_case_names()) list += (list.empty() ? "" : ", ") + name;
+  return list;
 }
 
 int run_accuracy_bench(const AccuracyOptions& options, const std::filesystem::path& out_dir, std::ostream& progress_stream) {
   try {
     std::filesystem::create_directories(out_dir);
     const auto start = std::chrono::steady_clock::now();
-    bool traction = true;
-    const std::vector<Case> cases = select_cases(options.cases, traction);
+    bool traction = true, compression = true;
+    const std::vector<Case> cases = select_cases(options.cases, traction, compression);
     if (!options.join.empty()) {
-      join_parts(options, cases, traction, out_dir, start, progress_stream);
+      join_parts(options, cases, traction, compression, out_dir, start, progress_stream);
       return 0;
     }
     const Sweep sweep = make_sweep(options.quick);
@@ -164,7 +178,7 @@ int run_accuracy_bench(const AccuracyOptions& options, const std::filesystem::pa
     // A part runs the units whose index modulo parts is its own (a body with all its runs:
     // its references serve only its cases).
     std::vector<Unit> units;
-    const std::vector<Unit> all_units = make_units(bodies, traction);
+    const std::vector<Unit> all_units = make_units(bodies, traction, compression);
     for (size_t u = 0; u < all_units.size(); ++u) {
       if (!options.as_part || static_cast<int>(u % options.parts) == options.part) units.push_back(all_units[u]);
     }
@@ -172,7 +186,7 @@ int run_accuracy_bench(const AccuracyOptions& options, const std::filesystem::pa
     for (const Unit& unit : units) total += unit_runs(sweep, unit);
     common::ProgressBar progress(progress_stream, total);
     progress.note(title(options) + (options.as_part ? " part " + std::to_string(options.part) + "/" + std::to_string(options.parts) : "") +
-                  ": " + std::to_string(cases.size()) + " cases, output in " + out_dir.string());
+                  ": " + std::to_string(cases.size() + (traction ? 1 : 0) + (compression ? 1 : 0)) + " cases, output in " + out_dir.string());
     Results results;
     for (const Unit& unit : units) run_unit(sweep, unit, results, progress);
     progress.finish();

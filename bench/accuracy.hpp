@@ -13,7 +13,7 @@ namespace incise::bench {
 
 // The whole report, a part of it (a batch job) or the join of the parts (the batch's merge).
 // The units of work are the bodies (a shape, cut or not, with the cases that load it), then the
-// `traction` case: a part runs the units whose index modulo `parts` is `part`, each body with
+// `traction` and `compression` cases: a part runs the units whose index modulo `parts` is `part`, each body with
 // its own references (they serve only its cases), so no part needs another's (docs/batch.md).
 struct AccuracyOptions {
   bool quick = false;
@@ -31,8 +31,10 @@ struct AccuracyOptions {
 // references and cutter reports, exactly) and its rows as DIR/accuracy.csv. Progress and the
 // reference refinement checks go to `progress`. Returns 0 on success, 1 on failure (with a
 // message on `progress`).
-// The report's cases, for --cases: bend, stretch, bend_cut, stretch_cut, b1, traction.
+// The report's cases, for --cases: bend, stretch, bend_cut, stretch_cut, b1, traction, compression;
+// and the same as a comma-separated list for messages.
 std::vector<std::string> accuracy_case_names();
+std::string accuracy_case_list();
 
 int run_accuracy_bench(const AccuracyOptions& options, const std::filesystem::path& out_dir, std::ostream& progress);
 

@@ -25,9 +25,9 @@ std::vector<uint8_t> clamped_at_zero(const Vector& rest) {
   return physics::nodes_in_box(rest, Vec3::Constant(-1e9), Vec3(1e-9, 1e9, 1e9));
 }
 
-// Area-weighted mean displacement over the boundary faces at x = tip_x (the bilinear field's
-// mean per triangle: its corners' mean).
-Vec3 tip_mean(const physics::HexMesh& mesh, const Vector& u, double tip_x) {
+}  // namespace
+
+Vec3 hex_tip_mean(const physics::HexMesh& mesh, const Vector& u, double tip_x) {
   Vec3 sum = Vec3::Zero();
   double area = 0;
   for (const auto& t : physics::hex_boundary_triangles(mesh.hexes)) {
@@ -41,6 +41,8 @@ Vec3 tip_mean(const physics::HexMesh& mesh, const Vector& u, double tip_x) {
   }
   return sum / area;
 }
+
+namespace {
 
 const std::array<bool, 2> kCorrections{true, false};
 std::string model_name(bool corrections) { return corrections ? "mass_spring" : "mass_spring_uncorrected"; }
@@ -75,7 +77,7 @@ std::vector<MassSpringRow> mass_spring_beam_rows(const MassSpringBeam& beam, con
         const Vector load = physics::gravity_forces(model.lumped_masses(), c.acceleration);
         const physics::MassSpringStatic solved =
             physics::solve_mass_spring_static(model, fixed, Vector(), load, 1, 1e-9);
-        const Vec3 tip = tip_mean(mesh, solved.positions - mesh.rest, beam.hi.x());
+        const Vec3 tip = hex_tip_mean(mesh, solved.positions - mesh.rest, beam.hi.x());
         const StepTiming timing = time_steps(model, fixed, load);
         MassSpringRow row;
         row.case_name = c.name, row.model = model_name(corrections), row.variant = "hex", row.resolution = name;

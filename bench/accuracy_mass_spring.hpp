@@ -6,6 +6,7 @@
 
 #include "common/progress_bar.hpp"
 #include "physics/core/model.hpp"
+#include "physics/mss/hex_mesh.hpp"
 
 #include <cstdint>
 #include <functional>
@@ -44,6 +45,10 @@ struct MassSpringCase {
   std::string name;
   physics::Vec3 acceleration, reference_tip;
 };
+
+// Area-weighted mean displacement over a brick mesh's boundary faces at x = tip_x (the bilinear
+// field's mean per triangle: its corners' mean).
+physics::Vec3 hex_tip_mean(const physics::HexMesh& mesh, const physics::Vector& u, double tip_x);
 
 // The beam's bricks at each size in `cells_across` (bricks across its y extent), each with and
 // without corrections, solved statically under each case's gravity (the nonlinear solve at

@@ -46,12 +46,12 @@ std::string json_vector(const Vec3& v) {
 
 void write_csv(const std::filesystem::path& path, const std::vector<Row>& rows) {
   common::CsvWriter csv(path, {"case", "model", "variant", "resolution", "dofs", "elements", "ms_per_step",
-                               "cg_iterations", "error_pct", "measured_E", "measured_nu"});
+                               "cg_iterations", "error_pct", "measured_E", "measured_nu", "volume_change_pct"});
   const auto optional = [](double value, int digits) { return std::isnan(value) ? std::string() : format(value, digits); };
   for (const Row& row : rows) {
     csv.row(row.case_name, row.model, row.variant, row.resolution, row.dofs, row.elements,
             common::fixed(row.ms_per_step, 3), common::fixed(row.cg_iterations, 1), common::fixed(row.error_pct, 4),
-            optional(row.measured_E, 8), optional(row.measured_nu, 8));
+            optional(row.measured_E, 8), optional(row.measured_nu, 8), optional(row.volume_change_pct, 6));
   }
 }
 
@@ -144,7 +144,9 @@ namespace {
 // body, in the order its runs made them, so the parts' rows joined sort as the whole run's).
 void sort_rows(const std::vector<Case>& cases, std::vector<Row>& rows) {
   const auto case_index = [&](const std::string& name) {
-    return std::find_if(cases.begin(), cases.end(), [&](const Case& c) { return c.name == name; }) - cases.begin();
+    // The cases outside `cases` last: traction, then compression.
+    return std::find_if(cases.begin(), cases.end(), [&](const Case& c) { return c.name == name; }) - cases.begin() +
+           (name == "compression" ? 1 : 0);
   };
   std::stable_sort(rows.begin(), rows.end(), [&](const Row& left, const Row& right) {
     return std::make_tuple(case_index(left.case_name), left.model, left.variant, left.dofs) <
@@ -241,7 +243,7 @@ Json row_json(const Row& r) {
           {"ms_per_step", r.ms_per_step}, {"cg_iterations", r.cg_iterations},
           {"error_pct", r.error_pct},  {"converged", r.converged},
           {"tip", vec(r.tip)},         {"measured_E", number(r.measured_E)},
-          {"measured_nu", number(r.measured_nu)}};
+          {"measured_nu", number(r.measured_nu)}, {"volume_change_pct", number(r.volume_change_pct)}};
 }
 
 Row row_from(const Json& j) {
@@ -259,6 +261,7 @@ Row row_from(const Json& j) {
   r.tip = vec(j.at("tip"));
   r.measured_E = number(j.at("measured_E"));
   r.measured_nu = number(j.at("measured_nu"));
+  if (j.contains("volume_change_pct")) r.volume_change_pct = number(j.at("volume_change_pct"));
   return r;
 }
 

@@ -25,6 +25,7 @@ struct Row {
   Vec3 tip = Vec3::Zero();  // the mean tip displacement (printed, not in the CSV)
   double measured_E = std::numeric_limits<double>::quiet_NaN();  // the traction case only
   double measured_nu = std::numeric_limits<double>::quiet_NaN();
+  double volume_change_pct = std::numeric_limits<double>::quiet_NaN();  // the compression case only
 };
 Row from_mass_spring(const MassSpringRow& r);
 

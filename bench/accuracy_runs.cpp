@@ -2,6 +2,7 @@
 // refinement sequence, then the rows of every model against them.
 #include "bench/accuracy_runs.hpp"
 #include "bench/accuracy_constraint_particles.hpp"
+#include "bench/accuracy_shape_memory.hpp"
 
 #include "physics/core/implicit_euler.hpp"
 #include "physics/efg/efg_static.hpp"
@@ -23,6 +24,7 @@ using Clock = std::chrono::steady_clock;
 
 Sweep make_sweep(bool quick) {
   Sweep s;
+  s.quick = quick;
   s.timed_steps = quick ? 1 : 4;
   // Reference levels (10-node tets): hexagon (lattice m, layers), square (cells per side,
   // layers); the finest is the reference, the refinement check compares the last two.
@@ -70,22 +72,24 @@ std::vector<Body> group_bodies(const std::vector<Case>& cases) {
   return bodies;
 }
 
-std::vector<Unit> make_units(const std::vector<Body>& bodies, bool traction) {
+std::vector<Unit> make_units(const std::vector<Body>& bodies, bool traction, bool compression) {
   std::vector<Unit> units;
   for (const Body& body : bodies) units.push_back({&body});
   if (traction) units.push_back({nullptr});
+  if (compression) units.push_back({nullptr, true});
   return units;
 }
 
 int unit_runs(const Sweep& s, const Unit& unit) {
-  if (unit.body == nullptr) return traction_runs();
+  if (unit.body == nullptr) return unit.compression ? compression_runs(s.quick) : traction_runs();
   const Body& body = *unit.body;
   const bool hexagon = body.shape == Shape::hexagon;
   return static_cast<int>((body.cut ? s.crack_levels : hexagon ? s.hexagon_levels : s.square_levels).size() +
                           (hexagon ? s.hexagon_linear : s.square_linear).size() +
                           s.efg_cells.size() * (s.efg_variants.size() + (body.cut ? s.cutter_variants.size() : 0)) +
                           (body.cut ? 0 : mass_spring_beam_runs(s.mass_spring_across)) +
-                          (body.cut ? 0 : constraint_particles_runs(s.constraint_particles_across)));
+                          (body.cut ? 0 : constraint_particles_runs(s.constraint_particles_across)) +
+                          (body.cut || hexagon ? 0 : shape_memory_beam_runs(s.mass_spring_across)));
 }
 
 namespace {
@@ -116,6 +120,7 @@ class BodyRuns {
     efg_rows();
     if (!body_.cut) mass_spring_rows();
     if (!body_.cut) constraint_particles_rows();
+    if (!body_.cut && !hexagon_) shape_memory_rows();
     const std::chrono::duration<double> elapsed = Clock::now() - start;
     progress_.note("  " + name_ + " body done in " + format(elapsed.count(), 3) + " s");
   }
@@ -146,6 +151,7 @@ class BodyRuns {
   void efg_row(const EfgVariant& variant, bool cutter, int cells);
   void mass_spring_rows();
   void constraint_particles_rows();
+  void shape_memory_rows();
 
   const Sweep& s_;
   const Body& body_;
@@ -352,11 +358,22 @@ void BodyRuns::constraint_particles_rows() {
   }
 }
 
+// The shape memory on the square beam (b1) at the mass-spring's sizes; not on the voxelised hexagon.
+void BodyRuns::shape_memory_rows() {
+  for (Row& row : shape_memory_beam_rows(body_.cases, results_.references, s_.mass_spring_across, s_.timed_steps,
+                                         progress_))
+    results_.rows.push_back(std::move(row));
+}
+
 }  // namespace
 
 void run_unit(const Sweep& sweep, const Unit& unit, Results& results, common::ProgressBar& progress) {
   if (unit.body != nullptr) {
     BodyRuns(sweep, *unit.body, results, progress).run();
+    return;
+  }
+  if (unit.compression) {
+    for (Row& row : compression_rows(sweep.quick, progress)) results.rows.push_back(std::move(row));
     return;
   }
   for (const MassSpringRow& r : traction_rows(step_timer(sweep.timed_steps), progress))

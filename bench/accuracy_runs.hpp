@@ -1,7 +1,7 @@
 // The runs of `incise bench accuracy` (accuracy_runs.cpp): the sweep's resolutions and EFG
 // variants, and the runs of one unit of work: a body (a shape, cut or not, with the cases that
-// load it: its reference levels, then its tet10, tet4, EFG, mass-spring and constraint-particle rows) or the
-// `traction` case. A body's references serve only its own cases, so the units are independent:
+// load it: its reference levels, then its tet10, tet4, EFG, mass-spring, constraint-particle and
+// shape-memory rows) or the `traction` or `compression` case. A body's references serve only its own cases, so the units are independent:
 // the batch's parts (docs/batch.md) each run whole units.
 #pragma once
 
@@ -28,6 +28,7 @@ struct EfgVariant {
 
 // The resolutions of the full or the quick report.
 struct Sweep {
+  bool quick = false;
   int timed_steps = 1;
   Levels hexagon_levels, square_levels, crack_levels;  // tet10 references (finest last)
   Levels hexagon_linear, square_linear;                // tet4, uniform
@@ -47,11 +48,13 @@ struct Body {
 };
 std::vector<Body> group_bodies(const std::vector<Case>& cases);
 
-// The units of work, in the order the whole report runs them: the bodies, then traction.
+// The units of work, in the order the whole report runs them: the bodies, then traction, then
+// compression.
 struct Unit {
-  const Body* body = nullptr;  // null: the traction case
+  const Body* body = nullptr;  // null: the traction or (compression true) the compression case
+  bool compression = false;
 };
-std::vector<Unit> make_units(const std::vector<Body>& bodies, bool traction);
+std::vector<Unit> make_units(const std::vector<Body>& bodies, bool traction, bool compression);
 // How many progress steps a unit takes.
 int unit_runs(const Sweep& sweep, const Unit& unit);
 // Runs the unit, appending its rows (and for a body its cases' references) to `results`.

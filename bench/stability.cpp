@@ -72,7 +72,9 @@
 #include "common/progress_bar.hpp"
 #include "engine/model_registry.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <fstream>
 #include <map>
 #include <set>
@@ -101,7 +103,7 @@ Sweep make_sweep(bool quick) {
 // The models this bench sets up bodies for (make_body, below the engine's builder: the cases
 // need the bare DeformableModel), with the integrators each offers.
 const std::set<std::string>& bench_models() {
-  static const std::set<std::string> names{"fem", "efg", "mass_spring", "constraint_particles"};
+  static const std::set<std::string> names{"fem", "efg", "mass_spring", "constraint_particles", "shape_memory"};
   return names;
 }
 
@@ -124,6 +126,14 @@ std::vector<ModelKind> model_kinds(std::vector<std::string>* left_out) {
     // offers them"); any DeformableModel would take the explicit steps as well. The mass-spring
     // and the constraint particles take them all, up to their explicit bound (beyond it the run
     // is refused).
+    // The shape memory: implicit Euler and the seed's own explicit step in its two schemes.
+    if (name == "shape_memory") {
+      kinds.push_back({name,
+                       {{"implicit_euler", true},
+                        {"seed_explicit_euler", false, ExplicitScheme::explicit_euler, physics::SeedScheme::explicit_euler},
+                        {"seed_symplectic_euler", false, ExplicitScheme::explicit_euler, physics::SeedScheme::symplectic_euler}}});
+      continue;
+    }
     kinds.push_back({name, name != "efg" ? fem : std::vector<Integrator>{{"implicit_euler", true}}});
   }
   return kinds;
@@ -176,6 +186,23 @@ std::vector<Run> refused_runs(const ModelKind& kind, const std::string& case_nam
   return runs;
 }
 
+// Adds the process's CPU time over its life to `total` (the summary's seconds per model: a
+// model's bodies and runs, set-up included).
+struct CpuClock {
+  double& total;
+  std::clock_t start = std::clock();
+  ~CpuClock() { total += static_cast<double>(std::clock() - start) / CLOCKS_PER_SEC; }
+};
+
+std::string cpu_line(const std::vector<ModelKind>& kinds, const std::map<std::string, double>& seconds) {
+  std::string line = "CPU seconds per model:";
+  for (const ModelKind& kind : kinds) {
+    const auto it = seconds.find(kind.name);
+    line += " " + kind.name + " " + format(it == seconds.end() ? 0.0 : it->second, 3);
+  }
+  return line + "\n";
+}
+
 // The runs of the part: every run of the bodies (a model, a case and a material, in the sweep's
 // order) whose index `in_part` takes.
 template <class InPart>
@@ -224,6 +251,7 @@ int run_stability_bench(const StabilityOptions& options, const std::filesystem::
     common::ProgressBar progress(progress_stream, total);
     std::vector<Run> runs;
     std::vector<std::string> set_up_notes;
+    std::map<std::string, double> cpu_seconds;
     int body_index = 0;
     for (const std::string& case_name : sweep.cases) {
       const double duration = is_beam(case_name) ? sweep.beam_duration : sweep.cube_duration;
@@ -232,6 +260,7 @@ int run_stability_bench(const StabilityOptions& options, const std::filesystem::
         for (double youngs_modulus : sweep.youngs_moduli) {
           for (double poisson_ratio : sweep.poisson_ratios) {
             if (!in_part(body_index++)) continue;
+            const CpuClock clock{cpu_seconds[kind.name]};
             const Material material{youngs_modulus, poisson_ratio, density};
             const bool first_material = youngs_modulus == sweep.youngs_moduli.front() &&
                                         poisson_ratio == sweep.poisson_ratios.front();
@@ -304,20 +333,28 @@ int run_stability_bench(const StabilityOptions& options, const std::filesystem::
     progress.finish();
     const std::string slices = options.parts > 1 ? "Thin-slice study: run by the merge of the parts.\n"
                                                  : thin_slice_report(quick, progress_stream);
+    const bool shape_memory = std::any_of(kinds.begin(), kinds.end(), [](const ModelKind& k) { return k.name == "shape_memory"; });
+    std::string limits;
+    if (options.parts == 1 && shape_memory) {
+      const CpuClock clock{cpu_seconds["shape memory limits"]};
+      limits = shape_memory_limits_report(quick, progress_stream);
+    }
+    const std::string cpu = cpu_line(kinds, cpu_seconds) + (limits.empty() ? "" : "  and the shape memory's limits " +
+                                                             format(cpu_seconds["shape memory limits"], 3) + "\n");
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
     const std::string counts = counts_table(kinds, runs);
     progress_stream << "outcome counts (" << runs.size() << " runs, " << format(seconds, 3)
                     << " s):\n"
-                    << counts << inverted_table(kinds, runs) << slices;
+                    << counts << cpu << inverted_table(kinds, runs) << slices << limits;
     std::ofstream summary(out_dir / "stability_summary.txt");
     summary << "incise bench stability" << (quick ? " --quick" : "") << "\n\n"
             << bounds_text(sweep) << "\nSet-up:\n";
     for (const std::string& note : set_up_notes) summary << "  " << note << "\n";
     summary << "\nOutcome counts (" << runs.size() << " runs, " << format(seconds, 3) << " s):\n"
-            << counts << "\nInverted elements at the end of the stable inverted_start runs:\n"
-            << inverted_table(kinds, runs) << "\n" << slices;
+            << counts << cpu << "\nInverted elements at the end of the stable inverted_start runs:\n"
+            << inverted_table(kinds, runs) << "\n" << slices << "\n" << limits;
 
     draw_with_gnuplot(out_dir, "stability.gnuplot", plot_script("stability.png", quick, sweep, kinds, runs),
                       "stability.png", progress_stream);

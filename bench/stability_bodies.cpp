@@ -9,6 +9,9 @@
 #include "physics/fem/tet_mesh.hpp"
 #include "physics/mss/hex_mass_spring.hpp"
 #include "physics/mss/hex_mesh.hpp"
+#include "physics/promayon/calibration.hpp"
+#include "physics/promayon/lattice.hpp"
+#include "physics/promayon/shape_memory.hpp"
 
 #include <Eigen/LU>
 
@@ -298,12 +301,12 @@ Body make_constraint_particles_body(const std::string& case_name, const Material
     body.count_inverted = [particles](const Vector& x) { return particles->inverted_tets(x); };
     body.inverted = body.count_inverted(positions);
   }
-  body.own_explicit_step = [particles = model.get()](ExplicitScheme scheme, State& state,
+  body.own_explicit_step = [particles = model.get()](const Integrator& integrator, State& state,
                                                      const std::vector<uint8_t>& fixed, const Vector& external,
                                                      const physics::ExplicitSettings& given,
                                                      physics::VerletHistory& history) {
     physics::CpStepSettings step;  // the default limiter
-    step.scheme = scheme;
+    step.scheme = integrator.scheme;
     step.dt = given.dt;
     step.rayleigh_mass = given.rayleigh_mass;
     const physics::CpStepReport report = physics::constraint_particles_step(*particles, state, fixed, external, step, history);
@@ -319,12 +322,57 @@ Body make_constraint_particles_body(const std::string& case_name, const Material
   return body;
 }
 
+// Promayon's volumetric shape memory (physics/promayon): the mass-spring's lattice (cubic cells,
+// beam 20 x 2 x 2, cube 4 x 4 x 4, h = 10 mm) with VN1 neighbours and every non-collinear
+// triplet, k_e from E by the calibration (nu has no counterpart), lumped masses. Implicit Euler
+// takes its frozen-normal K; the explicit runs take the seed's step (§1.9) in the integrator's
+// scheme, the sweep's damping as its -alpha m v. No explicit dt is refused: beyond the bound the
+// run diverges, and the set-up note gives the symplectic step's bound 2 / omega_max.
+Body make_shape_memory_body(const std::string& case_name, const Material& material) {
+  constexpr double h = 0.01;
+  const std::array<int, 3> cells = is_beam(case_name) ? std::array<int, 3>{20, 2, 2} : std::array<int, 3>{4, 4, 4};
+  const physics::HexMesh mesh = physics::make_box_hexes(case_min(case_name), case_max(case_name), cells);
+  const double ke = physics::stiffness_from_youngs_modulus(physics::PromayonKind::shape_memory,
+                                                           physics::Neighbourhood::vn1, material.youngs_modulus, h);
+  auto model = std::make_unique<physics::ShapeMemory>(mesh.rest, physics::lattice_neighbours(mesh, physics::Neighbourhood::vn1),
+                                                      physics::lattice_masses(mesh, material.density), ke, h);
+  Body body;
+  Vector positions = mesh.rest;
+  if (case_name == "compression_release") squeeze_heights(positions);
+  if (case_name == "inverted_start") {
+    // As the mass-spring's nodes: each flipped atom two layers down, through the layer below.
+    for (int node : nodes_to_flip(mesh.rest)) positions[3 * node + 2] -= 2 * cube_side / cells[2];
+    body.count_inverted = [hexes = mesh.hexes](const Vector& x) { return count_inverted_hexes(hexes, x); };
+    body.inverted = body.count_inverted(positions);
+  }
+  body.own_explicit_step = [sm = model.get()](const Integrator& integrator, State& state,
+                                              const std::vector<uint8_t>& fixed, const Vector& external,
+                                              const physics::ExplicitSettings& given, physics::VerletHistory&) {
+    const physics::SeedStepSettings step{given.dt, 0, given.rayleigh_mass,
+                                         integrator.seed.value_or(physics::SeedScheme::symplectic_euler)};
+    const physics::SeedStepReport report = physics::seed_explicit_step(*sm, state, fixed, external, {}, step, nullptr, 0);
+    physics::ExplicitStepReport out;
+    out.nonfinite = report.nonfinite;
+    out.force_evaluations = 1;
+    out.elastic_energy = report.elastic_energy;
+    out.kinetic_energy = report.kinetic_energy;
+    return out;
+  };
+  body.initial.positions = positions;
+  body.model = std::move(model);
+  finish_body(body, case_name);
+  body.note = "k_e " + format(ke, 4) + " N/m, symplectic bound " +
+              format(1e3 * physics::seed_step_limit(*body.model, body.fixed), 4) + " ms";
+  return body;
+}
+
 Body make_body(const std::string& model_name, const std::string& case_name,
                const Material& material) {
   if (model_name == "fem") return make_fem_body(case_name, material);
   if (model_name == "efg") return make_efg_body(case_name, material);
   if (model_name == "mass_spring") return make_mass_spring_body(case_name, material);
   if (model_name == "constraint_particles") return make_constraint_particles_body(case_name, material);
+  if (model_name == "shape_memory") return make_shape_memory_body(case_name, material);
   throw std::invalid_argument("stability bench: unknown model " + model_name);
 }
 

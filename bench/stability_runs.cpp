@@ -94,7 +94,7 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
           const physics::ExplicitSettings settings{sub_dt, rayleigh_mass};
           const physics::ExplicitStepReport report =
               body.own_explicit_step
-                  ? body.own_explicit_step(integrator.scheme, state, body.fixed, body.external, settings, history)
+                  ? body.own_explicit_step(integrator, state, body.fixed, body.external, settings, history)
                   : physics::explicit_step(integrator.scheme, model, state, body.fixed, body.external, settings,
                                            &history);
           failed = report.nonfinite;

@@ -8,6 +8,7 @@
 #include "physics/core/implicit_euler.hpp"
 #include "physics/cut/volume_cut.hpp"
 #include "physics/efg/corotational_efg.hpp"
+#include "physics/promayon/seed_step.hpp"
 
 #include <array>
 #include <cstdint>
@@ -15,6 +16,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <ostream>
 #include <set>
 #include <string>
@@ -74,6 +76,8 @@ struct Integrator {
   std::string name;
   bool implicit = false;
   ExplicitScheme scheme = ExplicitScheme::explicit_euler;
+  // Promayon's models: the seed's own explicit step (seed_step.hpp) in this scheme instead.
+  std::optional<physics::SeedScheme> seed;
 };
 
 struct ModelKind {
@@ -102,8 +106,8 @@ struct Body {
   // thin_slice: the particles of each slice beyond the cut front (top, then bottom).
   std::vector<std::vector<int>> slices;
   // The model's own explicit step, when it has one (the constraint particles' Alg. 3.2: the
-  // integrator, then the stretch limiter); empty: physics::explicit_step.
-  std::function<physics::ExplicitStepReport(ExplicitScheme, State&, const std::vector<uint8_t>&, const Vector&,
+  // integrator, then the stretch limiter; the shape memory's seed step); empty: physics::explicit_step.
+  std::function<physics::ExplicitStepReport(const Integrator&, State&, const std::vector<uint8_t>&, const Vector&,
                                             const physics::ExplicitSettings&, physics::VerletHistory&)>
       own_explicit_step;
 };
@@ -151,6 +155,10 @@ Body make_body(const std::string& model_name, const std::string& case_name, cons
 // A run (stability_runs.cpp).
 physics::ImplicitEulerSettings implicit_settings(double dt);
 Run simulate(Body& body, const Integrator& integrator, double dt, double duration);
+
+// The shape memory's explicit limits (stability_shape_memory.cpp): the 3-atom figure and the
+// seed's symplectic step around each cube's bound 2 / omega_max, for the summary.
+std::string shape_memory_limits_report(bool quick, std::ostream& progress);
 
 // The thin-slice study (stability_slices.cpp).
 std::string thin_slice_report(bool quick, std::ostream& progress);

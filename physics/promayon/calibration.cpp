@@ -8,18 +8,19 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <tuple>
 #include <stdexcept>
 #include <utility>
 
 namespace incise::physics {
 
-double apparent_modulus(PromayonKind kind, Neighbourhood neighbourhood, int cells) {
+double apparent_modulus(PromayonKind kind, Neighbourhood neighbourhood, int cells, TripletSelection selection) {
   const HexMesh mesh = make_box_hexes(Vec3::Zero(), Vec3::Constant(cells), {cells, cells, cells});
   const auto neighbours = lattice_neighbours(mesh, neighbourhood);
   const Vector masses = Vector::Ones(static_cast<Eigen::Index>(mesh.rest.size() / 3));
   std::unique_ptr<DeformableModel> model;
   if (kind == PromayonKind::shape_memory)
-    model = std::make_unique<ShapeMemory>(mesh.rest, neighbours, masses, 1.0, 1.0);
+    model = std::make_unique<ShapeMemory>(mesh.rest, neighbours, masses, 1.0, 1.0, selection);
   else
     model = std::make_unique<SpringNetwork>(mesh.rest, neighbours, masses, 1.0, 0.0, 1.0);
   const double strain = 1e-3;
@@ -57,21 +58,22 @@ double apparent_modulus(PromayonKind kind, Neighbourhood neighbourhood, int cell
   throw std::runtime_error("calibration: the block did not settle");
 }
 
-double calibration_constant(PromayonKind kind, Neighbourhood neighbourhood) {
+double calibration_constant(PromayonKind kind, Neighbourhood neighbourhood, TripletSelection selection) {
   static std::mutex mutex;
-  static std::map<std::pair<int, int>, double> cache;
+  static std::map<std::tuple<int, int, int>, double> cache;
   const std::lock_guard lock(mutex);
-  const auto key = std::make_pair(static_cast<int>(kind), static_cast<int>(neighbourhood));
+  if (kind == PromayonKind::spring_network) selection = TripletSelection::all;
+  const auto key = std::make_tuple(static_cast<int>(kind), static_cast<int>(neighbourhood), static_cast<int>(selection));
   if (auto it = cache.find(key); it != cache.end()) return it->second;
-  const double c = apparent_modulus(kind, neighbourhood, 4);
+  const double c = apparent_modulus(kind, neighbourhood, 4, selection);
   if (!(c > 0)) throw std::runtime_error("calibration: non-positive apparent modulus");
   cache[key] = c;
   return c;
 }
 
 double stiffness_from_youngs_modulus(PromayonKind kind, Neighbourhood neighbourhood, double youngs_modulus,
-                                     double spacing) {
-  return youngs_modulus * spacing / calibration_constant(kind, neighbourhood);
+                                     double spacing, TripletSelection selection) {
+  return youngs_modulus * spacing / calibration_constant(kind, neighbourhood, selection);
 }
 
 }  // namespace incise::physics

@@ -17,6 +17,7 @@
 #pragma once
 
 #include "physics/promayon/lattice.hpp"
+#include "physics/promayon/shape_memory.hpp"
 
 namespace incise::physics {
 
@@ -24,14 +25,17 @@ enum class PromayonKind { shape_memory, spring_network };
 
 // C: the apparent modulus of the calibration block at unit stiffness and spacing, Pa m / (N/m).
 // Computed once per (kind, neighbourhood) and cached (thread-safe).
-double calibration_constant(PromayonKind kind, Neighbourhood neighbourhood);
+// `selection`: the shape memory's triplets (ignored by the network).
+double calibration_constant(PromayonKind kind, Neighbourhood neighbourhood,
+                            TripletSelection selection = TripletSelection::all);
 
 // The calibration run itself on a block of `cells`^3 cells (the constant uses 4): the apparent
 // modulus at unit stiffness and spacing. Throws std::runtime_error if it does not settle.
-double apparent_modulus(PromayonKind kind, Neighbourhood neighbourhood, int cells);
+double apparent_modulus(PromayonKind kind, Neighbourhood neighbourhood, int cells,
+                        TripletSelection selection = TripletSelection::all);
 
 // The stiffness (k_e or k_r, N/m) that gives a body of lattice spacing h the modulus E.
 double stiffness_from_youngs_modulus(PromayonKind kind, Neighbourhood neighbourhood, double youngs_modulus,
-                                     double spacing);
+                                     double spacing, TripletSelection selection = TripletSelection::all);
 
 }  // namespace incise::physics

@@ -9,4 +9,6 @@ target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/seed_step.cpp
   ${CMAKE_CURRENT_LIST_DIR}/promayon_body.cpp
   ${CMAKE_CURRENT_LIST_DIR}/calibration.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/truth_cube.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/three_atom.cpp
 )

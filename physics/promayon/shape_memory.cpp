@@ -1,5 +1,7 @@
 #include "physics/promayon/shape_memory.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -32,15 +34,40 @@ std::optional<Triplet> rest_triplet(const Vector& x, int p, int a, int b, int c)
   return t;
 }
 
+using Offset = std::array<long long, 3>;
+
+// A neighbour's rest offset from P on a grid of 1e-6 of the spacing (exact comparisons).
+Offset offset(const Vector& x, int p, int n, double spacing) {
+  const Vec3 d = (at(x, n) - at(x, p)) / (1e-6 * spacing);
+  return {std::llround(d.x()), std::llround(d.y()), std::llround(d.z())};
+}
+
+// TripletSelection::unmirrored: false when the mirror image of (a, b, c) through P is among P's
+// neighbours and its sorted offsets are the larger.
+bool keep_unmirrored(const Vector& x, int p, const std::vector<int>& nb, int a, int b, int c, double spacing) {
+  std::array<Offset, 3> own{offset(x, p, a, spacing), offset(x, p, b, spacing), offset(x, p, c, spacing)};
+  std::array<Offset, 3> mirror{};
+  for (int k = 0; k < 3; ++k) {
+    mirror[k] = {-own[k][0], -own[k][1], -own[k][2]};
+    const bool present = std::any_of(nb.begin(), nb.end(), [&](int n) { return offset(x, p, n, spacing) == mirror[k]; });
+    if (!present) return true;
+  }
+  std::sort(own.begin(), own.end());
+  std::sort(mirror.begin(), mirror.end());
+  return own > mirror;
+}
+
 }  // namespace
 
 ShapeMemory::ShapeMemory(const Vector& rest, const std::vector<std::vector<int>>& neighbours, const Vector& masses,
-                         double stiffness, double spacing)
+                         double stiffness, double spacing, TripletSelection selection)
     : rest_(rest), masses_(masses), stiffness_(stiffness), spacing_(spacing), neighbours_(neighbours) {
   const auto n = static_cast<std::size_t>(masses.size());
   if (rest.size() != 3 * masses.size() || neighbours.size() != n)
     throw std::invalid_argument("ShapeMemory: rest, neighbours and masses disagree in size");
   if (!(stiffness > 0) || !std::isfinite(stiffness)) throw std::invalid_argument("ShapeMemory: stiffness k_e must be positive");
+  if (selection == TripletSelection::unmirrored && !(spacing > 0))
+    throw std::invalid_argument("ShapeMemory: the unmirrored triplet selection needs a positive spacing");
   weights_.resize(n);
   normal_.resize(n);
   triplets_per_atom_.assign(n, 0);
@@ -55,6 +82,9 @@ ShapeMemory::ShapeMemory(const Vector& rest, const std::vector<std::vector<int>>
     for (std::size_t a = 0; a < k; ++a)
       for (std::size_t b = a + 1; b < k; ++b)
         for (std::size_t c = b + 1; c < k; ++c) {
+          if (selection == TripletSelection::unmirrored &&
+              !keep_unmirrored(rest, static_cast<int>(i), nb, nb[a], nb[b], nb[c], spacing))
+            continue;
           auto t = rest_triplet(rest, static_cast<int>(i), nb[a], nb[b], nb[c]);
           if (!t) continue;
           ++m;

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The stability sweep in its quick form (issue 7), as CI runs it: it must complete, write its
-# report, and meet the target: implicit Euler (fem, efg, mass_spring and constraint_particles)
-# stable in every case for E <= 100 MPa, nu <= 0.49, dt <= 33 ms. What fails beyond is reported,
+# report, and meet the target: implicit Euler (fem, efg, mass_spring, constraint_particles and
+# shape_memory) stable in every case for E <= 100 MPa, nu <= 0.49, dt <= 33 ms. What fails beyond is reported,
 # not asserted; the mass-spring's and the constraint particles' explicit runs beyond their bound
 # are refused (counted), not run.
 # Usage: bench_stability_quick.sh INCISE WORKDIR
@@ -34,6 +34,11 @@ for m in mass_spring constraint_particles; do
   n=$(awk -F, -v m="$m" 'NR > 1 && $1 == m' "$csv" | wc -l)
   [ "$n" -eq 324 ] || { echo "$n $m runs, expected 324 (3 cases x 9 materials x 6 integrators x 2 dt)"; exit 1; }
 done
+# The shape memory: implicit Euler and the seed's step in its two schemes, never refused; its
+# explicit limits (the 3-atom figure) in the summary.
+n=$(awk -F, 'NR > 1 && $1 == "shape_memory"' "$csv" | wc -l)
+[ "$n" -eq 162 ] || { echo "$n shape_memory runs, expected 162 (3 cases x 9 materials x 3 integrators x 2 dt)"; exit 1; }
+grep -q '^  3-atom test .* ratio 2\.' "$work/stability_summary.txt" || { echo "no 3-atom figure near 2 in the summary"; exit 1; }
 wrong=$(awk -F, 'NR > 1 && $7 == "refused" && ($2 == "implicit_euler" || $10 != 0)' "$csv")
 [ -z "$wrong" ] || { echo "refused runs that are implicit or took steps:"; echo "$wrong"; exit 1; }
 # The thin-slice study (both rotations of the corotation) is in the summary.

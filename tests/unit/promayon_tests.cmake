@@ -2,7 +2,8 @@
 # volume projection, the seed's step, the stiffness calibration; and their scenes through the
 # engine (test_promayon_scenes).
 add_executable(test_promayon ${CMAKE_CURRENT_LIST_DIR}/test_shape_memory.cpp
-  ${CMAKE_CURRENT_LIST_DIR}/test_promayon_compression.cpp)
+  ${CMAKE_CURRENT_LIST_DIR}/test_promayon_compression.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_promayon_sphere.cpp)
 target_link_libraries(test_promayon PRIVATE incise_physics GTest::gtest_main)
 gtest_discover_tests(test_promayon DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")
 

@@ -8,6 +8,7 @@
 #include "physics/promayon/seed_step.hpp"
 #include "physics/promayon/shape_memory.hpp"
 #include "physics/promayon/spring_network.hpp"
+#include "physics/promayon/three_atom.hpp"
 #include "physics/promayon/volume_projection.hpp"
 
 #include <gtest/gtest.h>
@@ -184,44 +185,6 @@ TEST(VolumeProjection, ThePenaltyPullsTowardsTheTargetWithoutNetForce) {
 
 namespace {
 
-// The 3-atom test in 3-D (§1.3 Fig. 10, §5.2): the volumetric model needs a triplet, so the
-// perturbed atom A sits at the apex of a regular tetrahedron over three fixed atoms B, C, D
-// (the seed's B and C plus one). Mass-spring: a spring k_r and a dashpot k_a on each of A's
-// edges (the network's damping is per spring, §1.2's D); shape memory: k_e on A and the
-// per-atom damping -k_a v of the seed's step. Stiffnesses calibrated against each other by
-// the trace of A's 3 x 3 stiffness (3 k_r = 3 k_e). Explicit Euler.
-struct ThreeAtom {
-  Vector rest = Vector(12);
-  std::vector<std::vector<int>> neighbours{{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
-  std::vector<std::uint8_t> fixed{0, 1, 1, 1};
-  ThreeAtom() {
-    const double s = 1 / std::sqrt(3.0), h = std::sqrt(2.0 / 3);
-    rest << 0, 0, h, s, 0, 0, -s / 2, 0.5, 0, -s / 2, -0.5, 0;  // unit edges
-  }
-};
-
-// Stable: after `steps` explicit Euler steps the perturbation has not grown.
-bool stable(physics::DeformableModel& model, const ThreeAtom& t, double damping, double dt) {
-  physics::State state{t.rest, Vector::Zero(12)};
-  state.positions.segment<3>(0) += Vec3(1e-6, -2e-6, 3e-6);
-  const physics::SeedStepSettings settings{dt, damping, 0, physics::SeedScheme::explicit_euler};
-  const Vector zero = Vector::Zero(12);
-  for (int k = 0; k < 4000; ++k) {
-    if (physics::seed_explicit_step(model, state, t.fixed, zero, {}, settings, nullptr, 0).nonfinite) return false;
-    if ((state.positions - t.rest).norm() > 1e-4) return false;
-  }
-  return (state.positions - t.rest).norm() < 4e-6;
-}
-
-double largest_stable_dt(const std::function<bool(double)>& is_stable) {
-  double lo = 1e-3, hi = 10;
-  while (hi - lo > 1e-4 * lo) {
-    const double mid = 0.5 * (lo + hi);
-    (is_stable(mid) ? lo : hi) = mid;
-  }
-  return lo;
-}
-
 // The linear analysis of the seed (§1.3: the Jacobian of the system under explicit Euler): A's
 // step x+ = x + dt v, v+ = v - dt (K x + D v) (unit mass) is stable while the 6 x 6 amplification
 // matrix has spectral radius <= 1. K is -df/dx on A by central differences, normals included.
@@ -238,7 +201,7 @@ Eigen::Matrix3d stiffness_on_a(const physics::DeformableModel& model, const Vect
 }
 
 double linear_limit(const Eigen::Matrix3d& k, const Eigen::Matrix3d& d) {
-  return largest_stable_dt([&](double dt) {
+  return physics::largest_stable_dt([&](double dt) {
     Eigen::Matrix<double, 6, 6> g;
     g << Eigen::Matrix3d::Identity(), dt * Eigen::Matrix3d::Identity(), -dt * k, Eigen::Matrix3d::Identity() - dt * d;
     return Eigen::EigenSolver<Eigen::Matrix<double, 6, 6>>(g).eigenvalues().cwiseAbs().maxCoeff() <= 1 + 1e-12;
@@ -247,15 +210,14 @@ double linear_limit(const Eigen::Matrix3d& k, const Eigen::Matrix3d& d) {
 
 }  // namespace
 
+// The 3-atom test (physics/promayon/three_atom.hpp) by bisection on the step itself.
 TEST(ThreeAtomStability, ShapeMemoryTakesTwiceTheExplicitStepOfMassSpring) {
-  const ThreeAtom t;
-  const Vector m = Vector::Ones(4);
+  const physics::ThreeAtom t;
   const double ka = 1, k = 0.05;
-  physics::ShapeMemory sm(t.rest, t.neighbours, m, k, 1);
-  // A's springs only (the fixed atoms' springs among themselves do not act on A).
-  physics::SpringNetwork ms(t.rest, {{1, 2, 3}, {0}, {0}, {0}}, m, k, ka, 1);
-  const double dt_sm = largest_stable_dt([&](double dt) { return stable(sm, t, ka, dt); });
-  const double dt_ms = largest_stable_dt([&](double dt) { return stable(ms, t, 0, dt); });
+  physics::ShapeMemory sm = t.shape_memory(k);
+  physics::SpringNetwork ms = t.mass_spring(k, ka);
+  const physics::ThreeAtomLimits limits = physics::three_atom_limits(k, ka);
+  const double dt_sm = limits.shape_memory, dt_ms = limits.mass_spring;
   std::printf("3-atom test: largest stable explicit Euler dt, shape memory %.4f, mass-spring %.4f, ratio %.3f\n",
               dt_sm, dt_ms, dt_sm / dt_ms);
   // Each against the linear analysis. The network's A sees k_r sum u u^T and k_a sum u u^T
@@ -376,4 +338,32 @@ TEST(ShapeMemory, AnInteriorAtomIgnoresAnyAffineMap) {
   EXPECT_LT(pull_at(1, centre), 1e-15);  // round-off on 4 cm positions, at 30 % strain
   EXPECT_GT(pull_at(1, face), 1e-4);
   EXPECT_NEAR(pull_at(1e-3, face) / pull_at(5e-4, face), 2, 0.01);
+}
+
+// The unmirrored triplet selection (shape_memory.hpp): half the interior atom's triplets, and
+// the one left of each mirror pair no longer cancels, so the interior atom is pulled under a
+// homogeneous strain (linearly for small strains); forces still sum to zero.
+TEST(ShapeMemory, TheUnmirroredSelectionPullsAnInteriorAtomUnderAnAffineMap) {
+  const Block b = block(4);
+  const physics::ShapeMemory all(b.mesh.rest, b.neighbours, b.masses, 1, 0.01);
+  const physics::ShapeMemory half(b.mesh.rest, b.neighbours, b.masses, 1, 0.01, physics::TripletSelection::unmirrored);
+  // 5^3 atoms: 27 interior (20 triplets each, 10 kept), 54 face (10, 8 kept), 36 edge (4), 8 corners (1).
+  EXPECT_EQ(all.triplet_count(), 27u * 20 + 54 * 10 + 36 * 4 + 8);
+  EXPECT_EQ(half.triplet_count(), 27u * 10 + 54 * 8 + 36 * 4 + 8);
+  Eigen::Matrix3d strain;
+  strain << 0.3, 0.1, -0.05, 0.1, -0.2, 0.07, -0.05, 0.07, 0.15;
+  const int centre = 2 + 5 * (2 + 5 * 2);
+  const auto pull_at = [&](const physics::ShapeMemory& model, double scale) {
+    Vector x = b.mesh.rest;
+    for (Eigen::Index i = 0; i < x.size(); i += 3) x.segment<3>(i) += scale * strain * b.mesh.rest.segment<3>(i);
+    return (model.attractor(x, centre) - x.segment<3>(3 * centre)).norm();
+  };
+  std::printf("interior atom's pull at strain scale 1: all triplets %.2e m, unmirrored %.2e m\n", pull_at(all, 1),
+              pull_at(half, 1));
+  EXPECT_LT(pull_at(all, 1), 1e-15);
+  EXPECT_GT(pull_at(half, 1), 1e-4);
+  EXPECT_NEAR(pull_at(half, 1e-3) / pull_at(half, 5e-4), 2, 0.01);
+  Vector f = Vector::Zero(b.mesh.rest.size());
+  half.add_elastic_forces(jiggled(b.mesh.rest, 1e-3, 3), f);
+  EXPECT_LT(total(f).norm(), 1e-12 * f.norm());
 }
