@@ -107,14 +107,16 @@ const std::set<std::string>& bench_models() {
   return names;
 }
 
+Integrator implicit_euler() { return {"implicit_euler", true, ExplicitScheme::explicit_euler, std::nullopt}; }
+
 // The sweep's models: the registry's (engine/model_registry.hpp), in its order, those this bench
 // can set up; `left_out` receives the others.
 std::vector<ModelKind> model_kinds(std::vector<std::string>* left_out) {
-  std::vector<Integrator> fem{{"implicit_euler", true}};
+  std::vector<Integrator> fem{implicit_euler()};
   for (ExplicitScheme scheme : {ExplicitScheme::explicit_euler, ExplicitScheme::midpoint,
                                 ExplicitScheme::runge_kutta4, ExplicitScheme::verlet,
                                 ExplicitScheme::velocity_verlet}) {
-    fem.push_back({std::string(physics::explicit_scheme_name(scheme)), false, scheme});
+    fem.push_back({std::string(physics::explicit_scheme_name(scheme)), false, scheme, std::nullopt});
   }
   std::vector<ModelKind> kinds;
   for (const std::string& name : engine::models().names()) {
@@ -129,12 +131,12 @@ std::vector<ModelKind> model_kinds(std::vector<std::string>* left_out) {
     // The shape memory: implicit Euler and the seed's own explicit step in its two schemes.
     if (name == "shape_memory") {
       kinds.push_back({name,
-                       {{"implicit_euler", true},
+                       {implicit_euler(),
                         {"seed_explicit_euler", false, ExplicitScheme::explicit_euler, physics::SeedScheme::explicit_euler},
                         {"seed_symplectic_euler", false, ExplicitScheme::explicit_euler, physics::SeedScheme::symplectic_euler}}});
       continue;
     }
-    kinds.push_back({name, name != "efg" ? fem : std::vector<Integrator>{{"implicit_euler", true}}});
+    kinds.push_back({name, name != "efg" ? fem : std::vector<Integrator>{implicit_euler()}});
   }
   return kinds;
 }

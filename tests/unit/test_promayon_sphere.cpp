@@ -95,7 +95,9 @@ TEST(PromayonSphere, SettlesUnderGravityWithTheSeedsDamping) {
                   selection == physics::TripletSelection::all ? "all triplets" : "unmirrored", volume ? " + volume" : "",
                   model.triplet_count(), ke, 1e3 * sag, steps, dt);
       EXPECT_TRUE(settled);
-      if (volume) EXPECT_LT(std::abs(physics::closed_volume(state.positions, control.triangles) / control.rest_volume - 1), 1e-9);
+      if (volume) {
+        EXPECT_LT(std::abs(physics::closed_volume(state.positions, control.triangles) / control.rest_volume - 1), 1e-9);
+      }
       // Within a factor of 3 of the tets either way (the shape memory has no nu; no closer claim).
       EXPECT_GT(sag, fem_045 / 3);
       EXPECT_LT(sag, 3 * fem_03);
