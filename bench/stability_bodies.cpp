@@ -250,6 +250,20 @@ int count_inverted_hexes(const std::vector<std::array<int, 8>>& hexes, const Vec
   return inverted;
 }
 
+// A hex lattice's start for the case (the mass-spring's nodes, the shape memory's atoms):
+// squeezed, or with each flipped node two node layers down through the layer below (as the
+// EFG's particles), the inverted hexes then counted.
+Vector hex_lattice_start(const std::string& case_name, const physics::HexMesh& mesh, int layers, Body& body) {
+  Vector positions = mesh.rest;
+  if (case_name == "compression_release") squeeze_heights(positions);
+  if (case_name == "inverted_start") {
+    for (int node : nodes_to_flip(mesh.rest)) positions[3 * node + 2] -= 2 * cube_side / layers;
+    body.count_inverted = [hexes = mesh.hexes](const Vector& x) { return count_inverted_hexes(hexes, x); };
+    body.inverted = body.count_inverted(positions);
+  }
+  return positions;
+}
+
 // Baudet's mass-spring (physics/mss): cubic bricks, the beam 20 x 2 x 2 (the fem's 10 x 2 x 2
 // cells are 2:1 bricks, whose edge stiffness is negative at every nu: refused), the cube
 // 4 x 4 x 4; its default dashpots (critical) and no corrections. Throws std::invalid_argument
@@ -260,14 +274,7 @@ Body make_mass_spring_body(const std::string& case_name, const Material& materia
   auto model = std::make_unique<physics::HexMassSpring>(
       mesh, physics::MassSpringMaterial{material.youngs_modulus, material.poisson_ratio, material.density});
   Body body;
-  Vector positions = mesh.rest;
-  if (case_name == "compression_release") squeeze_heights(positions);
-  if (case_name == "inverted_start") {
-    // As the EFG's particles: each flipped node two node layers down, through the layer below.
-    for (int node : nodes_to_flip(mesh.rest)) positions[3 * node + 2] -= 2 * cube_side / cells[2];
-    body.count_inverted = [hexes = mesh.hexes](const Vector& x) { return count_inverted_hexes(hexes, x); };
-    body.inverted = body.count_inverted(positions);
-  }
+  const Vector positions = hex_lattice_start(case_name, mesh, cells[2], body);
   body.initial.positions = positions;
   body.model = std::move(model);
   finish_body(body, case_name);
@@ -337,14 +344,7 @@ Body make_shape_memory_body(const std::string& case_name, const Material& materi
   auto model = std::make_unique<physics::ShapeMemory>(mesh.rest, physics::lattice_neighbours(mesh, physics::Neighbourhood::vn1),
                                                       physics::lattice_masses(mesh, material.density), ke, h);
   Body body;
-  Vector positions = mesh.rest;
-  if (case_name == "compression_release") squeeze_heights(positions);
-  if (case_name == "inverted_start") {
-    // As the mass-spring's nodes: each flipped atom two layers down, through the layer below.
-    for (int node : nodes_to_flip(mesh.rest)) positions[3 * node + 2] -= 2 * cube_side / cells[2];
-    body.count_inverted = [hexes = mesh.hexes](const Vector& x) { return count_inverted_hexes(hexes, x); };
-    body.inverted = body.count_inverted(positions);
-  }
+  const Vector positions = hex_lattice_start(case_name, mesh, cells[2], body);
   body.own_explicit_step = [sm = model.get()](const Integrator& integrator, State& state,
                                               const std::vector<uint8_t>& fixed, const Vector& external,
                                               const physics::ExplicitSettings& given, physics::VerletHistory&) {
