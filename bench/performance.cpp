@@ -70,6 +70,20 @@ std::vector<std::string> preconditioners_to_run(const std::string& preconditione
   return {preconditioner};
 }
 
+// default.json at one row's resolution, backend and preconditioner, without captures.
+engine::Scene row_scene(const engine::Scene& base, const std::string& backend, const std::string& preconditioner,
+                        const MultigridOverrides& multigrid, const Resolution& resolution) {
+  engine::Scene scene = base;
+  scene.solver.backend = backend;
+  scene.solver.preconditioner = preconditioner;
+  if (multigrid.smoothing > 0) scene.solver.multigrid_smoothing = multigrid.smoothing;
+  if (!multigrid.precision.empty()) scene.solver.multigrid_precision = multigrid.precision;
+  scene.bodies[0].resolution = resolution.spacing;
+  scene.bodies[0].efg.surface_resolution = resolution.surface;
+  scene.render.capture_every = 0;
+  return scene;
+}
+
 }  // namespace
 
 int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std::ostream& progress,
@@ -110,14 +124,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
     double jacobi_solve = 0;  // this size's Jacobi row, run first
     for (const std::string& row_preconditioner : preconditioners) for (const std::string& row_backend : backends) {
       if (row_backend == "gpu" && row_preconditioner != preconditioners.front()) continue;  // the gpu's is Jacobi
-      engine::Scene scene = base;
-      scene.solver.backend = row_backend;
-      scene.solver.preconditioner = row_preconditioner;
-      if (multigrid.smoothing > 0) scene.solver.multigrid_smoothing = multigrid.smoothing;
-      if (!multigrid.precision.empty()) scene.solver.multigrid_precision = multigrid.precision;
-      scene.bodies[0].resolution = resolution.spacing;
-      scene.bodies[0].efg.surface_resolution = resolution.surface;
-      scene.render.capture_every = 0;
+      const engine::Scene scene = row_scene(base, row_backend, row_preconditioner, multigrid, resolution);
       const auto built_start = std::chrono::steady_clock::now();
       engine::World world(scene, engine::read_trajectory(*scene.tool->trajectory));
       const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - built_start).count();

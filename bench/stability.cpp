@@ -219,6 +219,41 @@ int runs_in_part(const Sweep& sweep, const std::vector<ModelKind>& kinds, const 
   return total;
 }
 
+namespace {
+
+// The summary (stability_summary.txt), the plot and the report page of a finished sweep.
+void write_stability_reports(const std::filesystem::path& out_dir, bool quick, const Sweep& sweep,
+                             const std::vector<ModelKind>& kinds, const std::vector<Run>& runs,
+                             const std::vector<std::string>& set_up_notes, const std::string& cpu,
+                             const std::string& slices, const std::string& limits, double seconds,
+                             std::ostream& progress_stream) {
+  const std::string counts = counts_table(kinds, runs);
+  progress_stream << "outcome counts (" << runs.size() << " runs, " << format(seconds, 3)
+                  << " s):\n"
+                  << counts << cpu << inverted_table(kinds, runs) << slices << limits;
+  std::ofstream summary(out_dir / "stability_summary.txt");
+  summary << "incise bench stability" << (quick ? " --quick" : "") << "\n\n"
+          << bounds_text(sweep) << "\nSet-up:\n";
+  for (const std::string& note : set_up_notes) summary << "  " << note << "\n";
+  summary << "\nOutcome counts (" << runs.size() << " runs, " << format(seconds, 3) << " s):\n"
+          << counts << cpu << "\nInverted elements at the end of the stable inverted_start runs:\n"
+          << inverted_table(kinds, runs) << "\n" << slices << "\n" << limits;
+
+  draw_with_gnuplot(out_dir, "stability.gnuplot", plot_script("stability.png", quick, sweep, kinds, runs),
+                    "stability.png", progress_stream);
+  progress_stream << "wrote " << (out_dir / "stability.csv").string() << "\n";
+  progress_stream << "report: "
+                  << write_bench_page(out_dir, {"incise bench stability" + std::string(quick ? " --quick" : ""),
+                                                "Stiff and extreme cases: the outcome of each model, integrator, "
+                                                "case, E, nu and dt (bench/stability.cpp says what each case is).",
+                                                {{"stability.png", "Outcome map"}}, "stability_summary.txt",
+                                                "stability.csv"})
+                         .string()
+                  << "\n";
+}
+
+}  // namespace
+
 int run_stability_bench(const StabilityOptions& options, const std::filesystem::path& out_dir,
                         std::ostream& progress_stream) {
   const bool quick = options.quick, resume = options.resume;
@@ -346,29 +381,8 @@ int run_stability_bench(const StabilityOptions& options, const std::filesystem::
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-    const std::string counts = counts_table(kinds, runs);
-    progress_stream << "outcome counts (" << runs.size() << " runs, " << format(seconds, 3)
-                    << " s):\n"
-                    << counts << cpu << inverted_table(kinds, runs) << slices << limits;
-    std::ofstream summary(out_dir / "stability_summary.txt");
-    summary << "incise bench stability" << (quick ? " --quick" : "") << "\n\n"
-            << bounds_text(sweep) << "\nSet-up:\n";
-    for (const std::string& note : set_up_notes) summary << "  " << note << "\n";
-    summary << "\nOutcome counts (" << runs.size() << " runs, " << format(seconds, 3) << " s):\n"
-            << counts << cpu << "\nInverted elements at the end of the stable inverted_start runs:\n"
-            << inverted_table(kinds, runs) << "\n" << slices << "\n" << limits;
-
-    draw_with_gnuplot(out_dir, "stability.gnuplot", plot_script("stability.png", quick, sweep, kinds, runs),
-                      "stability.png", progress_stream);
-    progress_stream << "wrote " << (out_dir / "stability.csv").string() << "\n";
-    progress_stream << "report: "
-                    << write_bench_page(out_dir, {"incise bench stability" + std::string(quick ? " --quick" : ""),
-                                                  "Stiff and extreme cases: the outcome of each model, integrator, "
-                                                  "case, E, nu and dt (bench/stability.cpp says what each case is).",
-                                                  {{"stability.png", "Outcome map"}}, "stability_summary.txt",
-                                                  "stability.csv"})
-                           .string()
-                    << "\n";
+    write_stability_reports(out_dir, quick, sweep, kinds, runs, set_up_notes, cpu, slices, limits, seconds,
+                            progress_stream);
     return 0;
   } catch (const std::exception& error) {
     progress_stream << "\nstability bench failed: " << error.what() << "\n";
