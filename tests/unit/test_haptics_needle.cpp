@@ -123,8 +123,12 @@ TEST(HapticsNeedle, TheLoopFadesAPunctureGivingWayAndStaysPassive) {
     if (k > 0) jump = std::max(jump, std::abs(s.needle_force[2] - previous));
     previous = s.needle_force[2];
     energy = std::max(energy, s.device_energy);
-    if (k == 45) EXPECT_NEAR(s.needle_force[2], 0.6, 1e-3) << "the puncture's level";
-    if (k == 199) EXPECT_NEAR(s.needle_force[2], 0.2, 1e-3) << "the insertion's level";
+    if (k == 45) {
+      EXPECT_NEAR(s.needle_force[2], 0.6, 1e-3) << "the puncture's level";
+    }
+    if (k == 199) {
+      EXPECT_NEAR(s.needle_force[2], 0.2, 1e-3) << "the insertion's level";
+    }
   }
   EXPECT_LE(jump, 0.04 + 1e-9);  // k |dx| loading, and the drop of 0.4 N over the 10 ticks of the fade
   EXPECT_LE(energy, 1e-12);
