@@ -14,8 +14,10 @@
 #include "haptics/haptic_loop.hpp"
 #include "haptics/replay_device.hpp"
 #include "haptics/virtual_device.hpp"
+#include "tests/unit/scripted_device.hpp"
 
 using namespace incise::haptics;
+using incise::testing::ScriptedDevice;
 
 namespace {
 
@@ -30,21 +32,6 @@ std::string error_of(F&& f) {
   }
   return "(no error)";
 }
-
-// A device whose state the test sets: for the loss rule at the loop's level.
-class ScriptedDevice final : public Device {
- public:
-  DevicePose pose;
-  DeviceState current = DeviceState::ok;
-  Vector3 written{};
-  std::string_view name() const override { return "scripted"; }
-  void open() override {}
-  void close() override {}
-  DevicePose read_pose() override { return pose; }
-  DeviceState state() const override { return current; }
-  void write_force(const Vector3& f) override { written = f; }
-  DeviceLimits limits() const override { return {}; }  // max_force 3 N
-};
 
 // Tissue plane z = 0 (normal +z), probe of radius 2 mm, penalty 500 N/m in series with a
 // compliance of 1 mm/N: k_eff = 1 / (1/500 + 0.001) = 333.33 N/m.

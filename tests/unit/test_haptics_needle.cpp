@@ -11,8 +11,10 @@
 
 #include "haptics/haptic_loop.hpp"
 #include "haptics/needle_proxy.hpp"
+#include "tests/unit/scripted_device.hpp"
 
 using namespace incise::haptics;
+using incise::testing::ScriptedDevice;
 
 namespace {
 
@@ -29,18 +31,6 @@ ContactModel needle_model(double insert = 0.3, double retract = 0.1) {
   m.needle.stiffness = 400;
   return m;
 }
-
-class ScriptedDevice final : public Device {
- public:
-  DevicePose pose;
-  std::string_view name() const override { return "scripted"; }
-  void open() override {}
-  void close() override {}
-  DevicePose read_pose() override { return pose; }
-  DeviceState state() const override { return DeviceState::ok; }
-  void write_force(const Vector3&) override {}
-  DeviceLimits limits() const override { return {}; }
-};
 
 }  // namespace
 

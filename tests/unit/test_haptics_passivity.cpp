@@ -14,8 +14,10 @@
 
 #include "haptics/haptic_loop.hpp"
 #include "haptics/passivity.hpp"
+#include "tests/unit/scripted_device.hpp"
 
 using namespace incise::haptics;
+using incise::testing::ScriptedDevice;
 
 namespace {
 
@@ -224,22 +226,8 @@ TEST(HapticsPassivity, LostDeviceAndBadParameters) {
 
 // In the loop: each tick's device_energy is the running sum of the force written at the tick
 // before times the device's displacement since, and passivity() reports the same books.
-namespace {
-class PathDevice final : public Device {
- public:
-  DevicePose pose;
-  std::string_view name() const override { return "path"; }
-  void open() override {}
-  void close() override {}
-  DevicePose read_pose() override { return pose; }
-  DeviceState state() const override { return DeviceState::ok; }
-  void write_force(const Vector3&) override {}
-  DeviceLimits limits() const override { return {}; }
-};
-}  // namespace
-
 TEST(HapticsPassivity, TheLoopBooksTheWorkOfTheForceItWrites) {
-  PathDevice device;
+  ScriptedDevice device;
   ContactModel plane;  // tissue z < 0
   plane.count = 1;
   plane.contacts[0].stiffness = 400;

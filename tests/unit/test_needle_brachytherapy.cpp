@@ -6,6 +6,7 @@
 #include "engine/needle_summary.hpp"
 #include "engine/scene.hpp"
 #include "engine/world.hpp"
+#include "tests/unit/read_json.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -33,12 +34,7 @@ constexpr double kStagger = 0.05;                             // s, between simu
 constexpr double kGap = kInsertion + 0.05;                    // s, consecutive: after the one before is in
 constexpr double kHold = 0.35;                                // s after the last needle is in
 
-Json read_json(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return Json::parse(text.str());
-}
+using incise::testing::read_json;
 
 struct Outcome {
   double displacement_peak = 0;  // m

@@ -6,6 +6,7 @@
 #include "engine/needle_summary.hpp"
 #include "engine/scene.hpp"
 #include "engine/world.hpp"
+#include "tests/unit/read_json.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -23,12 +24,7 @@ namespace {
 
 const std::string kScene = std::string(INCISE_SOURCE_DIR) + "/assets/scenes/needle_cube.json";
 
-Json read_json(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return Json::parse(text.str());
-}
+using incise::testing::read_json;
 
 World cube_world(const Scene& scene) { return World(scene, read_trajectory(*scene.tool->trajectory)); }
 

@@ -5,6 +5,7 @@
 #include "engine/world.hpp"
 #include "physics/promayon/promayon_body.hpp"
 #include "physics/promayon/shape_memory.hpp"
+#include "tests/unit/read_json.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -22,12 +23,7 @@ using Json = nlohmann::json;
 
 namespace {
 
-Json read_json(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return Json::parse(text.str());
-}
+using incise::testing::read_json;
 
 const physics::PromayonBody& promayon(const World& world) {
   return dynamic_cast<const physics::PromayonBody&>(*world.bodies()[0].data.mechanics);
