@@ -98,6 +98,31 @@ Json cutting_force_json(const std::vector<haptics::TickSample>& ticks, double& m
   return {{"mean", mean}, {"peak", peak}, {"ticks", cutting}};
 }
 
+// What changed at the tick at time_ns against the tick before, N/ms: the cutting resistance,
+// the needle, the passivity damper and the rest of the contact (the lips), so that a figure
+// says which term jumped.
+Json jump_parts_json(const std::vector<haptics::TickSample>& ticks, std::int64_t time_ns) {
+  for (std::size_t i = 1; i < ticks.size(); ++i) {
+    if (ticks[i].time_ns != time_ns) continue;
+    const auto& a = ticks[i - 1];
+    const auto& b = ticks[i];
+    const double ms = 1e-6 * static_cast<double>(b.time_ns - a.time_ns);
+    const auto rate = [ms](const haptics::Vector3& before, const haptics::Vector3& after) {
+      return std::hypot(after[0] - before[0], after[1] - before[1], after[2] - before[2]) / ms;
+    };
+    const auto lips = [](const haptics::TickSample& t) {
+      haptics::Vector3 l;
+      for (int k = 0; k < 3; ++k) l[k] = t.contact_force[k] - t.cutting_force[k] - t.needle_force[k];
+      return l;
+    };
+    return {{"cutting", rate(a.cutting_force, b.cutting_force)},
+            {"needle", rate(a.needle_force, b.needle_force)},
+            {"damper", rate(a.damper_force, b.damper_force)},
+            {"lips", rate(lips(a), lips(b))}};
+  }
+  return nullptr;
+}
+
 std::string scene_file_hint(const HapticsBenchOptions& options) {
   return options.scene.empty() ? std::string("assets/scenes/haptics_block.json") : options.scene.string();
 }
@@ -207,13 +232,19 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
         {"max_damping_N_s_per_m", session.loop().passivity_parameters().max_damping}}},
       {"ticks", session.loop().ticks()},
       {"force_jump_at_cut_N_per_ms",
-       {{"max", jumps.at_cut_max}, {"ticks", jumps.cut_ticks}, {"max_at_s", at(jumps.cut_ticks, jumps.at_cut_max_ns)}}},
+       {{"max", jumps.at_cut_max},
+        {"ticks", jumps.cut_ticks},
+        {"max_at_s", at(jumps.cut_ticks, jumps.at_cut_max_ns)},
+        {"max_parts", jump_parts_json(ticks, jumps.at_cut_max_ns)}}},
       {"force_jump_at_other_publications_N_per_ms",
        {{"max", jumps.at_publication_max},
         {"ticks", jumps.publication_ticks},
-        {"max_at_s", at(jumps.publication_ticks, jumps.at_publication_max_ns)}}},
+        {"max_at_s", at(jumps.publication_ticks, jumps.at_publication_max_ns)},
+        {"max_parts", jump_parts_json(ticks, jumps.at_publication_max_ns)}}},
       {"force_jump_between_publications_N_per_ms",
-       {{"max", jumps.between_max}, {"max_at_s", at(ticks.size(), jumps.between_max_ns)}}},
+       {{"max", jumps.between_max},
+        {"max_at_s", at(ticks.size(), jumps.between_max_ns)},
+        {"max_parts", jump_parts_json(ticks, jumps.between_max_ns)}}},
       {"max_force_N", max_force},
       {"ticks_clamped", clamped},
       {"ring_overflows", session.loop().ring_overflows()},
@@ -252,8 +283,17 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
                 (wall - sim) / scene.solver.dt, static_cast<unsigned long long>(session.steps_over_budget()));
   double cut_mean = 0, cut_peak = 0;
   j["cutting_force_N"] = cutting_force_json(ticks, cut_mean, cut_peak);
-  char cut_line[128];
-  std::snprintf(cut_line, sizeof cut_line, "\n  cutting force mean %.2f peak %.2f N", cut_mean, cut_peak);
+  const auto cutting_part = [&j](const char* key) {
+    const Json& parts = j[key]["max_parts"];
+    return parts.is_object() ? parts["cutting"].get<double>() : 0.0;
+  };
+  char cut_line[256];
+  std::snprintf(cut_line, sizeof cut_line,
+                "\n  cutting force mean %.2f peak %.2f N; the cutting term's part of the largest jumps N/ms: cut %.4f, "
+                "publication %.4f, between %.4f",
+                cut_mean, cut_peak, cutting_part("force_jump_at_cut_N_per_ms"),
+                cutting_part("force_jump_at_other_publications_N_per_ms"),
+                cutting_part("force_jump_between_publications_N_per_ms"));
   return {j, std::string(line) + cut_line};
 }
 

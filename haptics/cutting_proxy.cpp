@@ -27,26 +27,33 @@ Vector3 turn_towards(const Vector3& from, const Vector3& to, double angle) {
 }  // namespace
 
 Vector3 CuttingProxy::tick(const CuttingResistance& term, double level, const Vector3& x, double period_s) {
-  if (!(level > 0) || !(term.stiffness > 0)) {
+  const bool given = level > 0 && term.stiffness > 0;
+  if (!given && !engaged_) return {};
+  // The level held falls at most kFallRate; with none given the spring keeps its axis and
+  // stiffness while it lets go.
+  level_ = std::max(given ? level : 0.0, level_ - kFallRate * period_s);
+  if (!(level_ > 0)) {
     engaged_ = false;
+    level_ = 0;
     return {};
   }
   if (!engaged_) {
     front_ = x;  // a new cut starts unloaded where the hand is
     direction_ = term.direction;
     engaged_ = true;
-  } else {
+  } else if (given) {
     direction_ = turn_towards(direction_, term.direction, kTurnRate * period_s);
   }
+  if (given) stiffness_ = term.stiffness;
   const Vector3& d = direction_;
   double s = (x[0] - front_[0]) * d[0] + (x[1] - front_[1]) * d[1] + (x[2] - front_[2]) * d[2];
   if (s <= 0) return {};
-  const double stretch = level / term.stiffness;
+  const double stretch = level_ / stiffness_;
   if (s > stretch) {
     for (int i = 0; i < 3; ++i) front_[i] += (s - stretch) * d[i];
     s = stretch;
   }
-  const double magnitude = term.stiffness * s;
+  const double magnitude = stiffness_ * s;
   return {-magnitude * d[0], -magnitude * d[1], -magnitude * d[2]};
 }
 

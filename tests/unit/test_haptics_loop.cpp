@@ -132,8 +132,18 @@ TEST(HapticsCuttingProxy, TheTissueLoadsLikeASpringThenTheFrontAdvancesAtTheRupt
   expect_near(proxy.tick(term, 3.0, {0.003, 0, 0}, 1e-3), {0, 0, 0}, 0, "behind the front: nothing, it never pulls");
   EXPECT_NEAR(proxy.front()[0], 0.004, 1e-15);  // a crack does not heal
   expect_near(proxy.tick(term, 3.0, {0.012, 0, 0}, 1e-3), {-3.0, 0, 0}, 1e-12, "forward again: reloaded, then cutting");
-  expect_near(proxy.tick(term, 1.5, {0.012, 0, 0}, 1e-3), {-1.5, 0, 0}, 1e-12, "a lower level (a fade) caps it");
-  expect_near(proxy.tick(term, 0.0, {0.012, 0, 0}, 1e-3), {0, 0, 0}, 0, "no level: let go");
+  // A lower level (a fade) caps it, the level held falling at kFallRate: 10 mN a tick.
+  expect_near(proxy.tick(term, 1.5, {0.012, 0, 0}, 1e-3), {-2.99, 0, 0}, 1e-12, "a lower level: falling to it");
+  for (int tick = 1; tick < 150; ++tick) proxy.tick(term, 1.5, {0.012, 0, 0}, 1e-3);
+  expect_near(proxy.tick(term, 1.5, {0.012, 0, 0}, 1e-3), {-1.5, 0, 0}, 1e-9, "a lower level caps it");
+  // No level: the spring lets go at the same rate along its axis, then disengages.
+  CuttingResistance none;  // the default direction (+x) and no force: the axis is kept
+  none.direction = {0, 1, 0};
+  expect_near(proxy.tick(none, 0.0, {0.012, 0, 0}, 1e-3), {-1.49, 0, 0}, 1e-9, "no level: letting go");
+  for (int tick = 1; tick < 148; ++tick) proxy.tick(none, 0.0, {0.012, 0, 0}, 1e-3);
+  EXPECT_TRUE(proxy.engaged());
+  proxy.tick(none, 0.0, {0.012, 0, 0}, 1e-3);
+  expect_near(proxy.tick(none, 0.0, {0.012, 0, 0}, 1e-3), {0, 0, 0}, 0, "no level: let go");
   EXPECT_FALSE(proxy.engaged());
   expect_near(proxy.tick(term, 3.0, {0.020, 0, 0}, 1e-3), {0, 0, 0}, 0, "the next cut starts unloaded");
 }
@@ -198,6 +208,60 @@ TEST(HapticsCuttingProxy, ATurnOfTheBladesMotionTurnsTheLoadSmoothly) {
   // own motion by k dx.
   const double turn = CuttingProxy::kTurnRate * dt;
   EXPECT_LE(largest_jump, 2.0 * turn + 2.0 * turn + 500 * 5e-5 + 1e-12);
+}
+
+// Physics publishes a cutting model once a step, its level ramped 0.1 N a step (the session's
+// 10 N/s at dt = 10 ms), but in real time the steps come unevenly: a slow cut step, then quick
+// ones that catch up. A model arriving while the one before is still fading in cuts that fade
+// short (the new one fades over the last interval, the one it replaces drops out), so a level
+// that falls by a step's ramp fell within a tick: the loaded spring let go of up to 0.1 N at
+// once. The hand, on a ScriptedDevice, draws through at 5 cm/s while the level rises to 2 N,
+// holds and falls back to 0, with publications 1 to 25 ms apart: the force changes a tick by at
+// most the spring's k v T plus the level's kFallRate T, at publications as between them.
+TEST(HapticsCuttingProxy, APublicationWhileCuttingChangesTheForceNoMoreThanATickOfCutting) {
+  ScriptedDevice device;
+  ContactModel model;  // no contacts, no domain: the cutting term alone
+  model.cutting.direction = {1, 0, 0};
+  model.cutting.stiffness = 500;
+  ContactChannel channel(model);
+  HapticLoop loop(device, channel);
+  const std::int64_t intervals_ms[] = {10, 25, 2, 3, 10, 18, 1, 1, 10, 7};
+  const double speed = 0.05, ramp = 0.1;
+  std::int64_t next_publication = 0;
+  int published = 0;
+  double level = 0, at_publication = 0, between = 0, peak = 0;
+  Vector3 previous{};
+  std::uint64_t previous_step = 0;
+  for (std::int64_t k = 0; k < 3000; ++k) {
+    if (k == next_publication) {
+      ++published;
+      // Rising for 20 models, held for 40, falling for 20 and again.
+      const int phase = published % 80;
+      level = phase < 20 ? std::min(2.0, level + ramp) : (phase < 60 ? level : std::max(0.0, level - ramp));
+      model.cutting.force = level;
+      model.step = static_cast<std::uint64_t>(published);
+      channel.write(model);
+      next_publication += intervals_ms[published % std::size(intervals_ms)];
+    }
+    device.pose.position = {speed * 1e-3 * static_cast<double>(k), 0, 0};
+    const TickSample s = loop.tick(k * kMs);
+    const double jump = std::hypot(s.force[0] - previous[0], s.force[1] - previous[1], s.force[2] - previous[2]);
+    if (k > 0) {
+      double& largest = s.contact_step != previous_step ? at_publication : between;
+      largest = std::max(largest, jump);
+    }
+    peak = std::max(peak, std::abs(s.cutting_force[0]));
+    previous = s.force;
+    previous_step = s.contact_step;
+  }
+  std::printf("cutting through uneven publications: jump a tick %.4f N at publications, %.4f N between, peak %.2f N, "
+              "device energy %.3g J\n",
+              at_publication, between, peak, loop.passivity().device_energy_J);
+  EXPECT_NEAR(peak, 2.0, 1e-9);
+  const double bound = 500 * speed * 1e-3 + CuttingProxy::kFallRate * 1e-3;
+  EXPECT_LE(at_publication, bound * (1 + 1e-9));
+  EXPECT_LE(between, bound * (1 + 1e-9));
+  EXPECT_LE(loop.passivity().device_energy_J, 0.0);
 }
 
 TEST(HapticsCuttingProxy, ABlendWeighsEachModelsLevelByItsDomainAndTheFade) {
