@@ -24,7 +24,8 @@ inline void add_block_product(const double* b, const double* v, double sum[3]) {
   sum[2] += (b[5] * x1 + b[8] * x2) + b[2] * x0;
 }
 
-void portable_rows(const CurrentRows& rows, const double* x, const double* free_x, double* y, int begin, int end) {
+void portable_current_rows(const CurrentRows& rows, const double* x, const double* free_x, double* y, int begin,
+                           int end) {
   for (int row = begin; row < end; ++row) {
     const std::size_t offset = 3 * static_cast<std::size_t>(row);
     if (is_fixed(rows, row)) {
@@ -33,8 +34,8 @@ void portable_rows(const CurrentRows& rows, const double* x, const double* free_
     }
     double sum[3] = {0, 0, 0};
     for (int k = rows.row_start[row]; k < rows.row_start[row + 1]; ++k)
-      add_block_product(rows.stiffness + 9 * static_cast<std::size_t>(k), free_x + 3 * static_cast<std::size_t>(rows.columns[k]),
-                        sum);
+      add_block_product(rows.stiffness + 9 * static_cast<std::size_t>(k),
+                        free_x + 3 * static_cast<std::size_t>(rows.columns[k]), sum);
     if (rows.springs) add_block_product(rows.springs + 9 * static_cast<std::size_t>(row), x + offset, sum);
     const double mass = rows.mass_coefficient * rows.masses[row];
     for (int i = 0; i < 3; ++i) y[offset + i] = mass * x[offset + i] + rows.stiffness_coefficient * sum[i];
@@ -82,8 +83,8 @@ __attribute__((target("avx2"))) inline void finish_row(const CurrentRows& rows, 
                                     _mm256_mul_pd(_mm256_set1_pd(rows.stiffness_coefficient), sum)));
 }
 
-__attribute__((target("avx2"))) void avx2_rows(const CurrentRows& rows, const double* x, const double* free_x, double* y,
-                                               int begin, int end) {
+__attribute__((target("avx2"))) void avx2_current_rows(const CurrentRows& rows, const double* x, const double* free_x,
+                                                       double* y, int begin, int end) {
   const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
   for (int row = begin; row < end; ++row) {
     if (is_fixed(rows, row)) {
@@ -101,9 +102,9 @@ __attribute__((target("avx2"))) void avx2_rows(const CurrentRows& rows, const do
 void current_rows_product(const CurrentRows& rows, const double* x, const double* free_x, double* y, int begin, int end) {
 #if defined(INCISE_CURRENT_PRODUCT_AVX2)
   // The block product's switch (tests force the portable kernel through it).
-  if (block_product_vectorised()) return avx2_rows(rows, x, free_x, y, begin, end);
+  if (block_product_vectorised()) return avx2_current_rows(rows, x, free_x, y, begin, end);
 #endif
-  portable_rows(rows, x, free_x, y, begin, end);
+  portable_current_rows(rows, x, free_x, y, begin, end);
 }
 
 }  // namespace incise::physics

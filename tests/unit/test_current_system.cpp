@@ -199,8 +199,10 @@ TEST(CurrentSystem, TheProductHasTheBitsOfTheEigenProduct) {
     set_block_product_vectorised(vectorised);
     for (const Vector* x : {&zero_on_fixed, &on_fixed}) {
       for (const bool with_springs : {true, false}) {
-        const std::span<const NodalSpring> used = with_springs ? std::span<const NodalSpring>(springs) : std::span<const NodalSpring>();
-        Vector reference = eigen_product(k, model.lumped_masses(), ball.fixed, used, mass_coefficient, stiffness_coefficient, *x);
+        const std::span<const NodalSpring> used =
+            with_springs ? std::span<const NodalSpring>(springs) : std::span<const NodalSpring>();
+        const Vector reference =
+            eigen_product(k, model.lumped_masses(), ball.fixed, used, mass_coefficient, stiffness_coefficient, *x);
         Vector serial, split;
         (with_springs ? system : bare).multiply(*x, serial, serial_executor());
         (with_springs ? system : bare).multiply(*x, split, shuffling);
