@@ -1,5 +1,7 @@
 #include "physics/solve/current_system.hpp"
 
+#include "physics/solve/current_product.hpp"
+
 #include <algorithm>
 #include <stdexcept>
 
@@ -19,30 +21,39 @@ CurrentSystem::CurrentSystem(const BlockMatrix& stiffness, const Vector& masses,
     spring_blocks_.assign(static_cast<size_t>(nodes), Mat3::Zero());
     for (const NodalSpring& spring : springs) spring_blocks_[static_cast<size_t>(spring.node)] += spring.stiffness;
   }
+  for (int node = 0; node < static_cast<int>(fixed.size()); ++node)
+    if (fixed[static_cast<size_t>(node)] != 0) fixed_nodes_.push_back(node);
 }
 
 void CurrentSystem::multiply(const Vector& x, Vector& y, Executor& executor) const {
+  if (x.size() != 3 * static_cast<Eigen::Index>(stiffness_.nodes()))
+    throw std::invalid_argument("CurrentSystem::multiply: x needs 3 entries per node");
   y.resize(x.size());
-  const std::vector<int>& start = stiffness_.row_start();
-  const std::vector<int>& columns = stiffness_.columns();
-  const std::vector<Mat3>& blocks = stiffness_.blocks();
+  // The kernel sums over fixed columns too, so it reads x zeroed on the fixed nodes
+  // (current_product.hpp); CG's vectors already are.
+  Vector zeroed;
+  const double* free_x = x.data();
+  for (const int node : fixed_nodes_) {
+    if ((x.segment<3>(3 * static_cast<Eigen::Index>(node)).array() != 0.0).any()) {  // (NaN included)
+      zeroed = x;
+      for (const int fixed : fixed_nodes_) zeroed.segment<3>(3 * static_cast<Eigen::Index>(fixed)).setZero();
+      free_x = zeroed.data();
+      break;
+    }
+  }
+  CurrentRows rows;
+  rows.blocks = stiffness_.block_count();
+  rows.row_start = stiffness_.row_start().data();
+  rows.columns = stiffness_.columns().data();
+  rows.stiffness = stiffness_.blocks().empty() ? nullptr : stiffness_.blocks().front().data();
+  rows.masses = masses_.data();
+  rows.fixed = fixed_.empty() ? nullptr : fixed_.data();
+  rows.springs = spring_blocks_.empty() ? nullptr : spring_blocks_.front().data();
+  rows.mass_coefficient = mass_coefficient_;
+  rows.stiffness_coefficient = stiffness_coefficient_;
   constexpr int rows_per_thread = 256;  // as BlockSystem::multiply
   executor.parallel_for(stiffness_.nodes(), [&](int begin, int end) {
-    for (int row = begin; row < end; ++row) {
-      const Eigen::Index offset = 3 * static_cast<Eigen::Index>(row);
-      if (is_fixed(row)) {
-        y.segment<3>(offset) = x.segment<3>(offset);
-        continue;
-      }
-      Vec3 sum = Vec3::Zero();
-      for (int k = start[static_cast<size_t>(row)]; k < start[static_cast<size_t>(row) + 1]; ++k) {
-        const int column = columns[static_cast<size_t>(k)];
-        if (is_fixed(column)) continue;
-        sum.noalias() += blocks[static_cast<size_t>(k)] * x.segment<3>(3 * static_cast<Eigen::Index>(column));
-      }
-      if (!spring_blocks_.empty()) sum.noalias() += spring_blocks_[static_cast<size_t>(row)] * x.segment<3>(offset);
-      y.segment<3>(offset) = mass_coefficient_ * masses_[row] * x.segment<3>(offset) + stiffness_coefficient_ * sum;
-    }
+    current_rows_product(rows, x.data(), free_x, y.data(), begin, end);
   }, rows_per_thread);
 }
 

@@ -7,8 +7,10 @@
 // (multigrid.hpp) both multiply by it (solver.preconditioner "multigrid_current").
 //
 // The matrix is referenced, not copied: the masses, the springs and the fixed nodes are
-// applied in the product. Each row is summed by one thread in column order, so the product
-// does not depend on the thread count.
+// applied in the product, one pass of current_product.hpp's kernel that reads K's blocks in
+// place (AVX2 where the CPU has it, same bits as Eigen's `sum += block * x` it replaced).
+// Each row is summed by one thread in column order, so the product does not depend on the
+// thread count.
 #pragma once
 
 #include "physics/core/executor.hpp"
@@ -40,6 +42,7 @@ class CurrentSystem {
   double mass_coefficient_, stiffness_coefficient_;
   // Per node, the sum of its springs' stiffnesses (all zero without springs).
   std::vector<Mat3> spring_blocks_;
+  std::vector<int> fixed_nodes_;  // the nodes marked fixed, in order
 };
 
 }  // namespace incise::physics

@@ -8,6 +8,7 @@ target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/block_product.cpp
   ${CMAKE_CURRENT_LIST_DIR}/block_system.cpp
   ${CMAKE_CURRENT_LIST_DIR}/coarse_space.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/current_product.cpp
   ${CMAKE_CURRENT_LIST_DIR}/current_system.cpp
   ${CMAKE_CURRENT_LIST_DIR}/element_assembly.cpp
   ${CMAKE_CURRENT_LIST_DIR}/element_groups.cpp
@@ -17,9 +18,10 @@ target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/rest_preconditioner.cpp
   ${CMAKE_CURRENT_LIST_DIR}/rest_vcycle.cpp
 )
-# The block product's two kernels (AVX2 and portable) must round alike: no contraction of a
+# The block products' two kernels (AVX2 and portable) must round alike: no contraction of a
 # multiply and an add into one fused operation, whatever -march a build adds.
-set_source_files_properties(${CMAKE_CURRENT_LIST_DIR}/block_product.cpp PROPERTIES COMPILE_OPTIONS -ffp-contract=off)
+set_source_files_properties(${CMAKE_CURRENT_LIST_DIR}/block_product.cpp ${CMAKE_CURRENT_LIST_DIR}/current_product.cpp
+                            PROPERTIES COMPILE_OPTIONS -ffp-contract=off)
 find_path(INCISE_CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse)
 find_library(INCISE_CHOLMOD_LIBRARY cholmod)
 find_library(INCISE_OPENBLAS_LIBRARY openblas)

@@ -5,6 +5,7 @@
 #include "physics/core/cg.hpp"
 #include "physics/core/implicit_euler.hpp"
 #include "physics/efg/corotational_efg.hpp"
+#include "physics/solve/block_product.hpp"
 #include "physics/solve/current_system.hpp"
 #include "physics/solve/multigrid.hpp"
 
@@ -15,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <random>
 
@@ -141,6 +143,78 @@ TEST(CurrentSystem, EqualsTheMatrixFreeProductOnABentTurnedBodyAndAfterACut) {
   model.deactivate_element(elements / 3);
   model.update_rotations(ball.x);
   expect_assembled_equals_matrix_free(model, ball.fixed);
+}
+
+// The product as CurrentSystem wrote it in Eigen before its kernel (current_product.hpp): each
+// free row summed over its free columns in column order, then its springs, then the mass.
+Vector eigen_product(const BlockMatrix& k, const Vector& masses, const std::vector<std::uint8_t>& fixed,
+                     std::span<const NodalSpring> springs, double mass_coefficient, double stiffness_coefficient,
+                     const Vector& x) {
+  std::vector<Mat3> spring_blocks(static_cast<size_t>(k.nodes()), Mat3::Zero());
+  for (const NodalSpring& spring : springs) spring_blocks[static_cast<size_t>(spring.node)] += spring.stiffness;
+  Vector y(x.size());
+  for (int row = 0; row < k.nodes(); ++row) {
+    const Eigen::Index offset = 3 * static_cast<Eigen::Index>(row);
+    if (fixed[static_cast<size_t>(row)]) {
+      y.segment<3>(offset) = x.segment<3>(offset);
+      continue;
+    }
+    Vec3 sum = Vec3::Zero();
+    for (int i = k.row_start()[static_cast<size_t>(row)]; i < k.row_start()[static_cast<size_t>(row) + 1]; ++i) {
+      const int column = k.columns()[static_cast<size_t>(i)];
+      if (fixed[static_cast<size_t>(column)]) continue;
+      sum.noalias() += k.blocks()[static_cast<size_t>(i)] * x.segment<3>(3 * static_cast<Eigen::Index>(column));
+    }
+    if (!springs.empty()) sum.noalias() += spring_blocks[static_cast<size_t>(row)] * x.segment<3>(offset);
+    y.segment<3>(offset) = mass_coefficient * masses[row] * x.segment<3>(offset) + stiffness_coefficient * sum;
+  }
+  return y;
+}
+
+// The kernel's product, AVX2 or portable, on any split of the rows, has the Eigen product's
+// bits: with springs (one on a fixed node, two on one node), and with x zero or not (even NaN)
+// on the fixed nodes.
+TEST(CurrentSystem, TheProductHasTheBitsOfTheEigenProduct) {
+  BentBall ball;
+  CorotationalEfg& model = *ball.model;
+  model.update_rotations(ball.x);
+  const BlockMatrix& k = *model.current_stiffness();
+  int fixed_node = 0;
+  while (!ball.fixed[static_cast<size_t>(fixed_node)]) ++fixed_node;
+  std::vector<NodalSpring> springs(3);
+  springs[0].node = springs[1].node = 3;
+  springs[2].node = fixed_node;
+  springs[0].stiffness = Mat3::Identity() * 40.0 + Vec3(1, 2, 3) * Vec3(1, 2, 3).transpose();
+  springs[1].stiffness = Mat3::Identity() * 7.0 + Vec3(3, -1, 2) * Vec3(3, -1, 2).transpose();
+  springs[2].stiffness = Mat3::Identity() * 11.0;
+  const double mass_coefficient = 1.02, stiffness_coefficient = 1e-4;
+  const CurrentSystem system(k, model.lumped_masses(), ball.fixed, springs, mass_coefficient, stiffness_coefficient);
+  const CurrentSystem bare(k, model.lumped_masses(), ball.fixed, {}, mass_coefficient, stiffness_coefficient);
+  Vector on_fixed = random_vector(ball.x.size(), 21), zero_on_fixed = on_fixed;
+  for (int i = 0; i < model.node_count(); ++i)
+    if (ball.fixed[static_cast<size_t>(i)]) zero_on_fixed.segment<3>(3 * i).setZero();
+  on_fixed[3 * fixed_node + 1] = std::numeric_limits<double>::quiet_NaN();
+  ShufflingExecutor shuffling;
+  for (const bool vectorised : {false, true}) {
+    set_block_product_vectorised(vectorised);
+    for (const Vector* x : {&zero_on_fixed, &on_fixed}) {
+      for (const bool with_springs : {true, false}) {
+        const std::span<const NodalSpring> used =
+            with_springs ? std::span<const NodalSpring>(springs) : std::span<const NodalSpring>();
+        const Vector reference =
+            eigen_product(k, model.lumped_masses(), ball.fixed, used, mass_coefficient, stiffness_coefficient, *x);
+        Vector serial, split;
+        (with_springs ? system : bare).multiply(*x, serial, serial_executor());
+        (with_springs ? system : bare).multiply(*x, split, shuffling);
+        // NaN only where x has it (a fixed row's identity), compared as bits.
+        ASSERT_EQ(serial.size(), reference.size());
+        EXPECT_EQ(0, std::memcmp(serial.data(), reference.data(), sizeof(double) * static_cast<size_t>(serial.size())))
+            << "vectorised " << vectorised << ", springs " << with_springs;
+        EXPECT_EQ(0, std::memcmp(split.data(), reference.data(), sizeof(double) * static_cast<size_t>(split.size())));
+      }
+    }
+  }
+  set_block_product_vectorised(true);
 }
 
 TEST(CurrentSystem, TheAssemblyHasTheSameBitsHoweverTheRowsAreSplit) {

@@ -1,0 +1,37 @@
+// The row kernel of the assembled current system's product (current_system.hpp): for rows
+// [begin, end) of the stiffness K (block CSR, Eigen's column-major 3x3 blocks, read in place),
+//   y_row = x_row                                              on a fixed row,
+//   y_row = (c_m m_row) x_row + c_k (sum_k K_k x_col(k) + S_row x_row)   otherwise,
+// S_row the row's springs. The sum runs over every block of the row, fixed columns included,
+// so x must be zero on the fixed nodes: a finite block times a zero adds a signed zero, which
+// leaves a sum that starts at +0 unchanged (it is never -0), so the result has the bits of the
+// sum that skips those columns.
+//
+// Each block product is rounded in the order Eigen's `sum += Matrix3d * x.segment<3>()`
+// compiles to on x86-64 (block_product.hpp): rows 0 and 1 (b_i0 x0 + b_i1 x1) + b_i2 x2, row 2
+// (b_21 x1 + b_22 x2) + b_20 x0; the finish as `(c_m * m) * x + c_k * sum`. The AVX2 kernel
+// (three rows in one 256-bit lane set, the row-2 order by two blends) and the portable one
+// give the same bits, those of CurrentSystem's Eigen product before this kernel.
+#pragma once
+
+#include "physics/solve/block_matrix.hpp"
+
+#include <cstdint>
+
+namespace incise::physics {
+
+struct CurrentRows {
+  int blocks = 0;  // K's block count (the last block is loaded with care: nothing after it)
+  const int* row_start = nullptr;
+  const int* columns = nullptr;
+  const double* stiffness = nullptr;  // K's blocks, 9 doubles each, column-major (Mat3)
+  const double* masses = nullptr;
+  const std::uint8_t* fixed = nullptr;  // null: nothing fixed
+  const double* springs = nullptr;      // per node the springs' Mat3 sum; null: no springs
+  double mass_coefficient = 0, stiffness_coefficient = 0;
+};
+
+// y rows [begin, end) of A x; `free_x` is x zeroed on the fixed nodes (x itself when it is).
+void current_rows_product(const CurrentRows& rows, const double* x, const double* free_x, double* y, int begin, int end);
+
+}  // namespace incise::physics
