@@ -147,7 +147,7 @@ void add_performance_command(CLI::App& parent, PerformanceBenchCommand& performa
       ->check(CLI::IsMember({"all", "multigrid", "multigrid_current", "two_level", "warped_cholesky", "jacobi"}))
       ->capture_default_str();
   command->add_option("--multigrid-smoothing", performance.multigrid_smoothing,
-                      "The multigrid smoother's degree (scene solver.multigrid_smoothing; default: the scene's)")
+                      "The multigrid smoother's degree (scene solver.multigrid_smoothing; default: the scene's, else 2 for multigrid and 4 for multigrid_current)")
       ->check(CLI::Range(1, 8));
   command->add_option("--multigrid-precision", performance.multigrid_precision,
                       "The multigrid smoother's copy of the rest system (scene solver.multigrid_precision; default: the scene's)")

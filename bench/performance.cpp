@@ -190,7 +190,7 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
               "\"" + device + "\"", bytes_per_cut_step, full_upload, row_surface, median(cut), median(mapping),
               median(checks), cut_first, cut_last, median(front_cut), median(cut_cpu), cut_cpu_last, used_preconditioner,
               median(iterations), median(per_iteration), p95, uncut_p95, median(uncut_iterations), age_max, build_ms,
-              wait_max, solve_ratio, median(assembly), scene.solver.multigrid_smoothing, scene.solver.multigrid_precision);
+              wait_max, solve_ratio, median(assembly), engine::multigrid_smoothing_degree(scene.solver), scene.solver.multigrid_precision);
       csv.flush();
       progress << std::fixed << std::setprecision(2) << std::setw(8) << 1e3 * resolution.spacing << std::setw(8)
                << 1e3 * resolution.surface << std::setw(9) << body.model->elements << std::setw(10) << body.data.surface.size()
@@ -205,9 +205,12 @@ int run_performance_bench(bool quick, const std::filesystem::path& out_dir, std:
         progress << " on " << device << ", " << std::setprecision(0) << bytes_per_cut_step
                  << " bytes uploaded per cut step, a full upload of the rows " << full_upload;
       const std::string shown_preconditioner =
-          used_preconditioner == "multigrid" ? "multigrid (degree " + std::to_string(scene.solver.multigrid_smoothing) + ", " +
-                                                   scene.solver.multigrid_precision + ")"
-                                             : used_preconditioner;
+          used_preconditioner == "multigrid"
+              ? "multigrid (degree " + std::to_string(engine::multigrid_smoothing_degree(scene.solver)) + ", " +
+                    scene.solver.multigrid_precision + ")"
+          : used_preconditioner == "multigrid_current"
+              ? "multigrid_current (degree " + std::to_string(engine::multigrid_smoothing_degree(scene.solver)) + ")"
+              : used_preconditioner;
       progress << ")\n" << std::setw(33) << shown_preconditioner << ": CG iterations " << std::setprecision(1)
                << median(iterations) << " (uncut " << median(uncut_iterations) << "), " << std::setprecision(3)
                << median(per_iteration) << " ms per iteration, step p95 " << std::setprecision(2) << p95 << " ms (uncut "

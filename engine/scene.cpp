@@ -303,7 +303,7 @@ void read_solver(const Json& solver, SolverSpec& s, std::vector<std::string>& er
   s.duration = sr.number("duration", true, 1, 0, 1e5, true);
   s.max_retries = sr.integer("max_retries", false, 3, 0, 20);
   s.preconditioner = sr.text("preconditioner", false, "multigrid", {"jacobi", "warped_cholesky", "two_level", "multigrid", "multigrid_current"});
-  s.multigrid_smoothing = sr.integer("multigrid_smoothing", false, 2, 1, 8);
+  s.multigrid_smoothing = sr.integer("multigrid_smoothing", false, 0, 1, 8);
   s.multigrid_precision = sr.text("multigrid_precision", false, "double", {"double", "float"});
   s.preconditioner_latency = sr.integer("preconditioner_latency", false, 4, 0, 1000);
   s.start = sr.text("start", false, "rest", {"rest", "settled"});
@@ -481,6 +481,11 @@ double physical_memory_bytes() {
 }
 
 }  // namespace
+
+int multigrid_smoothing_degree(const SolverSpec& solver) {
+  if (solver.multigrid_smoothing > 0) return solver.multigrid_smoothing;
+  return solver.preconditioner == "multigrid_current" ? 4 : 2;
+}
 
 Box generator_bounds(const GeneratorSpec& g) {
   if (g.type == "box") return g.box;

@@ -149,7 +149,9 @@ struct SolverSpec {
   // stiffness (mass_spring, constraint_particles, promayon) and the gpu backend use Jacobi.
   std::string preconditioner = "multigrid";
   int preconditioner_latency = 4;
-  int multigrid_smoothing = 2;  // "multigrid": the Chebyshev smoother's degree
+  // "multigrid", "multigrid_current": the Chebyshev smoother's degree; 0 (the key absent): the
+  // kind's own, multigrid_smoothing_degree().
+  int multigrid_smoothing = 0;
   // "multigrid": the smoother's copy of the rest system, "double" or "float" (rounded once per
   // factor build; changes the iterates' round-off, so not the default).
   std::string multigrid_precision = "double";
@@ -160,6 +162,13 @@ struct SolverSpec {
   bool realtime = true;
   int realtime_min_iterations = 3;
 };
+
+// The smoother's degree a solver uses: multigrid_smoothing if given, else 4 for
+// "multigrid_current" (its smoother multiplies by the current system: degree 4 takes CG from
+// 14 to 8 iterations at 20k elements while cutting for about the same work a solve) and 2 for
+// "multigrid" (its rest-system smoother lags the cuts: degree 4 only takes 19 to 16 there;
+// docs/status.md, "EFG model").
+int multigrid_smoothing_degree(const SolverSpec& solver);
 
 struct LoadEvent {
   double time = 0;

@@ -60,6 +60,21 @@ TEST(Scene, GoodSceneLoads) {
   EXPECT_EQ(*scene.expect[0].max, 0.0);
 }
 
+// The smoother's degree is the key's when given, else the kind's: the current system's cycle
+// takes a higher one than the rest system's (engine/scene.hpp).
+TEST(Scene, TheMultigridDegreeIsTheKeysOrTheKinds) {
+  auto degree_of = [](const char* preconditioner, int smoothing) {
+    Json scene = good_scene();
+    scene["solver"]["preconditioner"] = preconditioner;
+    if (smoothing > 0) scene["solver"]["multigrid_smoothing"] = smoothing;
+    return incise::engine::multigrid_smoothing_degree(parse_scene(scene.dump(), kSceneFile).solver);
+  };
+  EXPECT_EQ(degree_of("multigrid", 0), 2);
+  EXPECT_EQ(degree_of("multigrid_current", 0), 4);
+  EXPECT_EQ(degree_of("multigrid", 3), 3);
+  EXPECT_EQ(degree_of("multigrid_current", 1), 1);
+}
+
 struct BrokenCase {
   const char* name;
   std::function<void(Json&)> mutate;
