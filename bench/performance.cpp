@@ -60,11 +60,11 @@ struct Resolution {
 };
 
 // Each size with every preconditioner, Jacobi first, side by side; --preconditioner names one
-// alone. multigrid_current (the assembled current system) only when named.
+// alone.
 std::vector<std::string> preconditioners_to_run(const std::string& preconditioner) {
-  const std::vector<std::string> all{"jacobi", "warped_cholesky", "two_level", "multigrid"};
+  const std::vector<std::string> all{"jacobi", "warped_cholesky", "two_level", "multigrid", "multigrid_current"};
   if (preconditioner == "all") return all;
-  if (preconditioner != "multigrid_current" && std::find(all.begin(), all.end(), preconditioner) == all.end())
+  if (std::find(all.begin(), all.end(), preconditioner) == all.end())
     throw std::runtime_error("--preconditioner: '" + preconditioner +
                              "' is not multigrid, multigrid_current, two_level, warped_cholesky, jacobi or all");
   return {preconditioner};

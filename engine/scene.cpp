@@ -302,7 +302,7 @@ void read_solver(const Json& solver, SolverSpec& s, std::vector<std::string>& er
   s.gravity = sr.point("gravity", false, {0, 0, -9.81}, -1e4, 1e4);
   s.duration = sr.number("duration", true, 1, 0, 1e5, true);
   s.max_retries = sr.integer("max_retries", false, 3, 0, 20);
-  s.preconditioner = sr.text("preconditioner", false, "multigrid", {"jacobi", "warped_cholesky", "two_level", "multigrid", "multigrid_current"});
+  s.preconditioner = sr.text("preconditioner", false, "multigrid_current", {"jacobi", "warped_cholesky", "two_level", "multigrid", "multigrid_current"});
   s.multigrid_smoothing = sr.integer("multigrid_smoothing", false, 0, 1, 8);
   s.multigrid_precision = sr.text("multigrid_precision", false, "double", {"double", "float"});
   s.preconditioner_latency = sr.integer("preconditioner_latency", false, 4, 0, 1000);

@@ -142,12 +142,14 @@ struct SolverSpec {
   double duration = 0;  // s of simulated time for a replay
   int max_retries = 3;  // halvings of dt after a non-finite step
   // CG's preconditioner on the cpu backend (physics/solve/rest_preconditioner.hpp): "jacobi",
-  // "two_level", "multigrid" or "warped_cholesky" (rest-shape factors warped by the rotations,
-  // rebuilt beside the steps after a cut and taking over `preconditioner_latency` steps later).
-  // Multigrid is the default: it needs 3.5-4x fewer iterations than Jacobi and solves in 0.5x
-  // its time at 20k elements, 0.8x at 4k (docs/status.md, "Solver"). Models without a rest
+  // "two_level", "multigrid", "multigrid_current" or "warped_cholesky" (rest-shape factors
+  // warped by the rotations, rebuilt beside the steps after a cut and taking over
+  // `preconditioner_latency` steps later). multigrid_current is the default: its V-cycle smooths
+  // with the current system the step assembles, 8 CG iterations at 20k elements while cutting
+  // against multigrid's 19 and Jacobi's 75 (docs/status.md, "EFG model"). Bodies it cannot
+  // assemble (tet FEM, damped or extra-stiffness models) take "multigrid"; models without a rest
   // stiffness (mass_spring, constraint_particles, promayon) and the gpu backend use Jacobi.
-  std::string preconditioner = "multigrid";
+  std::string preconditioner = "multigrid_current";
   int preconditioner_latency = 4;
   // "multigrid", "multigrid_current": the Chebyshev smoother's degree; 0 (the key absent): the
   // kind's own, multigrid_smoothing_degree().
