@@ -17,8 +17,9 @@
 // the virtual coupling; the loop extrapolates it from `time_ns` by the velocity (first-order
 // hold, not the zero-order hold at scene rate that makes forces step). When physics rebuilds
 // the model in the step a cut changes the topology, the next tick starts using it: the loop
-// fades each new model in over one physics step (HapticLoopConfig::blend_ns), so no pre-cut
-// contact outlasts a step, and none ends in a jump.
+// fades each new model in over one physics step (HapticLoopConfig::blend_ns; a model that
+// interrupts a fade takes over from the blend in progress, model_fade.hpp), so no pre-cut
+// contact outlasts the fade, and none ends in a jump.
 //
 // Fixed capacity, trivially copyable: published through TripleBuffer<ContactModel>.
 #pragma once

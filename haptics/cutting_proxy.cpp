@@ -57,13 +57,24 @@ Vector3 CuttingProxy::tick(const CuttingResistance& term, double level, const Ve
   return {-magnitude * d[0], -magnitude * d[1], -magnitude * d[2]};
 }
 
-BlendedCutting blend_cutting(const ContactModel& model, const ContactModel* faded, double weight, const Vector3& x) {
+BlendedCutting blend_cutting(std::span<const WeightedModel> models, const Vector3& x) {
   BlendedCutting out;
-  const double now = weight * model.cutting.force * domain_weight(model, x);
-  const double before = faded ? (1 - weight) * faded->cutting.force * domain_weight(*faded, x) : 0.0;
-  out.term = now >= before || !faded ? model.cutting : faded->cutting;
-  out.level = std::max(0.0, now + before);
+  double level = 0, strongest = -1;
+  for (const WeightedModel& m : models) {
+    const double part = m.weight * m.model->cutting.force * domain_weight(*m.model, x);
+    level += part;
+    if (part > strongest) {
+      strongest = part;
+      out.term = m.model->cutting;
+    }
+  }
+  out.level = std::max(0.0, level);
   return out;
+}
+
+BlendedCutting blend_cutting(const ContactModel& model, const ContactModel* faded, double weight, const Vector3& x) {
+  const WeightedModel both[] = {{&model, weight}, {faded, 1 - weight}};
+  return blend_cutting(std::span<const WeightedModel>(both, faded ? 2 : 1), x);
 }
 
 }  // namespace incise::haptics

@@ -11,9 +11,9 @@
 // energy it put into the spring (passive). The level the spring holds falls towards the one
 // given at most kFallRate: physics hands the level over once a step, ramped per step in
 // simulated time (HapticSession::publish), but its steps come unevenly in real time (a slow
-// cut step, then a quick one or two) and a model that arrives while the one before is still
-// fading in cuts that fade short, so the level given can drop by a step's ramp within a tick,
-// and the loaded spring with it. A rising level needs no bound: the spring loads only with
+// cut step, then a quick one or two: the fade of each model runs over the interval before it)
+// and a stale model's domain fades as the hand leaves it, so the level given can fall faster
+// than the session's ramp, and the loaded spring with it. A rising level needs no bound: the spring loads only with
 // the hand's motion. When the level has fallen to zero the spring lets go, and the next cut
 // starts unloaded at the hand; while it falls the spring keeps its axis. The direction the
 // spring acts along turns towards each model's d at most kTurnRate: a blade that pressed down
@@ -21,7 +21,10 @@
 // to F).
 #pragma once
 
+#include <span>
+
 #include "haptics/contact_model.hpp"
+#include "haptics/model_fade.hpp"
 
 namespace incise::haptics {
 
@@ -46,12 +49,15 @@ class CuttingProxy {
   Vector3 direction_{1, 0, 0};  // unit, turning towards the model's
 };
 
-// The term rendered while `model` fades in over `faded` (weight w of the new one): the levels
-// weighted by each model's domain at x and by the blend, the direction of the stronger.
+// The term rendered while the newest model fades in over its origin (model_fade.hpp; newest
+// first): the levels weighted by each model's domain at x and by the blend, the direction of
+// the strongest part (the newest's on a tie).
 struct BlendedCutting {
   CuttingResistance term;
   double level = 0;
 };
+BlendedCutting blend_cutting(std::span<const WeightedModel> models, const Vector3& x);
+// The same for `model` fading in over `faded` (weight w of the new one; faded null: none).
 BlendedCutting blend_cutting(const ContactModel& model, const ContactModel* faded, double weight, const Vector3& x);
 
 }  // namespace incise::haptics

@@ -104,26 +104,14 @@ TickSample HapticLoop::step(std::int64_t now_ns) {
   previous_time_ns_ = now_ns;
   s.velocity = velocity_;
 
-  // A new model fades in over blend_ns (or the last interval between models), the one it
-  // replaces fading out: each is evaluated at the device's position now.
+  // A new model fades in, over blend_ns (or the last interval between models), from what the
+  // last tick rendered (model_fade.hpp): each model is evaluated at the device's position now.
   const ContactModel& latest = contacts_.read();
-  if (!has_shown_ || latest.step != shown_.step) {
-    if (has_shown_) {
-      fading_ = shown_;
-      has_fading_ = true;
-      const std::int64_t lasted = now_ns - shown_since_ns_;
-      blend_over_ns_ = config_.blend_ns >= 0 ? config_.blend_ns : std::clamp<std::int64_t>(lasted, 0, config_.max_blend_ns);
-    }
-    shown_ = latest;
-    has_shown_ = true;
-    shown_since_ns_ = now_ns;
-  }
-  const ContactModel& model = shown_;
-  // The weight of the new model: a tick's worth at its first tick, all of it after blend_over.
-  double weight = 1;
-  if (has_fading_ && blend_over_ns_ > 0)
-    weight = std::clamp(static_cast<double>(now_ns - shown_since_ns_ + period_ns_) / static_cast<double>(blend_over_ns_), 0.0, 1.0);
-  if (weight >= 1) has_fading_ = false;
+  if (!fade_.has_model() || latest.step != fade_.newest().step)
+    fade_.publish(latest, now_ns, config_.blend_ns, config_.max_blend_ns);
+  ModelFade::Weights blend;
+  const std::span<const WeightedModel> models(blend.data(), static_cast<std::size_t>(fade_.weights(now_ns, period_ns_, blend)));
+  const ContactModel& model = fade_.newest();
   s.contact_step = model.step;
   Vector3 total{};
   if (model.has_proxy) {
@@ -135,14 +123,17 @@ TickSample HapticLoop::step(std::int64_t now_ns) {
     total = coupling_force(config_.coupling, period_s_, x, velocity_, proxy, model.proxy_velocity);
   }
   s.contact_force = contact_force(model, x, velocity_, period_s_);
-  if (has_fading_) {
-    const Vector3 before = contact_force(fading_, x, velocity_, period_s_);
-    for (int i = 0; i < 3; ++i) s.contact_force[i] = weight * s.contact_force[i] + (1 - weight) * before[i];
+  if (models.size() > 1) {
+    for (int i = 0; i < 3; ++i) s.contact_force[i] *= models[0].weight;
+    for (const WeightedModel& m : models.subspan(1)) {
+      const Vector3 before = contact_force(*m.model, x, velocity_, period_s_);
+      for (int i = 0; i < 3; ++i) s.contact_force[i] += m.weight * before[i];
+    }
   }
-  const BlendedCutting cutting = blend_cutting(model, has_fading_ ? &fading_ : nullptr, weight, x);
+  const BlendedCutting cutting = blend_cutting(models, x);
   s.cutting_force = cutting_proxy_.tick(cutting.term, cutting.level, x, period_s_);
   for (int i = 0; i < 3; ++i) s.contact_force[i] += s.cutting_force[i];
-  s.needle_force = needle_proxy_.tick(model, has_fading_ ? &fading_ : nullptr, weight, x);
+  s.needle_force = needle_proxy_.tick(models, x);
   for (int i = 0; i < 3; ++i) s.contact_force[i] += s.needle_force[i];
   for (int i = 0; i < 3; ++i) total[i] += s.contact_force[i];
 

@@ -20,8 +20,9 @@
 //     the ContactModel from the surface the step left (engine::build_contact_model: half-spaces
 //     at the nearest surface points of the tool's edge, penalty stiffness in series with the
 //     tissue's compliance), validate()s and publish()es it; the next tick starts fading it
-//     in over the interval between publications (HapticLoopConfig::blend_ns), the model
-//     before it fading out.
+//     in over the interval between publications (HapticLoopConfig::blend_ns), what the tick
+//     before rendered fading out (model_fade.hpp: the model before it, or the blend it was
+//     still fading in with).
 //   - Headless sessions (simulated clock: tests, `incise session`) do not start the thread:
 //     the session calls tick(t) with simulated time between physics steps, so two runs give
 //     identical samples.
@@ -39,6 +40,7 @@
 #include "haptics/cutting_proxy.hpp"
 #include "haptics/needle_proxy.hpp"
 #include "haptics/device.hpp"
+#include "haptics/model_fade.hpp"
 #include "haptics/passivity.hpp"
 #include "haptics/period_statistics.hpp"
 #include "haptics/seqlock.hpp"
@@ -83,11 +85,13 @@ struct HapticLoopConfig {
   double velocity_cutoff_hz = 200;      // first-order low-pass on the device velocity
   std::int64_t max_extrapolation_ns = 50'000'000;  // proxy extrapolated at most this far
   // A newly published ContactModel fades in over this long, the one before it fading out (the
-  // contact force is the blend of both, each evaluated at the device's current position):
+  // contact force is the blend of both, each evaluated at the device's current position; when
+  // that one was itself still fading in, the blend the last tick rendered: model_fade.hpp):
   // physics moves the tissue's half-spaces once per step, and rendered at once that step's
   // motion times the contact stiffness would be a jump of up to 0.65 N within a tick.
-  // -1: over the interval between the last two models (what the physics step takes), at
-  // most max_blend_ns; 0: a new model takes effect on the next tick as it is.
+  // -1: over the interval between the last two models (what the physics step takes), or the
+  // time an interrupted fade had left if longer, at most max_blend_ns; 0: a new model takes
+  // effect on the next tick as it is.
   std::int64_t blend_ns = -1;
   std::int64_t max_blend_ns = 50'000'000;
   // The energy observer and the damper that keeps the device from receiving net energy
@@ -175,13 +179,11 @@ class HapticLoop {
   DeviceLimits limits_;
 
   // Loop-thread state.
-  // The model in effect (copied from the channel when its step changes), the one it replaced,
-  // when it took effect and how long the one before had lasted.
-  ContactModel shown_{}, fading_{};
+  // The model in effect (copied from the channel when its step changes) and the ones it fades
+  // in over (model_fade.hpp).
+  ModelFade fade_;
   CuttingProxy cutting_proxy_;  // the crack front the hand pushes against (cutting_proxy.hpp)
   NeedleProxy needle_proxy_;    // the needle's friction anchor (needle_proxy.hpp)
-  bool has_shown_ = false, has_fading_ = false;
-  std::int64_t shown_since_ns_ = 0, blend_over_ns_ = 0;
   bool has_previous_ = false;
   Vector3 previous_position_{};
   std::int64_t previous_time_ns_ = 0;

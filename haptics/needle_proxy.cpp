@@ -18,21 +18,26 @@ Vector3 needle_lateral_force(const NeedleResistance& needle, const Vector3& x) {
 }
 
 Vector3 NeedleProxy::tick(const ContactModel& model, const ContactModel* faded, double weight, const Vector3& x) {
-  const double now = weight * domain_weight(model, x);
-  const double before = faded ? (1 - weight) * domain_weight(*faded, x) : 0.0;
-  const NeedleResistance& n = model.needle;
-  const NeedleResistance* f = faded ? &faded->needle : nullptr;
-  Vector3 force = needle_lateral_force(n, x);
-  for (int i = 0; i < 3; ++i) force[i] *= now;
-  if (f) {
-    const Vector3 old = needle_lateral_force(*f, x);
-    for (int i = 0; i < 3; ++i) force[i] += before * old[i];
+  const WeightedModel both[] = {{&model, weight}, {faded, 1 - weight}};
+  return tick(std::span<const WeightedModel>(both, faded ? 2 : 1), x);
+}
+
+Vector3 NeedleProxy::tick(std::span<const WeightedModel> models, const Vector3& x) {
+  Vector3 force{};
+  double insert = 0, retract = 0;
+  // The axial spring: the newest model's axis and stiffness (the next newest in the tissue
+  // while it is out), the levels blended.
+  const NeedleResistance* in_tissue = nullptr;
+  for (const WeightedModel& m : models) {
+    const double share = m.weight * domain_weight(*m.model, x);
+    const NeedleResistance& n = m.model->needle;
+    const Vector3 lateral = needle_lateral_force(n, x);
+    for (int i = 0; i < 3; ++i) force[i] += share * lateral[i];
+    insert += share * n.insert_force;
+    retract += share * n.retract_force;
+    if (!in_tissue && n.stiffness > 0) in_tissue = &n;
   }
-  // The axial spring: the new model's axis and stiffness (the faded one's while the new one is
-  // out of the tissue), the levels blended.
-  const NeedleResistance& term = n.stiffness > 0 || !f ? n : *f;
-  const double insert = now * n.insert_force + (f ? before * f->insert_force : 0.0);
-  const double retract = now * n.retract_force + (f ? before * f->retract_force : 0.0);
+  const NeedleResistance& term = in_tissue ? *in_tissue : models.front().model->needle;
   if (!(term.stiffness > 0) || !(insert > 0 || retract > 0)) {
     engaged_ = false;
     return force;

@@ -17,14 +17,19 @@
 // hand), one that goes to zero (the needle out) disengages it.
 #pragma once
 
+#include <span>
+
 #include "haptics/contact_model.hpp"
+#include "haptics/model_fade.hpp"
 
 namespace incise::haptics {
 
 class NeedleProxy {
  public:
-  // The force on the hand (N) at x of the needle term blended between `model` and `faded`
-  // (weight w of the new model; faded null: none).
+  // The force on the hand (N) at x of the needle term blended between the models of a fade
+  // (model_fade.hpp: the newest first, then its origin's).
+  Vector3 tick(std::span<const WeightedModel> models, const Vector3& x);
+  // The same for `model` fading in over `faded` (weight w of the new model; faded null: none).
   Vector3 tick(const ContactModel& model, const ContactModel* faded, double weight, const Vector3& x);
   bool engaged() const { return engaged_; }
   double load() const { return load_; }  // N along the axis, positive resisting insertion

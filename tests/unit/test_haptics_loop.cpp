@@ -8,10 +8,12 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <numbers>
 #include <thread>
 #include <vector>
 
 #include "haptics/haptic_loop.hpp"
+#include "haptics/model_fade.hpp"
 #include "haptics/replay_device.hpp"
 #include "haptics/virtual_device.hpp"
 #include "tests/unit/scripted_device.hpp"
@@ -262,6 +264,130 @@ TEST(HapticsCuttingProxy, APublicationWhileCuttingChangesTheForceNoMoreThanATick
   EXPECT_LE(at_publication, bound * (1 + 1e-9));
   EXPECT_LE(between, bound * (1 + 1e-9));
   EXPECT_LE(loop.passivity().device_energy_J, 0.0);
+}
+
+// Pressing into tissue that yields under the hand (its surface follows half the hand's depth,
+// as each model found it) through strokes 10 mm deep, models published 1 to 25 ms apart in
+// the loop's time: a model that arrives while the one before still fades in must not drop
+// the unfinished part of that fade. Returns the largest change of the force in a tick at a
+// publication and between them, and the largest the hand's motion alone gives against one
+// fixed model: k (|dx| + T |dv|) at the stroke's largest speed and acceleration (the spring
+// and the lips' damper of k T).
+namespace {
+struct PressFigures {
+  double at_publication = 0, between = 0, hand_alone = 0, device_energy = 0;
+};
+PressFigures press_through_uneven_publications(bool needle) {
+  ScriptedDevice device;
+  ContactModel model;
+  if (!needle) {
+    model.count = 1;
+    model.contacts[0].normal = {0, 0, 1};
+    model.contacts[0].stiffness = 500;
+    model.contacts[0].compliance = 0.001;  // k_eff 333.33 N/m
+  } else {  // the needle along z, the tissue holding its tip on a line that follows half the hand's x
+    model.needle.axis = {0, 0, -1};
+    model.needle.stiffness = 250;  // at most 2.5 N across: under the device's 3 N clamp
+  }
+  ContactChannel channel(model);
+  HapticLoop loop(device, channel);
+  const std::int64_t intervals_ms[] = {10, 25, 2, 3, 10, 18, 1, 1, 10, 7, 25, 1, 1, 1, 1, 1, 1, 1, 1, 5};
+  const double depth = 0.010, period_s = 0.4, yield = 0.5;
+  std::int64_t next_publication = 0;
+  int published = 0;
+  PressFigures out;
+  const double omega = 2 * std::numbers::pi / period_s, k = needle ? 250 : 1.0 / (1.0 / 500 + 0.001);
+  out.hand_alone = k * (0.5 * depth * omega * 1e-3 + 1e-3 * 0.5 * depth * omega * omega * 1e-3);
+  Vector3 previous{};
+  std::uint64_t previous_step = 0;
+  for (std::int64_t tick = 0; tick < 4000; ++tick) {
+    const double t = 1e-3 * static_cast<double>(tick);
+    const double in = 0.5 * depth * (1 - std::cos(2 * std::numbers::pi * t / period_s));
+    const Vector3 hand = needle ? Vector3{in, 0, 0} : Vector3{0, 0, -in};
+    if (tick == next_publication) {
+      ++published;
+      if (!needle) model.contacts[0].point = {0, 0, -yield * in};
+      if (needle) model.needle.line = {yield * in, 0, 0};
+      model.step = static_cast<std::uint64_t>(published);
+      channel.write(model);
+      next_publication += intervals_ms[published % std::size(intervals_ms)];
+    }
+    device.pose.position = hand;
+    const TickSample s = loop.tick(tick * kMs);
+    if (tick > 0) {
+      const double jump = std::hypot(s.force[0] - previous[0], s.force[1] - previous[1], s.force[2] - previous[2]);
+      double& largest = s.contact_step != previous_step ? out.at_publication : out.between;
+      largest = std::max(largest, jump);
+    }
+    previous = s.force;
+    previous_step = s.contact_step;
+  }
+  out.device_energy = loop.passivity().device_energy_J;
+  return out;
+}
+}  // namespace
+
+TEST(HapticsLoop, AModelArrivingMidFadeKeepsTheLipsContinuous) {
+  const PressFigures f = press_through_uneven_publications(false);
+  std::printf("lips through uneven publications: jump a tick %.4f N at publications, %.4f N between, hand alone %.4f N, "
+              "device energy %.3g J\n",
+              f.at_publication, f.between, f.hand_alone, f.device_energy);
+  EXPECT_LE(f.at_publication, f.hand_alone + 0.002);
+  EXPECT_LE(f.between, f.hand_alone + 0.002);
+  EXPECT_LE(f.device_energy, 0.0);
+}
+
+TEST(HapticsLoop, AModelArrivingMidFadeKeepsTheNeedlesGripContinuous) {
+  const PressFigures f = press_through_uneven_publications(true);
+  std::printf("needle through uneven publications: jump a tick %.4f N at publications, %.4f N between, hand alone %.4f N, "
+              "device energy %.3g J\n",
+              f.at_publication, f.between, f.hand_alone, f.device_energy);
+  EXPECT_LE(f.at_publication, f.hand_alone + 0.002);
+  EXPECT_LE(f.between, f.hand_alone + 0.002);
+  EXPECT_LE(f.device_energy, 0.0);
+}
+
+TEST(HapticsModelFade, AModelArrivingMidFadeKeepsWhatTheLastTickRenderedAsItsOrigin) {
+  ModelFade fade;
+  ModelFade::Weights w;
+  ContactModel m;
+  const auto publish = [&](std::uint64_t step, std::int64_t at_ms) {
+    m.step = step;
+    fade.publish(m, at_ms * kMs, -1, 50 * kMs);
+  };
+  const auto sum = [&](int n) {
+    double total = 0;
+    for (int i = 0; i < n; ++i) total += w[i].weight;
+    return total;
+  };
+  publish(1, 0);
+  ASSERT_EQ(fade.weights(0, kMs, w), 1);
+  EXPECT_EQ(w[0].weight, 1.0);
+  publish(2, 25);  // fades in over the 25 ms model 1 lasted
+  for (std::int64_t k = 25; k < 30; ++k) ASSERT_EQ(fade.weights(k * kMs, kMs, w), 2);
+  EXPECT_DOUBLE_EQ(w[0].weight, 5.0 / 25);  // at the tick at 29 ms
+  publish(3, 30);  // 5 ms later: model 2 had reached 0.2, its fade had 20 ms left
+  EXPECT_EQ(fade.blend_over_ns(), 20 * kMs);
+  ASSERT_EQ(fade.weights(30 * kMs, kMs, w), 3);
+  EXPECT_EQ(w[0].model->step, 3u);
+  EXPECT_DOUBLE_EQ(w[0].weight, 1.0 / 20);
+  EXPECT_EQ(w[1].model->step, 2u);
+  EXPECT_DOUBLE_EQ(w[1].weight, 0.2 * 19 / 20);
+  EXPECT_EQ(w[2].model->step, 1u);
+  EXPECT_DOUBLE_EQ(w[2].weight, 0.8 * 19 / 20);
+  for (std::int64_t k = 31; k < 49; ++k) EXPECT_EQ(fade.weights(k * kMs, kMs, w), 3);
+  ASSERT_EQ(fade.weights(49 * kMs, kMs, w), 1);  // over when the interrupted fade was due
+  EXPECT_EQ(w[0].weight, 1.0);
+  // A model a millisecond for 20 ms after a slow one: the origin holds at most kCapacity
+  // models, the shares always summing to 1.
+  publish(4, 75);
+  for (std::int64_t k = 75; k < 100; ++k) {
+    if (k > 75) publish(static_cast<std::uint64_t>(k - 70), k);
+    const int n = fade.weights(k * kMs, kMs, w);
+    EXPECT_LE(fade.origin_count(), ModelFade::kCapacity);
+    EXPECT_NEAR(sum(n), 1.0, 1e-12) << "tick " << k;
+  }
+  EXPECT_EQ(fade.origin_count(), ModelFade::kCapacity);
 }
 
 TEST(HapticsCuttingProxy, ABlendWeighsEachModelsLevelByItsDomainAndTheFade) {
