@@ -148,7 +148,7 @@ bool CutRectangle::blocks(const Vec3& from, const Vec3& to) const {
 CorotationalEfg::CorotationalEfg(const std::function<bool(const Vec3&)>& inside, Vec3 box_min,
                                  Vec3 box_max, const Material& material,
                                  const EfgSettings& settings, Executor* executor)
-    : building_(std::make_shared<EfgRestShape>()) {
+    : building_(std::make_shared<EfgRestShape>()), rest_stiffness_cache_(make_efg_rest_stiffness_cache()) {
   building_->material = material;
   building_->settings = settings;
   shape_ = building_;

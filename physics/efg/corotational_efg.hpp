@@ -172,6 +172,9 @@ struct EfgRestShape {
   std::vector<int> element_of_cube;  // cube index -> element, -1 for empty cubes
 };
 
+struct EfgRestStiffnessCache;  // efg_rest_stiffness.cpp
+std::shared_ptr<EfgRestStiffnessCache> make_efg_rest_stiffness_cache();
+
 class CorotationalEfg final : public DeformableModel {
  public:
   // The body is {X in [box_min, box_max] : inside(X)}. The grids are centred on the box, with
@@ -321,6 +324,9 @@ class CorotationalEfg final : public DeformableModel {
   // The read-only part, shared by copies; written through building_ during the build only.
   std::shared_ptr<const EfgRestShape> shape_;
   std::shared_ptr<EfgRestShape> building_;
+  // The last rest stiffness job's rows and K0, which the next job updates where a cut changed
+  // them (efg_rest_stiffness.cpp); shared by copies, the result being the same either way.
+  std::shared_ptr<EfgRestStiffnessCache> rest_stiffness_cache_;
 
   // Particles.
   Vector masses_;

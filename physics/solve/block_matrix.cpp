@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace incise::physics {
 
@@ -29,6 +30,23 @@ BlockMatrix::BlockMatrix(int nodes,
     std::vector<int>().swap(list);
   }
   blocks_.assign(columns_.size(), Mat3::Zero());
+}
+
+BlockMatrix::BlockMatrix(int nodes, std::vector<int> row_start, std::vector<int> columns, std::vector<Mat3> blocks)
+    : nodes_(nodes), row_start_(std::move(row_start)), columns_(std::move(columns)), blocks_(std::move(blocks)) {
+  const bool sized = nodes >= 0 && row_start_.size() == static_cast<size_t>(nodes) + 1 && row_start_.front() == 0 &&
+                     static_cast<size_t>(row_start_.back()) == columns_.size() && blocks_.size() == columns_.size();
+  if (!sized) throw std::invalid_argument("BlockMatrix: row_start, columns and blocks do not match the node count");
+  for (int row = 0; row < nodes; ++row) {
+    const int first = row_start_[static_cast<size_t>(row)], last = row_start_[static_cast<size_t>(row) + 1];
+    if (first > last) throw std::invalid_argument("BlockMatrix: row_start decreases at row " + std::to_string(row));
+    for (int k = first; k < last; ++k) {
+      const int column = columns_[static_cast<size_t>(k)];
+      if (column < 0 || column >= nodes || (k > first && column <= columns_[static_cast<size_t>(k) - 1]))
+        throw std::invalid_argument("BlockMatrix: the columns of row " + std::to_string(row) +
+                                    " are not increasing node indices");
+    }
+  }
 }
 
 Mat3& BlockMatrix::at(int row, int column) {

@@ -24,6 +24,10 @@ class BlockMatrix {
   // calls visit(nodes) once per element with its node list (any order; repeated nodes allowed).
   BlockMatrix(int nodes, const std::function<void(const std::function<void(std::span<const int>)>&)>& for_each_element);
 
+  // Given block rows: row_start (nodes + 1, from 0), columns increasing within a row,
+  // blocks as many as columns (throws std::invalid_argument otherwise).
+  BlockMatrix(int nodes, std::vector<int> row_start, std::vector<int> columns, std::vector<Mat3> blocks);
+
   int nodes() const { return nodes_; }
   int block_count() const { return static_cast<int>(columns_.size()); }
   // The block (row, column); it must be in the pattern (throws std::out_of_range otherwise).

@@ -5,6 +5,8 @@
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/efg/efg_static.hpp"
 #include "physics/fem/static_solve.hpp"
+#include "physics/fem/tet_element.hpp"
+#include "physics/solve/block_matrix.hpp"
 
 #include <gtest/gtest.h>
 
@@ -421,6 +423,62 @@ TEST(EfgModelTopology, SetNeighbourhoodKeepsConsistencyAndMass) {
   EXPECT_THROW(model.set_neighbourhood(element, coplanar), std::invalid_argument);
   EXPECT_EQ(model.row_lengths()[element], 9);
   EXPECT_TRUE(masses == model.lumped_masses());
+}
+
+// K0 element by element, as BlockMatrix's pattern and at() add it: the reference for the job,
+// which assembles by block rows and reuses the rows no edited element touches.
+BlockMatrix rest_stiffness_by_elements(const CorotationalEfg& model) {
+  const auto row = [&](int e) {
+    return std::span<const int>(model.neighbours().data() + static_cast<size_t>(e) * model.row_stride(),
+                                static_cast<size_t>(model.row_lengths()[e]));
+  };
+  BlockMatrix stiffness(model.node_count(), [&](const std::function<void(std::span<const int>)>& visit) {
+    for (int e = 0; e < model.element_count(); ++e)
+      if (model.element_active(e)) visit(row(e));
+  });
+  const EfgRestShape& shape = *model.rest_shape();
+  for (int e = 0; e < model.element_count(); ++e) {
+    if (!model.element_active(e)) continue;
+    const size_t base = static_cast<size_t>(e) * model.row_stride();
+    for (int a = 0; a < model.row_lengths()[e]; ++a)
+      for (int b = 0; b < model.row_lengths()[e]; ++b)
+        stiffness.at(model.neighbours()[base + a], model.neighbours()[base + b]) +=
+            model.element_volumes()[e] * isotropic_stiffness_block(model.shape_gradients()[base + a],
+                                                                    model.shape_gradients()[base + b], shape.lambda, shape.mu);
+  }
+  return stiffness;
+}
+
+bool same_bits(const BlockMatrix& left, const BlockMatrix& right) {
+  return left.nodes() == right.nodes() && left.row_start() == right.row_start() && left.columns() == right.columns() &&
+         std::memcmp(left.blocks().data(), right.blocks().data(), sizeof(Mat3) * left.blocks().size()) == 0;
+}
+
+TEST(EfgModelTopology, RestStiffnessAfterEditsIsTheWholeAssemblysBits) {
+  CorotationalEfg model = box_model(8);
+  ASSERT_TRUE(same_bits(model.rest_stiffness_job()(), rest_stiffness_by_elements(model)));
+  const int element = 17;
+  const size_t base = static_cast<size_t>(element) * model.row_stride();
+  std::vector<int> row(model.neighbours().begin() + base, model.neighbours().begin() + base + 8);
+  // Swap one neighbour for another particle (the stride stays): only the rows of the old and
+  // new particles' nodes change.
+  int extra = 0;
+  while (std::find(row.begin(), row.end(), extra) != row.end()) ++extra;
+  const std::vector<int> before = row;
+  row.back() = extra;
+  const auto job = model.rest_stiffness_job();  // a job taken before the edit reads the rows as they were
+  model.set_neighbourhood(element, row);
+  const BlockMatrix swapped = model.rest_stiffness_job()();
+  EXPECT_TRUE(same_bits(swapped, rest_stiffness_by_elements(model)));
+  EXPECT_FALSE(same_bits(swapped, job()));
+  // The stale job ran last: the next one still gets the edited rows right.
+  EXPECT_TRUE(same_bits(model.rest_stiffness_job()(), rest_stiffness_by_elements(model)));
+  // A copy shares the cache; a ninth neighbour grows the stride (every row recomputed).
+  CorotationalEfg copy = model;
+  row.push_back(before.back());
+  copy.set_neighbourhood(element, row);
+  EXPECT_TRUE(same_bits(copy.rest_stiffness_job()(), rest_stiffness_by_elements(copy)));
+  EXPECT_TRUE(same_bits(model.rest_stiffness_job()(), rest_stiffness_by_elements(model)));
 }
 
 TEST(EfgModelEmbedding, VerticesFollowAffineMotionsExactly) {
