@@ -202,11 +202,9 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
 
   // Right-hand side: dt [f(x) - (dt + beta) K v - alpha M v].
   Vector forces = external_forces;
-  model.add_elastic_forces(state.positions, forces);
-  for (const NodalSpring& spring : springs) forces.segment<3>(3 * spring.node) += spring.force;
-
   Vector stiffness_velocity = Vector::Zero(size);
-  model.add_stiffness_product(state.velocities, stiffness_velocity);
+  model.add_forces_and_stiffness_product(state.positions, forces, state.velocities, stiffness_velocity);
+  for (const NodalSpring& spring : springs) forces.segment<3>(3 * spring.node) += spring.force;
   add_spring_product(springs, state.velocities, stiffness_velocity);
   Vector mass_velocity(size);
   multiply_mass(masses, state.velocities, mass_velocity);

@@ -43,6 +43,12 @@ class DeformableModel {
   virtual void add_elastic_forces(const Vector& x, Vector& f) const = 0;
   // out += K p, K = -df/dx with the frozen rotations (symmetric, positive semi-definite).
   virtual void add_stiffness_product(const Vector& p, Vector& out) const = 0;
+  // f += elastic forces at x and out += K p, as the two calls above give them; a model may do
+  // both in one pass over its elements.
+  virtual void add_forces_and_stiffness_product(const Vector& x, Vector& f, const Vector& p, Vector& out) const {
+    add_elastic_forces(x, f);
+    add_stiffness_product(p, out);
+  }
   // diag += diagonal of K (for the Jacobi preconditioner).
   virtual void add_stiffness_diagonal(Vector& diag) const = 0;
   virtual double elastic_energy(const Vector& x) const = 0;

@@ -155,6 +155,7 @@ CorotationalEfg::CorotationalEfg(const std::function<bool(const Vec3&)>& inside,
   set_executor(executor);
   build(inside, box_min, box_max);
   building_.reset();  // read-only from here on
+  partition_nodes_stale_ = true;
 }
 
 CorotationalEfg::CorotationalEfg(Vec3 box_min, Vec3 box_max, const Material& material,
@@ -756,6 +757,7 @@ void CorotationalEfg::set_neighbourhood(int element, std::span<const int> partic
   rotations_[element] = Mat3::Identity();
   orientations_[element] = Quaternion::Identity();
   if (static_cast<size_t>(element) < energy_valid_.size()) energy_valid_[element] = 0;
+  partition_nodes_stale_ = true;
 }
 
 }  // namespace incise::physics
@@ -797,6 +799,9 @@ void CorotationalEfg::deactivate_element(int element) {
     }
   }
   volumes_[element] = 0;  // no force, no stiffness, no energy from now on
+  // The energy's force matrix had the old volume (its rotation, extracted afresh, comes out
+  // the same).
+  if (static_cast<size_t>(element) < energy_valid_.size()) energy_valid_[element] = 0;
   ++deactivated_;
 }
 

@@ -58,6 +58,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <utility>
 #include <span>
 #include <vector>
 
@@ -205,6 +206,8 @@ class CorotationalEfg final : public DeformableModel {
   void update_rotations(const Vector& x) override;
   void add_elastic_forces(const Vector& x, Vector& f) const override;
   void add_stiffness_product(const Vector& p, Vector& out) const override;
+  // Both in one pass over the rows, each bitwise as the two calls give it.
+  void add_forces_and_stiffness_product(const Vector& x, Vector& f, const Vector& p, Vector& out) const override;
   void add_stiffness_diagonal(Vector& diagonal) const override;
   // With rotations extracted from x itself, so it is invariant under rigid motions of x.
   double elastic_energy(const Vector& x) const override;
@@ -314,12 +317,27 @@ class CorotationalEfg final : public DeformableModel {
   // Removes the particles no row refers to (their masses must be zero) and renumbers.
   void drop_unused_particles();
   void restride(int stride);
+  // sum_n x_n (x) c_n over the element's row, c the given per-slot coefficients.
+  Mat3 gather(const Vector& x, int element, const std::vector<Vec3>& coefficients) const;
+  // The coefficients of the rotation's fit (EfgSettings::rotation).
+  const std::vector<Vec3>& rotation_coefficients() const;
   Eigen::Quaterniond element_rotation(const Vector& x, int element,
                                       const Eigen::Quaterniond& start) const;
-  // out (3n) += the sum over elements of term(element, buffer), which adds the element's
-  // contributions to buffer (3n); see the file comment for the summation order.
-  template <typename ElementTerm>
-  void accumulate(Vector& out, const ElementTerm& term) const;
+  // Whether elastic_energy's force matrices hold the forces at x (update_rotations took its
+  // rotations for x and nothing changed since), per element while energy_valid_.
+  bool energy_forces_at(const Vector& x) const;
+  // The matrices whose products with the row's grad phi_n give the element's contributions to
+  // the forces at x (-V R sigma) and to K p (V R sigma(R^T sum_n p_n (x) grad phi_n)).
+  Mat3 element_force_matrix(const Vector& x, int element, bool from_energy) const;
+  Mat3 element_stiffness_matrix(const Vector& p, int element) const;
+  // buffer_n += scaled grad phi_n over the element's row.
+  void scatter(int element, const Mat3& scaled, Vector& buffer) const;
+  int partition_begin(int part) const;  // the partition's first element
+  void update_partition_nodes() const;
+  // *outs[o] (3n) += the sum over elements of term(element, buffers), which adds the element's
+  // contributions to *buffers[o] (3n); see the file comment for the summation order.
+  template <int Outputs, typename ElementTerm>
+  void accumulate(const std::array<Vector*, Outputs>& outs, const ElementTerm& term) const;
 
   // The read-only part, shared by copies; written through building_ during the build only.
   std::shared_ptr<const EfgRestShape> shape_;
@@ -351,6 +369,12 @@ class CorotationalEfg final : public DeformableModel {
   mutable Vector energy_positions_;
   mutable std::vector<Eigen::Quaterniond> energy_orientations_;
   mutable std::vector<std::uint8_t> energy_valid_;  // per element
+  // Its force matrices -V R sigma at energy_positions_: the next step's forces, whose gradient
+  // and rotation are that very computation's when it starts there. update_rotations moves
+  // energy_positions_ to force_positions_ when it took the energy's rotations. An element's
+  // pair stays valid until set_neighbourhood changes its row or deactivate_element its volume.
+  mutable std::vector<Mat3> energy_forces_;
+  mutable Vector force_positions_;
 
   // Rows (ELL).
   int stride_ = 0;
@@ -360,10 +384,14 @@ class CorotationalEfg final : public DeformableModel {
   std::vector<Vec3> shape_gradients_;
   std::vector<Vec3> matching_coefficients_;
 
-  // Scratch of the element loops: one accumulation buffer per partition of the elements, and
-  // one energy per element.
+  // Scratch of the element loops: one accumulation buffer per partition of the elements (and
+  // per output of a fused pass), and one energy per element. Each partition's buffers are used
+  // over the nodes [first, second) its rows reach only (recomputed when rows change).
   static constexpr int partition_count = 4;
-  mutable std::array<Vector, partition_count> partition_buffers_;
+  static constexpr int max_outputs = 2;
+  mutable std::array<std::array<Vector, partition_count>, max_outputs> partition_buffers_;
+  mutable std::array<std::pair<int, int>, partition_count> partition_nodes_{};
+  mutable bool partition_nodes_stale_ = true;
   mutable std::vector<double> element_energies_;
   // current_stiffness's plan (rebuilt when the rows change; it holds the turned gradients) and
   // each element's weight in it (its volume, 0 for an element taken out).
