@@ -393,10 +393,9 @@ class CorotationalEfg final : public DeformableModel {
   mutable std::array<std::pair<int, int>, partition_count> partition_nodes_{};
   mutable bool partition_nodes_stale_ = true;
   mutable std::vector<double> element_energies_;
-  // current_stiffness's plan (rebuilt when the rows change; it holds the turned gradients) and
-  // each element's weight in it (its volume, 0 for an element taken out).
+  // current_stiffness's plan (rebuilt when the rows change; it holds the turned gradients and
+  // each element's weight: its volume, 0 for an element taken out).
   mutable ElementAssembly assembly_;
-  mutable std::vector<double> element_weights_;
   Executor* executor_ = &serial_executor();
 };
 

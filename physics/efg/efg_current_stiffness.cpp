@@ -16,18 +16,17 @@ const BlockMatrix* CorotationalEfg::current_stiffness() const {
   // linear in S, so the assembly sums S over the integration points of a particle cell (one
   // neighbourhood) and turns the sum into a block once per cell and pair (element_assembly.hpp).
   const int elements = element_count();
-  element_weights_.resize(static_cast<size_t>(elements));
   executor_->parallel_for(elements, [&](int begin, int end) {
     for (int e = begin; e < end; ++e) {
       const size_t base = static_cast<size_t>(e) * stride_;
-      element_weights_[static_cast<size_t>(e)] = volumes_[static_cast<size_t>(e)] > 0 ? volumes_[static_cast<size_t>(e)] : 0.0;
+      assembly_.weight(e) = volumes_[static_cast<size_t>(e)] > 0 ? volumes_[static_cast<size_t>(e)] : 0.0;
       double* turned = assembly_.gradients(e);
       for (int k = 0; k < row_lengths_[static_cast<size_t>(e)]; ++k)
         Eigen::Map<Vec3>(turned + 3 * assembly_.local(e, k)) = rotations_[static_cast<size_t>(e)] * shape_gradients_[base + k];
     }
   }, std::max(1, shape_->settings.threaded_elements / 2));
   const double lambda = shape_->lambda, mu = shape_->mu;
-  const BlockMatrix& stiffness = assembly_.assemble(*executor_, element_weights_, [&](const Mat3& s, Mat3& out) {
+  const BlockMatrix& stiffness = assembly_.assemble(*executor_, [&](const Mat3& s, Mat3& out) {
     out.noalias() += lambda * s + mu * s.transpose();
     out.diagonal().array() += mu * s.trace();
   });

@@ -7,13 +7,16 @@
 //
 // Elements with the same node set (element_groups.hpp: the 8 integration points of an EFG
 // particle cell) are summed before the scatter: per group and node pair, S_ab = sum_e w_e h_a
-// h_b^T in registers, then one block C(S_ab) added; only the upper blocks (column >= row) are
-// computed, the lower ones copied as their mirror's transpose, so the matrix is exactly
+// h_b^T in registers (for a group of 8 nodes with AVX2 where the CPU has it, four columns to a
+// lane set, the portable loop's bits); the S of every group on a block are summed in the row's
+// scratch and C, being linear, turns the sum once per block. Only the upper blocks (column >=
+// row) are computed, the lower ones copied as their mirror's transpose, so the matrix is exactly
 // symmetric off the diagonal.
 //
 // A refill is parallel over block rows: each upper block is summed by its row's thread, its
-// groups in group order and each group's elements in element order; then each lower block is
-// copied by its row's thread. Nothing depends on the thread count.
+// groups in group order and each group's elements in element order, and written once; each
+// lower block is copied by its row's thread, in the same pass where its mirror lies in the
+// thread's range (done before it), after the pass otherwise. Nothing depends on the thread count.
 //
 // The pattern is kept across cuts while it covers every group's node pairs (blocks no group
 // uses any more stay, refilled with zero); a cut that couples a new pair rebuilds it, from the
@@ -29,6 +32,12 @@
 #include <vector>
 
 namespace incise::physics {
+
+// Whether the sums of 8-node groups run their AVX2 kernel on this CPU (its bits are the
+// portable loop's).
+bool element_assembly_vectorised();
+// Tests: force the portable loop (false) or the CPU's best (true).
+void set_element_assembly_vectorised(bool allowed);
 
 class ElementAssembly {
  public:
@@ -46,13 +55,18 @@ class ElementAssembly {
                static_cast<size_t>(groups_.member_of[static_cast<size_t>(element)]);
   }
   int local(int element, int k) const { return groups_.local[static_cast<size_t>(element) * stride_ + static_cast<size_t>(k)]; }
+  // Element e's weight, to set before assemble (an element of weight 0 adds nothing); kept in
+  // its group's member order, beside its vectors.
+  double& weight(int element) {
+    return weights_[static_cast<size_t>(groups_.member_start[static_cast<size_t>(groups_.group_of[static_cast<size_t>(element)])] +
+                                        groups_.member_of[static_cast<size_t>(element)])];
+  }
 
-  // Refills the matrix from the vectors and the weights (one per element; an element of weight
-  // 0 adds nothing): block (row, column) = sum over the elements e holding both of C(w_e h h^T),
-  // `combine(S, out)` adding C(S) to out. Rows on `executor`'s threads; the result does not
-  // depend on their count.
+  // Refills the matrix from the vectors and the weights: block (row, column) = sum over the
+  // elements e holding both of C(w_e h h^T), `combine(S, out)` adding C(S) to out. Rows on
+  // `executor`'s threads; the result does not depend on their count.
   template <typename Combine>
-  const BlockMatrix& assemble(Executor& executor, std::span<const double> weights, const Combine& combine);
+  const BlockMatrix& assemble(Executor& executor, const Combine& combine);
 
   const BlockMatrix& matrix() const { return matrix_; }
   const ElementGroups& groups() const { return groups_; }
@@ -67,9 +81,16 @@ class ElementAssembly {
   bool index_pairs();  // false when a group's pair is outside matrix_'s pattern
   void index_mirrors();
   void list_incidences();
-  // sums (3 x 3(L - a), row-major) = sum over the group's elements of w_e h_a h_b^T for b >= a,
-  // block b - a in columns 3(b - a) .. 3(b - a) + 2.
-  void sum_pairs(const Incidence& incidence, std::span<const double> weights, double* sums) const;
+  // The row's upper blocks = sum over its incidences of S_ab (sum_pairs), S_ab + S_ab^T where
+  // the group repeats the row's node at b. `scratch`: 9 longest_ + padding doubles.
+  // sums[k - upper_start_[row]] is block k's sum.
+  void sum_row(int row, double* scratch, Mat3* sums) const;
+  // sums (3 x 3(L - a), row-major with `pitch` doubles a row; returned) = sum over the group's
+  // elements of w_e h_a h_b^T for b >= a, block b - a in columns 3(b - a) .. 3(b - a) + 2.
+  int sum_pairs(const Incidence& incidence, double* sums) const;
+  // The vectorised sums of an 8-node group may read (and sum, unused) up to 3 doubles past a
+  // row: the gradients and the scratch end in this many spare doubles.
+  static constexpr int padding = 4;
 
   int stride_ = 0;
   std::vector<int> lengths_, neighbours_;  // the rows the plan was built for
@@ -80,49 +101,46 @@ class ElementAssembly {
   std::vector<int> pair_start_;         // per group: its first pair in pair_index_
   std::vector<int> pair_index_;         // per group, a, b >= a: the block (node a, node b)
   std::vector<int> mirror_;             // per block: its transpose's index
+  std::vector<int> upper_start_;        // per row: its first block of column >= row
+  int widest_ = 0;                      // the most upper blocks in a row
+  std::vector<int> range_begin_;        // per row: the first row of its range in the last refill
   std::vector<int> incidence_start_;    // per row
   std::vector<Incidence> incidence_;    // per row, in group order
   std::vector<size_t> gradient_offset_; // per group: its elements' vectors, one after another
   std::vector<double> gradients_;
+  std::vector<double> weights_;         // per group, per member
 };
 
 template <typename Combine>
-const BlockMatrix& ElementAssembly::assemble(Executor& executor, std::span<const double> weights, const Combine& combine) {
+const BlockMatrix& ElementAssembly::assemble(Executor& executor, const Combine& combine) {
   Mat3* blocks = matrix_.mutable_blocks();
   const std::vector<int>& row_start = matrix_.row_start();
   const std::vector<int>& columns = matrix_.columns();
   constexpr int rows_per_thread = 64;
   executor.parallel_for(matrix_.nodes(), [&](int begin, int end) {
-    std::vector<double> sums(static_cast<size_t>(9 * longest_));
+    std::vector<double> scratch(static_cast<size_t>(9 * longest_ + padding));
+    std::vector<Mat3> sums(static_cast<size_t>(widest_));
     for (int row = begin; row < end; ++row) {
-      const auto first = columns.begin() + row_start[static_cast<size_t>(row)];
-      const auto last = columns.begin() + row_start[static_cast<size_t>(row) + 1];
-      for (auto k = std::lower_bound(first, last, row); k != last; ++k) blocks[k - columns.begin()].setZero();
-      for (int i = incidence_start_[static_cast<size_t>(row)]; i < incidence_start_[static_cast<size_t>(row) + 1]; ++i) {
-        const Incidence& incidence = incidence_[static_cast<size_t>(i)];
-        sum_pairs(incidence, weights, sums.data());
-        const int* nodes = groups_.nodes.data() + groups_.node_start[static_cast<size_t>(incidence.group)];
-        const int length = groups_.length(incidence.group);
-        const int width = 3 * (length - incidence.a);
-        for (int b = incidence.a; b < length; ++b) {
-          Mat3 sum;
-          for (int c = 0; c < 3; ++c)
-            for (int d = 0; d < 3; ++d) sum(c, d) = sums[static_cast<size_t>(c * width + 3 * (b - incidence.a) + d)];
-          Mat3& out = blocks[pair_index_[static_cast<size_t>(incidence.pairs + b - incidence.a)]];
-          combine(sum, out);
-          // A node repeated in the group: its pair (b, a) falls on the same diagonal block.
-          if (b != incidence.a && nodes[b] == nodes[incidence.a]) {
-            Mat3 mirrored = Mat3::Zero();
-            combine(sum, mirrored);
-            out += mirrored.transpose();
-          }
-        }
+      // The row's upper blocks are summed here (S, each pair's sums) and turned by C once each.
+      sum_row(row, scratch.data(), sums.data());
+      const int first = upper_start_[static_cast<size_t>(row)];
+      for (int k = first; k < row_start[static_cast<size_t>(row) + 1]; ++k) {
+        Mat3 out = Mat3::Zero();
+        combine(sums[static_cast<size_t>(k - first)], out);
+        blocks[k] = out;
       }
+      // Its lower blocks are their mirrors' transposes, here those of this range's rows (done),
+      // the others' after every range (below): each block written once, by one thread, in
+      // order along the row.
+      range_begin_[static_cast<size_t>(row)] = begin;
+      for (int k = row_start[static_cast<size_t>(row)]; k < first; ++k)
+        if (columns[static_cast<size_t>(k)] >= begin) blocks[k] = blocks[mirror_[static_cast<size_t>(k)]].transpose();
     }
   }, rows_per_thread);
   executor.parallel_for(matrix_.nodes(), [&](int begin, int end) {
     for (int row = begin; row < end; ++row)
-      for (int k = row_start[static_cast<size_t>(row)]; k < row_start[static_cast<size_t>(row) + 1] && columns[static_cast<size_t>(k)] < row; ++k)
+      for (int k = row_start[static_cast<size_t>(row)];
+           k < row_start[static_cast<size_t>(row) + 1] && columns[static_cast<size_t>(k)] < range_begin_[static_cast<size_t>(row)]; ++k)
         blocks[k] = blocks[mirror_[static_cast<size_t>(k)]].transpose();
   }, 4 * rows_per_thread);
   return matrix_;

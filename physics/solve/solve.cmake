@@ -18,9 +18,11 @@ target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/rest_preconditioner.cpp
   ${CMAKE_CURRENT_LIST_DIR}/rest_vcycle.cpp
 )
-# The block products' two kernels (AVX2 and portable) must round alike: no contraction of a
-# multiply and an add into one fused operation, whatever -march a build adds.
+# The block products' and the element assembly's two kernels (AVX2 and portable) must round
+# alike: no contraction of a multiply and an add into one fused operation, whatever -march a
+# build adds.
 set_source_files_properties(${CMAKE_CURRENT_LIST_DIR}/block_product.cpp ${CMAKE_CURRENT_LIST_DIR}/current_product.cpp
+                            ${CMAKE_CURRENT_LIST_DIR}/element_assembly.cpp
                             PROPERTIES COMPILE_OPTIONS -ffp-contract=off)
 find_path(INCISE_CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse)
 find_library(INCISE_CHOLMOD_LIBRARY cholmod)

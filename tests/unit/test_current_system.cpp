@@ -7,6 +7,7 @@
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/solve/block_product.hpp"
 #include "physics/solve/current_system.hpp"
+#include "physics/solve/element_assembly.hpp"
 #include "physics/solve/multigrid.hpp"
 
 #include <gtest/gtest.h>
@@ -227,6 +228,11 @@ TEST(CurrentSystem, TheAssemblyHasTheSameBitsHoweverTheRowsAreSplit) {
   ASSERT_EQ(serial.size(), shuffled.size());
   EXPECT_EQ(0, std::memcmp(serial.data(), shuffled.data(), sizeof(Mat3) * serial.size()));
   ball.model->set_executor(nullptr);
+  // The particle cells' vectorised sums (element_assembly.cpp) against the portable loop.
+  set_element_assembly_vectorised(false);
+  const std::vector<Mat3>& portable = ball.model->current_stiffness()->blocks();
+  set_element_assembly_vectorised(true);
+  EXPECT_EQ(0, std::memcmp(serial.data(), portable.data(), sizeof(Mat3) * serial.size()));
 }
 
 // The smoother's interval ends at 1.2 x the rest build's estimate of D0^-1 A0's largest
