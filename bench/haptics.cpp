@@ -123,6 +123,27 @@ Json jump_parts_json(const std::vector<haptics::TickSample>& ticks, std::int64_t
   return nullptr;
 }
 
+// The largest force jumps at cut events, at other publications and between them (N/ms), when
+// (s from the loop's start) and which term made each (jump_parts_json).
+void add_force_jumps_json(Json& j, const engine::ForceJumps& jumps, const std::vector<haptics::TickSample>& ticks,
+                          std::int64_t t0) {
+  const auto at = [t0](std::size_t count, std::int64_t ns) {
+    return count > 0 ? Json(1e-9 * static_cast<double>(ns - t0)) : Json(nullptr);
+  };
+  j["force_jump_at_cut_N_per_ms"] = {{"max", jumps.at_cut_max},
+                                     {"ticks", jumps.cut_ticks},
+                                     {"max_at_s", at(jumps.cut_ticks, jumps.at_cut_max_ns)},
+                                     {"max_parts", jump_parts_json(ticks, jumps.at_cut_max_ns)}};
+  j["force_jump_at_other_publications_N_per_ms"] = {
+      {"max", jumps.at_publication_max},
+      {"ticks", jumps.publication_ticks},
+      {"max_at_s", at(jumps.publication_ticks, jumps.at_publication_max_ns)},
+      {"max_parts", jump_parts_json(ticks, jumps.at_publication_max_ns)}};
+  j["force_jump_between_publications_N_per_ms"] = {{"max", jumps.between_max},
+                                                   {"max_at_s", at(ticks.size(), jumps.between_max_ns)},
+                                                   {"max_parts", jump_parts_json(ticks, jumps.between_max_ns)}};
+}
+
 std::string scene_file_hint(const HapticsBenchOptions& options) {
   return options.scene.empty() ? std::string("assets/scenes/haptics_block.json") : options.scene.string();
 }
@@ -189,9 +210,6 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
   }
 
   const auto& ticks = session.ticks();
-  const auto at = [t0](std::size_t count, std::int64_t ns) {
-    return count > 0 ? Json(1e-9 * static_cast<double>(ns - t0)) : Json(nullptr);
-  };
   const engine::ForceJumps jumps = engine::force_jumps(ticks, session.cut_steps());
   double max_force = 0;
   std::uint64_t clamped = 0;
@@ -231,20 +249,6 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
         {"ticks_acted", energy.ticks_acted},
         {"max_damping_N_s_per_m", session.loop().passivity_parameters().max_damping}}},
       {"ticks", session.loop().ticks()},
-      {"force_jump_at_cut_N_per_ms",
-       {{"max", jumps.at_cut_max},
-        {"ticks", jumps.cut_ticks},
-        {"max_at_s", at(jumps.cut_ticks, jumps.at_cut_max_ns)},
-        {"max_parts", jump_parts_json(ticks, jumps.at_cut_max_ns)}}},
-      {"force_jump_at_other_publications_N_per_ms",
-       {{"max", jumps.at_publication_max},
-        {"ticks", jumps.publication_ticks},
-        {"max_at_s", at(jumps.publication_ticks, jumps.at_publication_max_ns)},
-        {"max_parts", jump_parts_json(ticks, jumps.at_publication_max_ns)}}},
-      {"force_jump_between_publications_N_per_ms",
-       {{"max", jumps.between_max},
-        {"max_at_s", at(ticks.size(), jumps.between_max_ns)},
-        {"max_parts", jump_parts_json(ticks, jumps.between_max_ns)}}},
       {"max_force_N", max_force},
       {"ticks_clamped", clamped},
       {"ring_overflows", session.loop().ring_overflows()},
@@ -281,6 +285,7 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
                 static_cast<unsigned long long>(energy.ticks_acted), jumps.at_cut_max, jumps.at_publication_max,
                 jumps.between_max, max_force, session.world().cut_totals().events, wall > 0 ? sim / wall : 0,
                 (wall - sim) / scene.solver.dt, static_cast<unsigned long long>(session.steps_over_budget()));
+  add_force_jumps_json(j, jumps, ticks, t0);
   double cut_mean = 0, cut_peak = 0;
   j["cutting_force_N"] = cutting_force_json(ticks, cut_mean, cut_peak);
   const auto cutting_part = [&j](const char* key) {
