@@ -1,95 +1,112 @@
 #include "engine/thread_pool.hpp"
 
+#include "engine/spin_wait.hpp"
+
 #include <algorithm>
 #include <stdexcept>
 #include <string>
 
 namespace incise::engine {
 
-WorkerPool::WorkerPool(int thread_count) {
+WorkerPool::WorkerPool(int thread_count, std::chrono::nanoseconds spin) : spin_(spin) {
   if (thread_count < 1) {
     throw std::invalid_argument("WorkerPool: thread_count must be at least 1, got " +
                                 std::to_string(thread_count));
   }
   threads_.reserve(static_cast<size_t>(thread_count - 1));
-  for (int index = 1; index < thread_count; ++index) {
-    threads_.emplace_back([this, index] { work(index); });
-  }
+  for (int index = 1; index < thread_count; ++index) threads_.emplace_back([this] { work(); });
 }
 
 WorkerPool::~WorkerPool() {
+  stopping_.store(true);
   {
-    std::lock_guard lock(mutex_);
-    stopping_ = true;
+    std::lock_guard lock(mutex_);  // a worker about to park sees stopping_ or is woken below
   }
   start_.notify_all();
   for (std::thread& thread : threads_) thread.join();
 }
 
-std::pair<int, int> WorkerPool::range(int index, int count, int threads) const {
-  return {static_cast<int>(static_cast<long long>(count) * index / threads),
-          static_cast<int>(static_cast<long long>(count) * (index + 1) / threads)};
+int WorkerPool::ranges(int count, int minimum_per_thread) const {
+  const int useful = std::max(1, count / std::max(1, minimum_per_thread));
+  return std::min(useful, ranges_per_thread * thread_count());
 }
 
 void WorkerPool::run(int count, const std::function<void(int, int)>& task, int minimum_per_thread) {
-  const int useful = std::max(1, count / std::max(1, minimum_per_thread));
-  const int used = std::min(thread_count(), useful);
-  if (used == 1) {
+  const int ranges = this->ranges(count, minimum_per_thread);
+  if (ranges == 1) {
     task(0, count);
     return;
   }
+  task_ = &task;
+  count_ = count;
+  ranges_ = ranges;
+  pending_.store(ranges, std::memory_order_relaxed);
   {
     std::lock_guard lock(mutex_);
-    task_ = &task;
-    count_ = count;
-    used_ = used;
-    pending_ = used - 1;
     error_ = nullptr;
-    ++generation_;
   }
-  start_.notify_all();
-  std::exception_ptr own_error;
-  try {
-    const auto [begin, end] = range(0, count, used);
-    task(begin, end);
-  } catch (...) {
-    own_error = std::current_exception();
+  next_.store(-ranges, std::memory_order_release);  // opens the ranges: publishes the run
+  // Sequentially consistent with the parked count, as a worker parks (wait_for_run): either it
+  // sees this run or this sees it parked and wakes it.
+  generation_.fetch_add(1);
+  if (parked_workers_.load() > 0) {
+    std::lock_guard lock(mutex_);
+    start_.notify_all();
   }
-  std::unique_lock lock(mutex_);
-  finished_.wait(lock, [this] { return pending_ == 0; });
+  take_ranges();
+  wait_for_ranges();
   task_ = nullptr;
-  if (own_error) std::rethrow_exception(own_error);
+  std::lock_guard lock(mutex_);
   if (error_) std::rethrow_exception(error_);
 }
 
-void WorkerPool::work(int index) {
-  uint64_t seen = 0;
+void WorkerPool::take_ranges() {
   for (;;) {
-    const std::function<void(int, int)>* task = nullptr;
-    int count = 0, used = 0;
-    {
-      std::unique_lock lock(mutex_);
-      start_.wait(lock, [&] { return stopping_ || generation_ != seen; });
-      if (stopping_) return;
-      seen = generation_;
-      task = task_;
-      count = count_;
-      used = used_;
-    }
-    if (index >= used) continue;  // not needed in this run
-    std::exception_ptr error;
+    // A worker still in an earlier run takes from this one or finds none left: either way it
+    // reads the run's fields only after taking a range of it.
+    const int taken = next_.fetch_add(1, std::memory_order_acq_rel);
+    if (taken >= 0) return;
+    const int index = ranges_ + taken;
     try {
-      const auto [begin, end] = range(index, count, used);
-      (*task)(begin, end);
+      (*task_)(static_cast<int>(static_cast<long long>(count_) * index / ranges_),
+               static_cast<int>(static_cast<long long>(count_) * (index + 1) / ranges_));
     } catch (...) {
-      error = std::current_exception();
-    }
-    {
       std::lock_guard lock(mutex_);
-      if (error && !error_) error_ = error;
-      --pending_;
+      if (!error_) error_ = std::current_exception();
     }
-    finished_.notify_one();
+    // The last range done wakes a parked caller; nothing of the run is touched after this, as
+    // the caller may have posted the next one.
+    if (pending_.fetch_sub(1) == 1 && caller_parked_.load()) {
+      std::lock_guard lock(mutex_);
+      finished_.notify_one();
+    }
+  }
+}
+
+void WorkerPool::wait_for_ranges() {
+  if (spin_until([this] { return pending_.load(std::memory_order_acquire) == 0; }, spin_)) return;
+  std::unique_lock lock(mutex_);
+  caller_parked_.store(true);
+  finished_.wait(lock, [this] { return pending_.load() == 0; });
+  caller_parked_.store(false);
+}
+
+bool WorkerPool::wait_for_run(std::uint64_t seen) {
+  const auto posted = [&] { return stopping_.load() || generation_.load() != seen; };
+  if (!spin_until(posted, spin_)) {
+    std::unique_lock lock(mutex_);
+    parked_workers_.fetch_add(1);
+    start_.wait(lock, posted);
+    parked_workers_.fetch_sub(1);
+  }
+  return !stopping_.load();
+}
+
+void WorkerPool::work() {
+  std::uint64_t seen = 0;
+  while (wait_for_run(seen)) {
+    seen = generation_.load();
+    take_ranges();
   }
 }
 

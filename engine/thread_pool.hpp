@@ -7,6 +7,8 @@
 #include "engine/background_queue.hpp"
 #include "physics/core/executor.hpp"
 
+#include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <exception>
@@ -20,37 +22,62 @@ namespace incise::engine {
 
 class WorkerPool {
  public:
+  // How long a waiting thread polls before it parks (engine/spin_wait.hpp): longer than the
+  // serial gaps between a CG iteration's regions, short beside a step.
+  static constexpr std::chrono::nanoseconds default_spin{std::chrono::microseconds(50)};
+  // Ranges a run is split into per thread used, taken in turn by whichever thread is free: a
+  // thread the system preempts (a background factor build or another process on the other
+  // core) holds up only the range it is in.
+  static constexpr int ranges_per_thread = 4;
+
   // thread_count >= 1; the calling thread is one of them, so thread_count - 1 are started.
-  explicit WorkerPool(int thread_count);
+  // `spin`: how long a worker waits for the next run, and the caller for the workers, before
+  // parking on a condition variable (0: park at once).
+  explicit WorkerPool(int thread_count, std::chrono::nanoseconds spin = default_spin);
   ~WorkerPool();
   WorkerPool(const WorkerPool&) = delete;
   WorkerPool& operator=(const WorkerPool&) = delete;
 
   int thread_count() const { return static_cast<int>(threads_.size()) + 1; }
 
-  // Calls task(begin, end) on consecutive ranges that cover [0, count), one per thread used,
-  // the calling thread taking the first, and returns when all are done. At most
-  // count / minimum_per_thread threads are used (at least one): waking a thread costs more
-  // than a small loop, and far more when the cores are busy with other work. An exception
-  // thrown by a task is rethrown here. Not reentrant: one run at a time.
+  // Ranges run(count, ..., minimum_per_thread) splits [0, count) into: at most count /
+  // minimum_per_thread (at least one), at most ranges_per_thread per thread. Range i is
+  // [count * i / n, count * (i + 1) / n): the split depends on nothing else.
+  int ranges(int count, int minimum_per_thread) const;
+
+  // Calls task(begin, end) on the ranges above and returns when all are done; the calling
+  // thread takes them too, so a worker the system wakes late never makes it wait. With one
+  // range it runs on the calling thread alone: waking a thread costs more than a small loop,
+  // and far more when the cores are busy with other work. An exception thrown by a task is
+  // rethrown here (the first caught). Not reentrant: one run at a time.
   void run(int count, const std::function<void(int begin, int end)>& task,
            int minimum_per_thread = 1);
 
  private:
-  void work(int index);
-  std::pair<int, int> range(int index, int count, int threads) const;
+  void work();
+  // Waits until a run newer than `seen` is posted (false: the pool is stopping).
+  bool wait_for_run(std::uint64_t seen);
+  void wait_for_ranges();
+  // Runs the current run's ranges that no thread has taken, one at a time, until none is left.
+  void take_ranges();
 
   std::vector<std::thread> threads_;
-  std::mutex mutex_;
-  std::condition_variable start_;
-  std::condition_variable finished_;
+  const std::chrono::nanoseconds spin_;
+  std::mutex mutex_;                  // for parking, and error_
+  std::condition_variable start_;     // a parked worker waits here for a run
+  std::condition_variable finished_;  // a parked caller waits here for the last range
+  // The current run: written by run() before it opens the ranges (next_, release) and read by
+  // a thread that takes one (acquire), which run() waits for before it writes them again.
   const std::function<void(int, int)>* task_ = nullptr;
   int count_ = 0;
-  int used_ = 0;  // threads taking part in the current run
-  uint64_t generation_ = 0;
-  int pending_ = 0;
-  bool stopping_ = false;
-  std::exception_ptr error_;
+  int ranges_ = 0;
+  alignas(64) std::atomic<int> next_{0};  // the next range to take minus ranges_ (>= 0: none left)
+  alignas(64) std::atomic<std::uint64_t> generation_{0};  // runs posted
+  alignas(64) std::atomic<int> pending_{0};  // ranges of the current run not done
+  std::atomic<int> parked_workers_{0};
+  std::atomic<bool> caller_parked_{false};
+  std::atomic<bool> stopping_{false};
+  std::exception_ptr error_;  // the run's first, under mutex_
 };
 
 // One helper thread for one job beside the caller's own: run(own, side) calls own() on the

@@ -7,11 +7,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 using incise::engine::SideRunner;
@@ -94,6 +97,38 @@ TEST(WorkerPool, CoversTheRangeOnceWhateverTheThreadCount) {
   }
 }
 
+// Back-to-back runs, with workers that park at once (spin 0) and with ones that poll first:
+// each run's ranges are the fixed split count * i / n, n = min(count, 4 x threads), whichever
+// thread took them, each item is done once, and what a range wrote is seen when run returns.
+TEST(WorkerPool, BackToBackRunsGiveTheFixedRangesAndTheirWrites) {
+  for (const auto spin : {std::chrono::nanoseconds(0), WorkerPool::default_spin}) {
+    for (const int threads : {2, 3, 4}) {
+      WorkerPool pool(threads, spin);
+      std::vector<int> values(997, 0);
+      for (int run = 1; run <= 300; ++run) {
+        const int count = 1 + (run * 37) % static_cast<int>(values.size());
+        std::mutex mutex;
+        std::vector<std::pair<int, int>> ranges;
+        pool.run(count, [&](int begin, int end) {
+          for (int i = begin; i < end; ++i) values[static_cast<std::size_t>(i)] += run;
+          std::lock_guard lock(mutex);
+          ranges.emplace_back(begin, end);
+        });
+        std::sort(ranges.begin(), ranges.end());
+        const int n = std::min(count, WorkerPool::ranges_per_thread * threads);
+        ASSERT_EQ(pool.ranges(count, 1), n);
+        std::vector<std::pair<int, int>> expected;
+        for (int i = 0; i < n; ++i) expected.emplace_back(count * i / n, count * (i + 1) / n);
+        ASSERT_EQ(ranges, expected) << threads << " threads, run " << run;
+        int sum = 0;
+        for (int i = 0; i < count; ++i) sum += values[static_cast<std::size_t>(i)];
+        for (int i = 0; i < count; ++i) values[static_cast<std::size_t>(i)] = 0;
+        ASSERT_EQ(sum, run * count) << threads << " threads, run " << run;
+      }
+    }
+  }
+}
+
 TEST(WorkerPool, UsesAtMostOneThreadPerMinimumAndRethrowsATasksException) {
   WorkerPool pool(3);
   std::atomic<int> ranges{0};
@@ -120,7 +155,7 @@ void check_executor(Executor& executor) {
   });
   for (int i = 0; i < 777; ++i) ASSERT_EQ(hits[static_cast<std::size_t>(i)], 1) << "item " << i;
   EXPECT_GE(ranges.load(), 1);
-  EXPECT_LE(ranges.load(), executor.thread_count());
+  EXPECT_LE(ranges.load(), WorkerPool::ranges_per_thread * executor.thread_count());
   ranges = 0;
   executor.parallel_for(6, [&](int, int) { ++ranges; }, 100);
   EXPECT_EQ(ranges.load(), 1);
