@@ -25,9 +25,9 @@ class WorkerPool {
   // How long a waiting thread polls before it parks (engine/spin_wait.hpp): longer than the
   // serial gaps between a CG iteration's regions, short beside a step.
   static constexpr std::chrono::nanoseconds default_spin{std::chrono::microseconds(50)};
-  // Ranges a run is split into per thread used, taken in turn by whichever thread is free: a
-  // thread the system preempts (a background factor build or another process on the other
-  // core) holds up only the range it is in.
+  // Most ranges a run is split into per thread of the pool, taken in turn by whichever thread
+  // is free: a thread the system preempts (for the background factor build or another process)
+  // holds up only the range it is in, not its share of the loop.
   static constexpr int ranges_per_thread = 4;
 
   // thread_count >= 1; the calling thread is one of them, so thread_count - 1 are started.
