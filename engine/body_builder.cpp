@@ -233,7 +233,7 @@ std::shared_ptr<physics::BodyModel> body_model(const BodySpec& spec, const Solve
                                 : solver.preconditioner == "multigrid"     ? physics::PreconditionerKind::multigrid
                                 : solver.preconditioner == "multigrid_current" ? physics::PreconditionerKind::multigrid_current
                                                                            : physics::PreconditionerKind::jacobi;
-  model->preconditioner.latency = solver.preconditioner_latency;
+  model->preconditioner.latency = preconditioner_latency(solver, spec.model);
   model->preconditioner.smoothing = multigrid_smoothing_degree(solver);
   model->preconditioner.single_precision = solver.multigrid_precision == "float";
   // The current system assembled once per step, its products CG's and the smoother's.

@@ -305,7 +305,7 @@ void read_solver(const Json& solver, SolverSpec& s, std::vector<std::string>& er
   s.preconditioner = sr.text("preconditioner", false, "multigrid_current", {"jacobi", "warped_cholesky", "two_level", "multigrid", "multigrid_current"});
   s.multigrid_smoothing = sr.integer("multigrid_smoothing", false, 0, 1, 8);
   s.multigrid_precision = sr.text("multigrid_precision", false, "double", {"double", "float"});
-  s.preconditioner_latency = sr.integer("preconditioner_latency", false, 4, 0, 1000);
+  s.preconditioner_latency = sr.integer("preconditioner_latency", false, -1, 0, 1000);
   s.start = sr.text("start", false, "rest", {"rest", "settled"});
   s.realtime = sr.boolean("realtime", true);
   s.realtime_min_iterations = sr.integer("realtime_min_iterations", false, 3, 1, 100000);
@@ -485,6 +485,11 @@ double physical_memory_bytes() {
 int multigrid_smoothing_degree(const SolverSpec& solver) {
   if (solver.multigrid_smoothing > 0) return solver.multigrid_smoothing;
   return solver.preconditioner == "multigrid_current" ? 4 : 2;
+}
+
+int preconditioner_latency(const SolverSpec& solver, const std::string& model) {
+  if (solver.preconditioner_latency >= 0) return solver.preconditioner_latency;
+  return solver.preconditioner == "multigrid_current" && model == "efg" ? 12 : 4;
 }
 
 Box generator_bounds(const GeneratorSpec& g) {

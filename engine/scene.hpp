@@ -150,7 +150,8 @@ struct SolverSpec {
   // assemble (tet FEM, damped or extra-stiffness models) take "multigrid"; models without a rest
   // stiffness (mass_spring, constraint_particles, promayon) and the gpu backend use Jacobi.
   std::string preconditioner = "multigrid_current";
-  int preconditioner_latency = 4;
+  // -1 (the key absent): the body's own, preconditioner_latency().
+  int preconditioner_latency = -1;
   // "multigrid", "multigrid_current": the Chebyshev smoother's degree; 0 (the key absent): the
   // kind's own, multigrid_smoothing_degree().
   int multigrid_smoothing = 0;
@@ -171,6 +172,16 @@ struct SolverSpec {
 // "multigrid" (its rest-system smoother lags the cuts: degree 4 only takes 19 to 16 there;
 // docs/status.md, "EFG model").
 int multigrid_smoothing_degree(const SolverSpec& solver);
+
+// The steps between a cut and its new factor taking over for a body of `model` (BodySpec::model):
+// preconditioner_latency if given, else 12 for an EFG body under "multigrid_current" and 4 for
+// the rest. Only that cycle's coarse correction lags a cut (its smoother multiplies by the
+// current system), and a factor up to 22 steps old costs it 0.2-1.4 % more CG iterations than
+// one 6 steps old on default, cut_organ, cut_liver_mesh and cut_torus (0.4-12 % for one never
+// rebuilt), where builds every 5 steps took about half a core beside the step's two threads at
+// 20k elements; a rest smoother lags with its factor, so "multigrid" rebuilds sooner
+// (docs/status.md, "EFG model").
+int preconditioner_latency(const SolverSpec& solver, const std::string& model);
 
 struct LoadEvent {
   double time = 0;

@@ -75,6 +75,24 @@ TEST(Scene, TheMultigridDegreeIsTheKeysOrTheKinds) {
   EXPECT_EQ(degree_of("multigrid_current", 1), 1);
 }
 
+// The factor's latency is the key's when given, else the body's: an EFG body under the current
+// system's cycle, whose smoother sees a cut at once, rebuilds its coarse factor less often
+// (engine/scene.hpp).
+TEST(Scene, TheFactorLatencyIsTheKeysOrTheBodys) {
+  auto latency_of = [](const char* preconditioner, int latency, const char* model) {
+    Json scene = good_scene();
+    scene["solver"]["preconditioner"] = preconditioner;
+    if (latency >= 0) scene["solver"]["preconditioner_latency"] = latency;
+    return incise::engine::preconditioner_latency(parse_scene(scene.dump(), kSceneFile).solver, model);
+  };
+  EXPECT_EQ(latency_of("multigrid_current", -1, "efg"), 12);
+  EXPECT_EQ(latency_of("multigrid_current", -1, "fem"), 4);  // falls back to the rest system's cycle
+  EXPECT_EQ(latency_of("multigrid", -1, "efg"), 4);
+  EXPECT_EQ(latency_of("warped_cholesky", -1, "efg"), 4);
+  EXPECT_EQ(latency_of("multigrid_current", 0, "efg"), 0);
+  EXPECT_EQ(latency_of("multigrid", 7, "fem"), 7);
+}
+
 struct BrokenCase {
   const char* name;
   std::function<void(Json&)> mutate;
