@@ -35,19 +35,20 @@ std::string digest(const std::string& text) {
   return hex;
 }
 
-// The CSV's text without the column `name` (the accuracy report's ms_per_step: a wall time,
-// which differs from run to run, while every other column is a deterministic result).
-std::string without_column(const std::string& text, const std::string& name) {
+// The CSV's text without the columns `names` (the accuracy report's wall times, which differ
+// from run to run, while every other column is a deterministic result).
+std::string without_columns(const std::string& text, const std::vector<std::string>& names) {
   std::istringstream lines(text);
   std::string line, out;
-  int drop = -1;
+  std::vector<bool> drop;
   for (bool header = true; std::getline(lines, line); header = false) {
     std::vector<std::string> fields;
     std::istringstream cells(line);
     for (std::string cell; std::getline(cells, cell, ',');) fields.push_back(cell);
-    if (header) drop = static_cast<int>(std::find(fields.begin(), fields.end(), name) - fields.begin());
+    if (header)
+      for (const std::string& field : fields) drop.push_back(std::find(names.begin(), names.end(), field) != names.end());
     for (int i = 0; i < static_cast<int>(fields.size()); ++i)
-      if (i != drop) out += fields[i] + ",";
+      if (i >= static_cast<int>(drop.size()) || !drop[static_cast<size_t>(i)]) out += fields[i] + ",";
     out += "\n";
   }
   return out;
@@ -57,7 +58,8 @@ std::string without_column(const std::string& text, const std::string& name) {
 std::string run_part(const BenchPart& part, const std::filesystem::path& dir, std::ostream& log, int& status) {
   if (part.name == "accuracy") {
     status = bench::run_accuracy_bench({part.quick, true, part.part, part.parts, part.cases, {}}, dir, log);
-    return without_column(read_text(dir / "accuracy.csv"), "ms_per_step");
+    return without_columns(read_text(dir / "accuracy.csv"),
+                           {"ms_per_step", "preconditioner_build_ms", "ms_per_step_jacobi", "speedup_vs_jacobi"});
   }
   status = bench::run_stability_bench({part.quick, false, part.part, part.parts}, dir, log);
   return read_text(dir / "stability.csv");

@@ -14,6 +14,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -101,8 +102,14 @@ struct Timing {
   double ms_per_step = 0;
   double cg_iterations = 0;
   bool converged = true;
+  std::string preconditioner = "jacobi";  // what ms_per_step's CG was preconditioned with
+  double build_ms = 0;                    // its factor's build, once, before the timed steps
+  // Today's Jacobi CG on the same steps, where the row has another preconditioner (NaN: none).
+  double jacobi_ms_per_step = std::numeric_limits<double>::quiet_NaN();
+  double jacobi_cg_iterations = std::numeric_limits<double>::quiet_NaN();
 };
-// Implicit Euler from rest under the load at dt = 1/60 with the scene-like CG.
+// Implicit Euler from rest under the load at dt = 1/60 with the scenes' CG: their default
+// preconditioner where the model has a rest stiffness (EFG, tet FEM), and Jacobi beside it.
 Timing time_steps(physics::DeformableModel& model, const std::vector<uint8_t>& fixed, const Vector& load, int steps);
 
 // A linear model from an assembled stiffness (the 10-node tets have no corotational model):

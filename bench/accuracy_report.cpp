@@ -27,6 +27,13 @@ Row from_mass_spring(const MassSpringRow& r) {
   return row;
 }
 
+void take_solver(Row& row, const Timing& timing) {
+  row.preconditioner = timing.preconditioner;
+  if (timing.preconditioner != "jacobi") row.preconditioner_build_ms = timing.build_ms;
+  row.ms_per_step_jacobi = timing.jacobi_ms_per_step;
+  row.cg_iterations_jacobi = timing.jacobi_cg_iterations;
+}
+
 std::string format(double value, int digits) { return common::significant(value, digits); }
 
 std::string mm(const Vec3& v) {
@@ -46,12 +53,17 @@ std::string json_vector(const Vec3& v) {
 
 void write_csv(const std::filesystem::path& path, const std::vector<Row>& rows) {
   common::CsvWriter csv(path, {"case", "model", "variant", "resolution", "dofs", "elements", "ms_per_step",
-                               "cg_iterations", "error_pct", "measured_E", "measured_nu", "volume_change_pct"});
+                               "cg_iterations", "error_pct", "measured_E", "measured_nu", "volume_change_pct",
+                               "preconditioner", "preconditioner_build_ms", "ms_per_step_jacobi", "cg_iterations_jacobi",
+                               "speedup_vs_jacobi"});
   const auto optional = [](double value, int digits) { return std::isnan(value) ? std::string() : format(value, digits); };
   for (const Row& row : rows) {
+    const double speedup = row.ms_per_step > 0 ? row.ms_per_step_jacobi / row.ms_per_step : std::nan("");
     csv.row(row.case_name, row.model, row.variant, row.resolution, row.dofs, row.elements,
             common::fixed(row.ms_per_step, 3), common::fixed(row.cg_iterations, 1), common::fixed(row.error_pct, 4),
-            optional(row.measured_E, 8), optional(row.measured_nu, 8), optional(row.volume_change_pct, 6));
+            optional(row.measured_E, 8), optional(row.measured_nu, 8), optional(row.volume_change_pct, 6),
+            row.preconditioner, optional(row.preconditioner_build_ms, 4), optional(row.ms_per_step_jacobi, 4),
+            optional(row.cg_iterations_jacobi, 4), optional(speedup, 3));
   }
 }
 
@@ -156,6 +168,32 @@ void sort_rows(const std::vector<Case>& cases, std::vector<Row>& rows) {
 
 // The figures: efg nb8 at its largest size per case (about 10k dofs in --quick).
 // For the cut cases, nb8 with the geometry cut and with the cutter, side by side.
+// "; multigrid_current, built in B ms; Jacobi: J ms per step, N CG iterations, xR" for a row
+// timed with a factor, else nothing.
+std::string solver_comparison(const Row& row) {
+  if (std::isnan(row.ms_per_step_jacobi)) return "";
+  std::ostringstream text;
+  text << "; " << row.preconditioner << " (factor built in " << format(row.preconditioner_build_ms, 3)
+       << " ms); Jacobi CG: " << format(row.ms_per_step_jacobi, 4) << " ms per step, " << format(row.cg_iterations_jacobi, 4)
+       << " CG iterations, x" << format(row.ms_per_step_jacobi / row.ms_per_step, 3) << " the time";
+  return text.str();
+}
+
+// The largest tet4 row of each case: its time per step against today's Jacobi CG.
+void print_tet_figures(const std::vector<Case>& cases, const Results& results, std::ostream& progress) {
+  for (const Case& c : cases) {
+    const Row* largest = nullptr;
+    for (const Row& row : results.rows)
+      if (row.case_name == c.name && row.model == "fem" && row.variant.rfind("tet4", 0) == 0 &&
+          (largest == nullptr || row.dofs > largest->dofs))
+        largest = &row;
+    if (largest == nullptr) continue;
+    progress << c.name << " fem " << largest->variant << " at " << largest->dofs << " dofs: " << format(largest->ms_per_step, 4)
+             << " ms per step (" << format(largest->cg_iterations, 4) << " CG iterations), error "
+             << format(largest->error_pct, 3) << " %" << solver_comparison(*largest) << "\n";
+  }
+}
+
 void print_figures(const std::vector<Case>& cases, const Results& results, std::ostream& progress) {
   for (const Case& c : cases) {
     for (const std::string& variant : c.cut ? std::vector<std::string>{"nb8_geomcut", "nb8_cutter"}
@@ -172,7 +210,7 @@ void print_figures(const std::vector<Case>& cases, const Results& results, std::
                << format(largest->ms_per_step, 4) << " ms per step (" << format(1000 / largest->ms_per_step, 3)
                << " steps/s, " << format(largest->cg_iterations, 4) << " CG iterations), error "
                << format(largest->error_pct, 3) << " %, tip " << mm(largest->tip) << " against "
-               << mm(results.references.at(c.name).tip);
+               << mm(results.references.at(c.name).tip) << solver_comparison(*largest);
       const auto report = results.cut_reports.find(variant + " " + largest->resolution);
       if (report != results.cut_reports.end()) {
         const physics::VolumeCutReport& r = report->second;
@@ -184,6 +222,7 @@ void print_figures(const std::vector<Case>& cases, const Results& results, std::
       progress << "\n";
     }
   }
+  print_tet_figures(cases, results, progress);
 }
 
 }  // namespace
@@ -243,7 +282,9 @@ Json row_json(const Row& r) {
           {"ms_per_step", r.ms_per_step}, {"cg_iterations", r.cg_iterations},
           {"error_pct", r.error_pct},  {"converged", r.converged},
           {"tip", vec(r.tip)},         {"measured_E", number(r.measured_E)},
-          {"measured_nu", number(r.measured_nu)}, {"volume_change_pct", number(r.volume_change_pct)}};
+          {"measured_nu", number(r.measured_nu)}, {"volume_change_pct", number(r.volume_change_pct)},
+          {"preconditioner", r.preconditioner}, {"preconditioner_build_ms", number(r.preconditioner_build_ms)},
+          {"ms_per_step_jacobi", number(r.ms_per_step_jacobi)}, {"cg_iterations_jacobi", number(r.cg_iterations_jacobi)}};
 }
 
 Row row_from(const Json& j) {
@@ -262,6 +303,12 @@ Row row_from(const Json& j) {
   r.measured_E = number(j.at("measured_E"));
   r.measured_nu = number(j.at("measured_nu"));
   if (j.contains("volume_change_pct")) r.volume_change_pct = number(j.at("volume_change_pct"));
+  if (j.contains("preconditioner")) {
+    r.preconditioner = j.at("preconditioner").get<std::string>();
+    r.preconditioner_build_ms = number(j.at("preconditioner_build_ms"));
+    r.ms_per_step_jacobi = number(j.at("ms_per_step_jacobi"));
+    r.cg_iterations_jacobi = number(j.at("cg_iterations_jacobi"));
+  }
   return r;
 }
 

@@ -26,7 +26,15 @@ struct Row {
   double measured_E = std::numeric_limits<double>::quiet_NaN();  // the traction case only
   double measured_nu = std::numeric_limits<double>::quiet_NaN();
   double volume_change_pct = std::numeric_limits<double>::quiet_NaN();  // the compression case only
+  // The CG's preconditioner of ms_per_step (accuracy_beams.hpp's Timing), its factor's build
+  // and, for the rows with a factor, today's Jacobi CG on the same steps (NaN: not run).
+  std::string preconditioner = "jacobi";
+  double preconditioner_build_ms = std::numeric_limits<double>::quiet_NaN();
+  double ms_per_step_jacobi = std::numeric_limits<double>::quiet_NaN();
+  double cg_iterations_jacobi = std::numeric_limits<double>::quiet_NaN();
 };
+// Copies a timing's preconditioner, build and Jacobi figures into its row.
+void take_solver(Row& row, const Timing& timing);
 Row from_mass_spring(const MassSpringRow& r);
 
 struct Reference {

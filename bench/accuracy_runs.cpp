@@ -246,6 +246,7 @@ void BodyRuns::tet10_rows() {
                                3 * static_cast<long long>(mesh.rest.size() / 3), static_cast<long long>(mesh.tets.size()),
                                timing.ms_per_step, timing.cg_iterations,
                                relative_error_pct(level.tips[i], results_.references[c.name].tip), timing.converged});
+      take_solver(results_.rows.back(), timing);
     }
   }
 }
@@ -269,6 +270,7 @@ void BodyRuns::tet4_rows() {
                                static_cast<long long>(mesh.tets.size()), timing.ms_per_step, timing.cg_iterations,
                                relative_error_pct(tip_mean(mesh, solutions[i], nullptr), results_.references[c.name].tip),
                                timing.converged});
+      take_solver(results_.rows.back(), timing);
     }
     progress_.step(name_ + " fem tet4 " + name);
   }
@@ -328,6 +330,7 @@ void BodyRuns::efg_row(const EfgVariant& variant, bool cutter, int cells) {
     results_.rows.push_back({c.name, "efg", variant_name, resolution, 3 * static_cast<long long>(model.node_count()),
                              model.element_count(), timing.ms_per_step, timing.cg_iterations,
                              relative_error_pct(tip, results_.references[c.name].tip), timing.converged, tip});
+    take_solver(results_.rows.back(), timing);
   }
   progress_.step(name_ + " efg " + variant_name + " " + resolution);
 }
