@@ -41,7 +41,7 @@ class CurrentVcycle {
   void operator()(const Vector& r, Vector& z);
 
  private:
-  // Over the rows of nodes, in chunks: the product of `from`, residual -= it, then finish(begin, end).
+  // Over ranges of nodes: the product of `from`, residual -= it, then finish(begin, end) (entries).
   template <class Finish>
   void product_pass(const Vector& from, const Finish& finish);
   // x += the Chebyshev steps 1 .. degree - 1 (step 0 in step_), from residual_.
