@@ -4,6 +4,7 @@
 #include "physics/core/stopwatch.hpp"
 #include "physics/solve/bicgstab.hpp"
 #include "physics/solve/current_system.hpp"
+#include "physics/solve/current_vcycle.hpp"
 #include "physics/solve/multigrid.hpp"
 #include "physics/solve/rest_vcycle.hpp"
 #include "physics/solve/warped_preconditioner.hpp"
@@ -162,7 +163,7 @@ CgResult current_vcycle_solve(const DeformableModel& model, const RestFactor& fa
   ChebyshevSmoother smoother;
   smoother.degree = factor.smoothing_degree();
   smoother.upper = current_smoothing_margin * factor.smoothing_eigenvalue();
-  VcyclePreconditioner vcycle(apply, jacobi_inverse(system.diagonal()), factor, std::move(rotations), fixed_nodes, smoother);
+  CurrentVcycle vcycle(system, factor, rotations, smoother, model.executor());
   const Preconditioner cycle = [&](const Vector& r, Vector& z) { vcycle(r, z); };
   return preconditioned_conjugate_gradient(apply, right_hand_side, cycle, fixed_nodes, velocity_change, settings);
 }

@@ -1,7 +1,5 @@
 #include "physics/solve/current_system.hpp"
 
-#include "physics/solve/current_product.hpp"
-
 #include <algorithm>
 #include <stdexcept>
 
@@ -41,6 +39,14 @@ void CurrentSystem::multiply(const Vector& x, Vector& y, Executor& executor) con
       break;
     }
   }
+  const CurrentRows rows = this->rows();
+  constexpr int rows_per_thread = 256;  // as BlockSystem::multiply
+  executor.parallel_for(stiffness_.nodes(), [&](int begin, int end) {
+    current_rows_product(rows, x.data(), free_x, y.data(), begin, end);
+  }, rows_per_thread);
+}
+
+CurrentRows CurrentSystem::rows() const {
   CurrentRows rows;
   rows.blocks = stiffness_.block_count();
   rows.row_start = stiffness_.row_start().data();
@@ -51,10 +57,11 @@ void CurrentSystem::multiply(const Vector& x, Vector& y, Executor& executor) con
   rows.springs = spring_blocks_.empty() ? nullptr : spring_blocks_.front().data();
   rows.mass_coefficient = mass_coefficient_;
   rows.stiffness_coefficient = stiffness_coefficient_;
-  constexpr int rows_per_thread = 256;  // as BlockSystem::multiply
-  executor.parallel_for(stiffness_.nodes(), [&](int begin, int end) {
-    current_rows_product(rows, x.data(), free_x, y.data(), begin, end);
-  }, rows_per_thread);
+  return rows;
+}
+
+void CurrentSystem::multiply_rows(const double* x, double* y, int begin, int end) const {
+  current_rows_product(rows(), x, x, y, begin, end);
 }
 
 Vector CurrentSystem::diagonal() const {

@@ -15,6 +15,7 @@
 
 #include "physics/core/executor.hpp"
 #include "physics/core/model.hpp"
+#include "physics/solve/current_product.hpp"
 
 #include <cstdint>
 #include <span>
@@ -30,11 +31,18 @@ class CurrentSystem {
 
   // y = A x (3n), its rows on `executor`'s threads.
   void multiply(const Vector& x, Vector& y, Executor& executor) const;
+  // y's rows [begin, end) (nodes) of A x, x zero on the fixed nodes: the kernel of multiply()
+  // on one range, for a caller that fuses its own work with the rows' product
+  // (current_vcycle.hpp).
+  void multiply_rows(const double* x, double* y, int begin, int end) const;
   // The scalar diagonal of A (1 on fixed nodes).
   Vector diagonal() const;
+  int nodes() const { return stiffness_.nodes(); }
+  bool is_fixed(int node) const { return !fixed_.empty() && fixed_[static_cast<size_t>(node)] != 0; }
 
  private:
-  bool is_fixed(int node) const { return !fixed_.empty() && fixed_[static_cast<size_t>(node)] != 0; }
+  CurrentRows rows() const;
+
 
   const BlockMatrix& stiffness_;
   const Vector& masses_;

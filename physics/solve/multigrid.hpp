@@ -14,8 +14,9 @@
 // system B = A0 in the rest frame, unwarped, its products those of the assembled A0
 // (block_system.hpp), and warps the whole cycle: M^-1 = R V0 R^T. Every product is then the
 // cheap block one, and the operator fixed between factor builds. It runs it as RestVcycle
-// (rest_vcycle.hpp), the same operations with the passes fused; `multigrid_current` and the
-// tests run this class.
+// (rest_vcycle.hpp), the same operations with the passes fused; `multigrid_current` runs it on
+// the current system as CurrentVcycle (current_vcycle.hpp), fused likewise, with these bits.
+// The tests run this class as the reference.
 //
 // Unlike the additive two-level (Jacobi + C), the correction acts on the residual the
 // smoother leaves, so the smoother and the coarse grid do not fight over the smooth modes.

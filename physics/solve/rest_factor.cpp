@@ -47,6 +47,7 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
   }
   if (coarse) {
     prolongation_ = coarse->prolongation;
+    transfer_ = CoarseTransfer(prolongation_);
     SparseMatrix galerkin = SparseMatrix(prolongation_.transpose()) * (matrix * prolongation_);
     matrix = std::move(galerkin);
   }
@@ -70,14 +71,19 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
 RestFactor::~RestFactor() = default;
 
 void RestFactor::solve(Eigen::VectorXd& x) const {
-  const Eigen::VectorXd right = coarse() ? Eigen::VectorXd(prolongation_.transpose() * x) : x;
-  const std::lock_guard<std::mutex> lock(solving_);
-  Eigen::VectorXd solution = backend_ == FactorBackend::cholmod ? Eigen::VectorXd(solver_->cholmod.solve(right))
-                                                                 : Eigen::VectorXd(solver_->simplicial.solve(right));
+  Eigen::VectorXd solution = coarse() ? Eigen::VectorXd(prolongation_.transpose() * x) : x;
+  solve_factored(solution);
   if (coarse())
     x = prolongation_ * solution;
   else
     x.swap(solution);
+}
+
+void RestFactor::solve_factored(Eigen::VectorXd& u) const {
+  if (u.size() != factored_size()) throw std::invalid_argument("RestFactor::solve_factored: the vector's size is not the factor's");
+  const std::lock_guard<std::mutex> lock(solving_);
+  u = backend_ == FactorBackend::cholmod ? Eigen::VectorXd(solver_->cholmod.solve(u))
+                                         : Eigen::VectorXd(solver_->simplicial.solve(u));
 }
 
 }  // namespace incise::physics

@@ -12,6 +12,7 @@
 #include "physics/solve/block_matrix.hpp"
 #include "physics/solve/block_system.hpp"
 #include "physics/solve/coarse_space.hpp"
+#include "physics/solve/coarse_transfer.hpp"
 
 #include <cstdint>
 #include <memory>
@@ -54,7 +55,12 @@ class RestFactor {
   // x <- A0^-1 x, or P (P^T A0 P)^-1 P^T x with a coarse space (3n). A copied World shares its
   // factors with the original, so calls are serialised (the solvers keep workspace).
   void solve(Eigen::VectorXd& x) const;
+  // u <- (the factored matrix)^-1 u (factored_size()): with a coarse space, the coarse solve
+  // alone, between transfers the caller does itself (transfer()).
+  void solve_factored(Eigen::VectorXd& u) const;
   bool coarse() const { return prolongation_.size() > 0; }
+  // P as row-wise gathers (empty without a coarse space).
+  const CoarseTransfer& transfer() const { return transfer_; }
   int factored_size() const { return coarse() ? static_cast<int>(prolongation_.cols()) : size_; }
 
   int size() const { return size_; }
@@ -78,6 +84,7 @@ class RestFactor {
   std::unique_ptr<Solver> solver_;
   mutable std::mutex solving_;
   Eigen::SparseMatrix<double> prolongation_;  // empty: the whole system is factored
+  CoarseTransfer transfer_;
   BlockSystem rest_system_;
   Eigen::VectorXd rest_inverse_diagonal_;
   std::vector<std::uint8_t> rest_fixed_;

@@ -8,8 +8,10 @@ target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/block_product.cpp
   ${CMAKE_CURRENT_LIST_DIR}/block_system.cpp
   ${CMAKE_CURRENT_LIST_DIR}/coarse_space.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/coarse_transfer.cpp
   ${CMAKE_CURRENT_LIST_DIR}/current_product.cpp
   ${CMAKE_CURRENT_LIST_DIR}/current_system.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/current_vcycle.cpp
   ${CMAKE_CURRENT_LIST_DIR}/element_assembly.cpp
   ${CMAKE_CURRENT_LIST_DIR}/element_groups.cpp
   ${CMAKE_CURRENT_LIST_DIR}/multigrid.cpp

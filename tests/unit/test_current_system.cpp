@@ -6,7 +6,9 @@
 #include "physics/core/implicit_euler.hpp"
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/solve/block_product.hpp"
+#include "physics/solve/coarse_transfer.hpp"
 #include "physics/solve/current_system.hpp"
+#include "physics/solve/current_vcycle.hpp"
 #include "physics/solve/element_assembly.hpp"
 #include "physics/solve/multigrid.hpp"
 
@@ -14,12 +16,14 @@
 
 #include <Eigen/Geometry>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <limits>
 #include <memory>
 #include <random>
+#include <thread>
 
 namespace incise::physics {
 namespace {
@@ -48,6 +52,27 @@ class ShufflingExecutor final : public Executor {
     own();
   }
 };
+
+// Two threads: a parallel_for's second half on a thread of its own, the first on the caller's.
+class TwoThreadExecutor final : public Executor {
+ public:
+  int thread_count() const override { return 2; }
+  void parallel_for(int count, const std::function<void(int, int)>& task, int) override {
+    const int half = count / 2;
+    std::thread other([&] { task(half, count); });
+    task(0, half);
+    other.join();
+  }
+  void run_beside(const std::function<void()>& own, const std::function<void()>& side) override {
+    std::thread other(side);
+    own();
+    other.join();
+  }
+};
+
+bool same_bits(const Vector& a, const Vector& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
+}
 
 // An EFG ball, its bottom fixed, bent about y (the rotation varies across it, up to 0.6 rad),
 // stretched and turned as a whole: every element has its own rotation.
@@ -307,6 +332,76 @@ TEST(CurrentSystem, TheCurrentVcycleIsSymmetricPositiveAndConverges) {
     vcycle(y, my);
     EXPECT_LE(std::abs(x.dot(my) - y.dot(mx)), 1e-10 * x.norm() * my.norm()) << "seed " << seed;
     EXPECT_GT(x.dot(mx), 0.0) << "seed " << seed;
+  }
+}
+
+// The coarse transfers as row-wise gathers have the bits of Eigen's sparse products on P.
+TEST(CurrentSystem, TheCoarseTransfersHaveTheBitsOfTheSparseProducts) {
+  BentBall ball;
+  const CorotationalEfg& model = *ball.model;
+  const CoarseSpace space = make_coarse_space(model.rest_positions(), 2 * model.node_spacing(), ball.fixed);
+  const CoarseTransfer transfer(space.prolongation);
+  ASSERT_EQ(transfer.nodes(), model.node_count());
+  ASSERT_EQ(transfer.coarse_nodes(), space.coarse_nodes);
+  const Vector t = random_vector(space.prolongation.rows(), 3), u = random_vector(space.prolongation.cols(), 4);
+  const Vector restricted = space.prolongation.transpose() * t, prolonged = space.prolongation * u;
+  Vector gathered(u.size()), spread(t.size());
+  transfer.restrict_nodes(t.data(), gathered.data(), 0, transfer.coarse_nodes());
+  for (int node = 0; node < transfer.nodes(); ++node) spread.segment<3>(3 * node) = transfer.prolong_node(u.data(), node);
+  EXPECT_TRUE(same_bits(gathered, restricted));
+  EXPECT_TRUE(same_bits(spread, prolonged));
+  // Not blocks w I: refused.
+  Eigen::SparseMatrix<double> skewed = space.prolongation;
+  skewed.makeCompressed();
+  skewed.valuePtr()[skewed.outerIndexPtr()[1]] *= 2;  // column 1's first weight: no longer column 0's
+  EXPECT_THROW(CoarseTransfer{skewed}, std::invalid_argument);
+}
+
+// The fused cycle the implicit step runs (CurrentVcycle) has the bits of VcyclePreconditioner
+// on the same system, factor and rotations, on one thread, two, and ranges handed out in any
+// order; with smoothers of degree 1 to 4, a spring, and no warp.
+TEST(CurrentSystem, TheFusedCurrentVcycleHasTheBitsOfTheVcycleOnAnyThreads) {
+  BentBall ball;
+  CorotationalEfg& model = *ball.model;
+  const double mass_coefficient = 1.0, stiffness_coefficient = 1e-4;
+  const CoarseSpace space = make_coarse_space(model.rest_positions(), 2 * model.node_spacing(), ball.fixed);
+  model.update_rotations(model.rest_positions());
+  const RestFactor factor(model.rest_stiffness_job()(), model.lumped_masses(), ball.fixed, mass_coefficient,
+                          stiffness_coefficient, default_factor_backend(), &space, 4);
+  model.update_rotations(ball.x);
+  const NodalSpring spring{7, Vec3::Zero(), Mat3::Identity() * 50.0 + Mat3::Constant(3.0)};
+  const CurrentSystem system(*model.current_stiffness(), model.lumped_masses(), ball.fixed,
+                             std::span<const NodalSpring>(&spring, 1), mass_coefficient, stiffness_coefficient);
+  const LinearOperator apply = [&](const Vector& p, Vector& out) { system.multiply(p, out, serial_executor()); };
+  std::vector<Eigen::Quaterniond> rotations;
+  model.node_rotations(rotations);
+  const std::vector<Eigen::Quaterniond> none;
+  TwoThreadExecutor two;
+  ShufflingExecutor shuffling;
+  for (int degree = 1; degree <= 4; ++degree) {
+    ChebyshevSmoother smoother;
+    smoother.degree = degree;
+    smoother.upper = 1.2 * factor.smoothing_eigenvalue();
+    for (const std::vector<Eigen::Quaterniond>* warp : std::array<const std::vector<Eigen::Quaterniond>*, 2>{&rotations, &none}) {
+      VcyclePreconditioner reference(apply, jacobi_inverse(system.diagonal()), factor, *warp, ball.fixed, smoother);
+      CurrentVcycle one_thread(system, factor, *warp, smoother, serial_executor());
+      CurrentVcycle two_threads(system, factor, *warp, smoother, two);
+      CurrentVcycle shuffled(system, factor, *warp, smoother, shuffling);
+      for (unsigned seed = 1; seed <= 2; ++seed) {
+        const Vector r = random_vector(ball.x.size(), seed);  // nonzero on the fixed nodes too
+        Vector expected, z1, z2, z3;
+        reference(r, expected);
+        one_thread(r, z1);
+        two_threads(r, z2);
+        shuffled(r, z3);
+        const std::string where = "degree " + std::to_string(degree) + (warp->empty() ? " unwarped" : " warped") +
+                                  " seed " + std::to_string(seed);
+        ASSERT_TRUE(expected.allFinite()) << where;
+        EXPECT_TRUE(same_bits(z1, expected)) << where;
+        EXPECT_TRUE(same_bits(z2, expected)) << where;
+        EXPECT_TRUE(same_bits(z3, expected)) << where;
+      }
+    }
   }
 }
 

@@ -1,0 +1,61 @@
+// The implicit step's `multigrid_current` preconditioner: multigrid.hpp's V-cycle on the
+// assembled current system A (current_system.hpp), its Chebyshev smoother on D^-1 A and its
+// coarse correction C = R P (P^T A0 P)^-1 P^T R^T (warped_solve), with the cycle's vector work
+// fused into its products' passes, each one executor region over rows of nodes:
+//   - each product with the residual's update, the next Chebyshev step (into a second
+//     buffer: the product still reads the current one) and x += step,
+//   - the pre-smoothing's last product with the warp R^T of the residual,
+//   - the restriction P^T as a gather over the coarse nodes (coarse_transfer.hpp),
+//   - the prolongation P with the warp R and x += correction, a gather over the nodes,
+//   - the correction's product with the post-smoothing's first step.
+// Only CHOLMOD's coarse solve runs serially. Every entry is computed by one thread in the
+// order VcyclePreconditioner computes it, so the result has its bits whatever the threads
+// (test_current_system).
+//
+// The fixed nodes' rows of A are the identity's and r is zeroed on them, so their residual,
+// steps and correction stay +0 without VcyclePreconditioner's zeroing of every product (the
+// correction, which R may turn to -0, is written as +0).
+#pragma once
+
+#include "physics/core/executor.hpp"
+#include "physics/core/model.hpp"
+#include "physics/solve/current_system.hpp"
+#include "physics/solve/multigrid.hpp"
+#include "physics/solve/rest_factor.hpp"
+
+#include <Eigen/Geometry>
+
+#include <vector>
+
+namespace incise::physics {
+
+class CurrentVcycle {
+ public:
+  // `system`: A; `factor`: a coarse V-cycle's (coarse(), smoothing_degree() > 0) of the same
+  // nodes; `rotations`: its warp, one per node (empty: none); the passes run on `executor`'s
+  // threads. All referenced arguments must outlive the cycle.
+  CurrentVcycle(const CurrentSystem& system, const RestFactor& factor, const std::vector<Eigen::Quaterniond>& rotations,
+                ChebyshevSmoother smoother, Executor& executor);
+
+  // z = M^-1 r. Not re-entrant (workspace).
+  void operator()(const Vector& r, Vector& z);
+
+ private:
+  // Over ranges of nodes: the product of `from`, residual -= it, then finish(begin, end) (entries).
+  template <class Finish>
+  void product_pass(const Vector& from, const Finish& finish);
+  // x += the Chebyshev steps 1 .. degree - 1 (step 0 in step_), from residual_.
+  void smooth_steps(Vector& x);
+  void coarse_correction(Vector& x);
+
+  const CurrentSystem& system_;
+  const RestFactor& factor_;
+  const std::vector<Eigen::Quaterniond>& rotations_;
+  ChebyshevSmoother smoother_;
+  Executor& executor_;
+  ChebyshevSteps steps_;
+  Vector inverse_diagonal_;
+  Vector residual_, step_, next_step_, product_, turned_, coarse_;
+};
+
+}  // namespace incise::physics
