@@ -3,8 +3,8 @@
 # bend,b1,traction --emit-manifest` in 3 parts (one unit each: the hexagon, the square, traction),
 # run as two shards of the batch, merged, against the unsharded report of the same cases run here
 # first. (The cut cases are left out for time: their body's references take most of the quick
-# report, minutes here; the whole quick report joins the same way, docs/batch.md.) Every column of the joined accuracy.csv but ms_per_step (a wall time, which no
-# two runs share) is byte for byte the unsharded one's, and references.json is identical: each
+# report, minutes here; the whole quick report joins the same way, docs/batch.md.) Every column of the joined accuracy.csv but the wall times (ms_per_step,
+# preconditioner_build_ms, ms_per_step_jacobi, speedup_vs_jacobi: no two runs share them) is byte for byte the unsharded one's, and references.json is identical: each
 # part solves the references of its own bodies, as the whole run does. A merge before every part
 # is done joins nothing and says so.
 # Usage: batch_bench_accuracy_parts.sh INCISE WORKDIR
@@ -14,10 +14,12 @@ cases=bend,b1,traction
 fail() { echo "FAIL: $*"; exit 1; }
 rm -rf "$work"
 mkdir -p "$work"
-# The CSV without its ms_per_step column (found by name in the header).
+# The CSV without its wall-time columns (found by name in the header).
 untimed() {
-  awk -F, -v OFS=, 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == "ms_per_step") drop = i }
-                    { line = ""; for (i = 1; i <= NF; ++i) if (i != drop) line = line (line == "" ? "" : ",") $i; print line }' "$1"
+  awk -F, -v OFS=, 'NR == 1 { for (i = 1; i <= NF; ++i)
+                                if ($i == "ms_per_step" || $i == "preconditioner_build_ms" || $i == "ms_per_step_jacobi" ||
+                                    $i == "speedup_vs_jacobi") drop[i] = 1 }
+                    { line = ""; for (i = 1; i <= NF; ++i) if (!(i in drop)) line = line (line == "" ? "" : ",") $i; print line }' "$1"
 }
 start=$(date +%s)
 "$incise" bench accuracy --quick --cases "$cases" --out "$work/whole" 2> "$work/whole.log" || { tail "$work/whole.log"; fail "the unsharded report"; }
@@ -49,5 +51,5 @@ done
 total=$(($(wc -l < "$work/whole/accuracy.csv") - 1))
 [ "$rows" -eq "$total" ] || fail "the parts made $rows rows, the unsharded report $total"
 [ "$(grep -c ',ok,' "$work/out/summary.csv")" -eq 3 ] || fail "summary.csv: $(cat "$work/out/summary.csv")"
-echo "ok: 3 parts ($rows rows) in 2 shards joined into the unsharded report (every column but ms_per_step);" \
+echo "ok: 3 parts ($rows rows) in 2 shards joined into the unsharded report (every column but the wall times);" \
      "unsharded ${whole_s} s, shard 0/2 ${shard0_s} s, shard 1/2 ${shard1_s} s"
