@@ -32,8 +32,13 @@ bool sweep_near_body(const BladeSweep& sweep, const Vector& particles, double ma
 std::optional<RestSweep> detect_cuts(const CutModel& cut_model, CutData& cut, const BodyData& body,
                                      const BladeSweep& sweep, CutStepReport& report) {
   const auto& active = sweep.active;
-  if (std::find(active.begin(), active.end(), 1) == active.end()) return std::nullopt;
-  if (!sweep_near_body(sweep, body.state.positions, 2 * cut_model.spacing)) return std::nullopt;
+  if (std::find(active.begin(), active.end(), 1) == active.end() ||
+      !sweep_near_body(sweep, body.state.positions, 2 * cut_model.spacing)) {
+    // The stroke, if any, ends here: the next one has no line to start from.
+    cut.rest_edge.clear();
+    cut.rest_edge_far.clear();
+    return std::nullopt;
+  }
   report.tested = true;
   const Stopwatch watch;
   // The sweep in the rest configuration (seed 004 §2.3: topology edits are done at rest).
