@@ -171,6 +171,9 @@ void add_haptics_command(CLI::App& parent, HapticsBenchCommand& haptics) {
                       "Record the cutting run's ticks and CG stops to this trajectory file (incise replay repeats it)");
   command->add_flag("--normal-priority", haptics.normal_priority,
                     "Run the loops at normal priority (as where SCHED_FIFO is refused)");
+  command->add_option("--cpu", options.cpu,
+                      "Pin the loop and the bare loops to this CPU (default: the last one the process may run on)");
+  command->add_flag("--no-pin", haptics.no_pin, "Leave the loops unpinned (the scheduler places them)");
   haptics.command = command;
 }
 

@@ -95,12 +95,14 @@ struct HapticsBenchCommand {
   bench::HapticsBenchOptions defaults;
   std::string scene;
   bool normal_priority = false;
+  bool no_pin = false;
   CLI::App* command = nullptr;
 
   bench::HapticsBenchOptions options() const {
     bench::HapticsBenchOptions o = defaults;
     o.scene = scene;
     o.realtime_priority = !normal_priority;
+    o.pin = !no_pin;
     return o;
   }
 };

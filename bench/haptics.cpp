@@ -1,19 +1,20 @@
 #include "bench/haptics.hpp"
 #include "bench/repo_files.hpp"
+#include "bench/scripted_stroke.hpp"
 
 #include "common/percentile.hpp"
 #include "engine/haptic_session.hpp"
 #include "engine/scene.hpp"
 #include "haptics/clock.hpp"
-#include "haptics/virtual_device.hpp"
+#include "haptics/path_device.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <fstream>
+#include <sched.h>
 #include <thread>
 
 namespace incise::bench {
@@ -22,46 +23,33 @@ namespace {
 
 using Json = nlohmann::json;
 
-// The scripted hand: strokes of 2 s, each a centimetre aside of the last (five lanes, then
-// again): from 1 cm above the block's top (z = 0.03) at x = -0.03, press 10 mm in over 0.3 s,
-// draw to x = +0.03 over 1.2 s (5 cm/s), lift over 0.3 s, move back over 0.2 s.
-haptics::DevicePose scripted_stroke(double t, bool engage) {
-  const double period = 2.0;
-  const int lane = static_cast<int>(std::floor(t / period)) % 5;
-  const double s = std::fmod(t, period);
-  const double top = 0.03, above = top + 0.01, depth = top - 0.01;
-  const double y = -0.02 + 0.01 * lane;
-  haptics::DevicePose pose;
-  double x = -0.03, z = above;
-  bool down = false;
-  if (s < 0.3) {
-    z = above + (depth - above) * s / 0.3;
-    down = true;
-  } else if (s < 1.5) {
-    x = -0.03 + 0.06 * (s - 0.3) / 1.2;
-    z = depth;
-    down = true;
-  } else if (s < 1.8) {
-    x = 0.03;
-    z = depth + (above - depth) * (s - 1.5) / 0.3;
-  } else {
-    x = 0.03 - 0.06 * (s - 1.8) / 0.2;
-  }
-  pose.position = {x, y, z};
-  pose.buttons = engage && down ? haptics::kButtonEngage : 0;
-  return pose;
-}
-
 Json period_json(const haptics::PeriodStatistics& p) {
   return {{"p50", p.p50_us}, {"p99", p.p99_us}, {"p999", p.p999_us}, {"max", p.max_us}, {"mean", p.mean_us}};
+}
+
+// The CPU the loop and the bare loops run on: --cpu, or the last one this process may run on;
+// -1: not pinned.
+int loop_cpu(const HapticsBenchOptions& options) {
+  if (!options.pin) return -1;
+  if (options.cpu >= 0) return options.cpu;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) != 0) return -1;
+  for (int c = CPU_SETSIZE - 1; c >= 0; --c)
+    if (CPU_ISSET(c, &set)) return c;
+  return -1;
 }
 
 haptics::HapticLoopConfig bare_config(const HapticsBenchOptions& options) {
   haptics::HapticLoopConfig bare;
   bare.spin_ns = static_cast<std::int64_t>(options.spin_us * 1000);
   bare.realtime_priority = options.realtime_priority;
+  bare.cpu = loop_cpu(options);
   return bare;
 }
+
+Json cpu_json(int cpu) { return cpu >= 0 ? Json(cpu) : Json(nullptr); }
+std::string cpu_name(int cpu) { return cpu >= 0 ? std::to_string(cpu) : std::string("free"); }
 
 // The long periods, each with its split (late wake-up or long tick), at seconds since t0.
 Json long_periods_json(const std::vector<haptics::LongPeriod>& periods, std::int64_t t0) {
@@ -154,25 +142,20 @@ struct RunResult {
 };
 
 RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& options, bool engage) {
-  haptics::VirtualDevice device;
+  // The hand: the device computes the scripted pose from the clock when the loop reads it, as
+  // a real device reports where it is when read (haptics/path_device.hpp).
+  haptics::PathDevice device([engage](double t) { return scripted_stroke(t, engage); });
   engine::SessionOptions session_options;
   session_options.clock = engine::SessionOptions::Clock::realtime;
   session_options.keep_ticks = true;
   session_options.budget = scene.solver.realtime;
   session_options.loop.spin_ns = static_cast<std::int64_t>(options.spin_us * 1000);
   session_options.loop.realtime_priority = options.realtime_priority;
+  session_options.loop.cpu = loop_cpu(options);
   if (engage && !options.record.empty()) session_options.record = options.record;
-  device.set_pose(scripted_stroke(0, engage));
   engine::HapticSession session(scene, device, session_options);
   const std::int64_t t0 = session.t0_ns();
-  std::atomic<bool> done{false};
-  // The hand: sets the device's pose from the wall clock, as the window's mouse would.
-  std::thread hand([&] {
-    while (!done.load(std::memory_order_acquire)) {
-      device.set_pose(scripted_stroke(1e-9 * static_cast<double>(haptics::monotonic_now_ns() - t0), engage));
-      std::this_thread::sleep_for(std::chrono::microseconds(500));
-    }
-  });
+  device.start_at(t0);
   std::vector<double> step_ms;
   std::string error;
   std::atomic<bool> stop_physics{false};
@@ -183,10 +166,13 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
       error = e.what();
     }
   });
-  // A bare loop beside the real one, on its own thread for the same time: a stall of the host
-  // shows in both, so the loop's long periods it does not share are the loop's own.
+  // A bare loop beside the real one, on its own thread for the same time and pinned to the same
+  // CPU: a stall of that CPU or of the host shows in both, so the loop's long periods it does
+  // not share are the loop's own. (Unpinned, the two may run on different vCPUs, and a stall of
+  // the loop's alone would be counted as the loop's.)
   haptics::PeriodHistogram beside;
-  haptics::measure_bare_loop(bare_config(options), static_cast<std::int64_t>(options.seconds * 1e9), beside);
+  const int beside_cpu =
+      haptics::measure_bare_loop(bare_config(options), static_cast<std::int64_t>(options.seconds * 1e9), beside);
   const std::int64_t end = haptics::monotonic_now_ns();
   stop_physics.store(true, std::memory_order_release);
   physics.join();
@@ -197,8 +183,6 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
   const haptics::PassivityFigures energy = session.loop().passivity();
   session.stop();
   const haptics::LoopThreadUsage usage = session.loop().thread_usage();
-  done.store(true, std::memory_order_release);
-  hand.join();
   if (!error.empty()) {
     // The step that threw is the one after those taken.
     const std::uint64_t failed = session.world().steps_taken() + 1;
@@ -254,6 +238,7 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
       {"ring_overflows", session.loop().ring_overflows()},
       {"nonfinite_forces", session.loop().nonfinite_forces()},
       {"realtime_priority", session.loop().realtime()},
+      {"cpu", {{"loop", cpu_json(session.loop().cpu())}, {"bare_loop_beside", cpu_json(beside_cpu)}}},
       {"cut_events", session.world().cut_totals().events},
       {"physics",
        {{"steps", step_ms.size()},
@@ -272,7 +257,7 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
   std::snprintf(line, sizeof line,
                 "%-16s %7.1f Hz  period p50 %6.1f p99 %6.1f p99.9 %6.1f max %7.1f us  >2ms %3llu (%zu not in the bare "
                 "loop beside, longest tick in them %.1f us; the loop thread took %ld page faults, was preempted %ld times)\n"
-                "  bare beside    %7.1f Hz  period p50 %6.1f p99 %6.1f p99.9 %6.1f max %7.1f us  >2ms %3llu\n"
+                "  bare beside    %7.1f Hz  period p50 %6.1f p99 %6.1f p99.9 %6.1f max %7.1f us  >2ms %3llu  (CPU: loop %s, bare %s)\n"
                 "  energy to the device %.3e J (tissue alone %.3e J, damper took %.3e J over %llu ticks)\n"
                 "  jump N/ms: cut %.4f, publication %.4f, between %.4f  |F|max %.2f N  cuts %ld  physics x%.3f, "
                 "lag %.1f steps, %llu steps over budget",
@@ -280,7 +265,8 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
                 periods.max_us, static_cast<unsigned long long>(periods.over_2ms), own_long, longest_tick_us(long_periods),
                 usage.minor_faults + usage.major_faults, usage.involuntary_switches,
                 bare.mean_us > 0 ? 1e6 / bare.mean_us : 0, bare.p50_us, bare.p99_us, bare.p999_us, bare.max_us,
-                static_cast<unsigned long long>(bare.over_2ms), energy.device_energy_J,
+                static_cast<unsigned long long>(bare.over_2ms), cpu_name(session.loop().cpu()).c_str(),
+                cpu_name(beside_cpu).c_str(), energy.device_energy_J,
                 energy.device_energy_J + energy.dissipated_J, energy.dissipated_J,
                 static_cast<unsigned long long>(energy.ticks_acted), jumps.at_cut_max, jumps.at_publication_max,
                 jumps.between_max, max_force, session.world().cut_totals().events, wall > 0 ? sim / wall : 0,
@@ -319,8 +305,10 @@ int run_haptics_bench(const HapticsBenchOptions& options, std::ostream& progress
     progress << cutting.line << "\n";
     RunResult pressing = run_session(scene, options, false);
     progress << pressing.line << "\n";
-    const haptics::PeriodStatistics base =
-        haptics::measure_bare_loop(bare_config(options), static_cast<std::int64_t>(options.seconds * 1e9));
+    haptics::PeriodHistogram alone;
+    const int base_cpu =
+        haptics::measure_bare_loop(bare_config(options), static_cast<std::int64_t>(options.seconds * 1e9), alone);
+    const haptics::PeriodStatistics base = alone.summary();
     char line[256];
     std::snprintf(line, sizeof line, "%-16s %7.1f Hz  period p50 %6.1f p99 %6.1f p99.9 %6.1f max %7.1f us  >2ms %3llu",
                   "bare loop alone", base.mean_us > 0 ? 1e6 / base.mean_us : 0, base.p50_us, base.p99_us, base.p999_us,
@@ -337,7 +325,8 @@ int run_haptics_bench(const HapticsBenchOptions& options, std::ostream& progress
                           {"period_us", period_json(base)},
                           {"missed_2ms", base.over_2ms},
                           {"missed_deadlines", base.missed_deadlines},
-                          {"periods", base.periods}};
+                          {"periods", base.periods},
+                          {"cpu", cpu_json(base_cpu)}};
     const auto file = options.out_dir / "haptics.json";
     std::ofstream out(file);
     out << report.dump(2) << "\n";

@@ -13,6 +13,12 @@ struct HapticsBenchOptions {
   std::filesystem::path out_dir = "out/bench/haptics";
   double spin_us = 300;         // sleep to this long before each deadline, then spin
   bool realtime_priority = true;
+  // Pin the loop's thread and the bare loop beside it (and the bare loop alone) to one CPU, so
+  // that a stall of that CPU shows in both and long_periods_not_in counts the loop's own:
+  // `cpu`, or with -1 the last CPU the process may run on. Physics is left free. Where the
+  // process may not set affinity the loops run unpinned and haptics.json's `cpu` says null.
+  bool pin = true;
+  int cpu = -1;
   // The cutting run's ticks (poses, buttons, forces) and CG stops to this trajectory file, so
   // a run that fails can be replayed headless, bit for bit (`incise replay SCENE --trajectory
   // FILE`): real time makes each run's states differ. Empty: not recorded.

@@ -174,6 +174,16 @@ bool try_realtime(const HapticLoopConfig& config) {
   return pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
 }
 
+// Pins the calling thread to config.cpu; the CPU, or -1 when not asked or refused (a CPU
+// outside the process's set, or a container that forbids it).
+int try_pin(const HapticLoopConfig& config) {
+  if (config.cpu < 0 || config.cpu >= CPU_SETSIZE) return -1;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  CPU_SET(config.cpu, &set);
+  return pthread_setaffinity_np(pthread_self(), sizeof set, &set) == 0 ? config.cpu : -1;
+}
+
 // Next deadline after a tick: one period on, or, when the tick started more than a period
 // late (the host preempted us), the first deadline still ahead; the skipped ones are counted,
 // not made up in a burst.
@@ -214,6 +224,7 @@ void HapticLoop::stop() {
 }
 
 void HapticLoop::run() {
+  cpu_.store(try_pin(config_), std::memory_order_release);
   realtime_.store(try_realtime(config_), std::memory_order_release);
   rusage before{}, after{};
   const bool measured = getrusage(RUSAGE_THREAD, &before) == 0;
@@ -233,8 +244,10 @@ void HapticLoop::run() {
                   after.ru_nivcsw - before.ru_nivcsw, after.ru_nvcsw - before.ru_nvcsw, true});
 }
 
-void measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns, PeriodHistogram& histogram) {
+int measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns, PeriodHistogram& histogram) {
+  int cpu = -1;
   std::thread bare([&] {
+    cpu = try_pin(config);
     try_realtime(config);
     const std::int64_t period = static_cast<std::int64_t>(std::llround(1e9 / config.rate_hz));
     const std::int64_t end = monotonic_now_ns() + duration_ns;
@@ -251,6 +264,7 @@ void measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns,
     }
   });
   bare.join();
+  return cpu;
 }
 
 PeriodStatistics measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns) {

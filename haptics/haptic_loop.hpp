@@ -76,6 +76,10 @@ struct HapticLoopConfig {
   // otherwise the loop runs at normal priority and realtime() says so. Never an error.
   bool realtime_priority = true;
   int realtime_priority_level = 80;
+  // Pin the loop's thread to this CPU (pthread_setaffinity_np) when >= 0 and the process may;
+  // otherwise it runs where the scheduler puts it and cpu() says -1. Never an error. A bare
+  // loop pinned to the same CPU beside it sees a stall of that CPU as the loop does.
+  int cpu = -1;
   // Sleep until this long before each deadline, then spin on the clock up to it (0: sleep
   // only). A few hundred us spin away the sleep's late wake-ups, which otherwise stretch the
   // p99 period well past 1 ms (docs/physics-choices.md, "Haptics"), at the price of that share
@@ -147,6 +151,9 @@ class HapticLoop {
   void stop();   // joins it; the device gets a zero force
   bool running() const { return thread_.joinable(); }
   bool realtime() const { return realtime_.load(std::memory_order_acquire); }
+  // The CPU the thread was pinned to (HapticLoopConfig::cpu), or -1: not asked, refused, or
+  // not started yet.
+  int cpu() const { return cpu_.load(std::memory_order_acquire); }
 
   // One tick at time now_ns, on the caller's thread; only while the thread is not running
   // (std::logic_error otherwise). Headless replay and tests drive the loop this way.
@@ -198,6 +205,7 @@ class HapticLoop {
   PeriodHistogram periods_;
   std::atomic<std::uint64_t> ticks_{0}, overflows_{0}, nonfinite_{0};
   std::atomic<bool> stop_{false}, realtime_{false};
+  std::atomic<int> cpu_{-1};
   std::thread thread_;
 };
 
@@ -210,7 +218,8 @@ void wait_until(std::int64_t deadline_ns, std::int64_t spin_ns);
 // process; its periods say what this machine allows.
 PeriodStatistics measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns);
 // The same into `histogram` (its long periods too): run on another thread beside a live loop,
-// it tells which of the loop's long periods the host caused (long_periods_not_in).
-void measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns, PeriodHistogram& histogram);
+// it tells which of the loop's long periods the host caused (long_periods_not_in). Returns the
+// CPU it was pinned to (config.cpu), or -1.
+int measure_bare_loop(const HapticLoopConfig& config, std::int64_t duration_ns, PeriodHistogram& histogram);
 
 }  // namespace incise::haptics

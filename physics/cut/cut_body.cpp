@@ -15,6 +15,8 @@ CutData::CutData(const CutData& other, CorotationalEfg& model)
       blade_pieces(other.blade_pieces),
       stroke_folds(other.stroke_folds),
       engaged(other.engaged),
+      rest_edge(other.rest_edge),
+      rest_edge_far(other.rest_edge_far),
       previous_positions(other.previous_positions),
       orphans_pinned(other.orphans_pinned) {
   // The mapping's candidates were binned from the body's model: the copy's are its copy's.

@@ -77,6 +77,12 @@ struct CutData {
   std::vector<int> blade_pieces;  // the blade's resampling, per segment, fixed for the strokes
   int stroke_folds = 0;           // folded_edges of the stroke's last report
   bool engaged = false;           // the blade was engaged at the end of the last step tested
+  // The sweep's last line at rest as the last step tested mapped it, with each point's
+  // distance from the integration points (empty when that step's sweep did not end engaged):
+  // the next step's sheet starts from it (detect_cuts), so that the rest cut has no seam
+  // where the topology change between the steps moved the mapping.
+  std::vector<Vec3> rest_edge;
+  std::vector<double> rest_edge_far;
   // The particles before the last solve: the links move from there to the state's positions
   // over the step the blade is tested against (user input happens during the last motion,
   // seed 004 §2.7).

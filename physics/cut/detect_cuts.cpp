@@ -32,8 +32,13 @@ bool sweep_near_body(const BladeSweep& sweep, const Vector& particles, double ma
 std::optional<RestSweep> detect_cuts(const CutModel& cut_model, CutData& cut, const BodyData& body,
                                      const BladeSweep& sweep, CutStepReport& report) {
   const auto& active = sweep.active;
-  if (std::find(active.begin(), active.end(), 1) == active.end()) return std::nullopt;
-  if (!sweep_near_body(sweep, body.state.positions, 2 * cut_model.spacing)) return std::nullopt;
+  if (std::find(active.begin(), active.end(), 1) == active.end() ||
+      !sweep_near_body(sweep, body.state.positions, 2 * cut_model.spacing)) {
+    // The stroke, if any, ends here: the next one has no line to start from.
+    cut.rest_edge.clear();
+    cut.rest_edge_far.clear();
+    return std::nullopt;
+  }
   report.tested = true;
   const Stopwatch watch;
   // The sweep in the rest configuration (seed 004 §2.3: topology edits are done at rest).
@@ -126,6 +131,11 @@ std::optional<RestSweep> detect_cuts(const CutModel& cut_model, CutData& cut, co
           } else {
             moments.emplace_back(rest_a, true);
           }
+        } else if (cut.rest_edge.size() == rest_a.size()) {
+          // The same line mapped again after the last step's topology change has moved a
+          // little: the seam between the two is closed, or a link could pass between the
+          // last step's sheet and this one's (cut_torus with the onset: a hinge).
+          add_quads(cut.rest_edge, cut.rest_edge_far, rest_a, far_a);
         }
       }
       const double relative = moved(j) + body_motion * (f1 - f0);
@@ -144,6 +154,15 @@ std::optional<RestSweep> detect_cuts(const CutModel& cut_model, CutData& cut, co
         rest_a.swap(rest_b);
         far_a.swap(far_b);
       }
+    }
+    // Where the next step's sheet starts if the stroke goes on: the line the last interval
+    // ended with when it was active (stretch_ends mapped it).
+    if (open) {
+      cut.rest_edge = rest_a;
+      cut.rest_edge_far = far_a;
+    } else {
+      cut.rest_edge.clear();
+      cut.rest_edge_far.clear();
     }
   }
   report.ms_rest_cut += watch.ms();

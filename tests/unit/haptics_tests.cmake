@@ -11,7 +11,8 @@ add_executable(test_haptics
   ${CMAKE_CURRENT_LIST_DIR}/test_haptics_passivity.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_haptics_needle.cpp
 )
-target_link_libraries(test_haptics PRIVATE incise_haptics GTest::gtest_main)
+# incise_bench for the bench's scripted hand (bench/scripted_stroke.hpp), read through a PathDevice.
+target_link_libraries(test_haptics PRIVATE incise_haptics incise_bench GTest::gtest_main)
 # The bridge round-trip test runs the real incise-bridge program.
 add_dependencies(test_haptics incise-bridge)
 target_compile_definitions(test_haptics PRIVATE INCISE_BRIDGE_PATH="$<TARGET_FILE:incise-bridge>")

@@ -1,5 +1,6 @@
-// The replay and virtual devices: interpolation by time, validation with clear errors, and
-// the virtual device's lock-free setter read from another thread.
+// The replay, virtual and path devices: interpolation by time, validation with clear errors,
+// the virtual device's lock-free setter read from another thread, and the path device (the
+// bench's scripted hand) read at the loop's time.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -7,6 +8,9 @@
 #include <limits>
 #include <thread>
 
+#include "bench/scripted_stroke.hpp"
+#include "haptics/haptic_loop.hpp"
+#include "haptics/path_device.hpp"
 #include "haptics/replay_device.hpp"
 #include "haptics/virtual_device.hpp"
 
@@ -150,4 +154,59 @@ TEST(HapticsVirtual, ReadsWhileTheWindowWritesAreNeverTorn) {
   EXPECT_EQ(device.read_pose().position[0], kWrites);
   std::printf("virtual device: %llu reads saw %llu distinct poses of %u written, none torn\n",
               static_cast<unsigned long long>(reads), static_cast<unsigned long long>(changes), kWrites);
+}
+
+// The bench's hand is where the script says at the moment the loop reads it, whenever that is:
+// read directly and through a tick at the same time, the pose at t is scripted_stroke(t), on
+// each phase of the stroke (press, draw, lift, back) and lanes on; before its start, t = 0.
+TEST(HapticsPath, ThePoseReadAtTimeTIsTheScriptedStrokeAtT) {
+  ManualClock clock(5'000'000'000);
+  PathDevice device([](double t) { return incise::bench::scripted_stroke(t, true); }, clock.clock());
+  device.open();
+  const auto expect_pose = [](const DevicePose& read, const DevicePose& expected, const std::string& what) {
+    for (int i = 0; i < 3; ++i) EXPECT_EQ(read.position[i], expected.position[i]) << what << " [" << i << "]";
+    EXPECT_EQ(read.buttons, expected.buttons) << what;
+    EXPECT_EQ(read.orientation, expected.orientation) << what;
+  };
+  expect_pose(device.read_pose(), incise::bench::scripted_stroke(0, true), "before the start");
+
+  const std::int64_t t0 = clock.now_ns() + 1'234'567;
+  device.start_at(t0);
+  expect_pose(device.read_pose(), incise::bench::scripted_stroke(0, true), "a read before t0");
+  ContactChannel channel;
+  HapticLoop loop(device, channel);
+  for (const double t : {0.0, 0.1504, 0.3, 0.8123457, 1.4999, 1.6, 1.9, 2.0005, 5.25, 9.87654321}) {
+    const std::int64_t now = t0 + static_cast<std::int64_t>(std::llround(t * 1e9));
+    clock.set_ns(now);
+    const double at = 1e-9 * static_cast<double>(now - t0);
+    const DevicePose expected = incise::bench::scripted_stroke(at, true);
+    expect_pose(device.read_pose(), expected, "read at t = " + std::to_string(t));
+    expect_pose(loop.tick(now).pose, expected, "tick at t = " + std::to_string(t));
+  }
+  // The script moves: the draw's x at 0.9 s is half way across, engaged; lifted at 1.6 s.
+  clock.set_ns(t0 + 900'000'000);
+  EXPECT_NEAR(device.read_pose().position[0], 0.0, 1e-12);
+  EXPECT_EQ(device.read_pose().buttons, kButtonEngage);
+  clock.set_ns(t0 + 1'600'000'000);
+  EXPECT_EQ(device.read_pose().buttons, 0u);
+}
+
+TEST(HapticsPath, ClampsToTheWorkspaceAndWritesNoForceWhenClosed) {
+  DeviceLimits limits;
+  limits.workspace_max = {0.05, 0.05, 0.05};
+  ManualClock clock;
+  PathDevice device([](double t) { return at(t, -1.0, 0.01); }, clock.clock(), limits);
+  device.start_at(0);
+  clock.set_ns(80'000'000);
+  const DevicePose p = device.read_pose();
+  EXPECT_DOUBLE_EQ(p.position[0], 0.05);  // 0.08 clamped
+  EXPECT_DOUBLE_EQ(p.position[1], -0.1);
+  EXPECT_DOUBLE_EQ(p.position[2], 0.01);
+  EXPECT_EQ(device.state(), DeviceState::closed);
+  device.write_force({1, 2, 3});
+  EXPECT_EQ(device.last_force(), (Vector3{0, 0, 0}));
+  device.open();
+  device.write_force({1, 2, 3});
+  EXPECT_EQ(device.last_force(), (Vector3{1, 2, 3}));
+  EXPECT_EQ(error_of([] { PathDevice empty(PathDevice::Path{}); }), "path device: no path");
 }
