@@ -15,6 +15,11 @@ namespace incise::physics {
 
 using SparseMatrix = Eigen::SparseMatrix<double>;
 
+void use_single_threaded_blas() {
+  static std::once_flag once;
+  std::call_once(once, [] { openblas_set_num_threads(1); });
+}
+
 FactorBackend default_factor_backend() {
 #if defined(__SANITIZE_THREAD__)
   return FactorBackend::simplicial;
@@ -53,8 +58,7 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
   }
   if (backend == FactorBackend::cholmod) {
     // One BLAS thread: the factor is built beside the step, whose threads have the cores.
-    static std::once_flag single_threaded_blas;
-    std::call_once(single_threaded_blas, [] { openblas_set_num_threads(1); });
+    use_single_threaded_blas();
     solver_->cholmod.compute(matrix);
     if (solver_->cholmod.info() != Eigen::Success)
       throw std::runtime_error("RestFactor: CHOLMOD found the rest system not positive definite");

@@ -36,6 +36,12 @@ enum class FactorBackend {
 // CHOLMOD unless the build is ThreadSanitizer's.
 FactorBackend default_factor_backend();
 
+// Limits OpenBLAS to one thread for the rest of the process (the first call; later ones do
+// nothing). A CHOLMOD factor's build calls it; a program whose other CHOLMOD solves must give
+// the same bits before and after the first build calls it first (BLAS's sums depend on its
+// thread count).
+void use_single_threaded_blas();
+
 class RestFactor {
  public:
   // `smoothing_degree` > 0 (with a coarse space): the factor is the coarse level of a V-cycle
