@@ -17,13 +17,14 @@ namespace incise::physics {
 Eigen::Quaterniond extract_rotation(const Mat3& f, Eigen::Quaterniond q);
 
 // extract_rotation of f[i] from the warm start q[i] (replaced by the result), i < count <=
-// rotation_lanes, each bitwise as its own call gives it. A full set of lanes runs as one AVX2
-// vector per quantity where the CPU has AVX2 (the same IEEE operations in the same order as the
-// scalar code's Eigen expressions, and the same libm sincos per lane); otherwise, and for fewer
-// lanes, the scalar iterations of the lanes are interleaved, so the core overlaps their chains
-// of divisions and square roots, which one element's iterations, each waiting on the last, leave
-// idle.
-constexpr int rotation_lanes = 4;
+// rotation_lanes, each bitwise as its own call gives it. A full set of lanes runs as two AVX2
+// vectors of 4 lanes per quantity, iterated side by side, where the CPU has AVX2: the same IEEE
+// operations in the same order as the scalar code's Eigen expressions, the same libm sincos per
+// lane (skipped below 2^-27, where it returns (x, 1)). Otherwise, and for fewer lanes, the
+// scalar iterations of the lanes are interleaved. Either way the core overlaps the lanes'
+// chains of divisions, square roots and sincos calls, which one element's iterations, each
+// waiting on the last, leave idle.
+constexpr int rotation_lanes = 8;
 void extract_rotations(const Mat3* f, Eigen::Quaterniond* q, int count);
 
 // Whether full sets of lanes run the AVX2 kernel on this CPU.
