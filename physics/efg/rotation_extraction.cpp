@@ -74,8 +74,7 @@ __attribute__((target("avx2"))) inline __m256d div(__m256d a, __m256d b) { retur
 bool libm_tiny_sincos() {
   static const bool exact = [] {
     for (double x : {0x1p-27 * (1 - 0x1p-52), 0x1.8p-28, 1e-9, 3.7e-12, 1e-300, 0x1p-1074}) {
-      double sine = 0, cosine = 0;
-      sincos(x, &sine, &cosine);
+      const double sine = std::sin(x), cosine = std::cos(x);
       if (sine != x || cosine != 1.0) return false;
     }
     return true;
@@ -178,7 +177,11 @@ __attribute__((target("avx2"), always_inline)) inline void iterate(LaneSet& set)
   _mm256_store_pd(halves, halves_v);
   _mm256_store_pd(sines, halves_v);
   for (int i = 0; i < 4; ++i)
-    if ((stepping_lanes & ~tiny) & (1 << i)) sincos(halves[i], &sines[i], &cosines[i]);
+    if ((stepping_lanes & ~tiny) & (1 << i)) {
+      // As Eigen's AngleAxis conversion calls them (the compiler makes both one sincos there and here).
+      sines[i] = std::sin(halves[i]);
+      cosines[i] = std::cos(halves[i]);
+    }
   const __m256d s = _mm256_load_pd(sines);
   const Lanes a{mul(s, a0), mul(s, a1), mul(s, a2), _mm256_load_pd(cosines)};
   const Lanes& b = quat;
