@@ -321,8 +321,6 @@ class CorotationalEfg final : public DeformableModel {
   Mat3 gather(const Vector& x, int element, const std::vector<Vec3>& coefficients) const;
   // The coefficients of the rotation's fit (EfgSettings::rotation).
   const std::vector<Vec3>& rotation_coefficients() const;
-  Eigen::Quaterniond element_rotation(const Vector& x, int element,
-                                      const Eigen::Quaterniond& start) const;
   // Whether elastic_energy's force matrices hold the forces at x (update_rotations took its
   // rotations for x and nothing changed since), per element while energy_valid_.
   bool energy_forces_at(const Vector& x) const;

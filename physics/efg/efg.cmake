@@ -4,6 +4,7 @@ target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/mls.cpp
   ${CMAKE_CURRENT_LIST_DIR}/corotational_efg.cpp
   ${CMAKE_CURRENT_LIST_DIR}/efg_step.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/rotation_extraction.cpp
   ${CMAKE_CURRENT_LIST_DIR}/efg_embedding.cpp
   ${CMAKE_CURRENT_LIST_DIR}/efg_static.cpp
   ${CMAKE_CURRENT_LIST_DIR}/efg_rest_stiffness.cpp

@@ -3,9 +3,7 @@
 // and the elastic energy, whose rotations the next step's update_rotations reuses. The build
 // and the cut's edits are in corotational_efg.cpp.
 #include "physics/efg/corotational_efg.hpp"
-#include "physics/efg/llt3.hpp"
-
-#include "physics/fem/corotational_fem.hpp"
+#include "physics/efg/rotation_extraction.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -17,32 +15,6 @@ namespace {
 
 using Index = Eigen::Index;
 using Quaternion = Eigen::Quaterniond;
-
-// The rotation maximising tr(R^T F), which is the polar rotation of F when det F > 0, by the
-// axis-angle updates of Mueller, Bender, Chentanez and Macklin 2016 ("A robust method to
-// extract the rotational part of deformations"), warm-started with the previous rotation.
-// Their step omega = g / |tr N| (N = F R^T, g = sum_i r_i x f_i the axial vector of N - N^T)
-// converges linearly (by about a factor 3 per iteration at small strain); taking the Newton
-// step omega = (tr(N) I - sym N)^-1 g instead, whenever that matrix is positive definite,
-// converges quadratically, so a warm start needs one or two iterations. Falls back to the
-// SVD polar decomposition if it has not settled.
-Quaternion extract_rotation(const Mat3& f, Quaternion q) {
-  if (!f.allFinite()) return q;
-  for (int iteration = 0; iteration < 24; ++iteration) {
-    const Mat3 r = q.toRotationMatrix();
-    const Mat3 n = f * r.transpose();
-    const Vec3 g(n(2, 1) - n(1, 2), n(0, 2) - n(2, 0), n(1, 0) - n(0, 1));
-    const Mat3 hessian = n.trace() * Mat3::Identity() - 0.5 * (n + n.transpose());
-    Vec3 omega;
-    if (!llt3_solve(hessian, g, omega)) omega = g / (std::abs(n.trace()) + 1e-9);
-    const double angle = omega.norm();
-    if (!(angle > 0)) return q;
-    q = Quaternion(Eigen::AngleAxisd(angle, omega / angle)) * q;
-    q.normalize();
-    if (angle < 1e-8) return q;  // the remaining error is of order angle^2
-  }
-  return Quaternion(CorotationalTetFem::polar_rotation(f)).normalized();
-}
 
 // Linear strain and Hooke stress of a displacement gradient.
 struct StrainStress {
@@ -73,11 +45,6 @@ const std::vector<Vec3>& CorotationalEfg::rotation_coefficients() const {
   return shape_->settings.rotation == EfgRotation::shape_matching ? matching_coefficients_ : shape_gradients_;
 }
 
-Quaternion CorotationalEfg::element_rotation(const Vector& x, int element,
-                                             const Quaternion& start) const {
-  return extract_rotation(gather(x, element, rotation_coefficients()), start);
-}
-
 namespace {
 
 // grad u = sum_n (R^T x_n - X_n) (x) grad phi_n = R^T G - G0 with G = sum_n x_n (x) grad phi_n.
@@ -98,11 +65,34 @@ void CorotationalEfg::update_rotations(const Vector& x) {
   const bool cached = energy_positions_.size() == x.size() && x.size() > 0 &&
                       std::memcmp(energy_positions_.data(), x.data(), sizeof(double) * static_cast<size_t>(x.size())) == 0 &&
                       energy_valid_.size() == static_cast<size_t>(element_count());
+  // The others are extracted rotation_lanes at a time (rotation_extraction.hpp), each element
+  // as alone.
   executor_->parallel_for(element_count(), [&](int begin, int end) {
+    Mat3 fits[rotation_lanes];
+    int lanes[rotation_lanes];
+    int count = 0;
+    auto extract = [&] {
+      if (count == 0) return;
+      Quaternion found[rotation_lanes];
+      for (int i = 0; i < count; ++i) found[i] = orientations_[lanes[i]];
+      extract_rotations(fits, found, count);
+      for (int i = 0; i < count; ++i) {
+        orientations_[lanes[i]] = found[i];
+        rotations_[lanes[i]] = found[i].toRotationMatrix();
+      }
+      count = 0;
+    };
     for (int e = begin; e < end; ++e) {
-      orientations_[e] = cached && energy_valid_[e] ? energy_orientations_[e] : element_rotation(x, e, orientations_[e]);
-      rotations_[e] = orientations_[e].toRotationMatrix();
+      if (cached && energy_valid_[e]) {
+        orientations_[e] = energy_orientations_[e];
+        rotations_[e] = orientations_[e].toRotationMatrix();
+        continue;
+      }
+      fits[count] = gather(x, e, rotation_coefficients());
+      lanes[count] = e;
+      if (++count == rotation_lanes) extract();
     }
+    extract();
   }, std::max(1, shape_->settings.threaded_elements / 2));
   // The warm starts moved on: the kept rotations no longer repeat an extraction from them. The
   // energy's force matrices stay good for forces at these positions (add_elastic_forces).
@@ -257,17 +247,25 @@ double CorotationalEfg::elastic_energy(const Vector& x) const {
   // With the rotation from the deformation gradient its fit is the gradient G itself.
   const bool fit_is_gradient = &rotation_coefficients() == &shape_gradients_;
   executor_->parallel_for(element_count(), [&](int begin, int end) {
-    for (int e = begin; e < end; ++e) {
-      const Mat3 fit = gather(x, e, rotation_coefficients());
-      energy_orientations_[e] = extract_rotation(fit, orientations_[e]);
-      const Mat3 rotation = energy_orientations_[e].toRotationMatrix();
-      const Mat3 gradient = fit_is_gradient ? fit : gather(x, e, shape_gradients_);
-      const StrainStress local = element_strain(rotation, gradient, rest_gradients_[e], shape_->lambda, shape_->mu);
-      // W = 1/2 sigma : eps = mu eps : eps + lambda / 2 tr(eps)^2.
-      element_energies_[e] = 0.5 * volumes_[e] * (local.stress.cwiseProduct(local.strain)).sum();
-      // The next step's forces at x, if it starts from x (update_rotations then takes these
-      // very rotations): the same arithmetic as element_force_matrix's.
-      energy_forces_[e] = force_matrix(volumes_[e], rotation, local.stress);
+    for (int first = begin; first < end; first += rotation_lanes) {
+      const int count = std::min(rotation_lanes, end - first);
+      Mat3 fits[rotation_lanes];
+      for (int i = 0; i < count; ++i) {
+        fits[i] = gather(x, first + i, rotation_coefficients());
+        energy_orientations_[first + i] = orientations_[first + i];
+      }
+      extract_rotations(fits, energy_orientations_.data() + first, count);
+      for (int i = 0; i < count; ++i) {
+        const int e = first + i;
+        const Mat3 rotation = energy_orientations_[e].toRotationMatrix();
+        const Mat3 gradient = fit_is_gradient ? fits[i] : gather(x, e, shape_gradients_);
+        const StrainStress local = element_strain(rotation, gradient, rest_gradients_[e], shape_->lambda, shape_->mu);
+        // W = 1/2 sigma : eps = mu eps : eps + lambda / 2 tr(eps)^2.
+        element_energies_[e] = 0.5 * volumes_[e] * (local.stress.cwiseProduct(local.strain)).sum();
+        // The next step's forces at x, if it starts from x (update_rotations then takes these
+        // very rotations): the same arithmetic as element_force_matrix's.
+        energy_forces_[e] = force_matrix(volumes_[e], rotation, local.stress);
+      }
     }
   }, std::max(1, shape_->settings.threaded_elements / 2));
   double energy = 0;

@@ -6,6 +6,7 @@ add_executable(test_efg
   ${CMAKE_CURRENT_LIST_DIR}/test_efg_cantilever.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_efg_thin_fin.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_efg_llt3.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_efg_rotation_extraction.cpp
 )
 # incise_thread_pool: the thread-count comparisons run the model on the engine's executor.
 target_link_libraries(test_efg PRIVATE incise_physics incise_thread_pool GTest::gtest_main)
