@@ -1,5 +1,6 @@
 #include "physics/solve/rest_factor.hpp"
 
+#include "physics/solve/galerkin.hpp"
 #include "physics/solve/multigrid.hpp"
 
 #include <Eigen/CholmodSupport>
@@ -35,21 +36,24 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
   const auto start = std::chrono::steady_clock::now();
   if (!(mass_coefficient > 0) || !(stiffness_coefficient >= 0))
     throw std::invalid_argument("RestFactor: the mass coefficient must be positive and the stiffness one non-negative");
-  SparseMatrix matrix = stiffness.system(masses, fixed, mass_coefficient, stiffness_coefficient);
   if (smoothing_degree > 0) {
     if (!coarse) throw std::invalid_argument("RestFactor: a V-cycle's smoother needs a coarse space");
     smoothing_degree_ = smoothing_degree;
-    smoothing_eigenvalue_ = largest_jacobi_eigenvalue(matrix);
+    smoothing_eigenvalue_ = largest_jacobi_eigenvalue(stiffness.system(masses, fixed, mass_coefficient, stiffness_coefficient));
     rest_system_ = BlockSystem(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient, single_precision_smoother);
     rest_inverse_diagonal_ = rest_system_.diagonal().cwiseInverse();
     if (single_precision_smoother) rest_inverse_diagonal_ = rest_inverse_diagonal_.cast<float>().cast<double>();
     rest_fixed_ = fixed;
   }
+  // A coarse factor's matrix straight from the blocks (its lower triangle, what both backends
+  // read); the whole system's in scalar form.
+  SparseMatrix matrix;
   if (coarse) {
     prolongation_ = coarse->prolongation;
     transfer_ = CoarseTransfer(prolongation_);
-    SparseMatrix galerkin = SparseMatrix(prolongation_.transpose()) * (matrix * prolongation_);
-    matrix = std::move(galerkin);
+    matrix = galerkin_lower(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient, *coarse);
+  } else {
+    matrix = stiffness.system(masses, fixed, mass_coefficient, stiffness_coefficient);
   }
   if (backend == FactorBackend::cholmod) {
     // One BLAS thread: the factor is built beside the step, whose threads have the cores.
