@@ -39,8 +39,11 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
   if (smoothing_degree > 0) {
     if (!coarse) throw std::invalid_argument("RestFactor: a V-cycle's smoother needs a coarse space");
     smoothing_degree_ = smoothing_degree;
-    smoothing_eigenvalue_ = largest_jacobi_eigenvalue(stiffness.system(masses, fixed, mass_coefficient, stiffness_coefficient));
-    rest_system_ = BlockSystem(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient, single_precision_smoother);
+    // The smoother's operator, in double for the estimate of its interval's upper end, then
+    // rounded if asked.
+    rest_system_ = BlockSystem(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient);
+    smoothing_eigenvalue_ = largest_jacobi_eigenvalue(rest_system_);
+    if (single_precision_smoother) rest_system_.round_to_single();
     rest_inverse_diagonal_ = rest_system_.diagonal().cwiseInverse();
     if (single_precision_smoother) rest_inverse_diagonal_ = rest_inverse_diagonal_.cast<float>().cast<double>();
     rest_fixed_ = fixed;

@@ -212,6 +212,26 @@ TEST(BlockSystem, TheFloatCopyIsTheRoundedSystem) {
   EXPECT_TRUE(single.single());
 }
 
+// A double system rounded afterwards (the rest factor's, after its eigenvalue estimate) is the
+// one built in float.
+TEST(BlockSystem, RoundingADoubleSystemIsBuildingItInFloat) {
+  const auto model = small_efg();
+  const BlockMatrix k = model->rest_stiffness_job()();
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(model->node_count()), 0);
+  for (int i = 0; i < model->node_count(); i += 5) fixed[static_cast<size_t>(i)] = 1;
+  const BlockSystem single(k, model->lumped_masses(), fixed, 1.02, 1e-4, true);
+  BlockSystem rounded(k, model->lumped_masses(), fixed, 1.02, 1e-4);
+  EXPECT_FALSE(rounded.single());
+  rounded.round_to_single();
+  EXPECT_TRUE(rounded.single());
+  const Vector x = random_vector(3 * model->node_count(), 11);
+  Vector a, b;
+  single.multiply(x, a, serial_executor());
+  rounded.multiply(x, b, serial_executor());
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(single.diagonal(), rounded.diagonal());
+}
+
 TEST(WarpedPreconditioner, EfgSolvesARigidlyTurnedBodyInOneIteration) { expect_exact_for_rigid_rotation(*small_efg()); }
 
 TEST(WarpedPreconditioner, TetSolvesARigidlyTurnedBodyInOneIteration) { expect_exact_for_rigid_rotation(*small_fem()); }
@@ -427,6 +447,29 @@ struct TurnedBall {
     for (int i = 0; i < model->node_count(); ++i) fixed[static_cast<size_t>(i)] = rest[3 * i + 2] < -0.015;
   }
 };
+
+// The smoothing bound's Lanczos on the block system (the rest factor's) agrees with the same
+// Lanczos on the scalar matrix to round-off, fixed nodes included, and is what the factor keeps.
+TEST(Multigrid, TheBlockEigenvalueEstimateIsTheScalarOne) {
+  const auto model = small_efg();
+  model->update_rotations(model->rest_positions());
+  const BlockMatrix k = model->rest_stiffness_job()();
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(model->node_count()), 0);
+  for (int i = 0; i < model->node_count(); i += 5) fixed[static_cast<size_t>(i)] = 1;
+  const double mass_coefficient = 1.02, stiffness_coefficient = 1e-4;
+  const double scalar =
+      largest_jacobi_eigenvalue(k.system(model->lumped_masses(), fixed, mass_coefficient, stiffness_coefficient));
+  const double blocks =
+      largest_jacobi_eigenvalue(BlockSystem(k, model->lumped_masses(), fixed, mass_coefficient, stiffness_coefficient));
+  EXPECT_NEAR(blocks, scalar, 1e-13 * scalar);
+  EXPECT_GT(scalar, 1.0);  // Jacobi-scaled, the stiff modes lie above the diagonal's 1
+  const CoarseSpace space = make_coarse_space(model->rest_positions(), 2 * model->node_spacing(), fixed);
+  for (const bool single : {false, true}) {
+    const RestFactor factor(k, model->lumped_masses(), fixed, mass_coefficient, stiffness_coefficient,
+                            default_factor_backend(), &space, 2, single);
+    EXPECT_EQ(factor.smoothing_eigenvalue(), blocks) << (single ? "float smoother" : "double smoother");
+  }
+}
 
 // The V-cycle (solver.preconditioner "multigrid") is a valid CG preconditioner: symmetric,
 // x^T M^-1 y = y^T M^-1 x, and positive, x^T M^-1 x > 0, for random vectors on the free
