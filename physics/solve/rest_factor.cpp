@@ -6,6 +6,8 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCholesky>
 
+#include <dlfcn.h>
+
 #include <chrono>
 #include <mutex>
 #include <stdexcept>
@@ -23,6 +25,20 @@ FactorBackend default_factor_backend() {
   return FactorBackend::cholmod;
 #endif
 }
+
+namespace {
+
+// The factor is built beside the step, whose threads have the cores: one BLAS thread, and no
+// OpenMP team for CHOLMOD's supernodal loops, whose num_threads(4) clause only the number of
+// active levels overrides (0: every parallel region runs on its caller alone). libgomp comes
+// in with CHOLMOD, not with incise, hence the look-up; nothing else in the process uses it.
+void single_threaded_factor() {
+  openblas_set_num_threads(1);
+  if (auto set_levels = reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels")))
+    set_levels(0);
+}
+
+}  // namespace
 
 struct RestFactor::Solver {
   Eigen::CholmodSupernodalLLT<SparseMatrix> cholmod;
@@ -59,9 +75,8 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
     matrix = stiffness.system(masses, fixed, mass_coefficient, stiffness_coefficient);
   }
   if (backend == FactorBackend::cholmod) {
-    // One BLAS thread: the factor is built beside the step, whose threads have the cores.
-    static std::once_flag single_threaded_blas;
-    std::call_once(single_threaded_blas, [] { openblas_set_num_threads(1); });
+    static std::once_flag single_threaded;
+    std::call_once(single_threaded, single_threaded_factor);
     solver_->cholmod.compute(matrix);
     if (solver_->cholmod.info() != Eigen::Success)
       throw std::runtime_error("RestFactor: CHOLMOD found the rest system not positive definite");

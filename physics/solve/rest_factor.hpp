@@ -24,9 +24,9 @@ namespace incise::physics {
 
 enum class FactorBackend {
   // CHOLMOD's supernodal factorisation (dense BLAS on supernodes): several times faster to
-  // build. OpenBLAS is limited to one thread, so that it does not compete with the step's
-  // threads; CHOLMOD's own OpenMP loops only copy and scatter, whose results do not depend on
-  // their threads (the replay tests check the bits).
+  // build. It runs on one thread, beside the step's: OpenBLAS is limited to one, and so are
+  // CHOLMOD's own OpenMP loops (they only copy and scatter, so the bits are the same either
+  // way; a team of threads would wake and spin on the cores the step needs).
   cholmod,
   // Eigen's simplicial LLT (AMD ordering): no BLAS, no threads; used under ThreadSanitizer,
   // which cannot see OpenMP's and OpenBLAS's synchronisation.
