@@ -82,4 +82,12 @@ Eigen::VectorXd BlockSystem::diagonal() const {
   return out;
 }
 
+void BlockSystem::round_to_single() {
+  if (single()) return;
+  // Lane order is a permutation of each block's entries, so rounding entry by entry rounds as
+  // store_lane_order does from the blocks; the padding scalar stays zero.
+  single_blocks_.assign(blocks_.begin(), blocks_.end());
+  std::vector<double>().swap(blocks_);
+}
+
 }  // namespace incise::physics

@@ -50,22 +50,28 @@ CoarseSpace make_coarse_space(const Eigen::VectorXd& rest, double spacing, const
   for (size_t v = 0; v < best.size(); ++v)
     if (best[v] >= 0.5) index[v] = kept++;
 
+  CoarseSpace space;
+  space.weight_start.assign(static_cast<size_t>(nodes) + 1, 0);
+  space.weights.reserve(static_cast<size_t>(nodes) * 8);
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(static_cast<size_t>(nodes) * 24);
   for (Eigen::Index node = 0; node < nodes; ++node) {
+    space.weight_start[static_cast<size_t>(node)] = static_cast<int>(space.weights.size());
     if (is_fixed(node)) continue;
     double sum = 0;
     for (const Corner& corner : corners[static_cast<size_t>(node)])
       if (index[static_cast<size_t>(corner.vertex)] >= 0) sum += corner.weight;
     if (!(sum > 1e-9)) continue;  // a node no kept vertex reaches: the fine smoother's alone
+    // The corners come in increasing vertex order (x fastest), and so do their columns.
     for (const Corner& corner : corners[static_cast<size_t>(node)]) {
       const int column = index[static_cast<size_t>(corner.vertex)];
       if (column < 0 || corner.weight <= 0) continue;
-      for (int k = 0; k < 3; ++k)
-        triplets.emplace_back(static_cast<int>(3 * node + k), 3 * column + k, corner.weight / sum);
+      const double weight = corner.weight / sum;
+      space.weights.push_back({column, weight});
+      for (int k = 0; k < 3; ++k) triplets.emplace_back(static_cast<int>(3 * node + k), 3 * column + k, weight);
     }
   }
-  CoarseSpace space;
+  space.weight_start.back() = static_cast<int>(space.weights.size());
   space.coarse_nodes = kept;
   space.prolongation.resize(3 * nodes, 3 * kept);
   space.prolongation.setFromTriplets(triplets.begin(), triplets.end());

@@ -20,9 +20,20 @@
 
 namespace incise::physics {
 
+// One of node i's trilinear weights w_ic: coarse vertex c (a column of W).
+struct CoarseWeight {
+  int vertex;
+  double weight;
+};
+
 struct CoarseSpace {
   Eigen::SparseMatrix<double> prolongation;  // 3n x 3m, 3x3 blocks w_ic I
   int coarse_nodes = 0;
+  // The same P = W (x) I3 by node (the Galerkin product from blocks, galerkin.hpp): node i's
+  // weights are weights[weight_start[i] .. weight_start[i + 1]), at most 8, their vertices
+  // increasing; none for a fixed node or one no kept vertex reaches. weight_start: n + 1.
+  std::vector<int> weight_start;
+  std::vector<CoarseWeight> weights;
 };
 
 // `rest`: 3n rest positions; `spacing`: H; `fixed`: per node, 1 = fixed (empty: none).

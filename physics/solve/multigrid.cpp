@@ -6,26 +6,32 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 #include <utility>
 
 namespace incise::physics {
 
-double largest_jacobi_eigenvalue(const Eigen::SparseMatrix<double>& a, int steps) {
-  const Eigen::Index size = a.rows();
+namespace {
+
+// Lanczos on D^-1/2 A D^-1/2, `product` computing y = A x.
+double lanczos_largest(const Vector& diagonal, const std::function<void(const Vector&, Vector&)>& product, int steps) {
+  const Eigen::Index size = diagonal.size();
   if (size == 0) return 1;
-  Vector scale = a.diagonal();
+  Vector scale = diagonal;
   for (Eigen::Index i = 0; i < size; ++i) scale[i] = scale[i] > 0 ? 1 / std::sqrt(scale[i]) : 1;
   // A start with every mode in it: not an eigenvector of a regular grid's operator.
   Vector v(size);
   for (Eigen::Index i = 0; i < size; ++i) v[i] = 1 + 0.5 * std::sin(0.7 * static_cast<double>(i));
   v.normalize();
-  Vector previous = Vector::Zero(size), w(size);
+  Vector previous = Vector::Zero(size), w(size), scaled(size), product_out(size);
   std::vector<double> alphas, betas;
   double beta = 0;
   steps = static_cast<int>(std::min<Eigen::Index>(steps, size));
   for (int k = 0; k < steps; ++k) {
-    w = scale.cwiseProduct(a * scale.cwiseProduct(v)) - beta * previous;
+    scaled = scale.cwiseProduct(v);
+    product(scaled, product_out);
+    w = scale.cwiseProduct(product_out) - beta * previous;
     const double alpha = v.dot(w);
     w -= alpha * v;
     alphas.push_back(alpha);
@@ -45,6 +51,16 @@ double largest_jacobi_eigenvalue(const Eigen::SparseMatrix<double>& a, int steps
   if (!std::isfinite(largest) || !(largest > 0))
     throw std::runtime_error("largest_jacobi_eigenvalue: the matrix is not positive definite");
   return largest;
+}
+
+}  // namespace
+
+double largest_jacobi_eigenvalue(const Eigen::SparseMatrix<double>& a, int steps) {
+  return lanczos_largest(a.diagonal(), [&](const Vector& x, Vector& y) { y = a * x; }, steps);
+}
+
+double largest_jacobi_eigenvalue(const BlockSystem& a, int steps) {
+  return lanczos_largest(a.diagonal(), [&](const Vector& x, Vector& y) { a.multiply(x, y, serial_executor()); }, steps);
 }
 
 ChebyshevSteps::ChebyshevSteps(const ChebyshevSmoother& smoother)

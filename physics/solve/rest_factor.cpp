@@ -1,9 +1,12 @@
 #include "physics/solve/rest_factor.hpp"
 
+#include "physics/solve/galerkin.hpp"
 #include "physics/solve/multigrid.hpp"
 
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCholesky>
+
+#include <dlfcn.h>
 
 #include <chrono>
 #include <mutex>
@@ -15,17 +18,31 @@ namespace incise::physics {
 
 using SparseMatrix = Eigen::SparseMatrix<double>;
 
-void use_single_threaded_blas() {
-  static std::once_flag once;
-  std::call_once(once, [] { openblas_set_num_threads(1); });
-}
-
 FactorBackend default_factor_backend() {
 #if defined(__SANITIZE_THREAD__)
   return FactorBackend::simplicial;
 #else
   return FactorBackend::cholmod;
 #endif
+}
+
+namespace {
+
+// The factor is built beside the step, whose threads have the cores: one BLAS thread, and no
+// OpenMP team for CHOLMOD's supernodal loops, whose num_threads(4) clause only the number of
+// active levels overrides (0: every parallel region runs on its caller alone). libgomp comes
+// in with CHOLMOD, not with incise, hence the look-up; nothing else in the process uses it.
+void single_threaded_factor() {
+  openblas_set_num_threads(1);
+  if (auto set_levels = reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels")))
+    set_levels(0);
+}
+
+}  // namespace
+
+void use_single_threaded_blas() {
+  static std::once_flag once;
+  std::call_once(once, single_threaded_factor);
 }
 
 struct RestFactor::Solver {
@@ -40,24 +57,29 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
   const auto start = std::chrono::steady_clock::now();
   if (!(mass_coefficient > 0) || !(stiffness_coefficient >= 0))
     throw std::invalid_argument("RestFactor: the mass coefficient must be positive and the stiffness one non-negative");
-  SparseMatrix matrix = stiffness.system(masses, fixed, mass_coefficient, stiffness_coefficient);
   if (smoothing_degree > 0) {
     if (!coarse) throw std::invalid_argument("RestFactor: a V-cycle's smoother needs a coarse space");
     smoothing_degree_ = smoothing_degree;
-    smoothing_eigenvalue_ = largest_jacobi_eigenvalue(matrix);
-    rest_system_ = BlockSystem(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient, single_precision_smoother);
+    // The smoother's operator, in double for the estimate of its interval's upper end, then
+    // rounded if asked.
+    rest_system_ = BlockSystem(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient);
+    smoothing_eigenvalue_ = largest_jacobi_eigenvalue(rest_system_);
+    if (single_precision_smoother) rest_system_.round_to_single();
     rest_inverse_diagonal_ = rest_system_.diagonal().cwiseInverse();
     if (single_precision_smoother) rest_inverse_diagonal_ = rest_inverse_diagonal_.cast<float>().cast<double>();
     rest_fixed_ = fixed;
   }
+  // A coarse factor's matrix straight from the blocks (its lower triangle, what both backends
+  // read); the whole system's in scalar form.
+  SparseMatrix matrix;
   if (coarse) {
     prolongation_ = coarse->prolongation;
     transfer_ = CoarseTransfer(prolongation_);
-    SparseMatrix galerkin = SparseMatrix(prolongation_.transpose()) * (matrix * prolongation_);
-    matrix = std::move(galerkin);
+    matrix = galerkin_lower(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient, *coarse);
+  } else {
+    matrix = stiffness.system(masses, fixed, mass_coefficient, stiffness_coefficient);
   }
   if (backend == FactorBackend::cholmod) {
-    // One BLAS thread: the factor is built beside the step, whose threads have the cores.
     use_single_threaded_blas();
     solver_->cholmod.compute(matrix);
     if (solver_->cholmod.info() != Eigen::Success)

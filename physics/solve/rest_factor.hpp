@@ -24,9 +24,9 @@ namespace incise::physics {
 
 enum class FactorBackend {
   // CHOLMOD's supernodal factorisation (dense BLAS on supernodes): several times faster to
-  // build. OpenBLAS is limited to one thread, so that it does not compete with the step's
-  // threads; CHOLMOD's own OpenMP loops only copy and scatter, whose results do not depend on
-  // their threads (the replay tests check the bits).
+  // build. It runs on one thread, beside the step's: OpenBLAS is limited to one, and so are
+  // CHOLMOD's own OpenMP loops (they only copy and scatter, so the bits are the same either
+  // way; a team of threads would wake and spin on the cores the step needs).
   cholmod,
   // Eigen's simplicial LLT (AMD ordering): no BLAS, no threads; used under ThreadSanitizer,
   // which cannot see OpenMP's and OpenBLAS's synchronisation.
@@ -36,10 +36,10 @@ enum class FactorBackend {
 // CHOLMOD unless the build is ThreadSanitizer's.
 FactorBackend default_factor_backend();
 
-// Limits OpenBLAS to one thread for the rest of the process (the first call; later ones do
-// nothing). A CHOLMOD factor's build calls it; a program whose other CHOLMOD solves must give
-// the same bits before and after the first build calls it first (BLAS's sums depend on its
-// thread count).
+// Limits OpenBLAS to one thread and CHOLMOD's OpenMP loops to their caller for the rest of the
+// process (the first call; later ones do nothing). A CHOLMOD factor's build calls it; a program
+// whose other CHOLMOD solves must give the same bits before and after the first build calls it
+// first (BLAS's sums depend on its thread count).
 void use_single_threaded_blas();
 
 class RestFactor {

@@ -7,6 +7,7 @@
 #include "physics/fem/tet_mesh.hpp"
 #include "physics/solve/block_product.hpp"
 #include "physics/solve/block_system.hpp"
+#include "physics/solve/galerkin.hpp"
 #include "physics/solve/multigrid.hpp"
 #include "physics/solve/rest_preconditioner.hpp"
 #include "physics/solve/rest_vcycle.hpp"
@@ -211,6 +212,26 @@ TEST(BlockSystem, TheFloatCopyIsTheRoundedSystem) {
   EXPECT_TRUE(single.single());
 }
 
+// A double system rounded afterwards (the rest factor's, after its eigenvalue estimate) is the
+// one built in float.
+TEST(BlockSystem, RoundingADoubleSystemIsBuildingItInFloat) {
+  const auto model = small_efg();
+  const BlockMatrix k = model->rest_stiffness_job()();
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(model->node_count()), 0);
+  for (int i = 0; i < model->node_count(); i += 5) fixed[static_cast<size_t>(i)] = 1;
+  const BlockSystem single(k, model->lumped_masses(), fixed, 1.02, 1e-4, true);
+  BlockSystem rounded(k, model->lumped_masses(), fixed, 1.02, 1e-4);
+  EXPECT_FALSE(rounded.single());
+  rounded.round_to_single();
+  EXPECT_TRUE(rounded.single());
+  const Vector x = random_vector(3 * model->node_count(), 11);
+  Vector a, b;
+  single.multiply(x, a, serial_executor());
+  rounded.multiply(x, b, serial_executor());
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(single.diagonal(), rounded.diagonal());
+}
+
 TEST(WarpedPreconditioner, EfgSolvesARigidlyTurnedBodyInOneIteration) { expect_exact_for_rigid_rotation(*small_efg()); }
 
 TEST(WarpedPreconditioner, TetSolvesARigidlyTurnedBodyInOneIteration) { expect_exact_for_rigid_rotation(*small_fem()); }
@@ -313,6 +334,71 @@ TEST(CoarseSpace, IsAPartitionOfUnityOnTheFreeNodesAndLeavesTheFixedOnesOut) {
   EXPECT_EQ(coarse.factored_size(), 3 * space.coarse_nodes);
 }
 
+// The coarse space's per-node weights are its prolongation: P = W (x) I3.
+TEST(CoarseSpace, ItsNodeWeightsAreTheProlongation) {
+  auto model = small_efg();
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(model->node_count()), 0);
+  for (size_t i = 0; i < fixed.size(); i += 7) fixed[i] = 1;
+  const CoarseSpace space = make_coarse_space(model->rest_positions(), 2 * model->node_spacing(), fixed);
+  ASSERT_EQ(space.weight_start.size(), static_cast<size_t>(model->node_count()) + 1);
+  std::vector<Eigen::Triplet<double>> triplets;
+  for (int node = 0; node < model->node_count(); ++node) {
+    const int first = space.weight_start[static_cast<size_t>(node)], last = space.weight_start[static_cast<size_t>(node) + 1];
+    EXPECT_LE(last - first, 8);
+    if (fixed[static_cast<size_t>(node)]) {
+      EXPECT_EQ(first, last);
+    }
+    for (int k = first; k < last; ++k) {
+      const CoarseWeight& w = space.weights[static_cast<size_t>(k)];
+      if (k > first) {
+        EXPECT_GT(w.vertex, space.weights[static_cast<size_t>(k) - 1].vertex);
+      }
+      for (int axis = 0; axis < 3; ++axis) triplets.emplace_back(3 * node + axis, 3 * w.vertex + axis, w.weight);
+    }
+  }
+  Eigen::SparseMatrix<double> rebuilt(space.prolongation.rows(), space.prolongation.cols());
+  rebuilt.setFromTriplets(triplets.begin(), triplets.end());
+  EXPECT_EQ((rebuilt - space.prolongation).norm(), 0.0);
+}
+
+// The Galerkin coarse system from the blocks (galerkin.hpp) is Eigen's P^T (A0 P) of the
+// scalar system, on a ball cut halfway through (re-selected neighbourhoods, an uneven pattern)
+// with fixed nodes: the same lower triangle, pattern and entries.
+TEST(Galerkin, TheBlockProductEqualsEigensOnACutBodyWithFixedNodes) {
+  EfgSettings settings;
+  settings.spacing = 0.0025;
+  settings.cuts.push_back({Vec3(-0.03, -0.03, 0.0013), Vec3(0.06, 0, 0), Vec3(0, 0.03, 0)});
+  CorotationalEfg model([](const Vec3& p) { return p.norm() < 0.021; }, Vec3::Constant(-0.025), Vec3::Constant(0.025),
+                        tissue, settings);
+  model.update_rotations(model.rest_positions());
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(model.node_count()), 0);
+  for (int node = 0; node < model.node_count(); ++node)
+    if (model.rest_positions()[3 * node + 2] < -0.012 || node % 11 == 0) fixed[static_cast<size_t>(node)] = 1;
+  const BlockMatrix k = model.rest_stiffness_job()();
+  const double mass_coefficient = 1.02, stiffness_coefficient = 1e-4;
+  const CoarseSpace space = make_coarse_space(model.rest_positions(), 2 * model.node_spacing(), fixed);
+  const Eigen::SparseMatrix<double> scalar = k.system(model.lumped_masses(), fixed, mass_coefficient, stiffness_coefficient);
+  const Eigen::SparseMatrix<double> product =
+      Eigen::SparseMatrix<double>(space.prolongation.transpose()) * (scalar * space.prolongation);
+  const Eigen::SparseMatrix<double> reference = product.triangularView<Eigen::Lower>();
+  const Eigen::SparseMatrix<double> lower =
+      galerkin_lower(k, model.lumped_masses(), fixed, mass_coefficient, stiffness_coefficient, space);
+  ASSERT_EQ(lower.rows(), 3 * space.coarse_nodes);
+  ASSERT_EQ(lower.cols(), 3 * space.coarse_nodes);
+  ASSERT_EQ(lower.nonZeros(), reference.nonZeros());
+  for (int column = 0; column < lower.outerSize(); ++column) {
+    Eigen::SparseMatrix<double>::InnerIterator it(lower, column), expected(reference, column);
+    for (; it && expected; ++it, ++expected) ASSERT_EQ(it.index(), expected.index()) << "column " << column;
+    EXPECT_FALSE(it || expected) << "column " << column;
+  }
+  const double largest = reference.coeffs().cwiseAbs().maxCoeff();
+  const Eigen::SparseMatrix<double> difference = lower - reference;
+  EXPECT_LE(difference.coeffs().cwiseAbs().maxCoeff(), 1e-13 * largest);
+  std::printf("galerkin: %d coarse nodes, %lld lower entries, max |difference| %.3g of max |entry| %.3g\n",
+              space.coarse_nodes, static_cast<long long>(lower.nonZeros()),
+              difference.coeffs().cwiseAbs().maxCoeff(), largest);
+}
+
 // Jacobi plus the coarse correction (two_level) reaches the Jacobi CG's solution in fewer
 // iterations on a partly fixed EFG ball (about 10 particles across), turned and stretched.
 TEST(CoarseSpace, TheTwoLevelPreconditionerNeedsFewerIterationsThanJacobiForTheSameSolution) {
@@ -361,6 +447,29 @@ struct TurnedBall {
     for (int i = 0; i < model->node_count(); ++i) fixed[static_cast<size_t>(i)] = rest[3 * i + 2] < -0.015;
   }
 };
+
+// The smoothing bound's Lanczos on the block system (the rest factor's) agrees with the same
+// Lanczos on the scalar matrix to round-off, fixed nodes included, and is what the factor keeps.
+TEST(Multigrid, TheBlockEigenvalueEstimateIsTheScalarOne) {
+  const auto model = small_efg();
+  model->update_rotations(model->rest_positions());
+  const BlockMatrix k = model->rest_stiffness_job()();
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(model->node_count()), 0);
+  for (int i = 0; i < model->node_count(); i += 5) fixed[static_cast<size_t>(i)] = 1;
+  const double mass_coefficient = 1.02, stiffness_coefficient = 1e-4;
+  const double scalar =
+      largest_jacobi_eigenvalue(k.system(model->lumped_masses(), fixed, mass_coefficient, stiffness_coefficient));
+  const double blocks =
+      largest_jacobi_eigenvalue(BlockSystem(k, model->lumped_masses(), fixed, mass_coefficient, stiffness_coefficient));
+  EXPECT_NEAR(blocks, scalar, 1e-13 * scalar);
+  EXPECT_GT(scalar, 1.0);  // Jacobi-scaled, the stiff modes lie above the diagonal's 1
+  const CoarseSpace space = make_coarse_space(model->rest_positions(), 2 * model->node_spacing(), fixed);
+  for (const bool single : {false, true}) {
+    const RestFactor factor(k, model->lumped_masses(), fixed, mass_coefficient, stiffness_coefficient,
+                            default_factor_backend(), &space, 2, single);
+    EXPECT_EQ(factor.smoothing_eigenvalue(), blocks) << (single ? "float smoother" : "double smoother");
+  }
+}
 
 // The V-cycle (solver.preconditioner "multigrid") is a valid CG preconditioner: symmetric,
 // x^T M^-1 y = y^T M^-1 x, and positive, x^T M^-1 x > 0, for random vectors on the free
