@@ -102,7 +102,7 @@ __attribute__((target("avx2"))) void load(const Mat3* f, const Quaternion* q, La
 // iterate() on the set's running lanes.
 __attribute__((target("avx2"), always_inline)) inline void iterate(LaneSet& set) {
   const __m256d* fm = set.fm;
-  auto F = [&](int row, int column) { return fm[3 * column + row]; };
+  auto F = [&](int row, int column) -> const __m256d& { return fm[3 * column + row]; };
   Lanes& quat = set.quat;
   __m256d& running = set.running;
   const __m256d one = _mm256_set1_pd(1.0), two = _mm256_set1_pd(2.0), half = _mm256_set1_pd(0.5), zero_d = _mm256_setzero_pd();
