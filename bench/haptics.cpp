@@ -194,7 +194,7 @@ RunResult run_session(const engine::Scene& scene, const HapticsBenchOptions& opt
   }
 
   const auto& ticks = session.ticks();
-  const engine::ForceJumps jumps = engine::force_jumps(ticks, session.cut_steps());
+  const engine::ForceJumps jumps = engine::force_jumps(ticks, session.cut_steps(), 1e3 / session_options.loop.rate_hz);
   double max_force = 0;
   std::uint64_t clamped = 0;
   for (const auto& t : ticks) {

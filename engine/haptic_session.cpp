@@ -330,14 +330,15 @@ void HapticSession::stop() {
   if (writer_) writer_->close();
 }
 
-ForceJumps force_jumps(const std::vector<haptics::TickSample>& ticks, const std::vector<std::uint8_t>& cut_steps) {
+ForceJumps force_jumps(const std::vector<haptics::TickSample>& ticks, const std::vector<std::uint8_t>& cut_steps,
+                       double period_ms) {
   ForceJumps j;
   j.ticks = ticks.size();
   for (std::size_t i = 1; i < ticks.size(); ++i) {
     const auto& a = ticks[i - 1];
     const auto& b = ticks[i];
-    const double ms = 1e-6 * static_cast<double>(b.time_ns - a.time_ns);
-    if (!(ms > 0)) continue;
+    if (!(b.time_ns > a.time_ns)) continue;
+    const double ms = std::max(1e-6 * static_cast<double>(b.time_ns - a.time_ns), period_ms);
     double d2 = 0;
     for (int k = 0; k < 3; ++k) d2 += (b.force[k] - a.force[k]) * (b.force[k] - a.force[k]);
     const double rate = std::sqrt(d2) / ms;

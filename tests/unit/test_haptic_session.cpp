@@ -67,6 +67,28 @@ std::string hex64(std::uint64_t v) {
 
 }  // namespace
 
+// A tick that follows a late one within microseconds (the loop keeping its deadlines) counts
+// as a whole period: its small change is not a fast one; a change over a whole period is its
+// own rate, and one over a long period is spread over it.
+TEST(HapticSessionJumps, ACatchUpTickCountsAsAWholePeriod) {
+  auto tick = [](std::int64_t time_us, double force) {
+    incise::haptics::TickSample t;
+    t.time_ns = 1000 * time_us;
+    t.force = {force, 0, 0};
+    return t;
+  };
+  // 1 ms ticks, a 2.97 ms late one, a catch-up 30 us after it.
+  std::vector<incise::haptics::TickSample> ticks = {tick(0, 0), tick(1000, 0.01), tick(3970, 0.04), tick(4000, 0.09)};
+  const incise::engine::ForceJumps smooth = incise::engine::force_jumps(ticks, {});
+  EXPECT_NEAR(smooth.between_max, 0.05, 1e-12);  // not 0.05 N / 0.03 ms = 1.7 N/ms
+  EXPECT_EQ(smooth.between_max_ns, 4'000'000);
+  ticks.push_back(tick(5000, 0.59));  // a real jump of 0.5 N in one period
+  EXPECT_NEAR(incise::engine::force_jumps(ticks, {}).between_max, 0.5, 1e-12);
+  // At a 2 ms period the catch-up's change is spread over 2 ms.
+  ticks.pop_back();
+  EXPECT_NEAR(incise::engine::force_jumps(ticks, {}, 2.0).between_max, 0.05 / 2.0, 1e-12);
+}
+
 TEST(HapticSession, ARecordedSessionReplaysHeadlessToTheSameCut) {
   TempDir dir("incise_session_replay");
   const Scene scene = beam_scene(dir);
