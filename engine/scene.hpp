@@ -146,7 +146,7 @@ struct SolverSpec {
   // warped by the rotations, rebuilt beside the steps after a cut and taking over
   // `preconditioner_latency` steps later). multigrid_current is the default: its V-cycle smooths
   // with the current system the step assembles, 8 CG iterations at 20k elements while cutting
-  // against multigrid's 19 and Jacobi's 75 (docs/status.md, "EFG model"). Bodies it cannot
+  // against multigrid's 20 and Jacobi's 76 (docs/status.md, "EFG model"). Bodies it cannot
   // assemble (tet FEM, damped or extra-stiffness models) take "multigrid"; models without a rest
   // stiffness (mass_spring, constraint_particles, promayon) and the gpu backend use Jacobi.
   std::string preconditioner = "multigrid_current";
