@@ -1,5 +1,6 @@
 #include "physics/efg/rotation_extraction.hpp"
 
+#include "physics/core/cpu_features.hpp"
 #include "physics/efg/llt3.hpp"
 #include "physics/fem/corotational_fem.hpp"
 
@@ -237,10 +238,6 @@ __attribute__((target("avx2"))) void avx2_extract(const Mat3* f, Quaternion* q) 
   for (int v = 0; v < lane_sets; ++v) store(sets[v], f + 4 * v, q + 4 * v);
 }
 
-bool cpu_has_avx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
-}
 #endif
 
 std::atomic<bool> vectorised_allowed{true};

@@ -1,5 +1,7 @@
 #include "physics/solve/block_product.hpp"
 
+#include "physics/core/cpu_features.hpp"
+
 #include <atomic>
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -66,10 +68,6 @@ __attribute__((target("avx2"))) void avx2_rows(const BlockRows& rows, const Scal
   }
 }
 
-bool cpu_has_avx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
-}
 #endif
 
 std::atomic<bool> vectorised_allowed{true};

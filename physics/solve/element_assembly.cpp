@@ -1,5 +1,7 @@
 #include "physics/solve/element_assembly.hpp"
 
+#include "physics/core/cpu_features.hpp"
+
 #include <atomic>
 #include <stdexcept>
 
@@ -140,10 +142,6 @@ using Sums8 = void (*)(const double*, const double*, int, double*);
 constexpr Sums8 avx2_sums8_of[8] = {avx2_sums8<0>, avx2_sums8<1>, avx2_sums8<2>, avx2_sums8<3>,
                                     avx2_sums8<4>, avx2_sums8<5>, avx2_sums8<6>, avx2_sums8<7>};
 
-bool cpu_has_avx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
-}
 #endif
 
 std::atomic<bool> vectorised_allowed{true};
