@@ -1,5 +1,6 @@
 #include "engine/mesh_import.hpp"
 
+#include "common/missing_reason.hpp"
 #include "engine/surface_file.hpp"
 
 #include <assimp/Importer.hpp>
@@ -166,7 +167,7 @@ void fit_bounds(TriangleSoup& soup) {
 
 TriangleSoup import_surface(const std::filesystem::path& file, double scale, std::string_view up) {
   turn_up({}, up);  // an unknown axis is refused before the file is read
-  if (!std::filesystem::exists(file)) throw MeshError(file.string() + ": file does not exist");
+  if (const std::string why = common::missing_reason(file); !why.empty()) throw MeshError(file.string() + ": file " + why);
   TriangleSoup soup;
   switch (format_of(file)) {
     case Format::Ply: soup = soup_from_file(read_ply_surface(file), scale, up, file); break;

@@ -1,5 +1,6 @@
 #include "engine/scene.hpp"
 
+#include "common/missing_reason.hpp"
 #include "engine/model_registry.hpp"
 #include "engine/scene_reader.hpp"
 #include "engine/tet_mesh_import.hpp"
@@ -102,7 +103,7 @@ void read_model_settings(Reader& r, BodySpec& b, std::vector<std::string>& error
 // stiffness, an efg body's particle spacing) is its mean edge length. Reading the mesh here
 // also refuses a bad one before any other work, naming the file and the element.
 void tet_mesh_resolution(Reader& r, BodySpec& b) {
-  if (!std::filesystem::exists(*b.mesh) || !(b.mesh_scale > 0)) return;  // refused above
+  if (!common::missing_reason(*b.mesh).empty() || !(b.mesh_scale > 0)) return;  // refused above
   try {
     b.tets = std::make_shared<const physics::TetMesh>(import_tet_mesh(*b.mesh, b.mesh_scale, b.mesh_up));
     b.resolution = mean_edge_length(*b.tets);
@@ -124,8 +125,8 @@ BodySpec read_body(const Json& node, const std::string& path, const std::filesys
       r.error(r.child("mesh"), "must be a file path (string)");
     } else {
       b.mesh = resolve(file, mesh->get<std::string>());
-      if (!std::filesystem::exists(*b.mesh))
-        r.error(r.child("mesh"), "file '" + b.mesh->string() + "' does not exist");
+      if (const std::string why = common::missing_reason(*b.mesh); !why.empty())
+        r.error(r.child("mesh"), "file '" + b.mesh->string() + "' " + why);
     }
   }
   b.mesh_scale = r.number("mesh_scale", false, 1.0, 0, 1e6, true);
@@ -284,8 +285,8 @@ ToolSpec read_tool(const Json& tool, const std::filesystem::path& file, std::vec
       tr.error("tool.trajectory", "must be a file path (string)");
     } else {
       t.trajectory = resolve(file, traj->get<std::string>());
-      if (!std::filesystem::exists(*t.trajectory))
-        tr.error("tool.trajectory", "file '" + t.trajectory->string() + "' does not exist");
+      if (const std::string why = common::missing_reason(*t.trajectory); !why.empty())
+        tr.error("tool.trajectory", "file '" + t.trajectory->string() + "' " + why);
     }
   }
   return t;

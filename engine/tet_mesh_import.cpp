@@ -1,5 +1,6 @@
 #include "engine/tet_mesh_import.hpp"
 
+#include "common/missing_reason.hpp"
 #include "engine/tet_mesh_file.hpp"
 
 #include <algorithm>
@@ -171,7 +172,7 @@ bool is_tet_mesh_file(const std::filesystem::path& file) {
 
 physics::TetMesh import_tet_mesh(const std::filesystem::path& file, double scale, std::string_view up,
                                  TetImportReport* report) {
-  if (!std::filesystem::exists(file)) throw MeshError(file.string() + ": file does not exist");
+  if (const std::string why = common::missing_reason(file); !why.empty()) throw MeshError(file.string() + ": file " + why);
   turn_up({}, up);  // an unknown axis is refused before the file is read
   const std::string extension = lower_extension(file);
   tet_file::Lines lines(file);

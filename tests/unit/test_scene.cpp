@@ -93,6 +93,18 @@ TEST(Scene, TheFactorLatencyIsTheKeysOrTheBodys) {
   EXPECT_EQ(latency_of("multigrid", 7, "fem"), 7);
 }
 
+// A path the system refuses outright (a name longer than NAME_MAX: fuzz_scene's finding) is
+// refused like a missing file, naming the key, instead of std::filesystem's exception.
+TEST(Scene, APathTooLongForTheSystemIsRefusedByName) {
+  const std::string long_name(5000, 'x');
+  const std::string trajectory = error_of([&](Json& s) { s["tool"]["trajectory"] = long_name + ".traj"; });
+  EXPECT_NE(trajectory.find("tool.trajectory: file '"), std::string::npos) << trajectory;
+  EXPECT_NE(trajectory.find("cannot be looked up"), std::string::npos) << trajectory;
+  const std::string mesh = error_of([&](Json& s) { s["bodies"][0]["mesh"] = long_name + ".obj"; });
+  EXPECT_NE(mesh.find("bodies[0].mesh: file '"), std::string::npos) << mesh;
+  EXPECT_NE(mesh.find("cannot be looked up"), std::string::npos) << mesh;
+}
+
 struct BrokenCase {
   const char* name;
   std::function<void(Json&)> mutate;
