@@ -65,7 +65,7 @@
 namespace incise::physics {
 
 namespace efg_build {
-struct ParticleGrid;  // corotational_efg.cpp
+struct ParticleGrid;  // efg_build.hpp
 }
 
 // A zero-thickness planar cut: the open parallelogram corner + s edge_u + t edge_v, s, t in

@@ -3,6 +3,9 @@
 target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/mls.cpp
   ${CMAKE_CURRENT_LIST_DIR}/corotational_efg.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/efg_neighbourhoods.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/efg_cut_visibility.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/efg_cut_edits.cpp
   ${CMAKE_CURRENT_LIST_DIR}/efg_step.cpp
   ${CMAKE_CURRENT_LIST_DIR}/rotation_extraction.cpp
   ${CMAKE_CURRENT_LIST_DIR}/efg_embedding.cpp

@@ -1,4 +1,5 @@
-// What the files of CorotationalEfg share besides its class: its error messages.
+// What the files of CorotationalEfg share besides its class: its error messages and the
+// longest row a neighbourhood may have.
 #pragma once
 
 #include "physics/core/model.hpp"
@@ -8,6 +9,10 @@
 #include <string>
 
 namespace incise::physics::efg_detail {
+
+// The longest row a neighbourhood may have; far more than the 8 to 12 that cuts produce, it
+// only stops a runaway selection.
+inline constexpr int longest_row = 64;
 
 [[noreturn]] inline void fail(const std::string& what) { throw std::invalid_argument("CorotationalEfg: " + what); }
 

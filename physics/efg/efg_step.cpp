@@ -1,7 +1,7 @@
 // The corotated EFG model's step (physics/efg/corotational_efg.hpp): each element's rotation
 // from the MLS deformation gradient, the elastic forces, the stiffness's product and diagonal,
 // and the elastic energy, whose rotations the next step's update_rotations reuses. The build
-// and the cut's edits are in corotational_efg.cpp.
+// is in corotational_efg.cpp, the cut's edits in efg_cut_edits.cpp.
 #include "physics/efg/corotational_efg.hpp"
 #include "physics/efg/rotation_extraction.hpp"
 
