@@ -70,12 +70,11 @@ void CurrentSystem::multiply_rows(const double* x, double* y, int begin, int end
   current_rows_product(rows, x, x, y, begin, end);
 }
 
-void CurrentSystem::round_blocks(std::vector<float>& out, Executor& executor) const {
-  out.resize(9 * static_cast<size_t>(stiffness_.block_count()));
-  if (out.empty()) return;
+void CurrentSystem::round_blocks(float* out, Executor& executor) const {
+  if (stiffness_.block_count() == 0) return;
   const CurrentRows rows = this->rows();
   constexpr int rows_per_thread = 256;  // as multiply
-  executor.parallel_for(stiffness_.nodes(), [&](int begin, int end) { round_rows_to_single(rows, out.data(), begin, end); },
+  executor.parallel_for(stiffness_.nodes(), [&](int begin, int end) { round_rows_to_single(rows, out, begin, end); },
                         rows_per_thread);
 }
 

@@ -30,6 +30,7 @@
 
 #include <Eigen/Geometry>
 
+#include <memory>
 #include <vector>
 
 namespace incise::physics {
@@ -61,8 +62,9 @@ class CurrentVcycle {
   Executor& executor_;
   ChebyshevSteps steps_;
   Vector inverse_diagonal_;
-  std::vector<float> single_blocks_;  // K's blocks in float (single_precision), else empty
-  const float* single_ = nullptr;     // single_blocks_' data, or null: the double blocks
+  // K's blocks in float (single_precision; not zeroed first: the rounding writes every entry),
+  // or null: the double blocks.
+  std::unique_ptr<float[]> single_;
   Vector residual_, step_, next_step_, product_, turned_, coarse_;
 };
 

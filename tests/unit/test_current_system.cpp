@@ -289,10 +289,10 @@ TEST(CurrentSystem, TheFloatBlockProductHasTheBitsOfTheEigenProductOnRoundedBloc
   springs[1].stiffness = Mat3::Identity() * 7.0 + Vec3(3, -1, 2) * Vec3(3, -1, 2).transpose();
   const double mass_coefficient = 1.02, stiffness_coefficient = 1e-4;
   const CurrentSystem system(k, model.lumped_masses(), ball.fixed, springs, mass_coefficient, stiffness_coefficient);
-  std::vector<float> single;
+  std::vector<float> single(9 * static_cast<size_t>(k.block_count()));
   ShufflingExecutor shuffling;
-  system.round_blocks(single, shuffling);
-  ASSERT_EQ(single.size(), 9 * static_cast<size_t>(k.block_count()));
+  ASSERT_EQ(system.block_count(), k.block_count());
+  system.round_blocks(single.data(), shuffling);
   for (int b = 0; b < k.block_count(); ++b)
     for (int i = 0; i < 9; ++i)
       ASSERT_EQ(double(single[9 * static_cast<size_t>(b) + static_cast<size_t>(i)]), rounded.blocks()[static_cast<size_t>(b)].data()[i]);
@@ -326,8 +326,8 @@ TEST(CurrentSystem, TheFloatCopyOfTheCurrentStiffnessIsSymmetricBitForBit) {
   ball.model->update_rotations(ball.x);
   const BlockMatrix& k = *ball.model->current_stiffness();
   const CurrentSystem system(k, ball.model->lumped_masses(), ball.fixed, {}, 1.0, 1e-4);
-  std::vector<float> single;
-  system.round_blocks(single, serial_executor());
+  std::vector<float> single(9 * static_cast<size_t>(k.block_count()));
+  system.round_blocks(single.data(), serial_executor());
   std::vector<Mat3> widened(static_cast<size_t>(k.block_count()));
   for (size_t b = 0; b < widened.size(); ++b)
     widened[b] = Eigen::Map<const Eigen::Matrix3f>(single.data() + 9 * b).cast<double>();
