@@ -156,6 +156,7 @@ CgResult rest_factor_solve(const DeformableModel& model, const RestFactor& facto
 // products read K's blocks rounded to float (half the bytes; CG's own product stays double):
 // M^-1 is then the cycle of that rounded, still symmetric system, as good a preconditioner.
 constexpr double current_smoothing_margin = 1.2;
+constexpr bool current_smoother_in_float = true;  // CurrentVcycle's single_precision
 
 CgResult current_vcycle_solve(const DeformableModel& model, const RestFactor& factor, const LinearOperator& apply,
                               const CurrentSystem& system, const Vector& right_hand_side,
@@ -165,7 +166,7 @@ CgResult current_vcycle_solve(const DeformableModel& model, const RestFactor& fa
   ChebyshevSmoother smoother;
   smoother.degree = factor.smoothing_degree();
   smoother.upper = current_smoothing_margin * factor.smoothing_eigenvalue();
-  CurrentVcycle vcycle(system, factor, rotations, smoother, model.executor(), true);
+  CurrentVcycle vcycle(system, factor, rotations, smoother, model.executor(), current_smoother_in_float);
   const Preconditioner cycle = [&](const Vector& r, Vector& z) { vcycle(r, z); };
   return preconditioned_conjugate_gradient(apply, right_hand_side, cycle, fixed_nodes, velocity_change, settings);
 }
