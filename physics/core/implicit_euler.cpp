@@ -152,8 +152,11 @@ CgResult rest_factor_solve(const DeformableModel& model, const RestFactor& facto
 // the rest build's largest eigenvalue of D0^-1 A0: turning the nodes' blocks moves D's entries
 // and with them the top of D^-1 A (+9 % on a ball bent by 0.6 rad, test_current_system), and
 // the Chebyshev step contracts only up to (1 + 1/ratio) x its interval's top. S and C symmetric
-// make M^-1 symmetric, and SPD while the smoother contracts (multigrid.hpp).
+// make M^-1 symmetric, and SPD while the smoother contracts (multigrid.hpp). The cycle's
+// products read K's blocks rounded to float (half the bytes; CG's own product stays double):
+// M^-1 is then the cycle of that rounded, still symmetric system, as good a preconditioner.
 constexpr double current_smoothing_margin = 1.2;
+constexpr bool current_smoother_in_float = true;  // CurrentVcycle's single_precision
 
 CgResult current_vcycle_solve(const DeformableModel& model, const RestFactor& factor, const LinearOperator& apply,
                               const CurrentSystem& system, const Vector& right_hand_side,
@@ -163,7 +166,7 @@ CgResult current_vcycle_solve(const DeformableModel& model, const RestFactor& fa
   ChebyshevSmoother smoother;
   smoother.degree = factor.smoothing_degree();
   smoother.upper = current_smoothing_margin * factor.smoothing_eigenvalue();
-  CurrentVcycle vcycle(system, factor, rotations, smoother, model.executor());
+  CurrentVcycle vcycle(system, factor, rotations, smoother, model.executor(), current_smoother_in_float);
   const Preconditioner cycle = [&](const Vector& r, Vector& z) { vcycle(r, z); };
   return preconditioned_conjugate_gradient(apply, right_hand_side, cycle, fixed_nodes, velocity_change, settings);
 }

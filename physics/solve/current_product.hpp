@@ -12,6 +12,11 @@
 // (b_21 x1 + b_22 x2) + b_20 x0; the finish as `(c_m * m) * x + c_k * sum`. The AVX2 kernel
 // (three rows in one 256-bit lane set, the row-2 order by two blends) and the portable one
 // give the same bits, those of CurrentSystem's Eigen product before this kernel.
+//
+// K's blocks may instead be a float copy of them (CurrentVcycle's smoother, round_rows_to_single):
+// each entry is widened to double (exactly) before it multiplies, the sums stay double, so the
+// product is the double kernel's on the float-rounded blocks, bit for bit, at half the bytes a
+// block.
 #pragma once
 
 #include "physics/solve/block_matrix.hpp"
@@ -25,6 +30,7 @@ struct CurrentRows {
   const int* row_start = nullptr;
   const int* columns = nullptr;
   const double* stiffness = nullptr;  // K's blocks, 9 doubles each, column-major (Mat3)
+  const float* single_stiffness = nullptr;  // non-null: used instead, K's blocks rounded to float
   const double* masses = nullptr;
   const std::uint8_t* fixed = nullptr;  // null: nothing fixed
   const double* springs = nullptr;      // per node the springs' Mat3 sum; null: no springs
@@ -33,5 +39,11 @@ struct CurrentRows {
 
 // y rows [begin, end) of A x; `free_x` is x zeroed on the fixed nodes (x itself when it is).
 void current_rows_product(const CurrentRows& rows, const double* x, const double* free_x, double* y, int begin, int end);
+
+// K's blocks of rows [begin, end) rounded to float into `out` (9 a block, K's layout), each
+// diagonal block's lower entries the rounded upper ones': K's off-diagonal blocks are their
+// mirrors' transposes bit for bit, its diagonal blocks symmetric only to round-off (the
+// refill sums S_ij and S_ji in different orders), so the copy is exactly symmetric.
+void round_rows_to_single(const CurrentRows& rows, float* out, int begin, int end);
 
 }  // namespace incise::physics

@@ -64,6 +64,20 @@ void CurrentSystem::multiply_rows(const double* x, double* y, int begin, int end
   current_rows_product(rows(), x, x, y, begin, end);
 }
 
+void CurrentSystem::multiply_rows(const double* x, double* y, int begin, int end, const float* single_blocks) const {
+  CurrentRows rows = this->rows();
+  rows.single_stiffness = single_blocks;
+  current_rows_product(rows, x, x, y, begin, end);
+}
+
+void CurrentSystem::round_blocks(float* out, Executor& executor) const {
+  if (stiffness_.block_count() == 0) return;
+  const CurrentRows rows = this->rows();
+  constexpr int rows_per_thread = 256;  // as multiply
+  executor.parallel_for(stiffness_.nodes(), [&](int begin, int end) { round_rows_to_single(rows, out, begin, end); },
+                        rows_per_thread);
+}
+
 Vector CurrentSystem::diagonal() const {
   const int nodes = stiffness_.nodes();
   Vector out(3 * static_cast<Eigen::Index>(nodes));

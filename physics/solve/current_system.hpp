@@ -35,6 +35,13 @@ class CurrentSystem {
   // on one range, for a caller that fuses its own work with the rows' product
   // (current_vcycle.hpp).
   void multiply_rows(const double* x, double* y, int begin, int end) const;
+  // The same with K's blocks read from `single_blocks`, a copy of them rounded to float
+  // (round_blocks): the mass, springs and fixed rows as in double (current_product.hpp).
+  void multiply_rows(const double* x, double* y, int begin, int end, const float* single_blocks) const;
+  // `out` (9 block_count() floats) = K's blocks rounded to float, symmetric bit for bit (K's
+  // order; round_rows_to_single), on `executor`'s threads.
+  void round_blocks(float* out, Executor& executor) const;
+  int block_count() const { return stiffness_.block_count(); }
   // The scalar diagonal of A (1 on fixed nodes).
   Vector diagonal() const;
   int nodes() const { return stiffness_.nodes(); }

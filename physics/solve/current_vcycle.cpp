@@ -12,7 +12,7 @@ constexpr int rows_per_thread = 256;  // as CurrentSystem::multiply
 
 CurrentVcycle::CurrentVcycle(const CurrentSystem& system, const RestFactor& factor,
                              const std::vector<Eigen::Quaterniond>& rotations, ChebyshevSmoother smoother,
-                             Executor& executor)
+                             Executor& executor, bool single_precision)
     : system_(system),
       factor_(factor),
       rotations_(rotations),
@@ -26,6 +26,10 @@ CurrentVcycle::CurrentVcycle(const CurrentSystem& system, const RestFactor& fact
     throw std::invalid_argument("CurrentVcycle: the factor is not a coarse one of the system's nodes");
   if (!rotations_.empty() && static_cast<int>(rotations_.size()) != system_.nodes())
     throw std::invalid_argument("CurrentVcycle: one rotation per node");
+  if (single_precision && system_.block_count() > 0) {
+    single_.reset(new float[9 * static_cast<size_t>(system_.block_count())]);
+    system_.round_blocks(single_.get(), executor_);
+  }
 }
 
 template <class Finish>
@@ -36,7 +40,7 @@ void CurrentVcycle::product_pass(const Vector& from, const Finish& finish) {
   // A range's product stays in cache for its rows' finish (at most 4 ranges a thread); smaller
   // chunks of it cost more in calls than they gain (32 rows: +4 % a cycle on one thread).
   executor_.parallel_for(system_.nodes(), [&](int begin, int end) {
-    system_.multiply_rows(x, product, begin, end);
+    system_.multiply_rows(x, product, begin, end, single_.get());
     const Eigen::Index first = 3 * static_cast<Eigen::Index>(begin), last = 3 * static_cast<Eigen::Index>(end);
     for (Eigen::Index i = first; i < last; ++i) residual[i] -= product[i];
     finish(first, last);

@@ -8,7 +8,12 @@
 //   - the restriction P^T as a gather over the coarse nodes (coarse_transfer.hpp),
 //   - the prolongation P with the warp R and x += correction, a gather over the nodes,
 //   - the correction's product with the post-smoothing's first step.
-// Only CHOLMOD's coarse solve runs serially. Every entry is computed by one thread in the
+// With `single_precision`, the smoother's and the correction's products read a float copy of
+// K's blocks (CurrentSystem::round_blocks, made once in the constructor: the products stream
+// 36 bytes a block instead of 72); the masses, springs, fixed rows and D stay double, every sum
+// double. The copy is symmetric bit for bit (K's diagonal blocks are only to round-off; their
+// upper entries are taken), so the cycle stays a fixed symmetric operator, the V-cycle of the
+// rounded system, independent of the threads (CG's own product stays on the double A). Only CHOLMOD's coarse solve runs serially. Every entry is computed by one thread in the
 // order VcyclePreconditioner computes it, so the result has its bits whatever the threads
 // (test_current_system).
 //
@@ -25,6 +30,7 @@
 
 #include <Eigen/Geometry>
 
+#include <memory>
 #include <vector>
 
 namespace incise::physics {
@@ -33,9 +39,10 @@ class CurrentVcycle {
  public:
   // `system`: A; `factor`: a coarse V-cycle's (coarse(), smoothing_degree() > 0) of the same
   // nodes; `rotations`: its warp, one per node (empty: none); the passes run on `executor`'s
-  // threads. All referenced arguments must outlive the cycle.
+  // threads; `single_precision`: the products on K's blocks rounded to float (above). All
+  // referenced arguments must outlive the cycle.
   CurrentVcycle(const CurrentSystem& system, const RestFactor& factor, const std::vector<Eigen::Quaterniond>& rotations,
-                ChebyshevSmoother smoother, Executor& executor);
+                ChebyshevSmoother smoother, Executor& executor, bool single_precision = false);
 
   // z = M^-1 r. Not re-entrant (workspace).
   void operator()(const Vector& r, Vector& z);
@@ -55,6 +62,9 @@ class CurrentVcycle {
   Executor& executor_;
   ChebyshevSteps steps_;
   Vector inverse_diagonal_;
+  // K's blocks in float (single_precision; not zeroed first: the rounding writes every entry),
+  // or null: the double blocks.
+  std::unique_ptr<float[]> single_;
   Vector residual_, step_, next_step_, product_, turned_, coarse_;
 };
 

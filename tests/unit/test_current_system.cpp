@@ -16,6 +16,7 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -197,6 +198,35 @@ Vector eigen_product(const BlockMatrix& k, const Vector& masses, const std::vect
   return y;
 }
 
+// K with every block entry rounded to float and widened back, a diagonal block's lower
+// triangle its upper one's: the matrix CurrentVcycle's single-precision smoother multiplies by.
+BlockMatrix rounded_to_float(const BlockMatrix& k) {
+  std::vector<Mat3> blocks = k.blocks();
+  for (Mat3& block : blocks) block = block.cast<float>().cast<double>();
+  for (int row = 0; row < k.nodes(); ++row)
+    for (int i = k.row_start()[static_cast<size_t>(row)]; i < k.row_start()[static_cast<size_t>(row) + 1]; ++i)
+      if (k.columns()[static_cast<size_t>(i)] == row)
+        blocks[static_cast<size_t>(i)] = blocks[static_cast<size_t>(i)].triangularView<Eigen::Upper>().toDenseMatrix().selfadjointView<Eigen::Upper>();
+  return BlockMatrix(k.nodes(), k.row_start(), k.columns(), std::move(blocks));
+}
+
+// Whether every block (r, c) is block (c, r) transposed, bit for bit; `diagonal`: counts the
+// diagonal blocks' own symmetry too.
+int asymmetric_blocks(const BlockMatrix& k, const std::vector<Mat3>& blocks, bool diagonal) {
+  int differing = 0;
+  for (int row = 0; row < k.nodes(); ++row)
+    for (int i = k.row_start()[static_cast<size_t>(row)]; i < k.row_start()[static_cast<size_t>(row) + 1]; ++i) {
+      const int column = k.columns()[static_cast<size_t>(i)];
+      if (column == row && !diagonal) continue;
+      const auto first = k.columns().begin() + k.row_start()[static_cast<size_t>(column)];
+      const auto mirror = std::lower_bound(first, k.columns().begin() + k.row_start()[static_cast<size_t>(column) + 1], row);
+      if (mirror == k.columns().end() || *mirror != row) return -1;
+      const Mat3 transposed = blocks[static_cast<size_t>(mirror - k.columns().begin())].transpose();
+      differing += std::memcmp(transposed.data(), blocks[static_cast<size_t>(i)].data(), sizeof(Mat3)) != 0;
+    }
+  return differing;
+}
+
 // The kernel's product, AVX2 or portable, on any split of the rows, has the Eigen product's
 // bits: with springs (one on a fixed node, two on one node), and with x zero or not (even NaN)
 // on the fixed nodes.
@@ -241,6 +271,76 @@ TEST(CurrentSystem, TheProductHasTheBitsOfTheEigenProduct) {
     }
   }
   set_block_product_vectorised(true);
+}
+
+// The product on K's float copy (the single-precision smoother's), AVX2 or portable, has the
+// bits of the Eigen product on K's blocks rounded to float: the widening is exact and the sums
+// are the double kernel's. With springs and fixed rows; every block differs from the double one
+// by a float's rounding at most.
+TEST(CurrentSystem, TheFloatBlockProductHasTheBitsOfTheEigenProductOnRoundedBlocks) {
+  BentBall ball;
+  CorotationalEfg& model = *ball.model;
+  model.update_rotations(ball.x);
+  const BlockMatrix& k = *model.current_stiffness();
+  const BlockMatrix rounded = rounded_to_float(k);
+  std::vector<NodalSpring> springs(2);
+  springs[0].node = springs[1].node = 3;
+  springs[0].stiffness = Mat3::Identity() * 40.0 + Vec3(1, 2, 3) * Vec3(1, 2, 3).transpose();
+  springs[1].stiffness = Mat3::Identity() * 7.0 + Vec3(3, -1, 2) * Vec3(3, -1, 2).transpose();
+  const double mass_coefficient = 1.02, stiffness_coefficient = 1e-4;
+  const CurrentSystem system(k, model.lumped_masses(), ball.fixed, springs, mass_coefficient, stiffness_coefficient);
+  std::vector<float> single(9 * static_cast<size_t>(k.block_count()));
+  ShufflingExecutor shuffling;
+  ASSERT_EQ(system.block_count(), k.block_count());
+  system.round_blocks(single.data(), shuffling);
+  for (int b = 0; b < k.block_count(); ++b)
+    for (int i = 0; i < 9; ++i)
+      ASSERT_EQ(double(single[9 * static_cast<size_t>(b) + static_cast<size_t>(i)]), rounded.blocks()[static_cast<size_t>(b)].data()[i]);
+  Vector x = random_vector(ball.x.size(), 31);
+  for (int i = 0; i < model.node_count(); ++i)
+    if (ball.fixed[static_cast<size_t>(i)]) x.segment<3>(3 * i).setZero();
+  const Vector reference =
+      eigen_product(rounded, model.lumped_masses(), ball.fixed, springs, mass_coefficient, stiffness_coefficient, x);
+  const Vector exact = eigen_product(k, model.lumped_masses(), ball.fixed, springs, mass_coefficient, stiffness_coefficient, x);
+  EXPECT_FALSE(same_bits(reference, exact));  // the rounding shows
+  EXPECT_LE((reference - exact).cwiseAbs().maxCoeff(), 1e-6 * exact.cwiseAbs().maxCoeff());
+  for (const bool vectorised : {false, true}) {
+    set_block_product_vectorised(vectorised);
+    Vector whole(x.size()), split(x.size());
+    system.multiply_rows(x.data(), whole.data(), 0, model.node_count(), single.data());
+    // In pieces, the last ending at K's last block (the masked load).
+    for (int begin = 0; begin < model.node_count(); begin += 37)
+      system.multiply_rows(x.data(), split.data(), begin, std::min(model.node_count(), begin + 37), single.data());
+    EXPECT_TRUE(same_bits(whole, reference)) << "vectorised " << vectorised;
+    EXPECT_TRUE(same_bits(split, reference)) << "vectorised " << vectorised;
+  }
+  set_block_product_vectorised(true);
+}
+
+// The refill writes each lower block as its mirror's transpose, but sums a diagonal block's
+// entries (i, j) and (j, i) in different orders: K is symmetric bit for bit off the diagonal
+// blocks, to round-off on them. The float copy takes their upper entries: symmetric bit for
+// bit, and with it the single-precision cycle's every product.
+TEST(CurrentSystem, TheFloatCopyOfTheCurrentStiffnessIsSymmetricBitForBit) {
+  BentBall ball;
+  ball.model->update_rotations(ball.x);
+  const BlockMatrix& k = *ball.model->current_stiffness();
+  const CurrentSystem system(k, ball.model->lumped_masses(), ball.fixed, {}, 1.0, 1e-4);
+  std::vector<float> single(9 * static_cast<size_t>(k.block_count()));
+  system.round_blocks(single.data(), serial_executor());
+  std::vector<Mat3> widened(static_cast<size_t>(k.block_count()));
+  for (size_t b = 0; b < widened.size(); ++b)
+    widened[b] = Eigen::Map<const Eigen::Matrix3f>(single.data() + 9 * b).cast<double>();
+  EXPECT_EQ(asymmetric_blocks(k, k.blocks(), false), 0);
+  const int diagonal_asymmetric = asymmetric_blocks(k, k.blocks(), true);
+  std::printf("K's diagonal blocks not symmetric bit for bit: %d of %d\n", diagonal_asymmetric, k.nodes());
+  for (int row = 0; row < k.nodes(); ++row) {
+    const Mat3& block = k.blocks()[static_cast<size_t>(std::lower_bound(k.columns().begin() + k.row_start()[static_cast<size_t>(row)],
+                                                                         k.columns().begin() + k.row_start()[static_cast<size_t>(row) + 1], row) -
+                                                        k.columns().begin())];
+    ASSERT_LE((block - block.transpose()).cwiseAbs().maxCoeff(), 1e-14 * block.cwiseAbs().maxCoeff()) << "row " << row;
+  }
+  EXPECT_EQ(asymmetric_blocks(k, widened, true), 0);
 }
 
 TEST(CurrentSystem, TheAssemblyHasTheSameBitsHoweverTheRowsAreSplit) {
@@ -333,6 +433,22 @@ TEST(CurrentSystem, TheCurrentVcycleIsSymmetricPositiveAndConverges) {
     EXPECT_LE(std::abs(x.dot(my) - y.dot(mx)), 1e-10 * x.norm() * my.norm()) << "seed " << seed;
     EXPECT_GT(x.dot(mx), 0.0) << "seed " << seed;
   }
+  // The fused cycle on K's float copy, as the step runs it (degree 4): symmetric and positive
+  // too, and within the float rounding's reach of the double cycle.
+  smoother.degree = 4;
+  CurrentVcycle single(system, factor, rotations, smoother, serial_executor(), true);
+  CurrentVcycle dual(system, factor, rotations, smoother, serial_executor(), false);
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    const Vector x = free_random(seed), y = free_random(100 + seed);
+    Vector mx, my, mx_double;
+    single(x, mx);
+    single(y, my);
+    dual(x, mx_double);
+    EXPECT_LE(std::abs(x.dot(my) - y.dot(mx)), 1e-10 * x.norm() * my.norm()) << "seed " << seed;
+    EXPECT_GT(x.dot(mx), 0.0) << "seed " << seed;
+    EXPECT_FALSE(same_bits(mx, mx_double));
+    EXPECT_LE((mx - mx_double).norm(), 1e-5 * mx_double.norm()) << "seed " << seed;
+  }
 }
 
 // The coarse transfers as row-wise gathers have the bits of Eigen's sparse products on P.
@@ -359,7 +475,8 @@ TEST(CurrentSystem, TheCoarseTransfersHaveTheBitsOfTheSparseProducts) {
 
 // The fused cycle the implicit step runs (CurrentVcycle) has the bits of VcyclePreconditioner
 // on the same system, factor and rotations, on one thread, two, and ranges handed out in any
-// order; with smoothers of degree 1 to 4, a spring, and no warp.
+// order; with smoothers of degree 1 to 4, a spring, and no warp; on K's blocks in double and
+// in their float copy (then the bits of the V-cycle on K rounded to float).
 TEST(CurrentSystem, TheFusedCurrentVcycleHasTheBitsOfTheVcycleOnAnyThreads) {
   BentBall ball;
   CorotationalEfg& model = *ball.model;
@@ -372,21 +489,30 @@ TEST(CurrentSystem, TheFusedCurrentVcycleHasTheBitsOfTheVcycleOnAnyThreads) {
   const NodalSpring spring{7, Vec3::Zero(), Mat3::Identity() * 50.0 + Mat3::Constant(3.0)};
   const CurrentSystem system(*model.current_stiffness(), model.lumped_masses(), ball.fixed,
                              std::span<const NodalSpring>(&spring, 1), mass_coefficient, stiffness_coefficient);
+  // The single-precision cycle's products are those of the system on K rounded to float (its D
+  // stays the double system's).
+  const BlockMatrix rounded = rounded_to_float(*model.current_stiffness());
+  const CurrentSystem rounded_system(rounded, model.lumped_masses(), ball.fixed, std::span<const NodalSpring>(&spring, 1),
+                                     mass_coefficient, stiffness_coefficient);
   const LinearOperator apply = [&](const Vector& p, Vector& out) { system.multiply(p, out, serial_executor()); };
+  const LinearOperator apply_rounded = [&](const Vector& p, Vector& out) {
+    rounded_system.multiply(p, out, serial_executor());
+  };
   std::vector<Eigen::Quaterniond> rotations;
   model.node_rotations(rotations);
   const std::vector<Eigen::Quaterniond> none;
   TwoThreadExecutor two;
   ShufflingExecutor shuffling;
-  for (int degree = 1; degree <= 4; ++degree) {
+  for (int degree = 1; degree <= 4; ++degree) for (const bool single : {false, true}) {
     ChebyshevSmoother smoother;
     smoother.degree = degree;
     smoother.upper = 1.2 * factor.smoothing_eigenvalue();
     for (const std::vector<Eigen::Quaterniond>* warp : std::array<const std::vector<Eigen::Quaterniond>*, 2>{&rotations, &none}) {
-      VcyclePreconditioner reference(apply, jacobi_inverse(system.diagonal()), factor, *warp, ball.fixed, smoother);
-      CurrentVcycle one_thread(system, factor, *warp, smoother, serial_executor());
-      CurrentVcycle two_threads(system, factor, *warp, smoother, two);
-      CurrentVcycle shuffled(system, factor, *warp, smoother, shuffling);
+      VcyclePreconditioner reference(single ? apply_rounded : apply, jacobi_inverse(system.diagonal()), factor, *warp,
+                                     ball.fixed, smoother);
+      CurrentVcycle one_thread(system, factor, *warp, smoother, serial_executor(), single);
+      CurrentVcycle two_threads(system, factor, *warp, smoother, two, single);
+      CurrentVcycle shuffled(system, factor, *warp, smoother, shuffling, single);
       for (unsigned seed = 1; seed <= 2; ++seed) {
         const Vector r = random_vector(ball.x.size(), seed);  // nonzero on the fixed nodes too
         Vector expected, z1, z2, z3;
@@ -394,7 +520,8 @@ TEST(CurrentSystem, TheFusedCurrentVcycleHasTheBitsOfTheVcycleOnAnyThreads) {
         one_thread(r, z1);
         two_threads(r, z2);
         shuffled(r, z3);
-        const std::string where = "degree " + std::to_string(degree) + (warp->empty() ? " unwarped" : " warped") +
+        const std::string where = "degree " + std::to_string(degree) + (single ? " float" : " double") +
+                                  (warp->empty() ? " unwarped" : " warped") +
                                   " seed " + std::to_string(seed);
         ASSERT_TRUE(expected.allFinite()) << where;
         EXPECT_TRUE(same_bits(z1, expected)) << where;
