@@ -1,6 +1,12 @@
 #include "engine/background_queue.hpp"
 
+#include <algorithm>
 #include <utility>
+
+#if defined(__linux__)
+#include <sys/resource.h>
+#include <unistd.h>
+#endif
 
 namespace incise::engine {
 
@@ -26,6 +32,13 @@ std::shared_future<void> BackgroundQueue::post(std::function<void()> job) {
 }
 
 void BackgroundQueue::work() {
+#if defined(__linux__)
+  // Linux's nice value is a thread's own: this one goes background_nice below the thread that
+  // started it (the process's, which the steps' threads share). Raising one's nice value needs
+  // no privilege; a refusal would leave it at theirs.
+  const auto self = static_cast<id_t>(gettid());
+  setpriority(PRIO_PROCESS, self, std::min(19, getpriority(PRIO_PROCESS, self) + background_nice));
+#endif
   for (;;) {
     std::packaged_task<void()> task;
     {

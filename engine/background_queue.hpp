@@ -5,6 +5,14 @@
 // soak, +11 % in two minutes, flat with MALLOC_ARENA_MAX=1). One thread keeps one arena,
 // reused build after build; ThreadPoolExecutor keeps one for the process. Started at the first
 // post, so a process that never builds a factor has no such thread.
+//
+// The thread runs at a lower priority (background_nice nice levels below them, on Linux) than the steps: on two
+// cores a build at theirs took a core from the step's two threads for the ~15 ms it needs at
+// 20k elements, two steps of the ~12 its factor waits for (RestPreconditioner's latency) paying
+// for it all. Below them it takes what the steps leave idle (their serial parts, the worker
+// parked) and, against a busy step, about a tenth of a core: the same work spread over the
+// latency's steps. Which factor a step uses depends on the step count alone, so a build made
+// slower changes no bit, at worst a wait (PreconditionerReport::wait_ms).
 #pragma once
 
 #include <condition_variable>
@@ -18,6 +26,7 @@ namespace incise::engine {
 
 class BackgroundQueue {
  public:
+  static constexpr int background_nice = 10;
   BackgroundQueue() = default;
   // Runs every job posted before returning: a copy of a world may still wait on a future its
   // original's queue holds (a std::async's shared state ran its job whatever happened).

@@ -75,6 +75,11 @@ class DeformableModel {
   // stay matrix-free). Not called unless a solver asks for it (solver.preconditioner
   // "multigrid_current").
   virtual const BlockMatrix* current_stiffness() const { return nullptr; }
+  // Lays current_stiffness's plan for the model's rows as they are now: the part of it a
+  // topology change makes, the refill staying with the step. For a caller with a thread to
+  // spare after a cut (physics/cut/apply_topology.cpp): it touches nothing but the plan, so it
+  // may run beside work that reads the model and does not call current_stiffness.
+  virtual void plan_current_stiffness() const {}
   // Per node, the mean of the frozen rotations of the elements around it (unit quaternions):
   // the warp of a rest-shape preconditioner. Empty: the identity.
   virtual void node_rotations(std::vector<Eigen::Quaterniond>& out) const { out.clear(); }

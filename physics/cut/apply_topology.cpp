@@ -182,7 +182,17 @@ void apply_topology(CutContext& ctx, const BladeSweep& blade, const std::optiona
     // those with a link reaching into the box of this step's triangles (grown by 2 a).
     std::vector<std::uint8_t> element_changed(static_cast<std::size_t>(body.efg->element_count()), 0);
     for (int e : volume.changed_elements) element_changed[e] = 1;
-    remap_front_surface(ctx, {visibility.lo, visibility.hi, element_changed, pinned});
+    const RemapRegion region{visibility.lo, visibility.hi, element_changed, pinned};
+    if (volume.any() && model.integrator.assembled_system && !ctx.on_gpu) {
+      // The re-selected rows' plan of the step's assembled stiffness on the helper, beside the
+      // surface's remap (which reads the model and leaves the plan alone): the step's solve
+      // then finds it laid. The same plan wherever and whenever it is laid.
+      const std::function<void()> remap = [&] { remap_front_surface(ctx, region); };
+      const std::function<void()> plan = [&] { body.mechanics->plan_current_stiffness(); };
+      executor.run_beside(remap, plan);
+    } else {
+      remap_front_surface(ctx, region);
+    }
   }
   report.ms_topology += ms_rest + volume.ms_topology + watch.ms();
   report.links_severed += volume.particle_links_severed + volume.element_links_severed + volume.links_severed_at_rest;

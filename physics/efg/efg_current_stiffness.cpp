@@ -6,9 +6,13 @@
 
 namespace incise::physics {
 
-const BlockMatrix* CorotationalEfg::current_stiffness() const {
+void CorotationalEfg::plan_current_stiffness() const {
   if (!assembly_.matches(node_count(), stride_, row_lengths_, neighbours_))
     assembly_.build(node_count(), stride_, row_lengths_, neighbours_);
+}
+
+const BlockMatrix* CorotationalEfg::current_stiffness() const {
+  plan_current_stiffness();  // done already where a cut laid it beside its surface work
   // add_stiffness_product's element term V R sigma(sym(R^T p g^T)) g_a, for p = p_b at node b
   // alone, is V R (lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I) R^T p_b: with h = R g
   // (R orthogonal, so h_a . h_b = g_a . g_b) and S = V h_a h_b^T, the block

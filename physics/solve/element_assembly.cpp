@@ -29,12 +29,28 @@ int find_block(const BlockMatrix& matrix, int row, int column) {
 }  // namespace
 
 void ElementAssembly::build(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours) {
+  if (edit(nodes, stride, lengths, neighbours)) return;  // element_assembly_edit.cpp
   groups_ = group_elements(stride, lengths, neighbours);
   for (int node : groups_.nodes)
     if (node < 0 || node >= nodes) throw std::invalid_argument("ElementAssembly: a row names a node outside [0, nodes)");
   stride_ = stride;
   lengths_ = lengths;
   neighbours_ = neighbours;
+  const int count = groups_.count();
+  size_groups();
+  pattern_rebuilt_ = matrix_.nodes() != nodes || !index_pairs();
+  if (pattern_rebuilt_) {
+    matrix_ = BlockMatrix(nodes, [&](const std::function<void(std::span<const int>)>& visit) {
+      for (int g = 0; g < count; ++g)
+        visit(std::span<const int>(groups_.nodes.data() + groups_.node_start[static_cast<size_t>(g)], static_cast<size_t>(groups_.length(g))));
+    });
+    if (!index_pairs()) throw std::logic_error("ElementAssembly: a pair is missing from the pattern just built");
+    index_mirrors();
+  }
+  list_incidences();
+}
+
+void ElementAssembly::size_groups() {
   const int count = groups_.count();
   longest_ = 0;
   pair_start_.assign(static_cast<size_t>(count) + 1, 0);
@@ -46,18 +62,10 @@ void ElementAssembly::build(int nodes, int stride, const std::vector<int>& lengt
     pair_start_[static_cast<size_t>(g) + 1] = pair_start_[static_cast<size_t>(g)] + length * (length + 1) / 2;
     gradient_offset_[static_cast<size_t>(g) + 1] = gradient_offset_[static_cast<size_t>(g)] + static_cast<size_t>(3 * length * members);
   }
-  gradients_.assign(gradient_offset_.back() + padding, 0.0);
-  weights_.assign(groups_.members.size(), 0.0);
-  pattern_rebuilt_ = matrix_.nodes() != nodes || !index_pairs();
-  if (pattern_rebuilt_) {
-    matrix_ = BlockMatrix(nodes, [&](const std::function<void(std::span<const int>)>& visit) {
-      for (int g = 0; g < count; ++g)
-        visit(std::span<const int>(groups_.nodes.data() + groups_.node_start[static_cast<size_t>(g)], static_cast<size_t>(groups_.length(g))));
-    });
-    if (!index_pairs()) throw std::logic_error("ElementAssembly: a pair is missing from the pattern just built");
-    index_mirrors();
-  }
-  list_incidences();
+  // Every refill writes every element's vectors and weight: only the padding needs a value.
+  gradients_.resize(gradient_offset_.back() + padding);
+  std::fill(gradients_.end() - padding, gradients_.end(), 0.0);
+  weights_.resize(groups_.members.size());
 }
 
 bool ElementAssembly::index_pairs() {

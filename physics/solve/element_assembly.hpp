@@ -19,8 +19,13 @@
 // thread's range (done before it), after the pass otherwise. Nothing depends on the thread count.
 //
 // The pattern is kept across cuts while it covers every group's node pairs (blocks no group
-// uses any more stay, refilled with zero); a cut that couples a new pair rebuilds it, from the
-// groups (a few thousand at 20k EFG elements, not every element's 64 pairs).
+// uses any more stay, refilled with zero); a cut that couples a new pair grows it by the new
+// pairs. A plan for rows that differ from the last ones in a few elements (a cut re-selects a
+// few hundred neighbourhoods of 20k) is edited, not rebuilt (element_assembly_edit.cpp): only
+// the changed rows are grouped afresh (regroup_elements, the same groups as group_elements)
+// and only new node sets' pairs looked up in the pattern. A first plan, or one for rows that
+// changed throughout, is built from the groups (a few thousand at 20k EFG elements, not every
+// element's 64 pairs).
 #pragma once
 
 #include "physics/core/executor.hpp"
@@ -29,6 +34,7 @@
 
 #include <algorithm>
 #include <span>
+#include <utility>
 #include <vector>
 
 namespace incise::physics {
@@ -78,6 +84,13 @@ class ElementAssembly {
   struct Incidence {
     int group, a, pairs;
   };
+  // The plan for rows edited in a few elements, from the last plan; false (nothing done) when
+  // there is none to edit or the rows changed throughout.
+  bool edit(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours);
+  // Adds the (row, column) blocks `missing` names (not in the pattern, both of a pair's
+  // mirrors); returns per old block its index in the grown pattern.
+  std::vector<int> grow_pattern(std::vector<std::pair<int, int>> missing);
+  void size_groups();  // longest_, pair_start_, gradient_offset_ and the vectors' room, from groups_
   bool index_pairs();  // false when a group's pair is outside matrix_'s pattern
   void index_mirrors();
   void list_incidences();

@@ -87,3 +87,86 @@ ElementGroups group_elements(int stride, const std::vector<int>& lengths, const 
 }
 
 }  // namespace incise::physics
+
+namespace incise::physics {
+
+ElementGroups regroup_elements(const ElementGroups& previous, int stride, const std::vector<int>& lengths,
+                               const std::vector<int>& neighbours, const std::vector<int>& changed,
+                               std::vector<int>* previous_group) {
+  const int elements = static_cast<int>(lengths.size());
+  if (stride < 1 || neighbours.size() != lengths.size() * static_cast<size_t>(stride) ||
+      previous.group_of.size() != lengths.size() || previous.local.size() != neighbours.size())
+    throw std::invalid_argument("regroup_elements: the rows need the previous grouping's elements x stride neighbours");
+  // Keys: the previous groups' node sets (0 .. old - 1), then the changed rows' new sets.
+  const int old = previous.count();
+  std::vector<int> key_start(previous.node_start), key_nodes(previous.nodes);
+  std::unordered_map<std::uint64_t, int> first_with_hash;
+  first_with_hash.reserve(static_cast<size_t>(old) + changed.size());
+  std::vector<int> next_with_hash(static_cast<size_t>(old), -1);
+  std::vector<std::pair<int, int>> sorted;
+  const auto chain = [&](std::uint64_t hash, int key) {
+    const auto [found, inserted] = first_with_hash.try_emplace(hash, key);
+    if (!inserted) {
+      next_with_hash[static_cast<size_t>(key)] = found->second;
+      found->second = key;
+    }
+  };
+  for (int g = 0; g < old; ++g) {
+    sorted.clear();
+    for (int i = key_start[static_cast<size_t>(g)]; i < key_start[static_cast<size_t>(g) + 1]; ++i)
+      sorted.emplace_back(key_nodes[static_cast<size_t>(i)], 0);
+    chain(hash_nodes(sorted), g);
+  }
+  std::vector<int> key_of(previous.group_of);
+  std::vector<int> local(previous.local);
+  int last = -1;
+  for (const int e : changed) {
+    if (e <= last || e >= elements) throw std::invalid_argument("regroup_elements: changed elements must increase within [0, elements)");
+    last = e;
+    const size_t base = static_cast<size_t>(e) * stride;
+    const int length = lengths[static_cast<size_t>(e)];
+    if (length < 0 || length > stride) throw std::invalid_argument("regroup_elements: a row length is outside [0, stride]");
+    sorted.clear();
+    for (int k = 0; k < length; ++k) sorted.emplace_back(neighbours[base + static_cast<size_t>(k)], k);
+    std::sort(sorted.begin(), sorted.end());
+    const std::uint64_t hash = hash_nodes(sorted);
+    const auto found = first_with_hash.find(hash);
+    int key = found == first_with_hash.end() ? -1 : found->second;
+    while (key >= 0 && !same_nodes(sorted, key_nodes.data() + key_start[static_cast<size_t>(key)],
+                                   key_start[static_cast<size_t>(key) + 1] - key_start[static_cast<size_t>(key)]))
+      key = next_with_hash[static_cast<size_t>(key)];
+    if (key < 0) {
+      key = static_cast<int>(key_start.size()) - 1;
+      for (const auto& entry : sorted) key_nodes.push_back(entry.first);
+      key_start.push_back(static_cast<int>(key_nodes.size()));
+      next_with_hash.push_back(-1);
+      chain(hash, key);
+    }
+    key_of[static_cast<size_t>(e)] = key;
+    for (int k = length; k < stride; ++k) local[base + static_cast<size_t>(k)] = 0;
+    for (int a = 0; a < length; ++a) local[base + static_cast<size_t>(sorted[static_cast<size_t>(a)].second)] = a;
+  }
+  // group_elements numbers the groups in the order of their first elements.
+  ElementGroups groups;
+  std::vector<int> group_of_key(key_start.size() - 1, -1);
+  groups.node_start.push_back(0);
+  groups.group_of.assign(static_cast<size_t>(elements), 0);
+  if (previous_group) previous_group->clear();
+  for (int e = 0; e < elements; ++e) {
+    const int key = key_of[static_cast<size_t>(e)];
+    int& group = group_of_key[static_cast<size_t>(key)];
+    if (group < 0) {
+      group = groups.count();
+      groups.nodes.insert(groups.nodes.end(), key_nodes.begin() + key_start[static_cast<size_t>(key)],
+                          key_nodes.begin() + key_start[static_cast<size_t>(key) + 1]);
+      groups.node_start.push_back(static_cast<int>(groups.nodes.size()));
+      if (previous_group) previous_group->push_back(key < old ? key : -1);
+    }
+    groups.group_of[static_cast<size_t>(e)] = group;
+  }
+  groups.local = std::move(local);
+  list_members(groups);
+  return groups;
+}
+
+}  // namespace incise::physics

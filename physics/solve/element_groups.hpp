@@ -34,4 +34,14 @@ struct ElementGroups {
 // nodes are neighbours[e * stride + k], k < lengths[e].
 ElementGroups group_elements(int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours);
 
+// The same grouping of edited rows, from `previous`, the grouping of the rows before the edit
+// (as many elements, the same stride): only the `changed` elements' rows (increasing) are
+// sorted and looked up, the others keep their node set, and the groups' order follows from one
+// pass over the elements. A cut re-selects a few hundred of 20k elements' neighbourhoods; this
+// is a few linear passes where group_elements sorts and hashes every row. `previous_group`,
+// when given, gets per new group the previous group of the same nodes, -1 for a new set.
+ElementGroups regroup_elements(const ElementGroups& previous, int stride, const std::vector<int>& lengths,
+                               const std::vector<int>& neighbours, const std::vector<int>& changed,
+                               std::vector<int>* previous_group = nullptr);
+
 }  // namespace incise::physics

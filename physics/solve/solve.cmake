@@ -13,6 +13,7 @@ target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/current_system.cpp
   ${CMAKE_CURRENT_LIST_DIR}/current_vcycle.cpp
   ${CMAKE_CURRENT_LIST_DIR}/element_assembly.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/element_assembly_edit.cpp
   ${CMAKE_CURRENT_LIST_DIR}/element_groups.cpp
   ${CMAKE_CURRENT_LIST_DIR}/galerkin.cpp
   ${CMAKE_CURRENT_LIST_DIR}/multigrid.cpp

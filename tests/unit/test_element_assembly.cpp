@@ -2,7 +2,9 @@
 // that share a node set in different orders, a repeated node, an element of weight zero, against
 // a sum of every element's own blocks; the pattern kept or rebuilt through edits; the bits the
 // same however the rows are split and whatever edits led to the rows; the 8-node groups' AVX2
-// sums the bits of the portable loop, beside irregular groups (cut cells).
+// sums the bits of the portable loop, beside irregular groups (cut cells); rows edited a few at a
+// time (a cut's re-selection) regrouped and re-planned to what grouping and planning them afresh
+// gives.
 #include "physics/core/model.hpp"
 #include "physics/solve/element_assembly.hpp"
 #include "physics/solve/element_groups.hpp"
@@ -227,6 +229,110 @@ TEST(ElementAssembly, TheVectorisedSumsOfEightNodeGroupsHaveThePortableBits) {
   expect_equals_reference(fast, elements);
   ASSERT_EQ(fast.block_count(), slow.block_count());
   EXPECT_EQ(0, std::memcmp(fast.blocks().data(), slow.blocks().data(), sizeof(Mat3) * fast.blocks().size()));
+}
+
+// Edits a few rows as a cut's re-selection does: a corner replaced by another node (often one
+// of another cell, a new pair), a row shortened, its entries reordered, or made another row's
+// node set (joining its group, which may move the group's first element).
+void edit_rows(Elements& elements, std::mt19937& random) {
+  const int count = static_cast<int>(elements.lengths.size());
+  std::uniform_int_distribution<int> element(0, count - 1), node(0, elements.nodes - 1), kind(0, 3);
+  for (int edits = 1 + element(random) % 3; edits > 0; --edits) {
+    const int e = element(random);
+    int* row = elements.neighbours.data() + static_cast<size_t>(e) * elements.stride;
+    int& length = elements.lengths[static_cast<size_t>(e)];
+    switch (kind(random)) {
+      case 0:
+        if (length > 0) row[node(random) % length] = node(random);
+        break;
+      case 1:
+        if (length > 1) --length;
+        break;
+      case 2:
+        std::shuffle(row, row + length, random);
+        break;
+      default: {
+        const int other = element(random);
+        length = elements.lengths[static_cast<size_t>(other)];
+        std::copy_n(elements.neighbours.data() + static_cast<size_t>(other) * elements.stride, elements.stride, row);
+      }
+    }
+    elements.vectors[static_cast<size_t>(e)].resize(static_cast<size_t>(length), Vec3(0.25, -0.5, 0.75));
+  }
+}
+
+TEST(ElementGroups, RegroupingEditedRowsGivesTheGroupsOfGroupingThemAfresh) {
+  Elements elements = cell_elements();
+  std::mt19937 random(5);
+  ElementGroups groups = group_elements(elements.stride, elements.lengths, elements.neighbours);
+  for (int round = 0; round < 200; ++round) {
+    const Elements before = elements;
+    edit_rows(elements, random);
+    std::vector<int> changed;
+    for (size_t e = 0; e < elements.lengths.size(); ++e)
+      if (elements.lengths[e] != before.lengths[e] ||
+          !std::equal(elements.neighbours.begin() + static_cast<std::ptrdiff_t>(e * elements.stride),
+                      elements.neighbours.begin() + static_cast<std::ptrdiff_t>(e * elements.stride + elements.stride),
+                      before.neighbours.begin() + static_cast<std::ptrdiff_t>(e * elements.stride)))
+        changed.push_back(static_cast<int>(e));
+    std::vector<int> previous_group;
+    const ElementGroups edited = regroup_elements(groups, elements.stride, elements.lengths, elements.neighbours, changed, &previous_group);
+    const ElementGroups fresh = group_elements(elements.stride, elements.lengths, elements.neighbours);
+    ASSERT_EQ(edited.node_start, fresh.node_start) << "round " << round;
+    ASSERT_EQ(edited.nodes, fresh.nodes) << "round " << round;
+    ASSERT_EQ(edited.member_start, fresh.member_start) << "round " << round;
+    ASSERT_EQ(edited.members, fresh.members) << "round " << round;
+    ASSERT_EQ(edited.group_of, fresh.group_of) << "round " << round;
+    ASSERT_EQ(edited.member_of, fresh.member_of) << "round " << round;
+    ASSERT_EQ(edited.local, fresh.local) << "round " << round;
+    // A group the previous grouping had, by its nodes; a new one nowhere in it.
+    ASSERT_EQ(static_cast<int>(previous_group.size()), fresh.count());
+    for (int g = 0; g < fresh.count(); ++g) {
+      const std::vector<int> nodes(fresh.nodes.begin() + fresh.node_start[static_cast<size_t>(g)],
+                                   fresh.nodes.begin() + fresh.node_start[static_cast<size_t>(g) + 1]);
+      bool had = false;
+      for (int p = 0; p < groups.count(); ++p)
+        had = had || std::vector<int>(groups.nodes.begin() + groups.node_start[static_cast<size_t>(p)],
+                                      groups.nodes.begin() + groups.node_start[static_cast<size_t>(p) + 1]) == nodes;
+      const int p = previous_group[static_cast<size_t>(g)];
+      if (!had) {
+        EXPECT_EQ(p, -1);
+        continue;
+      }
+      ASSERT_GE(p, 0);
+      EXPECT_EQ(std::vector<int>(groups.nodes.begin() + groups.node_start[static_cast<size_t>(p)],
+                                 groups.nodes.begin() + groups.node_start[static_cast<size_t>(p) + 1]),
+                nodes);
+    }
+    groups = edited;
+  }
+}
+
+TEST(ElementAssembly, APlanEditedCutByCutHasTheBitsOfOneBuiltForTheLastRows) {
+  Elements elements = cell_elements();
+  std::mt19937 random(11);
+  ElementAssembly edited;
+  assemble(edited, elements, serial_executor());
+  int grown = 0;
+  for (int round = 0; round < 100; ++round) {
+    edit_rows(elements, random);
+    const int blocks = edited.matrix().block_count();
+    const BlockMatrix& by_edits = assemble(edited, elements, serial_executor());
+    grown += edited.pattern_rebuilt() ? 1 : 0;
+    EXPECT_GE(by_edits.block_count(), blocks);  // kept, or grown by new pairs
+    expect_equals_reference(by_edits, elements);
+    ElementAssembly fresh;
+    ShufflingExecutor shuffling;
+    const BlockMatrix& built = assemble(fresh, elements, shuffling);
+    for (int row = 0; row < by_edits.nodes(); ++row)
+      for (int k = by_edits.row_start()[static_cast<size_t>(row)]; k < by_edits.row_start()[static_cast<size_t>(row) + 1]; ++k) {
+        const int at = find_block(built, row, by_edits.columns()[static_cast<size_t>(k)]);
+        const Mat3 expected = at < 0 ? Mat3::Zero() : built.blocks()[static_cast<size_t>(at)];
+        ASSERT_EQ(0, std::memcmp(by_edits.blocks()[static_cast<size_t>(k)].data(), expected.data(), sizeof(Mat3)))
+            << "round " << round << ", block (" << row << ", " << by_edits.columns()[static_cast<size_t>(k)] << ")";
+      }
+  }
+  EXPECT_GT(grown, 0);  // some edits coupled new pairs
 }
 
 }  // namespace

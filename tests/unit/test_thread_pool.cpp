@@ -2,7 +2,9 @@
 // caller's, on its helper thread or, when the helper has not begun it, on the caller after its
 // own; WorkerPool splits a loop; ThreadPoolExecutor is the physics::Executor made of them, and
 // physics::serial_executor the one models use without it. Run under ThreadSanitizer in CI
-// (what each job wrote must be seen after run returns).
+// (what each job wrote must be seen after run returns). BackgroundQueue: the factors' builds' thread, in
+// order, below the posting thread's priority.
+#include "engine/background_queue.hpp"
 #include "engine/thread_pool.hpp"
 
 #include <gtest/gtest.h>
@@ -17,6 +19,12 @@
 #include <utility>
 #include <vector>
 
+#if defined(__linux__)
+#include <sys/resource.h>
+#include <unistd.h>
+#endif
+
+using incise::engine::BackgroundQueue;
 using incise::engine::SideRunner;
 using incise::engine::ThreadPoolExecutor;
 using incise::engine::WorkerPool;
@@ -216,3 +224,25 @@ TEST(Executor, TheThreadPoolOneKeepsTheContractForAnyThreadCount) {
   }
   EXPECT_THROW(ThreadPoolExecutor(0, false), std::invalid_argument);
 }
+
+#if defined(__linux__)
+// The factors' builds run below the steps' threads: the queue's thread background_nice nice
+// levels above the thread that started it (capped at 19), and it runs its jobs in order.
+TEST(BackgroundQueue, RunsItsJobsInOrderOnAThreadNicerThanThePostersOwn) {
+  const int poster = getpriority(PRIO_PROCESS, static_cast<id_t>(gettid()));
+  std::vector<int> order, nice;
+  {
+    BackgroundQueue queue;
+    std::shared_future<void> last;
+    for (int job = 0; job < 3; ++job)
+      last = queue.post([&order, &nice, job] {
+        order.push_back(job);
+        nice.push_back(getpriority(PRIO_PROCESS, static_cast<id_t>(gettid())));
+      });
+    last.get();
+  }
+  EXPECT_EQ(order, (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(nice, std::vector<int>(3, std::min(19, poster + BackgroundQueue::background_nice)));
+  EXPECT_EQ(getpriority(PRIO_PROCESS, static_cast<id_t>(gettid())), poster);  // the poster's own is untouched
+}
+#endif

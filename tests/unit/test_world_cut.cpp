@@ -375,9 +375,10 @@ TEST(WorldCut, TheFrontSurfacesCutBesideTheVolumesGivesWhatItGivesInSequence) {
   // With efg.threads >= 2 a cutting step runs the surface's cut (FrontSurface::advance) on a
   // second thread beside the volume's CCD and re-selection (and the element loops on two
   // threads); with 1 it runs after them, on the physics thread (the engine's executor with one
-  // thread, as physics::serial_executor). Neither reads what the other writes, so the steps
-  // must agree bit for bit: the particles, the surface, the counts (and ThreadSanitizer, in
-  // CI, sees the overlap).
+  // thread, as physics::serial_executor). Likewise the plan of the assembled stiffness for the
+  // re-selected rows (multigrid_current, the scene's) beside the surface's remap. Neither job
+  // reads what the other writes, so the steps must agree bit for bit: the particles, the
+  // surface, the counts (and ThreadSanitizer, in CI, sees the overlap).
   const auto run = [](int threads, double& front_ms) {
     Scene scene = load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "assets/scenes/cut_twisting_blade.json");
     scene.bodies[0].efg.threads = threads;
