@@ -49,14 +49,19 @@ BlockMatrix::BlockMatrix(int nodes, std::vector<int> row_start, std::vector<int>
   }
 }
 
-Mat3& BlockMatrix::at(int row, int column) {
+int BlockMatrix::find(int row, int column) const {
   const auto first = columns_.begin() + row_start_[static_cast<size_t>(row)];
   const auto last = columns_.begin() + row_start_[static_cast<size_t>(row) + 1];
   const auto found = std::lower_bound(first, last, column);
-  if (found == last || *found != column)
+  return found != last && *found == column ? static_cast<int>(found - columns_.begin()) : -1;
+}
+
+Mat3& BlockMatrix::at(int row, int column) {
+  const int index = find(row, column);
+  if (index < 0)
     throw std::out_of_range("BlockMatrix: block (" + std::to_string(row) + ", " + std::to_string(column) +
                             ") is not in the pattern");
-  return blocks_[static_cast<size_t>(found - columns_.begin())];
+  return blocks_[static_cast<size_t>(index)];
 }
 
 Eigen::SparseMatrix<double> BlockMatrix::system(const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,

@@ -32,6 +32,8 @@ class BlockMatrix {
   int block_count() const { return static_cast<int>(columns_.size()); }
   // The block (row, column); it must be in the pattern (throws std::out_of_range otherwise).
   Mat3& at(int row, int column);
+  // The index of block (row, column) in blocks(), -1 if it is not in the pattern.
+  int find(int row, int column) const;
   // Block row r holds the blocks k in [row_start()[r], row_start()[r + 1]), block k in
   // column columns()[k].
   const std::vector<int>& row_start() const { return row_start_; }

@@ -16,18 +16,6 @@ bool ElementAssembly::matches(int nodes, int stride, const std::vector<int>& len
   return matrix_.nodes() == nodes && stride_ == stride && lengths_ == lengths && neighbours_ == neighbours;
 }
 
-namespace {
-
-// The index of block (row, column) in `matrix`'s pattern, -1 if it is not there.
-int find_block(const BlockMatrix& matrix, int row, int column) {
-  const auto first = matrix.columns().begin() + matrix.row_start()[static_cast<size_t>(row)];
-  const auto last = matrix.columns().begin() + matrix.row_start()[static_cast<size_t>(row) + 1];
-  const auto found = std::lower_bound(first, last, column);
-  return found != last && *found == column ? static_cast<int>(found - matrix.columns().begin()) : -1;
-}
-
-}  // namespace
-
 void ElementAssembly::build(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours) {
   if (edit(nodes, stride, lengths, neighbours)) return;  // element_assembly_edit.cpp
   groups_ = group_elements(stride, lengths, neighbours);
@@ -76,7 +64,7 @@ bool ElementAssembly::index_pairs() {
     int next = pair_start_[static_cast<size_t>(g)];
     for (int a = 0; a < length; ++a)
       for (int b = a; b < length; ++b) {
-        const int index = find_block(matrix_, nodes[a], nodes[b]);
+        const int index = matrix_.find(nodes[a], nodes[b]);
         if (index < 0) return false;
         pair_index_[static_cast<size_t>(next++)] = index;
       }

@@ -16,13 +16,6 @@ namespace {
 // Rows edited in more than this share of the elements are grouped afresh.
 constexpr int edited_share = 4;  // 1 / 4
 
-int find_block(const BlockMatrix& matrix, int row, int column) {
-  const auto first = matrix.columns().begin() + matrix.row_start()[static_cast<size_t>(row)];
-  const auto last = matrix.columns().begin() + matrix.row_start()[static_cast<size_t>(row) + 1];
-  const auto found = std::lower_bound(first, last, column);
-  return found != last && *found == column ? static_cast<int>(found - matrix.columns().begin()) : -1;
-}
-
 }  // namespace
 
 bool ElementAssembly::edit(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours) {
@@ -69,7 +62,7 @@ bool ElementAssembly::edit(int nodes, int stride, const std::vector<int>& length
     int pair = next;
     for (int a = 0; a < length; ++a)
       for (int b = a; b < length; ++b, ++pair) {
-        pair_index_[static_cast<size_t>(pair)] = find_block(matrix_, group_nodes[a], group_nodes[b]);
+        pair_index_[static_cast<size_t>(pair)] = matrix_.find(group_nodes[a], group_nodes[b]);
         if (pair_index_[static_cast<size_t>(pair)] < 0) {
           missing.emplace_back(group_nodes[a], group_nodes[b]);
           missing.emplace_back(group_nodes[b], group_nodes[a]);
@@ -88,7 +81,7 @@ bool ElementAssembly::edit(int nodes, int stride, const std::vector<int>& length
       for (int a = 0; a < length; ++a)
         for (int b = a; b < length; ++b, ++pair)
           if (pair_index_[static_cast<size_t>(pair)] < 0)
-            pair_index_[static_cast<size_t>(pair)] = find_block(matrix_, group_nodes[a], group_nodes[b]);
+            pair_index_[static_cast<size_t>(pair)] = matrix_.find(group_nodes[a], group_nodes[b]);
     }
     index_mirrors();
   }
