@@ -325,7 +325,7 @@ void main() {
 
 
 // Per element: the rotation R_e maximising tr(R^T F_e), F_e = sum_n x_n (x) grad phi_n the
-// MLS deformation gradient (EfgRotation::deformation_gradient), by corotational_efg.cpp's
+// MLS deformation gradient (EfgRotation::deformation_gradient), by rotation_extraction.hpp's
 // extract_rotation: Newton steps omega = (tr(N) I - sym N)^-1 g on the axis-angle of
 // N = F R^T (g its axial vector), a scaled gradient step where that matrix is not positive
 // definite, warm-started with the last quaternion (orientations, x y z w). F is formed as
