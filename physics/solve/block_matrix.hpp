@@ -11,6 +11,7 @@
 
 #include <functional>
 #include <span>
+#include <utility>
 #include <vector>
 
 namespace incise::physics {
@@ -40,6 +41,9 @@ class BlockMatrix {
   const std::vector<int>& columns() const { return columns_; }
   const std::vector<Mat3>& blocks() const { return blocks_; }
   Mat3* mutable_blocks() { return blocks_.data(); }
+  // Hands the blocks' storage to a caller that lays a new pattern in it (ElementAssembly: a
+  // refill rewrites every block); the matrix is left without blocks until it is replaced.
+  std::vector<Mat3> release_blocks() { return std::move(blocks_); }
 
   // The scalar matrix mass_coefficient M + stiffness_coefficient K (3n x 3n, column-major),
   // M = diag(masses) per node, with the rows and columns of nodes marked fixed (1) replaced by

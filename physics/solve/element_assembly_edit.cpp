@@ -113,8 +113,17 @@ std::vector<int> ElementAssembly::grow_pattern(std::vector<std::pair<int, int>> 
     row_start[static_cast<size_t>(row) + 1] = static_cast<int>(grown.size());
   }
   if (m != missing.size()) throw std::logic_error("ElementAssembly: a missing pair's row is outside the pattern");
+  // The grown pattern's blocks in the old ones' storage, not a new zeroed one (20 MB at 76k
+  // elements, for a few dozen new pairs): the refill rewrites every block, the lower ones as
+  // their mirrors' transposes. Room for an eighth more, so the next cuts' pairs fit.
+  std::vector<Mat3> storage = matrix_.release_blocks();
   const size_t blocks = grown.size();
-  matrix_ = BlockMatrix(nodes, std::move(row_start), std::move(grown), std::vector<Mat3>(blocks, Mat3::Zero()));
+  if (storage.capacity() < blocks) {
+    storage.clear();
+    storage.reserve(blocks + blocks / 8);
+  }
+  storage.resize(blocks);
+  matrix_ = BlockMatrix(nodes, std::move(row_start), std::move(grown), std::move(storage));
   return moved;
 }
 
