@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <stdexcept>
+#include <string>
 #include <unordered_map>
 #include <utility>
 
@@ -25,6 +26,47 @@ bool same_nodes(const std::vector<std::pair<int, int>>& sorted, const int* nodes
     if (sorted[static_cast<size_t>(a)].first != nodes[a]) return false;
   return true;
 }
+
+// A row's nodes sorted, with their places in the row: (node, k), by node then k. `who` names
+// the caller in the error on a length outside [0, stride].
+void sort_row(const std::vector<int>& neighbours, size_t base, int length, int stride, const char* who,
+              std::vector<std::pair<int, int>>& sorted) {
+  if (length < 0 || length > stride) throw std::invalid_argument(std::string(who) + ": a row length is outside [0, stride]");
+  sorted.clear();
+  for (int k = 0; k < length; ++k) sorted.emplace_back(neighbours[base + static_cast<size_t>(k)], k);
+  std::sort(sorted.begin(), sorted.end());
+}
+
+// Node sets numbered 0, 1, ... (their nodes in start/nodes arrays the caller keeps), found by
+// hash: per hash the newest set with it, the others chained behind it. The chains decide only
+// which sets are compared, not the order of anything.
+class NodeSetIndex {
+ public:
+  explicit NodeSetIndex(size_t expected) { first_with_hash_.reserve(expected); }
+  // The set with `sorted`'s nodes, -1 if none.
+  int find(std::uint64_t hash, const std::vector<std::pair<int, int>>& sorted, const std::vector<int>& start,
+           const std::vector<int>& nodes) const {
+    const auto found = first_with_hash_.find(hash);
+    int key = found == first_with_hash_.end() ? -1 : found->second;
+    while (key >= 0 && !same_nodes(sorted, nodes.data() + start[static_cast<size_t>(key)],
+                                   start[static_cast<size_t>(key) + 1] - start[static_cast<size_t>(key)]))
+      key = next_with_hash_[static_cast<size_t>(key)];
+    return key;
+  }
+  // Adds set `key` (the next number) of hash `hash`.
+  void add(std::uint64_t hash, int key) {
+    next_with_hash_.push_back(-1);
+    const auto [found, inserted] = first_with_hash_.try_emplace(hash, key);
+    if (!inserted) {
+      next_with_hash_[static_cast<size_t>(key)] = found->second;
+      found->second = key;
+    }
+  }
+
+ private:
+  std::unordered_map<std::uint64_t, int> first_with_hash_;
+  std::vector<int> next_with_hash_;
+};
 
 // Lists each group's members in increasing element order (a counting sort by group).
 void list_members(ElementGroups& groups) {
@@ -53,29 +95,17 @@ ElementGroups group_elements(int stride, const std::vector<int>& lengths, const 
   groups.node_start.push_back(0);
   groups.group_of.assign(static_cast<size_t>(elements), 0);
   groups.local.assign(neighbours.size(), 0);
-  // Per hash, the first group with it; further groups with the same hash are chained.
-  std::unordered_map<std::uint64_t, int> first_with_hash;
-  first_with_hash.reserve(static_cast<size_t>(elements) / 4 + 1);
-  std::vector<int> next_with_hash;
-  std::vector<std::pair<int, int>> sorted;  // (node, k), by node then k
+  NodeSetIndex sets(static_cast<size_t>(elements) / 4 + 1);
+  std::vector<std::pair<int, int>> sorted;
   for (int e = 0; e < elements; ++e) {
     const size_t base = static_cast<size_t>(e) * stride;
     const int length = lengths[static_cast<size_t>(e)];
-    if (length < 0 || length > stride) throw std::invalid_argument("group_elements: a row length is outside [0, stride]");
-    sorted.clear();
-    for (int k = 0; k < length; ++k) sorted.emplace_back(neighbours[base + static_cast<size_t>(k)], k);
-    std::sort(sorted.begin(), sorted.end());
+    sort_row(neighbours, base, length, stride, "group_elements", sorted);
     const std::uint64_t hash = hash_nodes(sorted);
-    const auto [found, inserted] = first_with_hash.try_emplace(hash, groups.count());
-    int group = inserted ? -1 : found->second;
-    while (group >= 0 && !same_nodes(sorted, groups.nodes.data() + groups.node_start[static_cast<size_t>(group)], groups.length(group)))
-      group = next_with_hash[static_cast<size_t>(group)];
+    int group = sets.find(hash, sorted, groups.node_start, groups.nodes);
     if (group < 0) {
       group = groups.count();
-      // A new group of an existing hash goes to the chain's head; chains only decide which
-      // groups are compared, not the order of anything.
-      next_with_hash.push_back(inserted ? -1 : found->second);
-      if (!inserted) found->second = group;
+      sets.add(hash, group);
       for (const auto& entry : sorted) groups.nodes.push_back(entry.first);
       groups.node_start.push_back(static_cast<int>(groups.nodes.size()));
     }
@@ -85,10 +115,6 @@ ElementGroups group_elements(int stride, const std::vector<int>& lengths, const 
   list_members(groups);
   return groups;
 }
-
-}  // namespace incise::physics
-
-namespace incise::physics {
 
 ElementGroups regroup_elements(const ElementGroups& previous, int stride, const std::vector<int>& lengths,
                                const std::vector<int>& neighbours, const std::vector<int>& changed,
@@ -100,22 +126,13 @@ ElementGroups regroup_elements(const ElementGroups& previous, int stride, const 
   // Keys: the previous groups' node sets (0 .. old - 1), then the changed rows' new sets.
   const int old = previous.count();
   std::vector<int> key_start(previous.node_start), key_nodes(previous.nodes);
-  std::unordered_map<std::uint64_t, int> first_with_hash;
-  first_with_hash.reserve(static_cast<size_t>(old) + changed.size());
-  std::vector<int> next_with_hash(static_cast<size_t>(old), -1);
+  NodeSetIndex sets(static_cast<size_t>(old) + changed.size());
   std::vector<std::pair<int, int>> sorted;
-  const auto chain = [&](std::uint64_t hash, int key) {
-    const auto [found, inserted] = first_with_hash.try_emplace(hash, key);
-    if (!inserted) {
-      next_with_hash[static_cast<size_t>(key)] = found->second;
-      found->second = key;
-    }
-  };
   for (int g = 0; g < old; ++g) {
     sorted.clear();
     for (int i = key_start[static_cast<size_t>(g)]; i < key_start[static_cast<size_t>(g) + 1]; ++i)
       sorted.emplace_back(key_nodes[static_cast<size_t>(i)], 0);
-    chain(hash_nodes(sorted), g);
+    sets.add(hash_nodes(sorted), g);
   }
   std::vector<int> key_of(previous.group_of);
   std::vector<int> local(previous.local);
@@ -125,22 +142,14 @@ ElementGroups regroup_elements(const ElementGroups& previous, int stride, const 
     last = e;
     const size_t base = static_cast<size_t>(e) * stride;
     const int length = lengths[static_cast<size_t>(e)];
-    if (length < 0 || length > stride) throw std::invalid_argument("regroup_elements: a row length is outside [0, stride]");
-    sorted.clear();
-    for (int k = 0; k < length; ++k) sorted.emplace_back(neighbours[base + static_cast<size_t>(k)], k);
-    std::sort(sorted.begin(), sorted.end());
+    sort_row(neighbours, base, length, stride, "regroup_elements", sorted);
     const std::uint64_t hash = hash_nodes(sorted);
-    const auto found = first_with_hash.find(hash);
-    int key = found == first_with_hash.end() ? -1 : found->second;
-    while (key >= 0 && !same_nodes(sorted, key_nodes.data() + key_start[static_cast<size_t>(key)],
-                                   key_start[static_cast<size_t>(key) + 1] - key_start[static_cast<size_t>(key)]))
-      key = next_with_hash[static_cast<size_t>(key)];
+    int key = sets.find(hash, sorted, key_start, key_nodes);
     if (key < 0) {
       key = static_cast<int>(key_start.size()) - 1;
       for (const auto& entry : sorted) key_nodes.push_back(entry.first);
       key_start.push_back(static_cast<int>(key_nodes.size()));
-      next_with_hash.push_back(-1);
-      chain(hash, key);
+      sets.add(hash, key);
     }
     key_of[static_cast<size_t>(e)] = key;
     for (int k = length; k < stride; ++k) local[base + static_cast<size_t>(k)] = 0;
