@@ -2,9 +2,7 @@
 
 #include "physics/solve/galerkin.hpp"
 #include "physics/solve/multigrid.hpp"
-
-#include <Eigen/CholmodSupport>
-#include <Eigen/SparseCholesky>
+#include "physics/solve/supernodal_factor.hpp"
 
 #include <dlfcn.h>
 
@@ -45,10 +43,13 @@ void use_single_threaded_blas() {
   std::call_once(once, single_threaded_factor);
 }
 
+// The factor is read out of its builder into a SupernodalFactor, whose solve every later call
+// uses (supernodal_factor.hpp), in float for a coarse correction; the builder's copy goes.
 struct RestFactor::Solver {
-  Eigen::CholmodSupernodalLLT<SparseMatrix> cholmod;
-  Eigen::SimplicialLLT<SparseMatrix> simplicial;
+  SupernodalFactor factor;
+  std::vector<double> work;
 };
+
 
 RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
                        double mass_coefficient, double stiffness_coefficient, FactorBackend backend,
@@ -81,16 +82,11 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
   }
   if (backend == FactorBackend::cholmod) {
     use_single_threaded_blas();
-    solver_->cholmod.compute(matrix);
-    if (solver_->cholmod.info() != Eigen::Success)
-      throw std::runtime_error("RestFactor: CHOLMOD found the rest system not positive definite");
-    factor_nonzeros_ = static_cast<long long>(solver_->cholmod.cholmod().lnz);
+    solver_->factor = SupernodalFactor::with_cholmod(matrix, coarse != nullptr);
   } else {
-    solver_->simplicial.compute(matrix);
-    if (solver_->simplicial.info() != Eigen::Success)
-      throw std::runtime_error("RestFactor: the rest system is not positive definite");
-    factor_nonzeros_ = solver_->simplicial.matrixL().nestedExpression().nonZeros();
+    solver_->factor = SupernodalFactor::with_simplicial(matrix, coarse != nullptr);
   }
+  factor_nonzeros_ = solver_->factor.factor_nonzeros();
   build_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
@@ -108,8 +104,7 @@ void RestFactor::solve(Eigen::VectorXd& x) const {
 void RestFactor::solve_factored(Eigen::VectorXd& u) const {
   if (u.size() != factored_size()) throw std::invalid_argument("RestFactor::solve_factored: the vector's size is not the factor's");
   const std::lock_guard<std::mutex> lock(solving_);
-  u = backend_ == FactorBackend::cholmod ? Eigen::VectorXd(solver_->cholmod.solve(u))
-                                         : Eigen::VectorXd(solver_->simplicial.solve(u));
+  solver_->factor.solve(u.data(), solver_->work);
 }
 
 }  // namespace incise::physics
