@@ -91,8 +91,31 @@ CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const 
   return preconditioned_conjugate_gradient(apply, b, jacobi, fixed_nodes, x, settings);
 }
 
+namespace {
+
+// residual = b - exact(x) on the free entries, its norm relative to |b| in the result; false
+// when it is not finite (result.nonfinite).
+bool take_exact_residual(const LinearOperator& exact, const Vector& b, double b_norm,
+                         const std::vector<uint8_t>& fixed_nodes, const Vector& x, Vector& product, Vector& residual,
+                         CgResult& result) {
+  exact(x, product);
+  residual = b - product;
+  zero_fixed(fixed_nodes, residual);
+  ++result.exact_checks;
+  const double norm = residual.norm();
+  if (!std::isfinite(norm)) {
+    result.nonfinite = true;
+    return false;
+  }
+  result.relative_residual = norm / b_norm;
+  return true;
+}
+
+}  // namespace
+
 CgResult preconditioned_conjugate_gradient(const LinearOperator& apply, const Vector& b, const Preconditioner& precondition,
-                            const std::vector<uint8_t>& fixed_nodes, Vector& x, const CgSettings& settings) {
+                            const std::vector<uint8_t>& fixed_nodes, Vector& x, const CgSettings& settings,
+                            const LinearOperator* exact) {
   const Eigen::Index size = b.size();
   CgResult result;
   Vector filtered_b;
@@ -110,10 +133,20 @@ CgResult preconditioned_conjugate_gradient(const LinearOperator& apply, const Ve
     return result;
   }
   result.relative_residual = residual_norm / b_norm;
-  if (result.relative_residual <= settings.tolerance) {
+  // Below the tolerance on `apply`: converged, or (with `exact`) restarted from the exact
+  // residual when that one is still above it.
+  bool restart = false;
+  auto converged = [&] {
+    if (result.relative_residual > settings.tolerance) return false;
+    if (exact) {
+      if (!take_exact_residual(*exact, filtered_b, b_norm, fixed_nodes, x, product, residual, result)) return true;
+      restart = result.relative_residual > settings.tolerance;
+      if (restart) return false;
+    }
     result.converged = true;
-    return result;
-  }
+    return true;
+  };
+  if (converged()) return result;
 
   Vector preconditioned(size);
   precondition(residual, preconditioned);
@@ -151,10 +184,8 @@ CgResult preconditioned_conjugate_gradient(const LinearOperator& apply, const Ve
       return result;
     }
     result.relative_residual = residual_norm / b_norm;
-    if (result.relative_residual <= settings.tolerance) {
-      result.converged = true;
-      return result;
-    }
+    restart = false;
+    if (converged()) return result;
     if (budget_spent(settings.budget, result.iterations)) {
       result.stopped_by_budget = true;
       return result;
@@ -163,10 +194,14 @@ CgResult preconditioned_conjugate_gradient(const LinearOperator& apply, const Ve
     precondition(residual, preconditioned);
     zero_fixed(fixed_nodes, preconditioned);
     const double next_dot = residual.dot(preconditioned);
-    // Fletcher-Reeves form of beta, exact in exact arithmetic for a fixed preconditioner.
-    const double beta = next_dot / residual_dot_preconditioned;
+    // Fletcher-Reeves form of beta, exact in exact arithmetic for a fixed preconditioner; a
+    // restart (the exact residual replaced CG's) begins a new Krylov space.
+    const double beta = restart ? 0.0 : next_dot / residual_dot_preconditioned;
     residual_dot_preconditioned = next_dot;
-    direction = preconditioned + beta * direction;
+    if (restart)
+      direction = preconditioned;
+    else
+      direction = preconditioned + beta * direction;
   }
   return result;
 }

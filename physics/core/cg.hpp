@@ -34,6 +34,7 @@ struct CgSettings {
 
 struct CgResult {
   int iterations = 0;
+  int exact_checks = 0;  // residuals taken on the exact operator (preconditioned_conjugate_gradient's `exact`)
   double relative_residual = 0;
   bool converged = false;
   bool nonfinite = false;  // a NaN or infinity appeared; x holds the last finite iterate
@@ -64,8 +65,16 @@ CgResult conjugate_gradient(const LinearOperator& apply, const Vector& b, const 
 Vector jacobi_inverse(const Vector& diagonal);
 
 // The same with the preconditioner `precondition` (its output is zeroed on fixed nodes).
+// `exact` (optional): the system itself, `apply` then a cheaper approximation of it (the
+// assembled product on K's blocks rounded to float, half the bytes). CG iterates on `apply`;
+// when its residual reaches the tolerance, the residual of `exact` decides: below it, CG has
+// converged (the result reports that residual); above it, CG goes on from it, restarted
+// (iterative refinement in the Krylov space: each round reduces the exact residual while
+// `apply` is within a factor of `exact`), so a converged result always meets the tolerance on
+// the system itself.
 CgResult preconditioned_conjugate_gradient(const LinearOperator& apply, const Vector& b, const Preconditioner& precondition,
-                            const std::vector<uint8_t>& fixed_nodes, Vector& x, const CgSettings& settings = {});
+                            const std::vector<uint8_t>& fixed_nodes, Vector& x, const CgSettings& settings = {},
+                            const LinearOperator* exact = nullptr);
 
 // What the Krylov solvers share (this CG, solve/bicgstab.cpp). zero_fixed_nodes: v's entries of
 // the fixed nodes set to 0. start_krylov: checks the sizes (`who` names the solver in the

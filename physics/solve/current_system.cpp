@@ -23,7 +23,7 @@ CurrentSystem::CurrentSystem(const BlockMatrix& stiffness, const Vector& masses,
     if (fixed[static_cast<size_t>(node)] != 0) fixed_nodes_.push_back(node);
 }
 
-void CurrentSystem::multiply(const Vector& x, Vector& y, Executor& executor) const {
+void CurrentSystem::multiply(const Vector& x, Vector& y, Executor& executor, const float* single_blocks) const {
   if (x.size() != 3 * static_cast<Eigen::Index>(stiffness_.nodes()))
     throw std::invalid_argument("CurrentSystem::multiply: x needs 3 entries per node");
   y.resize(x.size());
@@ -39,7 +39,8 @@ void CurrentSystem::multiply(const Vector& x, Vector& y, Executor& executor) con
       break;
     }
   }
-  const CurrentRows rows = this->rows();
+  CurrentRows rows = this->rows();
+  rows.single_stiffness = single_blocks;
   constexpr int rows_per_thread = 256;  // as BlockSystem::multiply
   executor.parallel_for(stiffness_.nodes(), [&](int begin, int end) {
     current_rows_product(rows, x.data(), free_x, y.data(), begin, end);

@@ -29,8 +29,9 @@ class CurrentSystem {
   CurrentSystem(const BlockMatrix& stiffness, const Vector& masses, const std::vector<std::uint8_t>& fixed,
                 std::span<const NodalSpring> springs, double mass_coefficient, double stiffness_coefficient);
 
-  // y = A x (3n), its rows on `executor`'s threads.
-  void multiply(const Vector& x, Vector& y, Executor& executor) const;
+  // y = A x (3n), its rows on `executor`'s threads; with `single_blocks` (round_blocks), the
+  // product on K's float copy.
+  void multiply(const Vector& x, Vector& y, Executor& executor, const float* single_blocks = nullptr) const;
   // y's rows [begin, end) (nodes) of A x, x zero on the fixed nodes: the kernel of multiply()
   // on one range, for a caller that fuses its own work with the rows' product
   // (current_vcycle.hpp).

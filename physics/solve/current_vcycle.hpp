@@ -13,7 +13,8 @@
 // 36 bytes a block instead of 72); the masses, springs, fixed rows and D stay double, every sum
 // double. The copy is symmetric bit for bit (K's diagonal blocks are only to round-off; their
 // upper entries are taken), so the cycle stays a fixed symmetric operator, the V-cycle of the
-// rounded system, independent of the threads (CG's own product stays on the double A). Only CHOLMOD's coarse solve runs serially. Every entry is computed by one thread in the
+// rounded system, independent of the threads (CG's own product reads the copy too, its
+// convergence confirmed on the double A). Only the coarse solve runs serially. Every entry is computed by one thread in the
 // order VcyclePreconditioner computes it, so the result has its bits whatever the threads
 // (test_current_system).
 //
@@ -46,6 +47,8 @@ class CurrentVcycle {
 
   // z = M^-1 r. Not re-entrant (workspace).
   void operator()(const Vector& r, Vector& z);
+  // K's float copy (single_precision), null without one.
+  const float* single_blocks() const { return single_.get(); }
 
  private:
   // Over ranges of nodes: the product of `from`, residual -= it, then finish(begin, end) (entries).

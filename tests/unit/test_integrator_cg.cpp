@@ -74,6 +74,43 @@ TEST(ConjugateGradient, SolvesSpdSystemToTolerance) {
   EXPECT_LE((x - reference).norm() / reference.norm(), 1e-8);
 }
 
+// CG iterating on an approximation of the system (its entries rounded to float, or off by
+// 10 %) with the exact operator given: converged means converged on the exact system, the
+// reported residual is the exact one, and an approximation is refined by restarts (the float
+// rounding, on this matrix whose diagonal spans 1e4 and at 1e-9, needs one); without `exact` the
+// 10 % operator solves its own system, far from this one.
+TEST(ConjugateGradient, AnApproximateOperatorConvergesOnTheExactOne) {
+  const int size = 48;
+  const Dense a = make_spd(size, 11);
+  const Vector b = make_vector(size, 12);
+  CgSettings settings;
+  settings.tolerance = 1e-9;
+  const Vector inverse_diagonal = a.diagonal().cwiseInverse();
+  const Preconditioner jacobi = [&](const Vector& r, Vector& z) { z = inverse_diagonal.cwiseProduct(r); };
+  const LinearOperator exact = dense_operator(a);
+  const Dense rounded = a.cast<float>().cast<double>();
+  Dense perturbed = a;
+  for (int i = 0; i < size; ++i)
+    for (int j = 0; j <= i; ++j) perturbed(i, j) = perturbed(j, i) = a(i, j) * (1.0 + 0.1 * std::sin(i + 3.0 * j));
+  for (const Dense* approximation : std::vector<const Dense*>{&rounded, &perturbed}) {
+    Vector x = Vector::Zero(size);
+    const CgResult result =
+        preconditioned_conjugate_gradient(dense_operator(*approximation), b, jacobi, {}, x, settings, &exact);
+    EXPECT_TRUE(result.converged);
+    EXPECT_LE(result.relative_residual, 1e-9);
+    EXPECT_NEAR(result.relative_residual, (b - a * x).norm() / b.norm(), 1e-15);
+    if (approximation == &rounded) {
+      EXPECT_GE(result.exact_checks, 1);
+      EXPECT_LE(result.exact_checks, 2);
+    } else {
+      EXPECT_GE(result.exact_checks, 3);  // restarted, each round gaining about a decade
+      Vector own = Vector::Zero(size);
+      preconditioned_conjugate_gradient(dense_operator(perturbed), b, jacobi, {}, own, settings);
+      EXPECT_GT((b - a * own).norm() / b.norm(), 1e-3);
+    }
+  }
+}
+
 TEST(ConjugateGradient, StopsAtMaxIterationsUnconverged) {
   const int size = 36;
   const Dense a = make_spd(size, 3);
