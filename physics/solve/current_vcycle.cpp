@@ -70,7 +70,7 @@ void CurrentVcycle::coarse_correction(Vector& x) {
   executor_.parallel_for(transfer.coarse_nodes(), [&](int begin, int end) {
     transfer.restrict_nodes(turned_.data(), coarse_.data(), begin, end);
   }, rows_per_thread);
-  factor_.solve_factored(coarse_);
+  factor_.solve_factored(coarse_, executor_);
   // The correction goes to step_, the next product's operand.
   double* correction = step_.data();
   double* out = x.data();

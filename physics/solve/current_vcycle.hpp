@@ -14,7 +14,8 @@
 // double. The copy is symmetric bit for bit (K's diagonal blocks are only to round-off; their
 // upper entries are taken), so the cycle stays a fixed symmetric operator, the V-cycle of the
 // rounded system, independent of the threads (CG's own product reads the copy too, its
-// convergence confirmed on the double A). Only the coarse solve runs serially. Every entry is computed by one thread in the
+// convergence confirmed on the double A). The coarse solve runs the two halves of its
+// elimination tree beside each other (supernodal_factor.hpp). Every entry is computed by one thread in the
 // order VcyclePreconditioner computes it, so the result has its bits whatever the threads
 // (test_current_system).
 //

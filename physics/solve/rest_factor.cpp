@@ -47,7 +47,7 @@ void use_single_threaded_blas() {
 // uses (supernodal_factor.hpp), in float for a coarse correction; the builder's copy goes.
 struct RestFactor::Solver {
   SupernodalFactor factor;
-  std::vector<double> work;
+  SupernodalFactor::Workspace work;
 };
 
 
@@ -101,10 +101,10 @@ void RestFactor::solve(Eigen::VectorXd& x) const {
     x.swap(solution);
 }
 
-void RestFactor::solve_factored(Eigen::VectorXd& u) const {
+void RestFactor::solve_factored(Eigen::VectorXd& u, Executor& executor) const {
   if (u.size() != factored_size()) throw std::invalid_argument("RestFactor::solve_factored: the vector's size is not the factor's");
   const std::lock_guard<std::mutex> lock(solving_);
-  solver_->factor.solve(u.data(), solver_->work);
+  solver_->factor.solve(u.data(), solver_->work, executor);
 }
 
 }  // namespace incise::physics

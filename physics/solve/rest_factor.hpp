@@ -62,8 +62,9 @@ class RestFactor {
   // factors with the original, so calls are serialised (the solvers keep workspace).
   void solve(Eigen::VectorXd& x) const;
   // u <- (the factored matrix)^-1 u (factored_size()): with a coarse space, the coarse solve
-  // alone, between transfers the caller does itself (transfer()).
-  void solve_factored(Eigen::VectorXd& u) const;
+  // alone, between transfers the caller does itself (transfer()); on `executor`'s threads
+  // (supernodal_factor.hpp: the same bits on any).
+  void solve_factored(Eigen::VectorXd& u, Executor& executor = serial_executor()) const;
   bool coarse() const { return prolongation_.size() > 0; }
   // P as row-wise gathers (empty without a coarse space).
   const CoarseTransfer& transfer() const { return transfer_; }

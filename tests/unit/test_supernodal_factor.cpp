@@ -12,6 +12,7 @@
 
 #include <cstring>
 #include <random>
+#include <thread>
 #include <stdexcept>
 #include <vector>
 
@@ -71,7 +72,7 @@ Eigen::VectorXd random_vector(Eigen::Index size, unsigned seed) {
 }
 
 Eigen::VectorXd solved(const SupernodalFactor& factor, Eigen::VectorXd b) {
-  std::vector<double> work;
+  SupernodalFactor::Workspace work;
   factor.solve(b.data(), work);
   return b;
 }
@@ -80,13 +81,15 @@ SparseMatrix full(const SparseMatrix& lower) { return lower.selfadjointView<Eige
 
 // Both builders' factors; under ThreadSanitizer, which cannot see OpenBLAS's and OpenMP's
 // synchronisation (rest_factor.hpp), the simplicial one alone.
-std::vector<SupernodalFactor> factors(const SparseMatrix& lower, bool single_precision) {
+// `minimum_part_work`: as the solver's, or 0 to split whatever the sizes.
+std::vector<SupernodalFactor> factors(const SparseMatrix& lower, bool single_precision,
+                                      std::int64_t minimum_part_work = SupernodalFactor::default_minimum_part_work) {
   std::vector<SupernodalFactor> out;
   if (default_factor_backend() == FactorBackend::cholmod) {
     use_single_threaded_blas();
-    out.push_back(SupernodalFactor::with_cholmod(lower, single_precision));
+    out.push_back(SupernodalFactor::with_cholmod(lower, single_precision, minimum_part_work));
   }
-  out.push_back(SupernodalFactor::with_simplicial(lower, single_precision));
+  out.push_back(SupernodalFactor::with_simplicial(lower, single_precision, minimum_part_work));
   return out;
 }
 
@@ -144,6 +147,56 @@ TEST(SupernodalFactor, BothKernelsGiveTheSameBits) {
   }
 }
 
+// run_beside with side() on a thread of its own, or on the caller before own(): the two
+// halves of the solve beside each other, or in the other order.
+class TwoThreads final : public Executor {
+ public:
+  explicit TwoThreads(bool side_first) : side_first_(side_first) {}
+  int thread_count() const override { return 2; }
+  void parallel_for(int count, const std::function<void(int, int)>& task, int) override { task(0, count); }
+  void run_beside(const std::function<void()>& own, const std::function<void()>& side) override {
+    if (side_first_) {
+      side();
+      own();
+      return;
+    }
+    std::thread other(side);
+    own();
+    other.join();
+  }
+
+ private:
+  bool side_first_;
+};
+
+TEST(SupernodalFactor, SplitsItsTreeInTwoHalvesWhoseSolveHasTheBitsOfAnyOrder) {
+  const SparseMatrix lower = grid_matrix(8, 9);
+  const Eigen::VectorXd b = random_vector(lower.rows(), 10);
+  for (const SupernodalFactor& factor : factors(lower, true, 0)) {
+    const auto work = factor.split_work();
+    // Two parts of about equal work (within 1/16 of theirs when the split stops opening the
+    // tree; the top here is the grid's dense middle separators).
+    EXPECT_GT(work[0], 0);
+    EXPECT_GT(work[1], 0);
+    EXPECT_LE(8 * std::abs(work[0] - work[1]), work[0] + work[1]);
+    const Eigen::VectorXd serial = solved(factor, b);
+    for (const bool side_first : {false, true}) {
+      TwoThreads executor(side_first);
+      SupernodalFactor::Workspace scratch;
+      Eigen::VectorXd x = b;
+      factor.solve(x.data(), scratch, executor);
+      EXPECT_EQ(0, std::memcmp(x.data(), serial.data(), sizeof(double) * static_cast<size_t>(b.size())));
+    }
+    EXPECT_LE((full(lower) * serial - b).norm(), 1e-5 * b.norm());
+  }
+  // Below the minimum a part needs, one part: the same solve in order.
+  for (const SupernodalFactor& factor : factors(lower, true)) {
+    const auto work = factor.split_work();
+    EXPECT_EQ(work[1], 0);
+    EXPECT_EQ(work[2], 0);
+  }
+}
+
 TEST(SupernodalFactor, RefusesAMatrixThatIsNotPositiveDefinite) {
   SparseMatrix lower = grid_matrix(3, 8);
   lower.coeffRef(5, 5) = -1.0;
@@ -166,7 +219,7 @@ TEST(SupernodalFactor, SolvesAHandMadeLayout) {
   const SupernodalFactor factor(two.layout(), false);
   // P A P^T = L L^T = [[4, 2], [2, 10]] with P swapping the rows: A = [[10, 2], [2, 4]].
   Eigen::Vector2d b(14, 10);  // A (1, 2)
-  std::vector<double> work;
+  SupernodalFactor::Workspace work;
   factor.solve(b.data(), work);
   EXPECT_NEAR(b[0], 1.0, 1e-15);
   EXPECT_NEAR(b[1], 2.0, 1e-15);
