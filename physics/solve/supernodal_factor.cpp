@@ -136,70 +136,87 @@ SupernodalFactor::SupernodalFactor(const SupernodalLayout& layout, bool single_p
     double_values_.assign(layout.values.begin(), layout.values.end());
   }
   inverse_diagonal_.resize(static_cast<size_t>(size_));
-  for (size_t s = 0; s + 1 < first_column_.size(); ++s) {
-    const int first = first_column_[s], columns = first_column_[s + 1] - first;
-    const int rows = row_start_[s + 1] - row_start_[s];
-    tallest_ = std::max(tallest_, rows);
-    for (int j = 0; j < columns; ++j) {
-      const double diagonal = layout.values[static_cast<size_t>(value_start_[s] + std::int64_t{j} * rows + j)];
-      check(diagonal > 0 && std::isfinite(diagonal), "column " + std::to_string(first + j) + "'s diagonal is not positive");
-      inverse_diagonal_[static_cast<size_t>(first + j)] = 1.0 / diagonal;
+  for (int s = 0; s < supernodes(); ++s) {
+    const Supernode node = supernode(s);
+    tallest_ = std::max(tallest_, node.rows);
+    for (int j = 0; j < node.columns; ++j) {
+      const double diagonal = layout.values[static_cast<size_t>(node.values + std::int64_t{j} * node.rows + j)];
+      check(diagonal > 0 && std::isfinite(diagonal), "column " + std::to_string(node.first + j) + "'s diagonal is not positive");
+      inverse_diagonal_[static_cast<size_t>(node.first + j)] = 1.0 / diagonal;
     }
   }
   split(minimum_part_work);
 }
 
-void SupernodalFactor::split(std::int64_t minimum_part_work) {
-  const int supernodes = static_cast<int>(first_column_.size()) - 1;
-  std::vector<int> supernode_of(static_cast<size_t>(size_));
-  for (int s = 0; s < supernodes; ++s)
-    std::fill(supernode_of.begin() + first_column_[static_cast<size_t>(s)],
-              supernode_of.begin() + first_column_[static_cast<size_t>(s) + 1], s);
-  // The tree: a supernode's parent holds its first row below (rows below are ancestors only,
-  // numbered after it, so children come first), its subtree's work summed upwards.
-  std::vector<int> parent(static_cast<size_t>(supernodes), -1);
-  std::vector<std::vector<int>> children(static_cast<size_t>(supernodes));
-  std::vector<std::int64_t> work(static_cast<size_t>(supernodes));
+namespace {
+
+// The supernodes' elimination tree: a supernode's parent holds its first row below (rows below
+// are ancestors only, numbered after it, so children come first); each subtree's work (block
+// entries) summed upwards.
+struct SupernodeTree {
+  std::vector<std::vector<int>> children;
+  std::vector<std::int64_t> work;
   std::vector<int> roots;
-  for (int s = 0; s < supernodes; ++s) {
-    const int columns = first_column_[static_cast<size_t>(s) + 1] - first_column_[static_cast<size_t>(s)];
-    const int rows = row_start_[static_cast<size_t>(s) + 1] - row_start_[static_cast<size_t>(s)];
-    work[static_cast<size_t>(s)] += std::int64_t{rows} * columns;
-    if (rows > columns) {
-      const int up = supernode_of[static_cast<size_t>(row_indices_[static_cast<size_t>(row_start_[static_cast<size_t>(s)] + columns)])];
-      parent[static_cast<size_t>(s)] = up;
-      children[static_cast<size_t>(up)].push_back(s);
-      work[static_cast<size_t>(up)] += work[static_cast<size_t>(s)];
-    } else {
-      roots.push_back(s);
-    }
-  }
-  // From the roots down: the heaviest subtree of the frontier goes to the top and its children
-  // to the frontier, until the frontier's subtrees, dealt heaviest first to the lighter part,
-  // balance within 1/16 of their work (or nothing is left to open).
-  std::vector<int> frontier = roots, top;
+};
+
+// From the roots down: the heaviest subtree of the frontier goes to the top and its children to
+// the frontier, until the frontier's subtrees, dealt heaviest first to the lighter part, balance
+// within 1/16 of their work (or nothing is left to open). The two parts' subtree roots.
+std::array<std::vector<int>, 2> deal_subtrees(const SupernodeTree& tree) {
+  auto work = [&](int s) { return tree.work[static_cast<size_t>(s)]; };
+  std::vector<int> frontier = tree.roots;
   std::array<std::vector<int>, 2> part_roots;
   for (;;) {
-    std::sort(frontier.begin(), frontier.end(),
-              [&](int a, int b) { return work[static_cast<size_t>(a)] != work[static_cast<size_t>(b)] ? work[static_cast<size_t>(a)] > work[static_cast<size_t>(b)] : a < b; });
+    std::sort(frontier.begin(), frontier.end(), [&](int a, int b) { return work(a) != work(b) ? work(a) > work(b) : a < b; });
     std::array<std::int64_t, 2> load{0, 0};
     part_roots = {};
     for (const int s : frontier) {
-      const int lighter = load[1] < load[0] ? 1 : 0;
-      load[static_cast<size_t>(lighter)] += work[static_cast<size_t>(s)];
-      part_roots[static_cast<size_t>(lighter)].push_back(s);
+      const size_t lighter = load[1] < load[0] ? 1 : 0;
+      load[lighter] += work(s);
+      part_roots[lighter].push_back(s);
     }
-    const std::int64_t total = load[0] + load[1];
-    if (frontier.empty() || 16 * std::abs(load[0] - load[1]) <= total || children[static_cast<size_t>(frontier.front())].empty()) break;
-    const int opened = frontier.front();
-    top.push_back(opened);
+    if (frontier.empty() || 16 * std::abs(load[0] - load[1]) <= load[0] + load[1]) return part_roots;
+    const std::vector<int>& opened = tree.children[static_cast<size_t>(frontier.front())];
+    if (opened.empty()) return part_roots;
     frontier.erase(frontier.begin());
-    frontier.insert(frontier.end(), children[static_cast<size_t>(opened)].begin(), children[static_cast<size_t>(opened)].end());
+    frontier.insert(frontier.end(), opened.begin(), opened.end());
   }
-  std::vector<int> part(static_cast<size_t>(supernodes), 2);
+}
+
+}  // namespace
+
+SupernodalFactor::Supernode SupernodalFactor::supernode(int s) const {
+  const auto k = static_cast<size_t>(s);
+  return {first_column_[k], first_column_[k + 1] - first_column_[k], row_start_[k + 1] - row_start_[k],
+          row_indices_.data() + row_start_[k], value_start_[k]};
+}
+
+void SupernodalFactor::split(std::int64_t minimum_part_work) {
+  const int supernodes = static_cast<int>(first_column_.size()) - 1;
+  std::vector<int> supernode_of(static_cast<size_t>(size_));
+  SupernodeTree tree;
+  tree.children.resize(static_cast<size_t>(supernodes));
+  tree.work.resize(static_cast<size_t>(supernodes));
+  for (int s = 0; s < supernodes; ++s) {
+    const Supernode node = supernode(s);
+    std::fill(supernode_of.begin() + node.first, supernode_of.begin() + node.first + node.columns, s);
+  }
+  for (int s = 0; s < supernodes; ++s) {
+    const Supernode node = supernode(s);
+    tree.work[static_cast<size_t>(s)] += std::int64_t{node.rows} * node.columns;
+    if (node.rows == node.columns) {
+      tree.roots.push_back(s);
+      continue;
+    }
+    const int parent = supernode_of[static_cast<size_t>(node.indices[node.columns])];
+    tree.children[static_cast<size_t>(parent)].push_back(s);
+    tree.work[static_cast<size_t>(parent)] += tree.work[static_cast<size_t>(s)];
+  }
+  std::array<std::vector<int>, 2> part_roots = deal_subtrees(tree);
+  std::vector<int> part(static_cast<size_t>(supernodes), 2);  // the top unless dealt
   std::array<std::int64_t, 2> part_work{0, 0};
-  for (int p = 0; p < 2; ++p)
-    for (const int root : part_roots[static_cast<size_t>(p)]) part_work[static_cast<size_t>(p)] += work[static_cast<size_t>(root)];
+  for (size_t p = 0; p < 2; ++p)
+    for (const int root : part_roots[p]) part_work[p] += tree.work[static_cast<size_t>(root)];
   if (std::min(part_work[0], part_work[1]) < minimum_part_work) {
     // Not worth the other thread: one part, in order.
     std::fill(part.begin(), part.end(), 0);
@@ -212,17 +229,17 @@ void SupernodalFactor::split(std::int64_t minimum_part_work) {
         const int s = stack.back();
         stack.pop_back();
         part[static_cast<size_t>(s)] = p;
-        stack.insert(stack.end(), children[static_cast<size_t>(s)].begin(), children[static_cast<size_t>(s)].end());
+        stack.insert(stack.end(), tree.children[static_cast<size_t>(s)].begin(), tree.children[static_cast<size_t>(s)].end());
       }
     }
   in_top_.assign(static_cast<size_t>(size_), 0);
   for (int s = 0; s < supernodes; ++s) {
-    const int p = part[static_cast<size_t>(s)];
-    parts_[static_cast<size_t>(p)].push_back(s);
-    const int columns = first_column_[static_cast<size_t>(s) + 1] - first_column_[static_cast<size_t>(s)];
-    split_work_[static_cast<size_t>(p)] += std::int64_t{row_start_[static_cast<size_t>(s) + 1] - row_start_[static_cast<size_t>(s)]} * columns;
+    const auto p = static_cast<size_t>(part[static_cast<size_t>(s)]);
+    const Supernode node = supernode(s);
+    parts_[p].push_back(s);
+    split_work_[p] += std::int64_t{node.rows} * node.columns;
     if (p != 2) continue;
-    for (int column = first_column_[static_cast<size_t>(s)]; column < first_column_[static_cast<size_t>(s) + 1]; ++column) {
+    for (int column = node.first; column < node.first + node.columns; ++column) {
       in_top_[static_cast<size_t>(column)] = 1;
       top_columns_.push_back(column);
     }
@@ -303,39 +320,33 @@ void portable_backward_block(const Scalar* block, const double* inverse_diagonal
 
 template <typename Scalar>
 void SupernodalFactor::forward_supernode(const Scalar* values, int s, double* z, double* buffer, double* top_sums) const {
-  const int first = first_column_[static_cast<size_t>(s)], columns = first_column_[static_cast<size_t>(s) + 1] - first;
-  const int rows = row_start_[static_cast<size_t>(s) + 1] - row_start_[static_cast<size_t>(s)];
-  const int* indices = row_indices_.data() + row_start_[static_cast<size_t>(s)];
+  const Supernode node = supernode(s);
   // The rows below start from zero and are added to z after (or, for a part's rows in the
   // top, to the part's own sums of them).
-  std::copy(z + first, z + first + columns, buffer);
-  std::fill(buffer + columns, buffer + rows, 0.0);
-  const Scalar* block = values + value_start_[static_cast<size_t>(s)];
-  const double* inverse = inverse_diagonal_.data() + first;
+  std::copy(z + node.first, z + node.first + node.columns, buffer);
+  std::fill(buffer + node.columns, buffer + node.rows, 0.0);
+  const double* inverse = inverse_diagonal_.data() + node.first;
   if (block_product_vectorised())
-    avx2_forward_block(block, inverse, rows, columns, buffer);
+    avx2_forward_block(values + node.values, inverse, node.rows, node.columns, buffer);
   else
-    portable_forward_block(block, inverse, rows, columns, buffer);
-  std::copy(buffer, buffer + columns, z + first);
-  for (int i = columns; i < rows; ++i) {
-    const int row = indices[i];
+    portable_forward_block(values + node.values, inverse, node.rows, node.columns, buffer);
+  std::copy(buffer, buffer + node.columns, z + node.first);
+  for (int i = node.columns; i < node.rows; ++i) {
+    const int row = node.indices[i];
     (top_sums && in_top_[static_cast<size_t>(row)] ? top_sums : z)[row] += buffer[i];
   }
 }
 
 template <typename Scalar>
 void SupernodalFactor::backward_supernode(const Scalar* values, int s, double* z, double* buffer) const {
-  const int first = first_column_[static_cast<size_t>(s)], columns = first_column_[static_cast<size_t>(s) + 1] - first;
-  const int rows = row_start_[static_cast<size_t>(s) + 1] - row_start_[static_cast<size_t>(s)];
-  const int* indices = row_indices_.data() + row_start_[static_cast<size_t>(s)];
-  for (int i = 0; i < rows; ++i) buffer[i] = z[indices[i]];  // its own columns first
-  const Scalar* block = values + value_start_[static_cast<size_t>(s)];
-  const double* inverse = inverse_diagonal_.data() + first;
+  const Supernode node = supernode(s);
+  for (int i = 0; i < node.rows; ++i) buffer[i] = z[node.indices[i]];  // its own columns first
+  const double* inverse = inverse_diagonal_.data() + node.first;
   if (block_product_vectorised())
-    avx2_backward_block(block, inverse, rows, columns, buffer);
+    avx2_backward_block(values + node.values, inverse, node.rows, node.columns, buffer);
   else
-    portable_backward_block(block, inverse, rows, columns, buffer);
-  std::copy(buffer, buffer + columns, z + first);
+    portable_backward_block(values + node.values, inverse, node.rows, node.columns, buffer);
+  std::copy(buffer, buffer + node.columns, z + node.first);
 }
 
 // Forward: the two parts beside each other, each adding what it takes from the top's rows to

@@ -85,6 +85,13 @@ class SupernodalFactor {
   std::array<std::int64_t, 3> split_work() const { return split_work_; }
 
  private:
+  // Supernode s: its first column, columns, rows, row indices and its block's offset.
+  struct Supernode {
+    int first, columns, rows;
+    const int* indices;
+    std::int64_t values;
+  };
+  Supernode supernode(int s) const;
   // Splits the elimination tree (parts_, in_top_, top_columns_).
   void split(std::int64_t minimum_part_work);
   // One supernode of z <- L'^-1 z (its rows below in the top to `top_sums` when given) and of
