@@ -4,8 +4,9 @@
 // coarse system P^T A0 P, whose solve is then the coarse correction P (P^T A0 P)^-1 P^T of a
 // two-level preconditioner. Warped by the current rotations it preconditions the corotated
 // system (physics/solve/warped_preconditioner.hpp; SOFA's WarpPreconditioner, Courtecuisse
-// et al. 2010). Immutable once built, so one factor may be shared by the steps that use it
-// while the next is built on another thread.
+// et al. 2010). Built by CHOLMOD (or Eigen's simplicial LLT), solved by SupernodalFactor
+// (supernodal_factor.hpp; a coarse factor in float). Immutable once built, so one factor may be
+// shared by the steps that use it while the next is built on another thread.
 #pragma once
 
 #include "physics/core/executor.hpp"
