@@ -1,5 +1,6 @@
 // Small-strain linear elastic statics on tetrahedral meshes: sparse assembly and a direct
-// solve (Eigen::SimplicialLDLT). The reference against which the dynamic models are checked.
+// solve (CHOLMOD's supernodal Cholesky, solved in double by SupernodalFactor). The reference
+// against which the dynamic models are checked.
 #pragma once
 
 #include <Eigen/SparseCore>

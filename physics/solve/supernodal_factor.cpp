@@ -185,6 +185,15 @@ std::array<std::vector<int>, 2> deal_subtrees(const SupernodeTree& tree) {
 
 }  // namespace
 
+std::array<double, 2> SupernodalFactor::pivot_range() const {
+  std::array<double, 2> range{0, 0};
+  for (size_t k = 0; k < inverse_diagonal_.size(); ++k) {
+    const double pivot = 1.0 / (inverse_diagonal_[k] * inverse_diagonal_[k]);
+    range = k == 0 ? std::array<double, 2>{pivot, pivot} : std::array<double, 2>{std::min(range[0], pivot), std::max(range[1], pivot)};
+  }
+  return range;
+}
+
 SupernodalFactor::Supernode SupernodalFactor::supernode(int s) const {
   const auto k = static_cast<size_t>(s);
   return {first_column_[k], first_column_[k + 1] - first_column_[k], row_start_[k + 1] - row_start_[k],

@@ -80,6 +80,9 @@ class SupernodalFactor {
   // x <- (P^T L' L'^T P)^-1 x (size() entries), the two parts on `executor`'s threads
   // (run_beside); the bits are the same on any executor.
   void solve(double* x, Workspace& work, Executor& executor = serial_executor()) const;
+  // The smallest and the largest pivot, L_kk^2 (a free rigid mode shows as a smallest one at
+  // round-off level against the largest).
+  std::array<double, 2> pivot_range() const;
   // The work (block entries) of the two parts and of the top, as split (all in part 0 when a
   // part would have less than the minimum).
   std::array<std::int64_t, 3> split_work() const { return split_work_; }
