@@ -305,24 +305,33 @@ template <typename Scalar>
   }
 }
 
-template <typename Scalar>
-__attribute__((target("avx2"))) void avx2_forward_block(const Scalar* block, const double* inverse_diagonal, int rows,
-                                                        int columns, double* buffer) {
-  forward_block(block, inverse_diagonal, rows, columns, buffer);
+enum class Sweep { forward, backward };
+
+// A block's sweep, compiled for AVX2 and for the baseline (the same bits, above), chosen at
+// run time as the block products are (block_product_vectorised: tests force the portable one).
+template <Sweep sweep, typename Scalar>
+[[gnu::always_inline]] inline void sweep_block(const Scalar* block, const double* inverse_diagonal, int rows, int columns,
+                                               double* buffer) {
+  if constexpr (sweep == Sweep::forward)
+    forward_block(block, inverse_diagonal, rows, columns, buffer);
+  else
+    backward_block(block, inverse_diagonal, rows, columns, buffer);
 }
-template <typename Scalar>
-__attribute__((target("avx2"))) void avx2_backward_block(const Scalar* block, const double* inverse_diagonal, int rows,
-                                                         int columns, double* buffer) {
-  backward_block(block, inverse_diagonal, rows, columns, buffer);
+template <Sweep sweep, typename Scalar>
+__attribute__((target("avx2"))) void avx2_sweep_block(const Scalar* block, const double* inverse_diagonal, int rows,
+                                                      int columns, double* buffer) {
+  sweep_block<sweep>(block, inverse_diagonal, rows, columns, buffer);
 }
-template <typename Scalar>
-void portable_forward_block(const Scalar* block, const double* inverse_diagonal, int rows, int columns, double* buffer) {
-  forward_block(block, inverse_diagonal, rows, columns, buffer);
+template <Sweep sweep, typename Scalar>
+void portable_sweep_block(const Scalar* block, const double* inverse_diagonal, int rows, int columns, double* buffer) {
+  sweep_block<sweep>(block, inverse_diagonal, rows, columns, buffer);
 }
-template <typename Scalar>
-void portable_backward_block(const Scalar* block, const double* inverse_diagonal, int rows, int columns,
-                             double* buffer) {
-  backward_block(block, inverse_diagonal, rows, columns, buffer);
+template <Sweep sweep, typename Scalar>
+void run_sweep_block(const Scalar* block, const double* inverse_diagonal, int rows, int columns, double* buffer) {
+  if (block_product_vectorised())
+    avx2_sweep_block<sweep>(block, inverse_diagonal, rows, columns, buffer);
+  else
+    portable_sweep_block<sweep>(block, inverse_diagonal, rows, columns, buffer);
 }
 
 }  // namespace
@@ -334,11 +343,8 @@ void SupernodalFactor::forward_supernode(const Scalar* values, int s, double* z,
   // top, to the part's own sums of them).
   std::copy(z + node.first, z + node.first + node.columns, buffer);
   std::fill(buffer + node.columns, buffer + node.rows, 0.0);
-  const double* inverse = inverse_diagonal_.data() + node.first;
-  if (block_product_vectorised())
-    avx2_forward_block(values + node.values, inverse, node.rows, node.columns, buffer);
-  else
-    portable_forward_block(values + node.values, inverse, node.rows, node.columns, buffer);
+  run_sweep_block<Sweep::forward>(values + node.values, inverse_diagonal_.data() + node.first, node.rows, node.columns,
+                                  buffer);
   std::copy(buffer, buffer + node.columns, z + node.first);
   for (int i = node.columns; i < node.rows; ++i) {
     const int row = node.indices[i];
@@ -350,11 +356,8 @@ template <typename Scalar>
 void SupernodalFactor::backward_supernode(const Scalar* values, int s, double* z, double* buffer) const {
   const Supernode node = supernode(s);
   for (int i = 0; i < node.rows; ++i) buffer[i] = z[node.indices[i]];  // its own columns first
-  const double* inverse = inverse_diagonal_.data() + node.first;
-  if (block_product_vectorised())
-    avx2_backward_block(values + node.values, inverse, node.rows, node.columns, buffer);
-  else
-    portable_backward_block(values + node.values, inverse, node.rows, node.columns, buffer);
+  run_sweep_block<Sweep::backward>(values + node.values, inverse_diagonal_.data() + node.first, node.rows, node.columns,
+                                   buffer);
   std::copy(buffer, buffer + node.columns, z + node.first);
 }
 
