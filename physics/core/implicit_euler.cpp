@@ -212,10 +212,30 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
 
   model.update_rotations(state.positions);
 
-  // Right-hand side: dt [f(x) - (dt + beta) K v - alpha M v].
+  const bool damped = model.has_damping();
+  const ExtraStiffness* extra = extra_stiffness(model);
+  // The assembled current stiffness K(x) (settings.assembled_system; it holds K only), read by
+  // the right-hand side's K v and by every product of the solve.
+  const BlockMatrix* current = nullptr;
+  if (settings.assembled_system && !damped && !extra) {
+    const Stopwatch assembly;
+    current = model.current_stiffness();
+    report.assembly_ms = assembly.ms();
+  }
+  Executor& executor = model.executor();
+
+  // Right-hand side: dt [f(x) - (dt + beta) K v - alpha M v]. With K assembled, K v is one
+  // product on it and the model gives the forces alone: its matrix-free K v would visit every
+  // integration point's neighbourhood a second time.
   Vector forces = external_forces;
   Vector stiffness_velocity = Vector::Zero(size);
-  model.add_forces_and_stiffness_product(state.positions, forces, state.velocities, stiffness_velocity);
+  if (current) {
+    model.add_elastic_forces(state.positions, forces);
+    const CurrentSystem stiffness_alone(*current, masses, {}, {}, 0.0, 1.0);
+    stiffness_alone.multiply(state.velocities, stiffness_velocity, executor);
+  } else {
+    model.add_forces_and_stiffness_product(state.positions, forces, state.velocities, stiffness_velocity);
+  }
   for (const NodalSpring& spring : springs) forces.segment<3>(3 * spring.node) += spring.force;
   add_spring_product(springs, state.velocities, stiffness_velocity);
   Vector mass_velocity(size);
@@ -224,7 +244,6 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   Vector right_hand_side =
       dt * (forces - (dt + beta) * stiffness_velocity - alpha * mass_velocity);
   // The model's own dashpots, -D v, implicit like the rest: A gains dt D.
-  const bool damped = model.has_damping();
   Vector damping_p;
   if (damped) {
     Vector damping_velocity = Vector::Zero(size);
@@ -235,7 +254,6 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   // The model's extra stiffness (has_extra_stiffness), in the force's linearisation only:
   // f(x + dt v') ~ f(x) - dt K_extra v', so A gains dt^2 K_extra and the right -dt^2 K_extra v
   // (Rayleigh's beta K stays on K).
-  const ExtraStiffness* extra = extra_stiffness(model);
   Vector extra_p;
   if (extra) {
     Vector extra_velocity = Vector::Zero(size);
@@ -271,16 +289,9 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
     }
   };
 
-  // The assembled current system (settings.assembled_system), which then replaces `apply`.
-  const BlockMatrix* current = nullptr;
+  // The assembled current system, which then replaces `apply`.
   std::optional<CurrentSystem> system;
-  if (settings.assembled_system && !damped && !extra) {  // (the assembled system holds K only)
-    const Stopwatch assembly;
-    current = model.current_stiffness();
-    report.assembly_ms = assembly.ms();
-    if (current) system.emplace(*current, masses, fixed_nodes, springs, mass_coefficient, stiffness_coefficient);
-  }
-  Executor& executor = model.executor();
+  if (current) system.emplace(*current, masses, fixed_nodes, springs, mass_coefficient, stiffness_coefficient);
   const LinearOperator assembled_apply = [&](const Vector& p, Vector& out) { system->multiply(p, out, executor); };
   const LinearOperator& product = system ? assembled_apply : apply;
 
