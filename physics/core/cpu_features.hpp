@@ -14,4 +14,13 @@ inline bool cpu_has_avx2() {
 #endif
 }
 
+inline bool cpu_has_fma() {
+#if defined(__x86_64__) || defined(__i386__)
+  static const bool has = __builtin_cpu_supports("fma");
+  return has;
+#else
+  return false;
+#endif
+}
+
 }  // namespace incise::physics

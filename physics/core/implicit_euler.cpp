@@ -153,11 +153,12 @@ CgResult rest_factor_solve(const DeformableModel& model, const RestFactor& facto
 // and with them the top of D^-1 A (+9 % on a ball bent by 0.6 rad, test_current_system), and
 // the Chebyshev step contracts only up to (1 + 1/ratio) x its interval's top. S and C symmetric
 // make M^-1 symmetric, and SPD while the smoother contracts (multigrid.hpp). The cycle's
-// products read K's blocks rounded to float (half the bytes): M^-1 is then the cycle of that
-// rounded, still symmetric system, as good a preconditioner. CG's own product reads them too,
+// products are float products on K's paired float copy (paired_blocks.hpp: half the
+// instructions of a double product): M^-1 is then symmetric to float round-off, as good a
+// preconditioner (the iterations did not move). CG's own product is the same float product,
 // its convergence confirmed on the double system (preconditioned_conjugate_gradient's
-// `exact`): the rounding moves the residual by ~2e-7 of |b| on the 20k lobe, the iterations
-// not at all, and a residual above the tolerance on the double system restarts CG from it.
+// `exact`): a residual above the tolerance on the double system restarts CG from it (2 of the
+// quick performance bench's 400 solves).
 constexpr double current_smoothing_margin = 1.2;
 constexpr bool current_smoother_in_float = true;  // CurrentVcycle's single_precision
 
@@ -171,11 +172,9 @@ CgResult current_vcycle_solve(const DeformableModel& model, const RestFactor& fa
   smoother.upper = current_smoothing_margin * factor.smoothing_eigenvalue();
   CurrentVcycle vcycle(system, factor, rotations, smoother, model.executor(), current_smoother_in_float);
   const Preconditioner cycle = [&](const Vector& r, Vector& z) { vcycle(r, z); };
-  if (!vcycle.single_blocks())
+  if (!vcycle.single_precision())
     return preconditioned_conjugate_gradient(apply, right_hand_side, cycle, fixed_nodes, velocity_change, settings);
-  const LinearOperator rounded = [&](const Vector& p, Vector& out) {
-    system.multiply(p, out, model.executor(), vcycle.single_blocks());
-  };
+  const LinearOperator rounded = [&](const Vector& p, Vector& out) { vcycle.multiply(p, out); };
   return preconditioned_conjugate_gradient(rounded, right_hand_side, cycle, fixed_nodes, velocity_change, settings, &apply);
 }
 

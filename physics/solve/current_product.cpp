@@ -15,18 +15,16 @@ namespace {
 
 bool is_fixed(const CurrentRows& rows, int node) { return rows.fixed && rows.fixed[node] != 0; }
 
-// sum += B v, B column-major (float blocks widened to double), in Eigen's order
-// (current_product.hpp). This file is compiled without contraction into fused multiply-adds.
-template <typename Scalar>
-inline void add_block_product(const Scalar* b, const double* v, double sum[3]) {
+// sum += B v, B column-major, in Eigen's order (current_product.hpp). This file is compiled
+// without contraction into fused multiply-adds.
+inline void add_block_product(const double* b, const double* v, double sum[3]) {
   const double x0 = v[0], x1 = v[1], x2 = v[2];
-  sum[0] += (double(b[0]) * x0 + double(b[3]) * x1) + double(b[6]) * x2;
-  sum[1] += (double(b[1]) * x0 + double(b[4]) * x1) + double(b[7]) * x2;
-  sum[2] += (double(b[5]) * x1 + double(b[8]) * x2) + double(b[2]) * x0;
+  sum[0] += (b[0] * x0 + b[3] * x1) + b[6] * x2;
+  sum[1] += (b[1] * x0 + b[4] * x1) + b[7] * x2;
+  sum[2] += (b[5] * x1 + b[8] * x2) + b[2] * x0;
 }
 
-template <typename Scalar>
-void portable_current_rows(const CurrentRows& rows, const Scalar* stiffness, const double* x, const double* free_x,
+void portable_current_rows(const CurrentRows& rows, const double* stiffness, const double* x, const double* free_x,
                            double* y, int begin, int end) {
   for (int row = begin; row < end; ++row) {
     const std::size_t offset = 3 * static_cast<std::size_t>(row);
@@ -38,22 +36,16 @@ void portable_current_rows(const CurrentRows& rows, const Scalar* stiffness, con
     for (int k = rows.row_start[row]; k < rows.row_start[row + 1]; ++k)
       add_block_product(stiffness + 9 * static_cast<std::size_t>(k), free_x + 3 * static_cast<std::size_t>(rows.columns[k]),
                         sum);
-    if (rows.springs) add_block_product(rows.springs + 9 * static_cast<std::size_t>(row), x + offset, sum);
-    const double mass = rows.mass_coefficient * rows.masses[row];
-    for (int i = 0; i < 3; ++i) y[offset + i] = mass * x[offset + i] + rows.stiffness_coefficient * sum[i];
+    finish_current_row(rows, x, y, row, sum);
   }
 }
 
 #if defined(INCISE_CURRENT_PRODUCT_AVX2)
-// A column of a block and the entry after it, widened to double; `masked`: the column alone
-// (lane 3 zero), for the block at the end of its array.
+// A column of a block and the entry after it; `masked`: the column alone (lane 3 zero), for
+// the block at the end of its array.
 template <bool masked>
 __attribute__((target("avx2"))) inline __m256d load_column(const double* b) {
   return masked ? _mm256_maskload_pd(b, _mm256_set_epi64x(0, -1, -1, -1)) : _mm256_loadu_pd(b);
-}
-template <bool masked>
-__attribute__((target("avx2"))) inline __m256d load_column(const float* b) {
-  return _mm256_cvtps_pd(masked ? _mm_maskload_ps(b, _mm_set_epi32(0, -1, -1, -1)) : _mm_loadu_ps(b));
 }
 
 // B v in Eigen's order, B column-major at b: column j's load (lanes b_0j b_1j b_2j and the
@@ -61,8 +53,8 @@ __attribute__((target("avx2"))) inline __m256d load_column(const float* b) {
 // (a + m) + c and lane 2 (c + m) + a, by two blends. `masked` stops the third column's load
 // at the block's end (K's last block, nothing after it; a spring block); elsewhere it reads
 // the next block's first entry.
-template <bool masked, typename Scalar>
-__attribute__((target("avx2"))) inline __m256d block_product(const Scalar* b, const double* v) {
+template <bool masked>
+__attribute__((target("avx2"))) inline __m256d block_product(const double* b, const double* v) {
   const __m256d a = _mm256_mul_pd(load_column<false>(b), _mm256_broadcast_sd(v));
   const __m256d m = _mm256_mul_pd(load_column<false>(b + 3), _mm256_broadcast_sd(v + 1));
   const __m256d c = _mm256_mul_pd(load_column<masked>(b + 6), _mm256_broadcast_sd(v + 2));
@@ -70,8 +62,7 @@ __attribute__((target("avx2"))) inline __m256d block_product(const Scalar* b, co
 }
 
 // sum += the blocks [k, stop) times free_x (the last of K's blocks masked).
-template <typename Scalar>
-__attribute__((target("avx2"))) inline __m256d add_blocks(const CurrentRows& rows, const Scalar* stiffness,
+__attribute__((target("avx2"))) inline __m256d add_blocks(const CurrentRows& rows, const double* stiffness,
                                                           const double* free_x, int k, int stop, __m256d sum) {
   const int unmasked = stop < rows.blocks ? stop : stop - 1;
   for (; k < unmasked; ++k)
@@ -95,8 +86,7 @@ __attribute__((target("avx2"))) inline void finish_row(const CurrentRows& rows, 
                                     _mm256_mul_pd(_mm256_set1_pd(rows.stiffness_coefficient), sum)));
 }
 
-template <typename Scalar>
-__attribute__((target("avx2"))) void avx2_current_rows(const CurrentRows& rows, const Scalar* stiffness, const double* x,
+__attribute__((target("avx2"))) void avx2_current_rows(const CurrentRows& rows, const double* stiffness, const double* x,
                                                        const double* free_x, double* y, int begin, int end) {
   const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
   for (int row = begin; row < end; ++row) {
@@ -111,8 +101,7 @@ __attribute__((target("avx2"))) void avx2_current_rows(const CurrentRows& rows, 
 }
 #endif
 
-template <typename Scalar>
-void rows_product(const CurrentRows& rows, const Scalar* stiffness, const double* x, const double* free_x, double* y,
+void rows_product(const CurrentRows& rows, const double* stiffness, const double* x, const double* free_x, double* y,
                   int begin, int end) {
 #if defined(INCISE_CURRENT_PRODUCT_AVX2)
   // The block product's switch (tests force the portable kernel through it).
@@ -123,23 +112,15 @@ void rows_product(const CurrentRows& rows, const Scalar* stiffness, const double
 
 }  // namespace
 
-void current_rows_product(const CurrentRows& rows, const double* x, const double* free_x, double* y, int begin, int end) {
-  if (rows.single_stiffness) return rows_product(rows, rows.single_stiffness, x, free_x, y, begin, end);
-  rows_product(rows, rows.stiffness, x, free_x, y, begin, end);
+void finish_current_row(const CurrentRows& rows, const double* x, double* y, int row, double sum[3]) {
+  const std::size_t offset = 3 * static_cast<std::size_t>(row);
+  if (rows.springs) add_block_product(rows.springs + 9 * static_cast<std::size_t>(row), x + offset, sum);
+  const double mass = rows.mass_coefficient * rows.masses[row];
+  for (int i = 0; i < 3; ++i) y[offset + i] = mass * x[offset + i] + rows.stiffness_coefficient * sum[i];
 }
 
-void round_rows_to_single(const CurrentRows& rows, float* out, int begin, int end) {
-  for (int row = begin; row < end; ++row)
-    for (int k = rows.row_start[row]; k < rows.row_start[row + 1]; ++k) {
-      const double* b = rows.stiffness + 9 * static_cast<std::size_t>(k);
-      float* f = out + 9 * static_cast<std::size_t>(k);
-      for (int i = 0; i < 9; ++i) f[i] = static_cast<float>(b[i]);
-      if (rows.columns[k] != row) continue;
-      // The diagonal block's lower entries (1,0), (2,0), (2,1) from its upper ones.
-      f[1] = f[3];
-      f[2] = f[6];
-      f[5] = f[7];
-    }
+void current_rows_product(const CurrentRows& rows, const double* x, const double* free_x, double* y, int begin, int end) {
+  rows_product(rows, rows.stiffness, x, free_x, y, begin, end);
 }
 
 }  // namespace incise::physics

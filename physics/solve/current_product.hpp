@@ -13,10 +13,8 @@
 // (three rows in one 256-bit lane set, the row-2 order by two blends) and the portable one
 // give the same bits, those of CurrentSystem's Eigen product before this kernel.
 //
-// K's blocks may instead be a float copy of them (CurrentVcycle's smoother, round_rows_to_single):
-// each entry is widened to double (exactly) before it multiplies, the sums stay double, so the
-// product is the double kernel's on the float-rounded blocks, bit for bit, at half the bytes a
-// block.
+// The V-cycle's products in float run on another layout of K (paired_blocks.hpp), this file's
+// finish_current_row after them.
 #pragma once
 
 #include "physics/solve/block_matrix.hpp"
@@ -30,7 +28,6 @@ struct CurrentRows {
   const int* row_start = nullptr;
   const int* columns = nullptr;
   const double* stiffness = nullptr;  // K's blocks, 9 doubles each, column-major (Mat3)
-  const float* single_stiffness = nullptr;  // non-null: used instead, K's blocks rounded to float
   const double* masses = nullptr;
   const std::uint8_t* fixed = nullptr;  // null: nothing fixed
   const double* springs = nullptr;      // per node the springs' Mat3 sum; null: no springs
@@ -40,10 +37,9 @@ struct CurrentRows {
 // y rows [begin, end) of A x; `free_x` is x zeroed on the fixed nodes (x itself when it is).
 void current_rows_product(const CurrentRows& rows, const double* x, const double* free_x, double* y, int begin, int end);
 
-// K's blocks of rows [begin, end) rounded to float into `out` (9 a block, K's layout), each
-// diagonal block's lower entries the rounded upper ones': K's off-diagonal blocks are their
-// mirrors' transposes bit for bit, its diagonal blocks symmetric only to round-off (the
-// refill sums S_ij and S_ji in different orders), so the copy is exactly symmetric.
-void round_rows_to_single(const CurrentRows& rows, float* out, int begin, int end);
+// A free row's y from its stiffness sum (K's blocks times x, in `sum`, which gains the springs'
+// product): y_row = (c_m m_row) x_row + c_k (sum + S_row x_row), in the kernels' order; for a
+// kernel that sums K's part its own way (paired_blocks.hpp).
+void finish_current_row(const CurrentRows& rows, const double* x, double* y, int row, double sum[3]);
 
 }  // namespace incise::physics

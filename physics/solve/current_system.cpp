@@ -23,7 +23,7 @@ CurrentSystem::CurrentSystem(const BlockMatrix& stiffness, const Vector& masses,
     if (fixed[static_cast<size_t>(node)] != 0) fixed_nodes_.push_back(node);
 }
 
-void CurrentSystem::multiply(const Vector& x, Vector& y, Executor& executor, const float* single_blocks) const {
+void CurrentSystem::multiply(const Vector& x, Vector& y, Executor& executor) const {
   if (x.size() != 3 * static_cast<Eigen::Index>(stiffness_.nodes()))
     throw std::invalid_argument("CurrentSystem::multiply: x needs 3 entries per node");
   y.resize(x.size());
@@ -39,8 +39,7 @@ void CurrentSystem::multiply(const Vector& x, Vector& y, Executor& executor, con
       break;
     }
   }
-  CurrentRows rows = this->rows();
-  rows.single_stiffness = single_blocks;
+  const CurrentRows rows = this->rows();
   constexpr int rows_per_thread = 256;  // as BlockSystem::multiply
   executor.parallel_for(stiffness_.nodes(), [&](int begin, int end) {
     current_rows_product(rows, x.data(), free_x, y.data(), begin, end);
@@ -63,20 +62,6 @@ CurrentRows CurrentSystem::rows() const {
 
 void CurrentSystem::multiply_rows(const double* x, double* y, int begin, int end) const {
   current_rows_product(rows(), x, x, y, begin, end);
-}
-
-void CurrentSystem::multiply_rows(const double* x, double* y, int begin, int end, const float* single_blocks) const {
-  CurrentRows rows = this->rows();
-  rows.single_stiffness = single_blocks;
-  current_rows_product(rows, x, x, y, begin, end);
-}
-
-void CurrentSystem::round_blocks(float* out, Executor& executor) const {
-  if (stiffness_.block_count() == 0) return;
-  const CurrentRows rows = this->rows();
-  constexpr int rows_per_thread = 256;  // as multiply
-  executor.parallel_for(stiffness_.nodes(), [&](int begin, int end) { round_rows_to_single(rows, out, begin, end); },
-                        rows_per_thread);
 }
 
 Vector CurrentSystem::diagonal() const {

@@ -29,28 +29,22 @@ class CurrentSystem {
   CurrentSystem(const BlockMatrix& stiffness, const Vector& masses, const std::vector<std::uint8_t>& fixed,
                 std::span<const NodalSpring> springs, double mass_coefficient, double stiffness_coefficient);
 
-  // y = A x (3n), its rows on `executor`'s threads; with `single_blocks` (round_blocks), the
-  // product on K's float copy.
-  void multiply(const Vector& x, Vector& y, Executor& executor, const float* single_blocks = nullptr) const;
+  // y = A x (3n), its rows on `executor`'s threads.
+  void multiply(const Vector& x, Vector& y, Executor& executor) const;
   // y's rows [begin, end) (nodes) of A x, x zero on the fixed nodes: the kernel of multiply()
   // on one range, for a caller that fuses its own work with the rows' product
   // (current_vcycle.hpp).
   void multiply_rows(const double* x, double* y, int begin, int end) const;
-  // The same with K's blocks read from `single_blocks`, a copy of them rounded to float
-  // (round_blocks): the mass, springs and fixed rows as in double (current_product.hpp).
-  void multiply_rows(const double* x, double* y, int begin, int end, const float* single_blocks) const;
-  // `out` (9 block_count() floats) = K's blocks rounded to float, symmetric bit for bit (K's
-  // order; round_rows_to_single), on `executor`'s threads.
-  void round_blocks(float* out, Executor& executor) const;
   int block_count() const { return stiffness_.block_count(); }
   // The scalar diagonal of A (1 on fixed nodes).
   Vector diagonal() const;
   int nodes() const { return stiffness_.nodes(); }
   bool is_fixed(int node) const { return !fixed_.empty() && fixed_[static_cast<size_t>(node)] != 0; }
 
- private:
+  // The product kernel's view of A (current_product.hpp): K's rows, masses, springs, fixed rows.
   CurrentRows rows() const;
 
+ private:
 
   const BlockMatrix& stiffness_;
   const Vector& masses_;

@@ -19,7 +19,8 @@ CurrentVcycle::CurrentVcycle(const CurrentSystem& system, const RestFactor& fact
       smoother_(smoother),
       executor_(executor),
       steps_(smoother),
-      inverse_diagonal_(jacobi_inverse(system.diagonal())) {
+      inverse_diagonal_(jacobi_inverse(system.diagonal())),
+      rows_(system.rows()) {
   if (smoother_.degree < 1 || !(smoother_.upper > 0) || !(smoother_.ratio > 1))
     throw std::invalid_argument("CurrentVcycle: the smoother needs a degree >= 1, upper > 0 and ratio > 1");
   if (!factor_.coarse() || factor_.size() != 3 * system_.nodes() || factor_.transfer().nodes() != system_.nodes())
@@ -27,20 +28,43 @@ CurrentVcycle::CurrentVcycle(const CurrentSystem& system, const RestFactor& fact
   if (!rotations_.empty() && static_cast<int>(rotations_.size()) != system_.nodes())
     throw std::invalid_argument("CurrentVcycle: one rotation per node");
   if (single_precision && system_.block_count() > 0) {
-    single_.reset(new float[9 * static_cast<size_t>(system_.block_count())]);
-    system_.round_blocks(single_.get(), executor_);
+    paired_ = PairedBlocks(rows_, system_.nodes(), executor_);
+    // Zeroed: the 4th float of every node and the zero node stay 0 (paired_blocks.hpp).
+    for (std::vector<float>* operand : {&step_operand_, &next_operand_, &product_operand_})
+      operand->assign(paired_.operand_size(), 0.0f);
   }
 }
 
+void CurrentVcycle::round(const Vector& v, std::vector<float>& operand, Eigen::Index begin, Eigen::Index end) const {
+  if (!paired_.empty())
+    PairedBlocks::round_operand(rows_, v.data(), operand.data(), static_cast<int>(begin / 3), static_cast<int>(end / 3));
+}
+
+void CurrentVcycle::multiply(const Vector& p, Vector& out) {
+  if (paired_.empty()) return system_.multiply(p, out, executor_);
+  if (p.size() != 3 * static_cast<Eigen::Index>(system_.nodes()))
+    throw std::invalid_argument("CurrentVcycle::multiply: the vector's size is not the system's");
+  out.resize(p.size());
+  executor_.parallel_for(system_.nodes(), [&](int begin, int end) {
+    PairedBlocks::round_operand(rows_, p.data(), product_operand_.data(), begin, end);
+  }, rows_per_thread);
+  executor_.parallel_for(system_.nodes(), [&](int begin, int end) {
+    paired_.multiply_rows(rows_, p.data(), product_operand_.data(), out.data(), begin, end);
+  }, rows_per_thread);
+}
+
 template <class Finish>
-void CurrentVcycle::product_pass(const Vector& from, const Finish& finish) {
+void CurrentVcycle::product_pass(const Vector& from, const std::vector<float>& operand, const Finish& finish) {
   const double* x = from.data();
   double* product = product_.data();
   double* residual = residual_.data();
   // A range's product stays in cache for its rows' finish (at most 4 ranges a thread); smaller
   // chunks of it cost more in calls than they gain (32 rows: +4 % a cycle on one thread).
   executor_.parallel_for(system_.nodes(), [&](int begin, int end) {
-    system_.multiply_rows(x, product, begin, end, single_.get());
+    if (paired_.empty())
+      system_.multiply_rows(x, product, begin, end);
+    else
+      paired_.multiply_rows(rows_, x, operand.data(), product, begin, end);
     const Eigen::Index first = 3 * static_cast<Eigen::Index>(begin), last = 3 * static_cast<Eigen::Index>(end);
     for (Eigen::Index i = first; i < last; ++i) residual[i] -= product[i];
     finish(first, last);
@@ -55,13 +79,15 @@ void CurrentVcycle::smooth_steps(Vector& x) {
     const double a = steps_.a[static_cast<size_t>(k)], b = steps_.b[static_cast<size_t>(k)];
     const double* step = step_.data();
     double* next = next_step_.data();
-    product_pass(step_, [&](Eigen::Index begin, Eigen::Index end) {
+    product_pass(step_, step_operand_, [&](Eigen::Index begin, Eigen::Index end) {
       for (Eigen::Index i = begin; i < end; ++i) {
         next[i] = a * step[i] + b * (inverse_diagonal[i] * residual[i]);
         out[i] += next[i];
       }
+      round(next_step_, next_operand_, begin, end);
     });
     step_.swap(next_step_);
+    step_operand_.swap(next_operand_);
   }
 }
 
@@ -87,6 +113,7 @@ void CurrentVcycle::coarse_correction(Vector& x) {
         out[offset + a] += value[a];
       }
     }
+    round(step_, step_operand_, 3 * static_cast<Eigen::Index>(begin), 3 * static_cast<Eigen::Index>(end));
   }, rows_per_thread);
 }
 
@@ -112,10 +139,11 @@ void CurrentVcycle::operator()(const Vector& r, Vector& z) {
         x[i] = 0.0 + step[i];
       }
     }
+    round(step_, step_operand_, 3 * static_cast<Eigen::Index>(begin), 3 * static_cast<Eigen::Index>(end));
   }, rows_per_thread);
   smooth_steps(z);
   // The last step's product, and R^T of the residual it leaves.
-  product_pass(step_, [&](Eigen::Index begin, Eigen::Index end) {
+  product_pass(step_, step_operand_, [&](Eigen::Index begin, Eigen::Index end) {
     for (Eigen::Index node = begin / 3; node < end / 3; ++node) {
       const Vec3 value(residual_.segment<3>(3 * node));
       turned_.segment<3>(3 * node) =
@@ -125,13 +153,15 @@ void CurrentVcycle::operator()(const Vector& r, Vector& z) {
   coarse_correction(z);
   // The correction's product, and the post-smoothing's first step.
   double* next = next_step_.data();
-  product_pass(step_, [&](Eigen::Index begin, Eigen::Index end) {
+  product_pass(step_, step_operand_, [&](Eigen::Index begin, Eigen::Index end) {
     for (Eigen::Index i = begin; i < end; ++i) {
       next[i] = inverse_diagonal[i] * residual[i] / theta;
       x[i] += next[i];
     }
+    round(next_step_, next_operand_, begin, end);
   });
   step_.swap(next_step_);
+  step_operand_.swap(next_operand_);
   smooth_steps(z);
 }
 

@@ -8,12 +8,11 @@
 //   - the restriction P^T as a gather over the coarse nodes (coarse_transfer.hpp),
 //   - the prolongation P with the warp R and x += correction, a gather over the nodes,
 //   - the correction's product with the post-smoothing's first step.
-// With `single_precision`, the smoother's and the correction's products read a float copy of
-// K's blocks (CurrentSystem::round_blocks, made once in the constructor: the products stream
-// 36 bytes a block instead of 72); the masses, springs, fixed rows and D stay double, every sum
-// double. The copy is symmetric bit for bit (K's diagonal blocks are only to round-off; their
-// upper entries are taken), so the cycle stays a fixed symmetric operator, the V-cycle of the
-// rounded system, independent of the threads (CG's own product reads the copy too, its
+// With `single_precision`, the smoother's and the correction's products are float products on
+// K's blocks in pairs (paired_blocks.hpp, made once in the constructor), their operands
+// rounded to float in the passes that write them; the masses, springs, fixed rows, D and every
+// vector of the cycle stay double. The copy is symmetric bit for bit, so the cycle is
+// symmetric to float round-off (CG's own product, multiply(), is the same float product, its
 // convergence confirmed on the double A). The coarse solve runs the two halves of its
 // elimination tree beside each other (supernodal_factor.hpp). Every entry is computed by one thread in the
 // order VcyclePreconditioner computes it, so the result has its bits whatever the threads
@@ -28,6 +27,7 @@
 #include "physics/core/model.hpp"
 #include "physics/solve/current_system.hpp"
 #include "physics/solve/multigrid.hpp"
+#include "physics/solve/paired_blocks.hpp"
 #include "physics/solve/rest_factor.hpp"
 
 #include <Eigen/Geometry>
@@ -48,13 +48,17 @@ class CurrentVcycle {
 
   // z = M^-1 r. Not re-entrant (workspace).
   void operator()(const Vector& r, Vector& z);
-  // K's float copy (single_precision), null without one.
-  const float* single_blocks() const { return single_.get(); }
+  // out = A p, on K's paired float copy (single_precision; A's own product without it).
+  void multiply(const Vector& p, Vector& out);
+  bool single_precision() const { return !paired_.empty(); }
 
  private:
-  // Over ranges of nodes: the product of `from`, residual -= it, then finish(begin, end) (entries).
+  // Over ranges of nodes: the product of `from` (`operand`: it rounded, single_precision),
+  // residual -= it, then finish(begin, end) (entries).
   template <class Finish>
-  void product_pass(const Vector& from, const Finish& finish);
+  void product_pass(const Vector& from, const std::vector<float>& operand, const Finish& finish);
+  // Entries [begin, end) (whole nodes) of v rounded into `operand` (single_precision).
+  void round(const Vector& v, std::vector<float>& operand, Eigen::Index begin, Eigen::Index end) const;
   // x += the Chebyshev steps 1 .. degree - 1 (step 0 in step_), from residual_.
   void smooth_steps(Vector& x);
   void coarse_correction(Vector& x);
@@ -66,10 +70,12 @@ class CurrentVcycle {
   Executor& executor_;
   ChebyshevSteps steps_;
   Vector inverse_diagonal_;
-  // K's blocks in float (single_precision; not zeroed first: the rounding writes every entry),
-  // or null: the double blocks.
-  std::unique_ptr<float[]> single_;
+  CurrentRows rows_;
+  // K's blocks in float pairs (single_precision), empty: the double blocks.
+  PairedBlocks paired_;
   Vector residual_, step_, next_step_, product_, turned_, coarse_;
+  // step_, next_step_ and multiply()'s p rounded (single_precision).
+  std::vector<float> step_operand_, next_operand_, product_operand_;
 };
 
 }  // namespace incise::physics

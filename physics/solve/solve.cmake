@@ -16,6 +16,7 @@ target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/element_assembly_edit.cpp
   ${CMAKE_CURRENT_LIST_DIR}/element_groups.cpp
   ${CMAKE_CURRENT_LIST_DIR}/galerkin.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/paired_blocks.cpp
   ${CMAKE_CURRENT_LIST_DIR}/multigrid.cpp
   ${CMAKE_CURRENT_LIST_DIR}/rest_factor.cpp
   ${CMAKE_CURRENT_LIST_DIR}/supernodal_factor.cpp
@@ -27,7 +28,7 @@ target_sources(incise_physics PRIVATE
 # alike: no contraction of a multiply and an add into one fused operation, whatever -march a
 # build adds.
 set_source_files_properties(${CMAKE_CURRENT_LIST_DIR}/block_product.cpp ${CMAKE_CURRENT_LIST_DIR}/current_product.cpp
-                            ${CMAKE_CURRENT_LIST_DIR}/supernodal_factor.cpp
+                            ${CMAKE_CURRENT_LIST_DIR}/paired_blocks.cpp ${CMAKE_CURRENT_LIST_DIR}/supernodal_factor.cpp
                             ${CMAKE_CURRENT_LIST_DIR}/element_assembly.cpp
                             PROPERTIES COMPILE_OPTIONS -ffp-contract=off)
 find_path(INCISE_CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse)
