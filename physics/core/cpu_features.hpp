@@ -23,4 +23,13 @@ inline bool cpu_has_fma() {
 #endif
 }
 
+inline bool cpu_has_f16c() {
+#if defined(__x86_64__) || defined(__i386__)
+  static const bool has = __builtin_cpu_supports("avx") && __builtin_cpu_supports("f16c");
+  return has;
+#else
+  return false;
+#endif
+}
+
 }  // namespace incise::physics

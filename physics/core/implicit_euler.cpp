@@ -160,7 +160,11 @@ CgResult rest_factor_solve(const DeformableModel& model, const RestFactor& facto
 // `exact`): a residual above the tolerance on the double system restarts CG from it (2 of the
 // quick performance bench's 400 solves).
 constexpr double current_smoothing_margin = 1.2;
-constexpr bool current_smoother_in_float = true;  // CurrentVcycle's single_precision
+// Above this size of K's single-precision copy the smoother reads its halves
+// (CycleEntries::half_smoother): the products are bound by memory there (a copy several times
+// the second-level caches: 16 MB at 75k EFG elements), and the iterations do not move with the
+// smoother's entries rounded to 11 bits. CG's product keeps the single-precision entries.
+constexpr std::size_t half_smoother_bytes = std::size_t{8} << 20;
 
 CgResult current_vcycle_solve(const DeformableModel& model, const RestFactor& factor, const LinearOperator& apply,
                               const CurrentSystem& system, const Vector& right_hand_side,
@@ -170,7 +174,13 @@ CgResult current_vcycle_solve(const DeformableModel& model, const RestFactor& fa
   ChebyshevSmoother smoother;
   smoother.degree = factor.smoothing_degree();
   smoother.upper = current_smoothing_margin * factor.smoothing_eigenvalue();
-  CurrentVcycle vcycle(system, factor, rotations, smoother, model.executor(), current_smoother_in_float);
+  // The paired copy's storage stays with the stepping thread from step to step
+  // (PairedBlocks::build).
+  thread_local PairedBlocks workspace;
+  const CycleEntries entries = PairedBlocks::single_bytes(system.rows(), system.nodes()) > half_smoother_bytes
+                                   ? CycleEntries::half_smoother
+                                   : CycleEntries::single;
+  CurrentVcycle vcycle(system, factor, rotations, smoother, model.executor(), entries, &workspace);
   const Preconditioner cycle = [&](const Vector& r, Vector& z) { vcycle(r, z); };
   if (!vcycle.single_precision())
     return preconditioned_conjugate_gradient(apply, right_hand_side, cycle, fixed_nodes, velocity_change, settings);

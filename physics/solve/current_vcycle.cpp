@@ -7,12 +7,11 @@ namespace incise::physics {
 namespace {
 
 constexpr int rows_per_thread = 256;  // as CurrentSystem::multiply
-
 }  // namespace
 
 CurrentVcycle::CurrentVcycle(const CurrentSystem& system, const RestFactor& factor,
                              const std::vector<Eigen::Quaterniond>& rotations, ChebyshevSmoother smoother,
-                             Executor& executor, bool single_precision)
+                             Executor& executor, CycleEntries entries, PairedBlocks* workspace)
     : system_(system),
       factor_(factor),
       rotations_(rotations),
@@ -27,21 +26,24 @@ CurrentVcycle::CurrentVcycle(const CurrentSystem& system, const RestFactor& fact
     throw std::invalid_argument("CurrentVcycle: the factor is not a coarse one of the system's nodes");
   if (!rotations_.empty() && static_cast<int>(rotations_.size()) != system_.nodes())
     throw std::invalid_argument("CurrentVcycle: one rotation per node");
-  if (single_precision && system_.block_count() > 0) {
-    paired_ = PairedBlocks(rows_, system_.nodes(), executor_);
+  if (entries != CycleEntries::double_precision && system_.block_count() > 0) {
+    const bool half = entries == CycleEntries::half_smoother;
+    paired_ = workspace ? workspace : &own_paired_;
+    paired_->build(rows_, system_.nodes(), executor_, half);
+    smoother_precision_ = half ? PairedPrecision::half : PairedPrecision::single;
     // Zeroed: the 4th float of every node and the zero node stay 0 (paired_blocks.hpp).
     for (std::vector<float>* operand : {&step_operand_, &next_operand_, &product_operand_})
-      operand->assign(paired_.operand_size(), 0.0f);
+      operand->assign(paired_->operand_size(), 0.0f);
   }
 }
 
 void CurrentVcycle::round(const Vector& v, std::vector<float>& operand, Eigen::Index begin, Eigen::Index end) const {
-  if (!paired_.empty())
+  if (paired_)
     PairedBlocks::round_operand(rows_, v.data(), operand.data(), static_cast<int>(begin / 3), static_cast<int>(end / 3));
 }
 
 void CurrentVcycle::multiply(const Vector& p, Vector& out) {
-  if (paired_.empty()) return system_.multiply(p, out, executor_);
+  if (!paired_) return system_.multiply(p, out, executor_);
   if (p.size() != 3 * static_cast<Eigen::Index>(system_.nodes()))
     throw std::invalid_argument("CurrentVcycle::multiply: the vector's size is not the system's");
   out.resize(p.size());
@@ -49,7 +51,7 @@ void CurrentVcycle::multiply(const Vector& p, Vector& out) {
     PairedBlocks::round_operand(rows_, p.data(), product_operand_.data(), begin, end);
   }, rows_per_thread);
   executor_.parallel_for(system_.nodes(), [&](int begin, int end) {
-    paired_.multiply_rows(rows_, p.data(), product_operand_.data(), out.data(), begin, end);
+    paired_->multiply_rows(rows_, p.data(), product_operand_.data(), out.data(), begin, end);
   }, rows_per_thread);
 }
 
@@ -61,10 +63,10 @@ void CurrentVcycle::product_pass(const Vector& from, const std::vector<float>& o
   // A range's product stays in cache for its rows' finish (at most 4 ranges a thread); smaller
   // chunks of it cost more in calls than they gain (32 rows: +4 % a cycle on one thread).
   executor_.parallel_for(system_.nodes(), [&](int begin, int end) {
-    if (paired_.empty())
+    if (!paired_)
       system_.multiply_rows(x, product, begin, end);
     else
-      paired_.multiply_rows(rows_, x, operand.data(), product, begin, end);
+      paired_->multiply_rows(rows_, x, operand.data(), product, begin, end, smoother_precision_);
     const Eigen::Index first = 3 * static_cast<Eigen::Index>(begin), last = 3 * static_cast<Eigen::Index>(end);
     for (Eigen::Index i = first; i < last; ++i) residual[i] -= product[i];
     finish(first, last);

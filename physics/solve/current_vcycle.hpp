@@ -8,15 +8,17 @@
 //   - the restriction P^T as a gather over the coarse nodes (coarse_transfer.hpp),
 //   - the prolongation P with the warp R and x += correction, a gather over the nodes,
 //   - the correction's product with the post-smoothing's first step.
-// With `single_precision`, the smoother's and the correction's products are float products on
-// K's blocks in pairs (paired_blocks.hpp, made once in the constructor), their operands
+// With CycleEntries::single, the smoother's and the correction's products are float products
+// on K's blocks in pairs (paired_blocks.hpp, made once in the constructor), their operands
 // rounded to float in the passes that write them; the masses, springs, fixed rows, D and every
-// vector of the cycle stay double. The copy is symmetric bit for bit, so the cycle is
-// symmetric to float round-off (CG's own product, multiply(), is the same float product, its
-// convergence confirmed on the double A). The coarse solve runs the two halves of its
-// elimination tree beside each other (supernodal_factor.hpp). Every entry is computed by one thread in the
-// order VcyclePreconditioner computes it, so the result has its bits whatever the threads
-// (test_current_system).
+// vector of the cycle stay double. With CycleEntries::half_smoother they read the copy's
+// halves instead (half the bytes again, for a K too large for the caches). The copy is
+// symmetric bit for bit, so the cycle is symmetric to float round-off (CG's own product,
+// multiply(), is the float product on the single-precision entries, its convergence confirmed
+// on the double A). The coarse solve runs the two halves of its elimination tree beside each
+// other (supernodal_factor.hpp). Every entry is computed by one thread in the order
+// VcyclePreconditioner computes it, so the result
+// has its bits whatever the threads (test_current_system).
 //
 // The fixed nodes' rows of A are the identity's and r is zeroed on them, so their residual,
 // steps and correction stay +0 without VcyclePreconditioner's zeroing of every product (the
@@ -37,20 +39,25 @@
 
 namespace incise::physics {
 
+// K's entries as the cycle's products read them.
+enum class CycleEntries { double_precision, single, half_smoother };
+
 class CurrentVcycle {
  public:
   // `system`: A; `factor`: a coarse V-cycle's (coarse(), smoothing_degree() > 0) of the same
   // nodes; `rotations`: its warp, one per node (empty: none); the passes run on `executor`'s
-  // threads; `single_precision`: the products on K's blocks rounded to float (above). All
-  // referenced arguments must outlive the cycle.
+  // threads; `entries`: the products on K's blocks rounded (above), the paired copy built into
+  // `workspace` where one is given (its storage kept from cycle to cycle, PairedBlocks::build).
+  // All referenced arguments must outlive the cycle.
   CurrentVcycle(const CurrentSystem& system, const RestFactor& factor, const std::vector<Eigen::Quaterniond>& rotations,
-                ChebyshevSmoother smoother, Executor& executor, bool single_precision = false);
+                ChebyshevSmoother smoother, Executor& executor, CycleEntries entries = CycleEntries::double_precision,
+                PairedBlocks* workspace = nullptr);
 
   // z = M^-1 r. Not re-entrant (workspace).
   void operator()(const Vector& r, Vector& z);
   // out = A p, on K's paired float copy (single_precision; A's own product without it).
   void multiply(const Vector& p, Vector& out);
-  bool single_precision() const { return !paired_.empty(); }
+  bool single_precision() const { return paired_ != nullptr; }
 
  private:
   // Over ranges of nodes: the product of `from` (`operand`: it rounded, single_precision),
@@ -71,8 +78,12 @@ class CurrentVcycle {
   ChebyshevSteps steps_;
   Vector inverse_diagonal_;
   CurrentRows rows_;
-  // K's blocks in float pairs (single_precision), empty: the double blocks.
-  PairedBlocks paired_;
+  // K's blocks in float pairs (single_precision: the workspace or own_paired_), null: the
+  // double blocks.
+  PairedBlocks own_paired_;
+  PairedBlocks* paired_ = nullptr;
+  // The smoother's entries: half for a large K (current_vcycle.cpp).
+  PairedPrecision smoother_precision_ = PairedPrecision::single;
   Vector residual_, step_, next_step_, product_, turned_, coarse_;
   // step_, next_step_ and multiply()'s p rounded (single_precision).
   std::vector<float> step_operand_, next_operand_, product_operand_;

@@ -17,6 +17,13 @@
 // the zero node (an extra node of the operand, all zero), so a non-finite x never meets a
 // padding zero.
 //
+// A copy may hold its entries in half precision too (`with_half`; multiply_rows with
+// PairedPrecision::half), for a K too large for the caches, where the products are bound by
+// memory: halves (half_float.hpp) of the float entries, K scaled first by a power
+// of two 2^-s that puts its largest diagonal entry (the largest entry of a positive
+// semi-definite K) below 2^15; the row's float sum is multiplied back by 2^s, exactly. The
+// AVX2 kernel widens them with F16C, the portable one exactly alike.
+//
 // The copy is symmetric bit for bit (the off-diagonal blocks are their mirrors' transposes in K;
 // a diagonal block's lower entries are taken from its upper ones). The product is not exactly
 // linear (x and the sums are rounded), so a cycle on it is a symmetric operator to float
@@ -27,19 +34,31 @@
 #include "physics/core/executor.hpp"
 #include "physics/solve/current_product.hpp"
 
+#include <cstdint>
 #include <vector>
 
 namespace incise::physics {
+
+enum class PairedPrecision { single, half };
 
 class PairedBlocks {
  public:
   PairedBlocks() = default;
   // From K's rows (row_start, columns, stiffness of `rows`), `nodes` block rows, filled on
-  // `executor`'s threads.
-  PairedBlocks(const CurrentRows& rows, int nodes, Executor& executor);
+  // `executor`'s threads in one pass over K; `with_half`: the halves too.
+  PairedBlocks(const CurrentRows& rows, int nodes, Executor& executor, bool with_half = false);
+  // The same into this copy's storage, grown where it is too small, never shrunk: a copy
+  // rebuilt every step (CurrentVcycle's) takes no fresh memory, whose pages the system would
+  // zero again each time (multi-megabyte at 75k elements).
+  void build(const CurrentRows& rows, int nodes, Executor& executor, bool with_half = false);
+  // The bytes a single-precision copy of these rows takes (24 floats a pair).
+  static std::size_t single_bytes(const CurrentRows& rows, int nodes);
 
   int nodes() const { return nodes_; }
   bool empty() const { return nodes_ == 0; }
+  bool has_half() const { return with_half_; }
+  // 2^s of the halves.
+  double half_scale() const { return half_scale_; }
   // Floats an operand takes: 4 a node and the zero node's 4.
   std::size_t operand_size() const { return 4 * (static_cast<std::size_t>(nodes_) + 1); }
 
@@ -48,17 +67,24 @@ class PairedBlocks {
   // caller zeroed them (an operand is allocated zeroed, operand_size()).
   static void round_operand(const CurrentRows& rows, const double* x, float* operand, int begin, int end);
   // y rows [begin, end) of A x (current_product.hpp's A, the masses, springs, coefficients and
-  // fixed rows of `rows`), K's part from this copy and `operand` (x rounded, round_operand).
-  void multiply_rows(const CurrentRows& rows, const double* x, const float* operand, double* y, int begin,
-                     int end) const;
-  // Block `index` (0 for the row's first) of block row `row` as the copy holds it, widened.
-  Mat3 block(int row, int index) const;
+  // fixed rows of `rows`), K's part from this copy's entries in `precision` (half: has_half())
+  // and `operand` (x rounded, round_operand).
+  void multiply_rows(const CurrentRows& rows, const double* x, const float* operand, double* y, int begin, int end,
+                     PairedPrecision precision = PairedPrecision::single) const;
+  // Block `index` (0 for the row's first) of block row `row` as the copy holds it in
+  // `precision`, widened (and scaled back).
+  Mat3 block(int row, int index, PairedPrecision precision = PairedPrecision::single) const;
 
  private:
   int nodes_ = 0;
   std::vector<int> pair_start_;    // nodes + 1: row r's pairs are [pair_start_[r], pair_start_[r + 1])
   std::vector<int> pair_columns_;  // 2 a pair: the blocks' columns (nodes_, the zero node, for padding)
-  std::vector<float> blocks_;      // 24 a pair (above)
+  bool with_half_ = false;
+  double half_scale_ = 1.0;
+  // 24 a pair (above), and the same scaled by 1 / half_scale_ in halves (with_half_); both
+  // may be longer than the pairs (build()).
+  std::vector<float> blocks_;
+  std::vector<std::uint16_t> halves_;
 };
 
 // Whether PairedBlocks runs its AVX2 + FMA kernel on this CPU (block_product_vectorised() and

@@ -9,6 +9,7 @@
 #include "physics/solve/coarse_transfer.hpp"
 #include "physics/solve/current_system.hpp"
 #include "physics/solve/current_vcycle.hpp"
+#include "physics/solve/half_float.hpp"
 #include "physics/solve/paired_blocks.hpp"
 #include "physics/solve/element_assembly.hpp"
 #include "physics/solve/multigrid.hpp"
@@ -337,6 +338,64 @@ TEST(CurrentSystem, ThePairedFloatProductIsTheRoundedProductSummedInFloat) {
   set_block_product_vectorised(true);
 }
 
+// The paired copy's halves (the smoother's entries for a large K): each the nearest half of the
+// float entry scaled by 2^-s, symmetric bit for bit; their product's AVX2 + F16C kernel and the
+// portable one give the same bits, within half precision of the float product. A copy rebuilt
+// into a larger one's storage (PairedBlocks::build) has the bits of a fresh one.
+TEST(CurrentSystem, ThePairedCopysHalvesRoundItsFloatsAndMultiplyAlike) {
+  BentBall ball;
+  CorotationalEfg& model = *ball.model;
+  model.update_rotations(ball.x);
+  const BlockMatrix& k = *model.current_stiffness();
+  const CurrentSystem system(k, model.lumped_masses(), ball.fixed, {}, 0.0, 1.0);  // A = K on the free rows
+  const PairedBlocks paired(system.rows(), k.nodes(), serial_executor(), true);
+  ASSERT_TRUE(paired.has_half());
+  const double scale = paired.half_scale();
+  EXPECT_EQ(scale, std::ldexp(1.0, std::ilogb(scale)));  // a power of two
+  std::vector<Mat3> halves(static_cast<size_t>(k.block_count()));
+  for (int row = 0; row < k.nodes(); ++row)
+    for (int b = k.row_start()[static_cast<size_t>(row)]; b < k.row_start()[static_cast<size_t>(row) + 1]; ++b) {
+      const int index = b - k.row_start()[static_cast<size_t>(row)];
+      const Mat3 single = paired.block(row, index), half = paired.block(row, index, PairedPrecision::half);
+      halves[static_cast<size_t>(b)] = half;
+      for (int i = 0; i < 9; ++i) {
+        const float scaled = static_cast<float>(single.data()[i] / scale);
+        ASSERT_EQ(half.data()[i], scale * static_cast<double>(half_to_float(float_to_half(scaled)))) << "row " << row;
+        ASSERT_LT(std::abs(scaled), 32768.0f);  // the scale keeps every entry a normal-range half
+      }
+    }
+  EXPECT_EQ(asymmetric_blocks(k, halves, true), 0);
+
+  const Vector x = random_vector(ball.x.size(), 8);
+  std::vector<float> operand(paired.operand_size(), 0.0f);
+  PairedBlocks::round_operand(system.rows(), x.data(), operand.data(), 0, k.nodes());
+  Vector single(x.size()), portable(x.size()), vectorised(x.size());
+  paired.multiply_rows(system.rows(), x.data(), operand.data(), single.data(), 0, k.nodes());
+  set_block_product_vectorised(false);
+  paired.multiply_rows(system.rows(), x.data(), operand.data(), portable.data(), 0, k.nodes(), PairedPrecision::half);
+  set_block_product_vectorised(true);
+  paired.multiply_rows(system.rows(), x.data(), operand.data(), vectorised.data(), 0, k.nodes(), PairedPrecision::half);
+  EXPECT_TRUE(same_bits(portable, vectorised));
+  // Entries within 2^-11 of themselves (and of the scale's 2^-25 where tiny): the products
+  // within a few thousandths of K x's largest entry.
+  const double difference = (vectorised - single).cwiseAbs().maxCoeff() / single.cwiseAbs().maxCoeff();
+  std::printf("half against single product: %.3g of its largest entry\n", difference);
+  EXPECT_GT(difference, 0.0);
+  EXPECT_LT(difference, 5e-3);
+
+  // Rebuilt into a larger copy's storage.
+  PairedBlocks reused(system.rows(), k.nodes(), serial_executor(), true);
+  BentBall other;
+  other.model->update_rotations(other.x);
+  const CurrentSystem unfixed(*other.model->current_stiffness(), other.model->lumped_masses(), {}, {}, 1.0, 1e-4);
+  reused.build(unfixed.rows(), unfixed.nodes(), serial_executor(), true);
+  reused.build(system.rows(), k.nodes(), serial_executor(), false);
+  EXPECT_FALSE(reused.has_half());
+  Vector again(x.size());
+  reused.multiply_rows(system.rows(), x.data(), operand.data(), again.data(), 0, k.nodes());
+  EXPECT_TRUE(same_bits(again, single));
+}
+
 // The refill writes each lower block as its mirror's transpose, but sums a diagonal block's
 // entries (i, j) and (j, i) in different orders: K is symmetric bit for bit off the diagonal
 // blocks, to round-off on them. The paired copy takes their upper entries: symmetric bit for
@@ -459,8 +518,8 @@ TEST(CurrentSystem, TheCurrentVcycleIsSymmetricPositiveAndConverges) {
   // float round-off (its operands and sums are rounded), positive, and within the float
   // rounding's reach of the double cycle.
   smoother.degree = 4;
-  CurrentVcycle single(system, factor, rotations, smoother, serial_executor(), true);
-  CurrentVcycle dual(system, factor, rotations, smoother, serial_executor(), false);
+  CurrentVcycle single(system, factor, rotations, smoother, serial_executor(), CycleEntries::single);
+  CurrentVcycle dual(system, factor, rotations, smoother, serial_executor());
   for (unsigned seed = 1; seed <= 5; ++seed) {
     const Vector x = free_random(seed), y = free_random(100 + seed);
     Vector mx, my, mx_double;
@@ -498,8 +557,9 @@ TEST(CurrentSystem, TheCoarseTransfersHaveTheBitsOfTheSparseProducts) {
 
 // The fused cycle the implicit step runs (CurrentVcycle) has the bits of VcyclePreconditioner
 // on the same system, factor and rotations, on one thread, two, and ranges handed out in any
-// order; with smoothers of degree 1 to 4, a spring, and no warp; on K's blocks in double and
-// in their float copy (then the bits of the V-cycle on K rounded to float).
+// order; with smoothers of degree 1 to 4, a spring, and no warp; on K's blocks in double, in
+// their paired float copy and with the smoother on its halves (then the bits of the V-cycle
+// with those products).
 TEST(CurrentSystem, TheFusedCurrentVcycleHasTheBitsOfTheVcycleOnAnyThreads) {
   BentBall ball;
   CorotationalEfg& model = *ball.model;
@@ -512,31 +572,36 @@ TEST(CurrentSystem, TheFusedCurrentVcycleHasTheBitsOfTheVcycleOnAnyThreads) {
   const NodalSpring spring{7, Vec3::Zero(), Mat3::Identity() * 50.0 + Mat3::Constant(3.0)};
   const CurrentSystem system(*model.current_stiffness(), model.lumped_masses(), ball.fixed,
                              std::span<const NodalSpring>(&spring, 1), mass_coefficient, stiffness_coefficient);
-  // The single-precision cycle's products are the paired float product of p (its D stays the
-  // double system's).
-  const PairedBlocks paired(system.rows(), system.nodes(), serial_executor());
+  // The rounded cycles' products are the paired float products of p on the single or half
+  // entries (their D stays the double system's).
+  const PairedBlocks paired(system.rows(), system.nodes(), serial_executor(), true);
   std::vector<float> operand(paired.operand_size(), 0.0f);
   const LinearOperator apply = [&](const Vector& p, Vector& out) { system.multiply(p, out, serial_executor()); };
-  const LinearOperator apply_rounded = [&](const Vector& p, Vector& out) {
-    PairedBlocks::round_operand(system.rows(), p.data(), operand.data(), 0, system.nodes());
-    out.resize(p.size());
-    paired.multiply_rows(system.rows(), p.data(), operand.data(), out.data(), 0, system.nodes());
+  const auto apply_rounded = [&](PairedPrecision precision) -> LinearOperator {
+    return [&, precision](const Vector& p, Vector& out) {
+      PairedBlocks::round_operand(system.rows(), p.data(), operand.data(), 0, system.nodes());
+      out.resize(p.size());
+      paired.multiply_rows(system.rows(), p.data(), operand.data(), out.data(), 0, system.nodes(), precision);
+    };
   };
   std::vector<Eigen::Quaterniond> rotations;
   model.node_rotations(rotations);
   const std::vector<Eigen::Quaterniond> none;
   TwoThreadExecutor two;
   ShufflingExecutor shuffling;
-  for (int degree = 1; degree <= 4; ++degree) for (const bool single : {false, true}) {
+  for (int degree = 1; degree <= 4; ++degree)
+    for (const CycleEntries entries : {CycleEntries::double_precision, CycleEntries::single, CycleEntries::half_smoother}) {
     ChebyshevSmoother smoother;
     smoother.degree = degree;
     smoother.upper = 1.2 * factor.smoothing_eigenvalue();
     for (const std::vector<Eigen::Quaterniond>* warp : std::array<const std::vector<Eigen::Quaterniond>*, 2>{&rotations, &none}) {
-      VcyclePreconditioner reference(single ? apply_rounded : apply, jacobi_inverse(system.diagonal()), factor, *warp,
-                                     ball.fixed, smoother);
-      CurrentVcycle one_thread(system, factor, *warp, smoother, serial_executor(), single);
-      CurrentVcycle two_threads(system, factor, *warp, smoother, two, single);
-      CurrentVcycle shuffled(system, factor, *warp, smoother, shuffling, single);
+      const LinearOperator product = entries == CycleEntries::double_precision ? apply
+                                     : apply_rounded(entries == CycleEntries::single ? PairedPrecision::single
+                                                                                      : PairedPrecision::half);
+      VcyclePreconditioner reference(product, jacobi_inverse(system.diagonal()), factor, *warp, ball.fixed, smoother);
+      CurrentVcycle one_thread(system, factor, *warp, smoother, serial_executor(), entries);
+      CurrentVcycle two_threads(system, factor, *warp, smoother, two, entries);
+      CurrentVcycle shuffled(system, factor, *warp, smoother, shuffling, entries);
       for (unsigned seed = 1; seed <= 2; ++seed) {
         const Vector r = random_vector(ball.x.size(), seed);  // nonzero on the fixed nodes too
         Vector expected, z1, z2, z3;
@@ -544,7 +609,7 @@ TEST(CurrentSystem, TheFusedCurrentVcycleHasTheBitsOfTheVcycleOnAnyThreads) {
         one_thread(r, z1);
         two_threads(r, z2);
         shuffled(r, z3);
-        const std::string where = "degree " + std::to_string(degree) + (single ? " float" : " double") +
+        const std::string where = "degree " + std::to_string(degree) + " entries " + std::to_string(static_cast<int>(entries)) +
                                   (warp->empty() ? " unwarped" : " warped") +
                                   " seed " + std::to_string(seed);
         ASSERT_TRUE(expected.allFinite()) << where;
