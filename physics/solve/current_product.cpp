@@ -27,11 +27,7 @@ inline void add_block_product(const double* b, const double* v, double sum[3]) {
 void portable_current_rows(const CurrentRows& rows, const double* stiffness, const double* x, const double* free_x,
                            double* y, int begin, int end) {
   for (int row = begin; row < end; ++row) {
-    const std::size_t offset = 3 * static_cast<std::size_t>(row);
-    if (is_fixed(rows, row)) {
-      for (int i = 0; i < 3; ++i) y[offset + i] = x[offset + i];
-      continue;
-    }
+    if (copy_fixed_row(rows, x, y, row)) continue;
     double sum[3] = {0, 0, 0};
     for (int k = rows.row_start[row]; k < rows.row_start[row + 1]; ++k)
       add_block_product(stiffness + 9 * static_cast<std::size_t>(k), free_x + 3 * static_cast<std::size_t>(rows.columns[k]),

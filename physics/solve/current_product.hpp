@@ -19,6 +19,7 @@
 
 #include "physics/solve/block_matrix.hpp"
 
+#include <cstddef>
 #include <cstdint>
 
 namespace incise::physics {
@@ -33,6 +34,14 @@ struct CurrentRows {
   const double* springs = nullptr;      // per node the springs' Mat3 sum; null: no springs
   double mass_coefficient = 0, stiffness_coefficient = 0;
 };
+
+// A fixed row's y = x, bit for bit (true); false on a free row, left to the caller.
+inline bool copy_fixed_row(const CurrentRows& rows, const double* x, double* y, int row) {
+  if (!rows.fixed || rows.fixed[row] == 0) return false;
+  const std::size_t offset = 3 * static_cast<std::size_t>(row);
+  for (std::size_t i = 0; i < 3; ++i) y[offset + i] = x[offset + i];
+  return true;
+}
 
 // y rows [begin, end) of A x; `free_x` is x zeroed on the fixed nodes (x itself when it is).
 void current_rows_product(const CurrentRows& rows, const double* x, const double* free_x, double* y, int begin, int end);

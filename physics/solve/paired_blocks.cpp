@@ -1,14 +1,3 @@
-// K's block k as rows of 4 floats at out[0], out[8], out[16] (the 4th zero): the rows of the
-// column-major block rounded, a diagonal block's lower entries from its upper ones (the copy
-// symmetric bit for bit).
-void round_block(const double* b, bool diagonal, float* out) {
-  for (int i = 0; i < 3; ++i) {
-    float* row = out + 8 * i;
-    for (int j = 0; j < 3; ++j) row[j] = static_cast<float>(diagonal && i > j ? b[j + 3 * i] : b[i + 3 * j]);
-    row[3] = 0.0f;
-  }
-}
-
 #include "physics/solve/paired_blocks.hpp"
 
 #include "physics/core/cpu_features.hpp"
@@ -41,11 +30,15 @@ struct PairedView {
   double scale;
 };
 
-// Row i of K's block k, rounded, into out[0..2]; a diagonal block's lower entries from its upper
-// ones (the copy symmetric bit for bit).
-void round_block_row(const CurrentRows& rows, int k, bool diagonal, int i, float* out) {
-  const double* b = rows.stiffness + 9 * static_cast<std::size_t>(k);  // column-major
-  for (int j = 0; j < 3; ++j) out[j] = static_cast<float>(diagonal && i > j ? b[j + 3 * i] : b[i + 3 * j]);
+// K's block k as rows of 4 floats at out[0], out[8], out[16] (the 4th zero): the rows of the
+// column-major block rounded, a diagonal block's lower entries from its upper ones (the copy
+// symmetric bit for bit).
+void round_block(const double* b, bool diagonal, float* out) {
+  for (int i = 0; i < 3; ++i) {
+    float* row = out + 8 * i;
+    for (int j = 0; j < 3; ++j) row[j] = static_cast<float>(diagonal && i > j ? b[j + 3 * i] : b[i + 3 * j]);
+    row[3] = 0.0f;
+  }
 }
 
 // The lanes' sum in the kernels' order.
@@ -60,11 +53,7 @@ template <typename Storage>
 void portable_rows(const CurrentRows& rows, const PairedView<Storage>& paired, const double* x, const float* operand,
                    double* y, int begin, int end) {
   for (int row = begin; row < end; ++row) {
-    const std::size_t offset = 3 * static_cast<std::size_t>(row);
-    if (is_fixed(rows, row)) {
-      for (int i = 0; i < 3; ++i) y[offset + i] = x[offset + i];
-      continue;
-    }
+    if (copy_fixed_row(rows, x, y, row)) continue;
     float lanes[3][8] = {};
     for (int pair = paired.pair_start[row]; pair < paired.pair_start[row + 1]; ++pair) {
       const Storage* b = paired.blocks + pair_floats * static_cast<std::size_t>(pair);
@@ -90,11 +79,7 @@ __attribute__((target("avx2,fma,f16c"))) void avx2_rows(const CurrentRows& rows,
                                                         const double* x, const float* operand, double* y, int begin,
                                                         int end) {
   for (int row = begin; row < end; ++row) {
-    const std::size_t offset = 3 * static_cast<std::size_t>(row);
-    if (is_fixed(rows, row)) {
-      for (int i = 0; i < 3; ++i) y[offset + i] = x[offset + i];
-      continue;
-    }
+    if (copy_fixed_row(rows, x, y, row)) continue;
     __m256 a0 = _mm256_setzero_ps(), a1 = a0, a2 = a0;
     for (int pair = paired.pair_start[row]; pair < paired.pair_start[row + 1]; ++pair) {
       const Storage* b = paired.blocks + pair_floats * static_cast<std::size_t>(pair);
