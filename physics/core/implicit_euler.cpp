@@ -240,7 +240,8 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   Vector stiffness_velocity = Vector::Zero(size);
   if (current) {
     model.add_elastic_forces(state.positions, forces);
-    const CurrentSystem stiffness_alone(*current, masses, {}, {}, 0.0, 1.0);
+    const std::vector<uint8_t> nothing_fixed;  // (CurrentSystem keeps a reference)
+    const CurrentSystem stiffness_alone(*current, masses, nothing_fixed, {}, 0.0, 1.0);
     stiffness_alone.multiply(state.velocities, stiffness_velocity, executor);
   } else {
     model.add_forces_and_stiffness_product(state.positions, forces, state.velocities, stiffness_velocity);

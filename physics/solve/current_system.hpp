@@ -28,6 +28,9 @@ class CurrentSystem {
   // All referenced arguments must outlive the system.
   CurrentSystem(const BlockMatrix& stiffness, const Vector& masses, const std::vector<std::uint8_t>& fixed,
                 std::span<const NodalSpring> springs, double mass_coefficient, double stiffness_coefficient);
+  // (The fixed flags are kept by reference: a temporary would dangle.)
+  CurrentSystem(const BlockMatrix& stiffness, const Vector& masses, std::vector<std::uint8_t>&& fixed,
+                std::span<const NodalSpring> springs, double mass_coefficient, double stiffness_coefficient) = delete;
 
   // y = A x (3n), its rows on `executor`'s threads.
   void multiply(const Vector& x, Vector& y, Executor& executor) const;

@@ -387,7 +387,8 @@ TEST(CurrentSystem, ThePairedCopysHalvesRoundItsFloatsAndMultiplyAlike) {
   PairedBlocks reused(system.rows(), k.nodes(), serial_executor(), true);
   BentBall other;
   other.model->update_rotations(other.x);
-  const CurrentSystem unfixed(*other.model->current_stiffness(), other.model->lumped_masses(), {}, {}, 1.0, 1e-4);
+  const std::vector<std::uint8_t> none;
+  const CurrentSystem unfixed(*other.model->current_stiffness(), other.model->lumped_masses(), none, {}, 1.0, 1e-4);
   reused.build(unfixed.rows(), unfixed.nodes(), serial_executor(), true);
   reused.build(system.rows(), k.nodes(), serial_executor(), false);
   EXPECT_FALSE(reused.has_half());
