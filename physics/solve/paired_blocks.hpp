@@ -4,10 +4,11 @@
 //   [ row i of block k (3 floats), 0, row i of block k + 1 (3 floats), 0 ],  i = 0, 1, 2,
 // and the operand x in float, 4 a node (the 4th zero). Row i of a pair times its two nodes'
 // operands is one 8-lane fused multiply-add into the row's accumulator for y_i; the lanes are
-// summed once a row. Against the double kernel on K's float copy (current_product.hpp: each
-// block's three columns widened, multiplied and blended in double) this halves the
-// instructions a block, and the product is bound by instructions, not bytes (a 3 MB copy at
-// 20k elements, as fast when it sits in the first-level caches).
+// summed once a row. Against the kernel it replaced (K's blocks rounded to float in K's
+// layout, each block's three columns widened, multiplied and blended in double, as
+// current_product.cpp still does on the double K) this halves the instructions a block, and at
+// 20k elements the product is bound by instructions, not bytes (that kernel ran as fast with
+// its 3 MB copy shrunk into the first-level caches).
 //
 // The sums are float: y_i = ((l0 + l4) + (l1 + l5)) + ((l2 + l6) + (l3 + l7)) of the lanes, each
 // lane a chain of fused multiply-adds in the row's pair order; the AVX2 + FMA kernel and the
