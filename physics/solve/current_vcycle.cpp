@@ -7,6 +7,7 @@ namespace incise::physics {
 namespace {
 
 constexpr int rows_per_thread = 256;  // as CurrentSystem::multiply
+
 }  // namespace
 
 CurrentVcycle::CurrentVcycle(const CurrentSystem& system, const RestFactor& factor,
