@@ -13,8 +13,6 @@ namespace incise::physics {
 
 namespace {
 
-bool is_fixed(const CurrentRows& rows, int node) { return rows.fixed && rows.fixed[node] != 0; }
-
 // sum += B v, B column-major, in Eigen's order (current_product.hpp). This file is compiled
 // without contraction into fused multiply-adds.
 inline void add_block_product(const double* b, const double* v, double sum[3]) {
@@ -86,7 +84,7 @@ __attribute__((target("avx2"))) void avx2_current_rows(const CurrentRows& rows, 
                                                        const double* free_x, double* y, int begin, int end) {
   const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
   for (int row = begin; row < end; ++row) {
-    if (is_fixed(rows, row)) {
+    if (is_fixed_row(rows, row)) {
       const std::size_t offset = 3 * static_cast<std::size_t>(row);
       _mm256_maskstore_pd(y + offset, three, _mm256_maskload_pd(x + offset, three));
       continue;
@@ -96,15 +94,6 @@ __attribute__((target("avx2"))) void avx2_current_rows(const CurrentRows& rows, 
   }
 }
 #endif
-
-void rows_product(const CurrentRows& rows, const double* stiffness, const double* x, const double* free_x, double* y,
-                  int begin, int end) {
-#if defined(INCISE_CURRENT_PRODUCT_AVX2)
-  // The block product's switch (tests force the portable kernel through it).
-  if (block_product_vectorised()) return avx2_current_rows(rows, stiffness, x, free_x, y, begin, end);
-#endif
-  portable_current_rows(rows, stiffness, x, free_x, y, begin, end);
-}
 
 }  // namespace
 
@@ -116,7 +105,11 @@ void finish_current_row(const CurrentRows& rows, const double* x, double* y, int
 }
 
 void current_rows_product(const CurrentRows& rows, const double* x, const double* free_x, double* y, int begin, int end) {
-  rows_product(rows, rows.stiffness, x, free_x, y, begin, end);
+#if defined(INCISE_CURRENT_PRODUCT_AVX2)
+  // The block product's switch (tests force the portable kernel through it).
+  if (block_product_vectorised()) return avx2_current_rows(rows, rows.stiffness, x, free_x, y, begin, end);
+#endif
+  portable_current_rows(rows, rows.stiffness, x, free_x, y, begin, end);
 }
 
 }  // namespace incise::physics

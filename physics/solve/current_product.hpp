@@ -35,9 +35,11 @@ struct CurrentRows {
   double mass_coefficient = 0, stiffness_coefficient = 0;
 };
 
+inline bool is_fixed_row(const CurrentRows& rows, int row) { return rows.fixed && rows.fixed[row] != 0; }
+
 // A fixed row's y = x, bit for bit (true); false on a free row, left to the caller.
 inline bool copy_fixed_row(const CurrentRows& rows, const double* x, double* y, int row) {
-  if (!rows.fixed || rows.fixed[row] == 0) return false;
+  if (!is_fixed_row(rows, row)) return false;
   const std::size_t offset = 3 * static_cast<std::size_t>(row);
   for (std::size_t i = 0; i < 3; ++i) y[offset + i] = x[offset + i];
   return true;

@@ -20,8 +20,6 @@ namespace {
 constexpr int rows_per_thread = 256;  // as CurrentSystem::multiply
 constexpr std::size_t pair_floats = 24;
 
-bool is_fixed(const CurrentRows& rows, int node) { return rows.fixed && rows.fixed[node] != 0; }
-
 template <typename Storage>
 struct PairedView {
   const int* pair_start;
@@ -202,7 +200,7 @@ void PairedBlocks::build(const CurrentRows& rows, int nodes, Executor& executor,
 
 void PairedBlocks::round_operand(const CurrentRows& rows, const double* x, float* operand, int begin, int end) {
   for (int node = begin; node < end; ++node) {
-    const bool fixed = is_fixed(rows, node);
+    const bool fixed = is_fixed_row(rows, node);
     for (int i = 0; i < 3; ++i)
       operand[4 * static_cast<std::size_t>(node) + static_cast<std::size_t>(i)] =
           fixed ? 0.0f : static_cast<float>(x[3 * static_cast<std::size_t>(node) + static_cast<std::size_t>(i)]);
