@@ -35,7 +35,7 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
   run.dt = dt;
   State state = body.initial;
   physics::VerletHistory history;
-  Vector velocity_change = Vector::Zero(state.positions.size());
+  physics::WarmStart warm_start;
   const Vector& rest = model.rest_positions();
 
   const double total_mass = model.lumped_masses().sum();
@@ -80,13 +80,13 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
       const double sub_dt = dt / substeps;
       const State saved_state = state;
       const physics::VerletHistory saved_history = history;
-      const Vector saved_change = velocity_change;
+      const physics::WarmStart saved_start = warm_start;
       bool failed = false;
       capped = false;
       for (int sub = 0; sub < substeps && !failed; ++sub) {
         if (integrator.implicit) {
           const physics::StepReport report = physics::implicit_euler_step(
-              model, state, body.fixed, body.external, {}, implicit_settings(sub_dt), &velocity_change);
+              model, state, body.fixed, body.external, {}, implicit_settings(sub_dt), &warm_start);
           failed = report.nonfinite;
           capped = capped || (!report.nonfinite && !report.cg.converged);
           energy = report.elastic_energy + report.kinetic_energy;
@@ -104,7 +104,7 @@ Run simulate(Body& body, const Integrator& integrator, double dt, double duratio
       if (failed) {
         state = saved_state;
         history = saved_history;
-        velocity_change = saved_change;
+        warm_start = saved_start;
         if (attempt == 0) ++run.guard_events;
         continue;
       }

@@ -42,7 +42,7 @@ SliceStudy study_thin_slice(physics::EfgRotation rotation, double youngs_modulus
   DeformableModel& model = *body.model;
   const Vector& masses = model.lumped_masses();
   State state = body.initial;
-  Vector velocity_change = Vector::Zero(state.positions.size());
+  physics::WarmStart warm_start;
   SliceStudy study;
   study.rotation = rotation;
   study.youngs_modulus = youngs_modulus;
@@ -66,7 +66,7 @@ SliceStudy study_thin_slice(physics::EfgRotation rotation, double youngs_modulus
   double energy = initial_energy;
   for (int step = 0; step < steps; ++step) {
     const physics::StepReport report = physics::implicit_euler_step(
-        model, state, body.fixed, body.external, {}, implicit_settings(dt), &velocity_change);
+        model, state, body.fixed, body.external, {}, implicit_settings(dt), &warm_start);
     if (report.nonfinite) {
       study.finite = false;
       break;

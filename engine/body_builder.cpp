@@ -246,7 +246,7 @@ void start_at_rest(physics::BodyData& body) {
   const int n = body.mechanics->node_count();
   body.state.positions = body.mechanics->rest_positions();
   body.state.velocities = physics::Vector::Zero(3 * n);
-  body.velocity_change = physics::Vector::Zero(3 * n);
+  body.warm_start.clear();
 }
 
 Body build_body(const BodySpec& spec, const SolverSpec& solver) {

@@ -62,18 +62,25 @@ void World::solve(Body& body, const std::vector<physics::NodalSpring>& springs,
   // the guarded step is a run of equal dt's from the step's start, a retry a new run of half that.
   double attempt_dt = 0, clock = 0;
   const physics::StepFunction step = [&](physics::State& state, const physics::ImplicitEulerSettings& given,
-                                         physics::Vector* velocity_change) {
+                                         physics::WarmStart* warm_start) {
     physics::ImplicitEulerSettings settings = given;
     settings.cg.budget = budget_.next();
     if (given.dt != attempt_dt) {
       attempt_dt = given.dt;
       clock = end_time - body.model->integrator.dt;
     }
+    // The GPU starts from the newest dv alone and gives back its own.
+    const auto gpu_step = [&] {
+      physics::Vector dv = warm_start->newest(state.positions.size());
+      const physics::StepReport gpu = body.gpu->step(*body.data.efg, state, body.data.fixed, external, springs, settings, &dv);
+      if (!gpu.nonfinite) warm_start->record(dv);
+      return gpu;
+    };
     const physics::StepReport report =
-        body.gpu               ? body.gpu->step(*body.data.efg, state, body.data.fixed, external, springs, settings, velocity_change)
+        body.gpu               ? gpu_step()
         : body.model->own_step ? body.model->own_step(*body.data.mechanics, state, body.data.fixed, external, springs, settings, clock)
                                : physics::implicit_euler_step(*body.data.mechanics, state, body.data.fixed, external, springs,
-                                                              settings, velocity_change, factor);
+                                                              settings, warm_start, factor);
     budget_.solved(report.cg);
     stats.ms_assembly += report.assembly_ms;
     if (!report.nonfinite) clock += given.dt;

@@ -237,7 +237,7 @@ std::uint64_t World::motion_hash() const {
   for (const auto& body : bodies_) {
     fnv1a(hash, body.data.state.positions);
     fnv1a(hash, body.data.state.velocities);
-    fnv1a(hash, body.data.velocity_change);
+    for (const physics::Vector& solution : body.data.warm_start.solutions()) fnv1a(hash, solution);
   }
   return hash;
 }

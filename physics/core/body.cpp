@@ -8,7 +8,7 @@ namespace incise::physics {
 BodyData::BodyData(const BodyData& other)
     : mechanics(other.mechanics ? other.mechanics->clone() : nullptr),
       state(other.state),
-      velocity_change(other.velocity_change),
+      warm_start(other.warm_start),
       last_energy(other.last_energy),
       fixed(other.fixed),
       topology_revision(other.topology_revision),

@@ -65,7 +65,7 @@ struct BodyData {
   std::unique_ptr<DeformableModel> mechanics;
   CorotationalEfg* efg = nullptr;  // mechanics, when it is an EFG model
   State state;
-  Vector velocity_change;  // last step's dv: the CG's warm start
+  WarmStart warm_start;  // the last steps' dv: CG's start (warm_start.hpp)
   double last_energy = 0;  // elastic + kinetic after the last step (the energy watchdog)
   std::vector<std::uint8_t> fixed;  // per node
   // Counts the changes of the mechanics' topology (a cut's re-selections, pinned particles):

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <span>
 #include <vector>
 
 #include "physics/core/model.hpp"
@@ -30,6 +31,10 @@ struct CgSettings {
   double tolerance = 1e-6;  // on |r| / |b|, both restricted to the free degrees of freedom
   int max_iterations = 200;
   CgBudget budget;
+  // Earlier solutions besides x's start, newest first (WarmStart::older): CG starts from the
+  // best combination of x and these in A's norm, one product each (warm_start.hpp). Empty:
+  // from x scaled to its best multiple. Read during the call only.
+  std::span<const Vector> start_space;
 };
 
 struct CgResult {
@@ -49,7 +54,9 @@ using LinearOperator = std::function<void(const Vector& p, Vector& out)>;
 using Preconditioner = std::function<void(const Vector& r, Vector& out)>;
 
 // Solves A x = b on the free degrees of freedom, A symmetric positive definite there.
-// - `x` is the initial guess on entry (its size must match b) and the solution on exit.
+// - `x` is the initial guess on entry (its size must match b) and the solution on exit. CG
+//   starts from its best multiple, or from the best combination of it and
+//   settings.start_space (physics/core/warm_start.hpp's Galerkin start).
 // - `fixed_nodes` holds one entry per node (3 degrees of freedom each), 1 = fixed; empty means
 //   nothing fixed. Fixed entries of x are set to zero and the residual and search directions
 //   are kept zero there, so the solution lies in the free subspace.

@@ -41,11 +41,11 @@ GuardedStepReport guarded_step(const BodyModel& model, BodyData& body, const Vec
     ImplicitEulerSettings settings = model.integrator;
     settings.dt = model.integrator.dt / substeps;
     State saved = body.state;
-    Vector saved_velocity_change = body.velocity_change;
+    WarmStart saved_warm_start = body.warm_start;
     bool failed = false;
     StepReport last;
     for (int s = 0; s < substeps && !failed; ++s) {
-      last = step(body.state, settings, &body.velocity_change);
+      last = step(body.state, settings, &body.warm_start);
       report.cg_iterations += last.cg.iterations;
       report.cg_residual = std::max(report.cg_residual, last.cg.relative_residual);
       if (last.cg.stopped_by_budget && !last.nonfinite) {
@@ -69,7 +69,7 @@ GuardedStepReport guarded_step(const BodyModel& model, BodyData& body, const Vec
       return report;
     }
     body.state = std::move(saved);
-    body.velocity_change = std::move(saved_velocity_change);
+    body.warm_start = std::move(saved_warm_start);
     report.nonfinite_retries++;
   }
   report.ok = false;

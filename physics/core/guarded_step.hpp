@@ -40,8 +40,8 @@ struct GuardedStepReport {
 };
 
 // One implicit Euler step of the body (sub-steps of it on a retry) by `step`, which advances
-// the state with the given settings and dv (the CPU's implicit_euler_step or the GPU's).
-using StepFunction = std::function<StepReport(State& state, const ImplicitEulerSettings& settings, Vector* velocity_change)>;
+// the state with the given settings and CG's start (the CPU's implicit_euler_step or the GPU's).
+using StepFunction = std::function<StepReport(State& state, const ImplicitEulerSettings& settings, WarmStart* warm_start)>;
 
 GuardedStepReport guarded_step(const BodyModel& model, BodyData& body, const Vector& external,
                                const std::vector<NodalSpring>& springs, int max_retries, const StepFunction& step);

@@ -210,7 +210,7 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
                                const std::vector<uint8_t>& fixed_nodes,
                                const Vector& external_forces, std::span<const NodalSpring> springs,
                                const ImplicitEulerSettings& settings,
-                               Vector* velocity_change_guess, const RestFactor* rest_factor) {
+                               WarmStart* warm_start, const RestFactor* rest_factor) {
   check_inputs(model, state, fixed_nodes, external_forces, springs, settings);
   StepReport report;
   const Index size = state.positions.size();
@@ -305,16 +305,19 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   const LinearOperator assembled_apply = [&](const Vector& p, Vector& out) { system->multiply(p, out, executor); };
   const LinearOperator& product = system ? assembled_apply : apply;
 
-  Vector velocity_change = Vector::Zero(size);
-  if (velocity_change_guess && velocity_change_guess->size() == size && velocity_change_guess->allFinite())
-    velocity_change = *velocity_change_guess;
-  if (extra && !extra->extra_stiffness_symmetric()) {
+  // CG starts from the last steps' solutions (warm_start.hpp); BiCGSTAB's non-symmetric
+  // system, with no A-norm to combine them in, from the newest alone.
+  const bool symmetric = !(extra && !extra->extra_stiffness_symmetric());
+  Vector velocity_change = warm_start ? warm_start->newest(size) : Vector::Zero(size);
+  CgSettings cg_settings = settings.cg;
+  if (warm_start && symmetric) cg_settings.start_space = warm_start->older(size);
+  if (!symmetric) {
     // No rest factor here: its warped preconditioners are built for CG's SPD systems.
     report.cg = nonsymmetric_solve(model, springs, masses, mass_coefficient, stiffness_coefficient, dt, apply,
-                                   right_hand_side, fixed_nodes, velocity_change, settings.cg);
+                                   right_hand_side, fixed_nodes, velocity_change, cg_settings);
   } else if (system && rest_factor && rest_factor->size() == size && rest_factor->smoothing_degree() > 0) {
     report.cg = current_vcycle_solve(model, *rest_factor, product, *system, right_hand_side, fixed_nodes, velocity_change,
-                                     settings.cg);
+                                     cg_settings);
   } else if (rest_factor && rest_factor->size() == size) {
     // The additive two-level's fine part (the V-cycle smooths with the rest system's own).
     const Vector inverse_diagonal =
@@ -322,10 +325,10 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
             ? jacobi_inverse(jacobi_diagonal(model, springs, masses, mass_coefficient, stiffness_coefficient, dt))
             : Vector();
     report.cg = rest_factor_solve(model, *rest_factor, product, inverse_diagonal, right_hand_side, fixed_nodes,
-                                  velocity_change, settings.cg);
+                                  velocity_change, cg_settings);
   } else {
     report.cg = jacobi_solve(model, springs, masses, mass_coefficient, stiffness_coefficient, dt, product, right_hand_side,
-                             fixed_nodes, velocity_change, settings.cg);
+                             fixed_nodes, velocity_change, cg_settings);
   }
   if (report.cg.nonfinite) {
     report.nonfinite = true;
@@ -349,7 +352,7 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
     }
   }
 
-  if (velocity_change_guess) *velocity_change_guess = velocity_change;
+  if (warm_start) warm_start->record(velocity_change);
   state.positions.swap(positions);
   state.velocities.swap(velocities);
   report.elastic_energy = model.elastic_energy(state.positions);

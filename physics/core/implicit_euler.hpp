@@ -8,6 +8,7 @@
 
 #include "physics/core/cg.hpp"
 #include "physics/core/model.hpp"
+#include "physics/core/warm_start.hpp"
 #include "physics/solve/rest_factor.hpp"
 
 namespace incise::physics {
@@ -49,9 +50,9 @@ struct StepReport {
 // - `external_forces`: 3n (gravity, loads).
 // - If anything non-finite arises the State is left unchanged and nonfinite is set.
 // - A CG that stops unconverged (max iterations) still advances the state; see report.cg.
-// - `velocity_change` (optional, 3n): CG starts from it and receives the new dv. Passing the
-//   previous step's dv warm-starts CG (motion changes little between steps); it is as
-//   deterministic as a zero start. Left unchanged when the step is rejected.
+// - `warm_start` (optional): CG starts from its combination of the last steps' dv and records
+//   this step's (physics/core/warm_start.hpp); as deterministic as a zero start. Left
+//   unchanged when the step is rejected.
 // - `rest_factor` (optional): CG is preconditioned with it, warped by the model's node
 //   rotations (physics/solve/warped_preconditioner.hpp), instead of Jacobi. It may be the
 //   factor of an older topology or another dt: any SPD approximation converges, only slower.
@@ -59,7 +60,7 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
                                const std::vector<uint8_t>& fixed_nodes,
                                const Vector& external_forces, std::span<const NodalSpring> springs,
                                const ImplicitEulerSettings& settings,
-                               Vector* velocity_change = nullptr, const RestFactor* rest_factor = nullptr);
+                               WarmStart* warm_start = nullptr, const RestFactor* rest_factor = nullptr);
 
 // m_i g at every node (3n).
 Vector gravity_forces(const Vector& lumped_masses, const Vec3& g);

@@ -66,7 +66,7 @@ bool pin_orphans(CutContext& ctx) {
   for (std::size_t k = cut.orphans_pinned; k < orphans.size(); ++k) {
     body.fixed[orphans[k]] = 1;
     body.state.velocities.segment<3>(3 * orphans[k]).setZero();
-    body.velocity_change.segment<3>(3 * orphans[k]).setZero();
+    body.warm_start.zero_node(orphans[k]);
   }
   const bool pinned = orphans.size() > cut.orphans_pinned;
   cut.orphans_pinned = orphans.size();

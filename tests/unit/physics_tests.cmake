@@ -17,6 +17,7 @@ add_executable(test_integrator
   ${CMAKE_CURRENT_LIST_DIR}/test_element_assembly.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_supernodal_factor.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_half_float.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_warm_start.cpp
 )
 target_link_libraries(test_integrator PRIVATE incise_physics GTest::gtest_main)
 gtest_discover_tests(test_integrator DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "physics")

@@ -55,7 +55,7 @@ struct CutBody {
     const int n = data.mechanics->node_count();
     data.state.positions = data.mechanics->rest_positions();
     data.state.velocities = Vector::Zero(3 * n);
-    data.velocity_change = Vector::Zero(3 * n);
+    data.warm_start.clear();
     data.fixed.assign(static_cast<std::size_t>(n), 0);
     data.gravity = Vector::Zero(3 * n);
     set_fixed_vertices(data);

@@ -179,9 +179,9 @@ TEST(VolumeCut, TheSeparatedPieceFallsFreely) {
   settings.cg.max_iterations = 2000;
   const double start = centre_z(state.positions);
   const int steps = 120;  // implicit Euler's fall is g dt^2 k (k + 1) / 2: 1 / k = 0.83 % above g t^2 / 2
-  Vector velocity_change = Vector::Zero(3 * n);  // warm start, as the engine does
+  WarmStart warm_start;  // as the engine does
   for (int k = 0; k < steps; ++k) {
-    const StepReport step = implicit_euler_step(model, state, fixed, gravity, {}, settings, &velocity_change);
+    const StepReport step = implicit_euler_step(model, state, fixed, gravity, {}, settings, &warm_start);
     ASSERT_FALSE(step.nonfinite);
   }
   const double t = steps * settings.dt;

@@ -68,10 +68,12 @@ double beam_agreement(Precision precision, double tolerance, int steps, bool rot
   settings.precision = precision;
   settings.rotations_on_gpu = rotations_on_gpu;
   EfgStep step(gpu.model, settings);
-  Vector cpu_dv, gpu_dv;
+  // The GPU starts from the newest dv alone: the CPU too, to compare like with like.
+  WarmStart cpu_start(1);
+  Vector gpu_dv;
   double worst = 0;
   for (int s = 0; s < steps; ++s) {
-    const StepReport a = implicit_euler_step(cpu.model, cpu.state, cpu.fixed, cpu.gravity, {}, cpu.settings, &cpu_dv);
+    const StepReport a = implicit_euler_step(cpu.model, cpu.state, cpu.fixed, cpu.gravity, {}, cpu.settings, &cpu_start);
     const StepReport b = step.step(gpu.model, gpu.state, gpu.fixed, gpu.gravity, {}, gpu.settings, &gpu_dv);
     EXPECT_TRUE(a.cg.converged) << "cpu step " << s;
     EXPECT_TRUE(b.cg.converged) << "gpu step " << s << ": residual " << b.cg.relative_residual << " after "
@@ -118,10 +120,12 @@ TEST(GpuStep, ACgStoppedAtThreeIterationsStartsFromTheCpusScaledGuess) {
   GpuSettings settings;
   settings.precision = Precision::double_precision;
   EfgStep step(gpu.model, settings);
-  Vector cpu_dv, gpu_dv;
+  // The GPU starts from the newest dv alone: the CPU too, to compare like with like.
+  WarmStart cpu_start(1);
+  Vector gpu_dv;
   double worst = 0;
   for (int s = 0; s < 20; ++s) {
-    const StepReport a = implicit_euler_step(cpu.model, cpu.state, cpu.fixed, cpu.gravity, {}, cpu.settings, &cpu_dv);
+    const StepReport a = implicit_euler_step(cpu.model, cpu.state, cpu.fixed, cpu.gravity, {}, cpu.settings, &cpu_start);
     const StepReport b = step.step(gpu.model, gpu.state, gpu.fixed, gpu.gravity, {}, gpu.settings, &gpu_dv);
     ASSERT_TRUE(a.cg.stopped_by_budget && b.cg.stopped_by_budget) << "step " << s;
     ASSERT_EQ(a.cg.iterations, 3);
@@ -219,11 +223,13 @@ TEST(GpuStep, SpringsAgreeWithTheCpu) {
   springs[2].node = tip / 2;
   springs[2].force = Vec3(0, 0.4, 0);
   springs[2].stiffness << 300, 10, 0, 10, 100, 5, 0, 5, 50;
-  Vector cpu_dv, gpu_dv;
+  // The GPU starts from the newest dv alone: the CPU too, to compare like with like.
+  WarmStart cpu_start(1);
+  Vector gpu_dv;
   for (int s = 0; s < 4; ++s) {
     // The last step has none: the GPU must drop the previous step's springs.
     const std::span<const NodalSpring> active(springs.data(), s < 3 ? springs.size() : 0);
-    implicit_euler_step(cpu.model, cpu.state, cpu.fixed, cpu.gravity, active, cpu.settings, &cpu_dv);
+    implicit_euler_step(cpu.model, cpu.state, cpu.fixed, cpu.gravity, active, cpu.settings, &cpu_start);
     step.step(gpu.model, gpu.state, gpu.fixed, gpu.gravity, active, gpu.settings, &gpu_dv);
     const double difference = (cpu.state.positions - gpu.state.positions).cwiseAbs().maxCoeff();
     const double moved = (cpu.state.positions - cpu.model.rest_positions()).cwiseAbs().maxCoeff();
@@ -284,10 +290,11 @@ TEST(GpuStep, AfterATopologyEditOnlyTheChangedBatchesAreUploaded) {
   settings.precision = Precision::double_precision;
   settings.batch_rows = 16;
   EfgStep step(beam.model, settings);
-  Vector dv, reference_dv;
+  Vector dv;
+  WarmStart reference_start(1);  // the GPU's start: the newest dv alone
   step.step(beam.model, beam.state, beam.fixed, beam.gravity, {}, beam.settings, &dv);
   implicit_euler_step(reference.model, reference.state, reference.fixed, reference.gravity, {}, reference.settings,
-                      &reference_dv);
+                      &reference_start);
   const gpu::GpuCounters before = step.counters();
 
   // What a cut does to an element (set_neighbourhood, seed 004 §2.4): new rows for three
@@ -309,7 +316,7 @@ TEST(GpuStep, AfterATopologyEditOnlyTheChangedBatchesAreUploaded) {
   reference.gravity = gravity_forces(reference.model.lumped_masses(), Vec3(0, 0, -9.81));
   step.step(beam.model, beam.state, beam.fixed, beam.gravity, {}, beam.settings, &dv);
   implicit_euler_step(reference.model, reference.state, reference.fixed, reference.gravity, {}, reference.settings,
-                      &reference_dv);
+                      &reference_start);
   const gpu::GpuCounters& after = step.counters();
 
   // The expected batches and bytes, from the layout in efg_step.hpp: an element row is
