@@ -7,8 +7,8 @@
 // iterations on motion the last steps already found. The best start in the span of the last
 // `depth` solutions d_j, in A's norm, is the Galerkin projection
 //   G c = g,  G_ij = d_i . A d_j,  g_i = d_i . b,  x0 = sum_j c_j d_j,  A x0 = sum_j c_j A d_j,
-// one product per solution, taken with CG's own operator (so its first residual needs none
-// more). With one solution it is the scaling of the single dv that came before (a truncated CG
+// one product per solution, of the system itself (also where CG iterates on a float copy of
+// it, cg.cpp), so CG's first residual needs none more. With one solution it is the scaling of the single dv that came before (a truncated CG
 // needs at least that: started from the last dv as given, its stale smooth part was applied
 // again at every step and a real-time session that stopped CG early gained energy). Products
 // with the older matrices (d_j . b_j, no product at all) were tried: the steps' matrices differ
