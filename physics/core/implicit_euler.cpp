@@ -188,6 +188,26 @@ CgResult current_vcycle_solve(const DeformableModel& model, const RestFactor& fa
   return preconditioned_conjugate_gradient(rounded, right_hand_side, cycle, fixed_nodes, velocity_change, settings, &apply);
 }
 
+// v' = v + dv and x' = x + dt v', the fixed nodes at rest where they are; false when either is
+// not finite.
+bool advance(const State& state, const Vector& velocity_change, const std::vector<uint8_t>& fixed_nodes, double dt,
+             Vector& velocities, Vector& positions) {
+  velocities = state.velocities + velocity_change;
+  for (size_t node = 0; node < fixed_nodes.size(); ++node) {
+    if (fixed_nodes[node] != 0) velocities.segment<3>(3 * static_cast<Index>(node)).setZero();
+  }
+  positions = state.positions + dt * velocities;
+  if (!velocities.allFinite() || !positions.allFinite()) return false;
+  // Fixed nodes keep their position bitwise (x + dt * 0 already equals x, kept explicit).
+  for (size_t node = 0; node < fixed_nodes.size(); ++node) {
+    if (fixed_nodes[node] != 0) {
+      const Index offset = 3 * static_cast<Index>(node);
+      positions.segment<3>(offset) = state.positions.segment<3>(offset);
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 Vector gravity_forces(const Vector& lumped_masses, const Vec3& g) {
@@ -335,23 +355,11 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
     return report;
   }
 
-  Vector velocities = state.velocities + velocity_change;
-  for (size_t node = 0; node < fixed_nodes.size(); ++node) {
-    if (fixed_nodes[node] != 0) velocities.segment<3>(3 * static_cast<Index>(node)).setZero();
-  }
-  Vector positions = state.positions + dt * velocities;
-  if (!velocities.allFinite() || !positions.allFinite()) {
+  Vector velocities, positions;
+  if (!advance(state, velocity_change, fixed_nodes, dt, velocities, positions)) {
     report.nonfinite = true;
     return report;
   }
-  // Fixed nodes keep their position bitwise (x + dt * 0 already equals x, kept explicit).
-  for (size_t node = 0; node < fixed_nodes.size(); ++node) {
-    if (fixed_nodes[node] != 0) {
-      const Index offset = 3 * static_cast<Index>(node);
-      positions.segment<3>(offset) = state.positions.segment<3>(offset);
-    }
-  }
-
   if (warm_start) warm_start->record(velocity_change);
   state.positions.swap(positions);
   state.velocities.swap(velocities);
