@@ -1,5 +1,6 @@
 #include "physics/solve/coarse_space.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <stdexcept>
@@ -13,9 +14,80 @@ struct Corner {
   double weight;
 };
 
+// Splits each grid vertex into the pieces of its support (the free nodes of weight > 0 on it)
+// that `coupling`'s nonzero blocks connect inside that support: copy_of[node][c] is the copy
+// node's corner c leans on (-1 where the node is fixed or the weight 0), copy_best per copy the
+// largest weight a node gives it. Copies are numbered vertex by vertex, a vertex's pieces in
+// the order of their first nodes, so an unsplit grid keeps its vertices' order.
+void split_cut_vertices(const BlockMatrix& coupling, const std::vector<std::array<Corner, 8>>& corners, size_t vertices,
+                        const std::vector<std::uint8_t>& fixed, std::vector<std::array<int, 8>>& copy_of,
+                        std::vector<double>& copy_best) {
+  const size_t nodes = corners.size();
+  if (static_cast<size_t>(coupling.nodes()) != nodes)
+    throw std::invalid_argument("make_coarse_space: the coupling has another node count than the rest positions");
+  std::vector<int> start(vertices + 1, 0);
+  auto on_vertex = [&](size_t node, int c) {
+    return (fixed.empty() || fixed[node] == 0) && corners[node][static_cast<size_t>(c)].weight > 0;
+  };
+  for (size_t node = 0; node < nodes; ++node)
+    for (int c = 0; c < 8; ++c)
+      if (on_vertex(node, c)) ++start[static_cast<size_t>(corners[node][static_cast<size_t>(c)].vertex) + 1];
+  for (size_t v = 0; v < vertices; ++v) start[v + 1] += start[v];
+  std::vector<std::pair<int, int>> support(static_cast<size_t>(start.back()));  // (node, corner), nodes increasing
+  {
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (size_t node = 0; node < nodes; ++node)
+      for (int c = 0; c < 8; ++c)
+        if (on_vertex(node, c))
+          support[static_cast<size_t>(fill[static_cast<size_t>(corners[node][static_cast<size_t>(c)].vertex)]++)] = {
+              static_cast<int>(node), c};
+  }
+  copy_of.assign(nodes, std::array<int, 8>{-1, -1, -1, -1, -1, -1, -1, -1});
+  copy_best.clear();
+  std::vector<int> slot(nodes, -1), parent, label;
+  auto root = [&](int k) {
+    while (parent[static_cast<size_t>(k)] != k) k = parent[static_cast<size_t>(k)] = parent[static_cast<size_t>(parent[static_cast<size_t>(k)])];
+    return k;
+  };
+  const std::vector<int>& row_start = coupling.row_start();
+  const std::vector<int>& columns = coupling.columns();
+  const std::vector<Mat3>& blocks = coupling.blocks();
+  for (size_t v = 0; v < vertices; ++v) {
+    const int first = start[v], count = start[v + 1] - start[v];
+    if (count == 0) continue;
+    parent.resize(static_cast<size_t>(count));
+    for (int k = 0; k < count; ++k) {
+      parent[static_cast<size_t>(k)] = k;
+      slot[static_cast<size_t>(support[static_cast<size_t>(first + k)].first)] = k;
+    }
+    for (int k = 0; k < count; ++k) {
+      const int node = support[static_cast<size_t>(first + k)].first;
+      for (int b = row_start[static_cast<size_t>(node)]; b < row_start[static_cast<size_t>(node) + 1]; ++b) {
+        const int other = slot[static_cast<size_t>(columns[static_cast<size_t>(b)])];
+        if (other < 0 || !(blocks[static_cast<size_t>(b)].array() != 0).any()) continue;
+        const int a = root(k), c = root(other);
+        if (a != c) parent[static_cast<size_t>(std::max(a, c))] = std::min(a, c);
+      }
+    }
+    label.assign(static_cast<size_t>(count), -1);
+    for (int k = 0; k < count; ++k) {
+      const auto [node, c] = support[static_cast<size_t>(first + k)];
+      int& copy = label[static_cast<size_t>(root(k))];
+      if (copy < 0) {
+        copy = static_cast<int>(copy_best.size());
+        copy_best.push_back(0.0);
+      }
+      copy_of[static_cast<size_t>(node)][static_cast<size_t>(c)] = copy;
+      copy_best[static_cast<size_t>(copy)] = std::max(copy_best[static_cast<size_t>(copy)], corners[static_cast<size_t>(node)][static_cast<size_t>(c)].weight);
+      slot[static_cast<size_t>(node)] = -1;
+    }
+  }
+}
+
 }  // namespace
 
-CoarseSpace make_coarse_space(const Eigen::VectorXd& rest, double spacing, const std::vector<std::uint8_t>& fixed) {
+CoarseSpace make_coarse_space(const Eigen::VectorXd& rest, double spacing, const std::vector<std::uint8_t>& fixed,
+                              const BlockMatrix* coupling) {
   if (!(spacing > 0)) throw std::invalid_argument("make_coarse_space: the spacing must be positive");
   const Eigen::Index nodes = rest.size() / 3;
   const Eigen::Map<const Eigen::Matrix3Xd> points(rest.data(), 3, nodes);
@@ -44,11 +116,23 @@ CoarseSpace make_coarse_space(const Eigen::VectorXd& rest, double spacing, const
       if (!is_fixed(node)) best[static_cast<size_t>(vertex)] = std::max(best[static_cast<size_t>(vertex)], w);
     }
   }
-  // Keep the vertices some free node leans on with half its weight or more; number them.
-  std::vector<int> index(best.size(), -1);
+  // A vertex whose free nodes fall into pieces that no stiffness couples (a cut through its
+  // support) becomes one vertex per piece; each node leans on its own piece's copy.
+  std::vector<std::array<int, 8>> copy_of;
+  std::vector<double> copy_best;
+  if (coupling) split_cut_vertices(*coupling, corners, best.size(), fixed, copy_of, copy_best);
+  // Keep the vertices (or copies) some free node leans on with half its weight or more; number
+  // them in the grid's order (a vertex's copies in the order of their first nodes).
+  const std::vector<double>& kept_best = coupling ? copy_best : best;
+  std::vector<int> index(kept_best.size(), -1);
   int kept = 0;
-  for (size_t v = 0; v < best.size(); ++v)
-    if (best[v] >= 0.5) index[v] = kept++;
+  for (size_t v = 0; v < kept_best.size(); ++v)
+    if (kept_best[v] >= 0.5) index[v] = kept++;
+  auto column_of = [&](Eigen::Index node, int c) {
+    const long long slot = coupling ? copy_of[static_cast<size_t>(node)][static_cast<size_t>(c)]
+                                    : corners[static_cast<size_t>(node)][static_cast<size_t>(c)].vertex;
+    return slot < 0 ? -1 : index[static_cast<size_t>(slot)];
+  };
 
   CoarseSpace space;
   space.weight_start.assign(static_cast<size_t>(nodes) + 1, 0);
@@ -59,12 +143,13 @@ CoarseSpace make_coarse_space(const Eigen::VectorXd& rest, double spacing, const
     space.weight_start[static_cast<size_t>(node)] = static_cast<int>(space.weights.size());
     if (is_fixed(node)) continue;
     double sum = 0;
-    for (const Corner& corner : corners[static_cast<size_t>(node)])
-      if (index[static_cast<size_t>(corner.vertex)] >= 0) sum += corner.weight;
+    for (int c = 0; c < 8; ++c)
+      if (column_of(node, c) >= 0) sum += corners[static_cast<size_t>(node)][static_cast<size_t>(c)].weight;
     if (!(sum > 1e-9)) continue;  // a node no kept vertex reaches: the fine smoother's alone
     // The corners come in increasing vertex order (x fastest), and so do their columns.
-    for (const Corner& corner : corners[static_cast<size_t>(node)]) {
-      const int column = index[static_cast<size_t>(corner.vertex)];
+    for (int c = 0; c < 8; ++c) {
+      const Corner& corner = corners[static_cast<size_t>(node)][static_cast<size_t>(c)];
+      const int column = column_of(node, c);
       if (column < 0 || corner.weight <= 0) continue;
       const double weight = corner.weight / sum;
       space.weights.push_back({column, weight});

@@ -39,7 +39,7 @@ RestPreconditioner::Pending RestPreconditioner::start(const DeformableModel& mod
                                      mass_coefficient, stiffness_coefficient, coarse_spacing, smoothing, single] {
     const BlockMatrix stiffness = assemble();
     if (coarse_spacing > 0) {
-      const CoarseSpace coarse = make_coarse_space(rest, coarse_spacing, fixed);
+      const CoarseSpace coarse = make_coarse_space(rest, coarse_spacing, fixed, &stiffness);
       *result = std::make_shared<const RestFactor>(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient,
                                                    default_factor_backend(), &coarse, smoothing, single);
     } else {

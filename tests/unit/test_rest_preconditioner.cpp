@@ -361,6 +361,127 @@ TEST(CoarseSpace, ItsNodeWeightsAreTheProlongation) {
   EXPECT_EQ((rebuilt - space.prolongation).norm(), 0.0);
 }
 
+// The ball of the Galerkin test below, cut halfway through by a plane (its nodes' neighbourhoods
+// re-selected by visibility), its bottom fixed.
+std::unique_ptr<CorotationalEfg> half_cut_ball() {
+  EfgSettings settings;
+  settings.spacing = 0.0025;
+  settings.cuts.push_back({Vec3(-0.03, -0.03, 0.0013), Vec3(0.06, 0, 0), Vec3(0, 0.03, 0)});
+  return std::make_unique<CorotationalEfg>([](const Vec3& p) { return p.norm() < 0.021; }, Vec3::Constant(-0.025),
+                                           Vec3::Constant(0.025), tissue, settings);
+}
+
+std::vector<std::uint8_t> fixed_bottom(const DeformableModel& model) {
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(model.node_count()), 0);
+  for (int node = 0; node < model.node_count(); ++node) fixed[static_cast<size_t>(node)] = model.rest_positions()[3 * node + 2] < -0.015;
+  return fixed;
+}
+
+// The columns of P whose nodes the stiffness's nonzero blocks do not connect among themselves
+// (a breadth-first search inside each column's nodes).
+int disconnected_columns(const CoarseSpace& space, const BlockMatrix& k) {
+  std::vector<std::vector<int>> column_nodes(static_cast<size_t>(space.coarse_nodes));
+  for (size_t node = 0; node + 1 < space.weight_start.size(); ++node)
+    for (int w = space.weight_start[node]; w < space.weight_start[node + 1]; ++w)
+      column_nodes[static_cast<size_t>(space.weights[static_cast<size_t>(w)].vertex)].push_back(static_cast<int>(node));
+  std::vector<int> mark(static_cast<size_t>(k.nodes()), -1);
+  int disconnected = 0;
+  for (int column = 0; column < space.coarse_nodes; ++column) {
+    const std::vector<int>& nodes = column_nodes[static_cast<size_t>(column)];
+    if (nodes.empty()) continue;
+    for (int node : nodes) mark[static_cast<size_t>(node)] = column;
+    std::vector<int> queue{nodes.front()};
+    mark[static_cast<size_t>(nodes.front())] = -2 - column;  // reached
+    for (size_t next = 0; next < queue.size(); ++next)
+      for (int b = k.row_start()[static_cast<size_t>(queue[next])]; b < k.row_start()[static_cast<size_t>(queue[next]) + 1]; ++b) {
+        const int other = k.columns()[static_cast<size_t>(b)];
+        if (mark[static_cast<size_t>(other)] == column && (k.blocks()[static_cast<size_t>(b)].array() != 0).any()) {
+          mark[static_cast<size_t>(other)] = -2 - column;
+          queue.push_back(other);
+        }
+      }
+    disconnected += queue.size() < nodes.size();
+    for (int node : nodes) mark[static_cast<size_t>(node)] = -1;
+  }
+  return disconnected;
+}
+
+// Given the cut body's stiffness, the coarse space splits each vertex whose support the cut
+// divides: every column's nodes connected through the stiffness (the plain grid has columns
+// across the cut), still a partition of unity on the free nodes it reaches, with more columns;
+// an uncut ball's space is the plain one bit for bit.
+TEST(CoarseSpace, ACutSplitsTheVerticesWhoseSupportItDivides) {
+  {
+    const auto uncut = small_efg(0.0025);
+    uncut->update_rotations(uncut->rest_positions());
+    const std::vector<std::uint8_t> fixed = fixed_bottom(*uncut);
+    const BlockMatrix k = uncut->rest_stiffness_job()();
+    const CoarseSpace plain = make_coarse_space(uncut->rest_positions(), 2 * uncut->node_spacing(), fixed);
+    const CoarseSpace coupled = make_coarse_space(uncut->rest_positions(), 2 * uncut->node_spacing(), fixed, &k);
+    ASSERT_EQ(coupled.coarse_nodes, plain.coarse_nodes);
+    EXPECT_EQ((coupled.prolongation - plain.prolongation).norm(), 0.0);
+    EXPECT_EQ(disconnected_columns(plain, k), 0);
+  }
+  const auto model = half_cut_ball();
+  model->update_rotations(model->rest_positions());
+  const std::vector<std::uint8_t> fixed = fixed_bottom(*model);
+  const BlockMatrix k = model->rest_stiffness_job()();
+  const CoarseSpace plain = make_coarse_space(model->rest_positions(), 2 * model->node_spacing(), fixed);
+  const CoarseSpace split = make_coarse_space(model->rest_positions(), 2 * model->node_spacing(), fixed, &k);
+  const int across = disconnected_columns(plain, k);
+  EXPECT_GE(across, 5);  // 7 of 104
+  EXPECT_EQ(disconnected_columns(split, k), 0);
+  EXPECT_GT(split.coarse_nodes, plain.coarse_nodes);
+  const Vector row_sums = split.prolongation * Vector::Ones(3 * split.coarse_nodes);
+  for (int node = 0; node < model->node_count(); ++node) {
+    const double sum = row_sums[3 * node];
+    if (fixed[static_cast<size_t>(node)]) {
+      EXPECT_EQ(sum, 0.0);
+    } else if (sum != 0.0) {
+      EXPECT_NEAR(sum, 1.0, 1e-12) << "node " << node;
+    }
+  }
+  std::printf("coarse space of the half-cut ball: %d columns across the cut of %d; split: %d columns\n", across,
+              plain.coarse_nodes, split.coarse_nodes);
+}
+
+// On the half-cut ball hanging from its fixed bottom, the two-level preconditioner and the
+// V-cycle with the split coarse space reach the same step in fewer CG iterations than with the
+// plain grid, whose functions tie the cut's lips together.
+TEST(CoarseSpace, TheSplitSpaceSavesIterationsOnACutBody) {
+  const auto model = half_cut_ball();
+  const Vector& rest = model->rest_positions();
+  const std::vector<std::uint8_t> fixed = fixed_bottom(*model);
+  model->update_rotations(rest);
+  const BlockMatrix k = model->rest_stiffness_job()();
+  ImplicitEulerSettings settings;
+  settings.dt = 0.01;
+  settings.cg.tolerance = 1e-8;
+  settings.cg.max_iterations = 2000;
+  const Vector gravity = gravity_forces(model->lumped_masses(), Vec3(0, 0, -9.81));
+  const State start{rest, Vector::Zero(rest.size())};
+  const CoarseSpace plain = make_coarse_space(rest, 2 * model->node_spacing(), fixed);
+  const CoarseSpace split = make_coarse_space(rest, 2 * model->node_spacing(), fixed, &k);
+  for (const int smoothing : {0, 2}) {
+    int iterations[2] = {0, 0};
+    Vector positions[2];
+    for (int which = 0; which < 2; ++which) {
+      const RestFactor factor(k, model->lumped_masses(), fixed, 1.0, settings.dt * settings.dt, default_factor_backend(),
+                              which == 0 ? &plain : &split, smoothing);
+      State state = start;
+      const StepReport report = implicit_euler_step(*model, state, fixed, gravity, {}, settings, nullptr, &factor);
+      ASSERT_TRUE(report.cg.converged) << "smoothing " << smoothing << (which == 0 ? " plain" : " split");
+      iterations[which] = report.cg.iterations;
+      positions[which] = state.positions;
+    }
+    EXPECT_LT(iterations[1], iterations[0]) << "smoothing " << smoothing;
+    const double moved = (positions[0] - rest).cwiseAbs().maxCoeff();
+    EXPECT_LE((positions[1] - positions[0]).cwiseAbs().maxCoeff(), 1e-5 * moved);
+    std::printf("half-cut ball, %s: CG iterations %d with the plain coarse grid, %d split\n",
+                smoothing == 0 ? "two_level" : "multigrid (degree 2)", iterations[0], iterations[1]);
+  }
+}
+
 // The Galerkin coarse system from the blocks (galerkin.hpp) is Eigen's P^T (A0 P) of the
 // scalar system, on a ball cut halfway through (re-selected neighbourhoods, an uneven pattern)
 // with fixed nodes: the same lower triangle, pattern and entries.
