@@ -111,7 +111,8 @@ CgResult preconditioned_conjugate_gradient(const LinearOperator& apply, const Ve
   // The start's products are the system's own where `apply` approximates it: the combination
   // rests on the small differences between the solutions, which a float product's round-off
   // blurs (an EFG beam's steps took more iterations from such a start than from the last dv).
-  galerkin_start(exact ? *exact : apply, filtered_b, fixed_nodes, settings.start_space, x, product);
+  galerkin_start(exact ? *exact : apply, filtered_b, fixed_nodes, settings.start_space, x, product,
+                 settings.start_products ? &settings.start_products : nullptr);
   Vector residual = filtered_b - product;
   zero_fixed(fixed_nodes, residual);
   double residual_norm = residual.norm();

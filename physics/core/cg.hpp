@@ -27,6 +27,13 @@ struct CgBudget {
 // True when a CG that has done `iterations` iterations, not converged, must stop here.
 bool budget_spent(const CgBudget& budget, int iterations);
 
+// out = A p. `out` is already sized like p; the callable overwrites it.
+using LinearOperator = std::function<void(const Vector& p, Vector& out)>;
+// out[k] = A p[k] for every k, each bitwise the LinearOperator's product of the same A, in one
+// pass over A (a matrix too large for the caches is read once for all of them). `out[k]` is
+// already sized like p[k].
+using SeveralOperator = std::function<void(std::span<const Vector> p, std::span<Vector> out)>;
+
 struct CgSettings {
   double tolerance = 1e-6;  // on |r| / |b|, both restricted to the free degrees of freedom
   int max_iterations = 200;
@@ -35,6 +42,9 @@ struct CgSettings {
   // best combination of x and these in A's norm, one product each (warm_start.hpp). Empty:
   // from x scaled to its best multiple. Read during the call only.
   std::span<const Vector> start_space;
+  // The start's products of x and start_space in one pass (each bitwise the start's operator's:
+  // `exact` where given, else `apply`); empty: one product each.
+  SeveralOperator start_products;
 };
 
 struct CgResult {
@@ -47,8 +57,6 @@ struct CgResult {
   bool stopped_by_budget = false;  // not converged: the deadline passed or a recorded stop was reached
 };
 
-// out = A p. `out` is already sized like p; the callable overwrites it.
-using LinearOperator = std::function<void(const Vector& p, Vector& out)>;
 
 // z = P^-1 r for an SPD P. `out` is already sized like r; the callable overwrites it.
 using Preconditioner = std::function<void(const Vector& r, Vector& out)>;

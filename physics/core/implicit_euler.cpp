@@ -331,6 +331,10 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   Vector velocity_change = warm_start ? warm_start->newest(size) : Vector::Zero(size);
   CgSettings cg_settings = settings.cg;
   if (warm_start && symmetric) cg_settings.start_space = warm_start->older(size);
+  // The start's products on the assembled system in one pass (every path below that has the
+  // system starts CG with its product).
+  if (system && !cg_settings.start_space.empty())
+    cg_settings.start_products = [&](std::span<const Vector> p, std::span<Vector> out) { system->multiply_several(p, out, executor); };
   if (!symmetric) {
     // No rest factor here: its warped preconditioners are built for CG's SPD systems.
     report.cg = nonsymmetric_solve(model, springs, masses, mass_coefficient, stiffness_coefficient, dt, apply,

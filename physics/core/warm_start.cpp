@@ -49,10 +49,10 @@ void WarmStart::zero_node(int node) {
 
 void galerkin_start(const LinearOperator& apply, const Vector& b,
                     const std::vector<std::uint8_t>& fixed_nodes, std::span<const Vector> older, Vector& x,
-                    Vector& product) {
-  apply(x, product);
-  zero_fixed_nodes(fixed_nodes, product);
+                    Vector& product, const SeveralOperator* several) {
   if (older.empty()) {
+    apply(x, product);
+    zero_fixed_nodes(fixed_nodes, product);
     scale(b, x, product);
     return;
   }
@@ -60,14 +60,18 @@ void galerkin_start(const LinearOperator& apply, const Vector& b,
   const int count = 1 + static_cast<int>(older.size());
   std::vector<Vector> directions(static_cast<size_t>(count)), products(static_cast<size_t>(count));
   directions[0] = x;
-  products[0] = product;
   for (int i = 1; i < count; ++i) {
     directions[static_cast<size_t>(i)] = older[static_cast<size_t>(i - 1)];
     zero_fixed_nodes(fixed_nodes, directions[static_cast<size_t>(i)]);
-    products[static_cast<size_t>(i)].resize(b.size());
-    apply(directions[static_cast<size_t>(i)], products[static_cast<size_t>(i)]);
-    zero_fixed_nodes(fixed_nodes, products[static_cast<size_t>(i)]);
   }
+  for (Vector& p : products) p.resize(b.size());
+  if (several) {
+    (*several)(directions, products);
+  } else {
+    for (int i = 0; i < count; ++i) apply(directions[static_cast<size_t>(i)], products[static_cast<size_t>(i)]);
+  }
+  for (Vector& p : products) zero_fixed_nodes(fixed_nodes, p);
+  product = products[0];
   Eigen::MatrixXd gram(count, count);
   Eigen::VectorXd projection(count);
   for (int i = 0; i < count; ++i) {

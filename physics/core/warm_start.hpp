@@ -55,9 +55,10 @@ class WarmStart {
 // `older`'s vectors, and product its A x. `apply` is CG's operator; b has its fixed entries
 // zeroed. Directions of G's eigenvalues under a relative floor (nearly parallel solutions, or
 // round-off of a float product) are left out. Without older vectors it is x scaled by
-// x.b / x.A x; a zero or non-positive x.A x leaves x as it is.
+// x.b / x.A x; a zero or non-positive x.A x leaves x as it is. `several` (optional): the same
+// products, bitwise, in one pass (CgSettings::start_products).
 void galerkin_start(const LinearOperator& apply, const Vector& b,
                     const std::vector<std::uint8_t>& fixed_nodes, std::span<const Vector> older, Vector& x,
-                    Vector& product);
+                    Vector& product, const SeveralOperator* several = nullptr);
 
 }  // namespace incise::physics

@@ -275,6 +275,35 @@ TEST(CurrentSystem, TheProductHasTheBitsOfTheEigenProduct) {
   set_block_product_vectorised(true);
 }
 
+// Several products in one pass over K (CG's start, multiply_several) have each the bits of
+// multiply()'s, whatever the threads, vectors with nonzero or NaN fixed entries among them.
+TEST(CurrentSystem, SeveralProductsInOnePassHaveTheBitsOfOneEach) {
+  BentBall ball;
+  CorotationalEfg& model = *ball.model;
+  model.update_rotations(ball.x);
+  const NodalSpring spring{5, Vec3::Zero(), Mat3::Identity() * 30.0 + Mat3::Constant(2.0)};
+  const CurrentSystem system(*model.current_stiffness(), model.lumped_masses(), ball.fixed,
+                             std::span<const NodalSpring>(&spring, 1), 1.02, 1e-4);
+  int fixed_node = 0;
+  while (!ball.fixed[static_cast<size_t>(fixed_node)]) ++fixed_node;
+  std::vector<Vector> x;
+  for (unsigned seed = 31; seed < 36; ++seed) x.push_back(random_vector(ball.x.size(), seed));
+  x[1][3 * fixed_node] = 2.5;
+  x[3][3 * fixed_node + 2] = std::numeric_limits<double>::quiet_NaN();
+  ShufflingExecutor shuffling;
+  TwoThreadExecutor two;
+  for (Executor* executor : std::array<Executor*, 3>{&serial_executor(), &shuffling, &two}) {
+    std::vector<Vector> several(x.size());
+    system.multiply_several(x, several, *executor);
+    for (size_t k = 0; k < x.size(); ++k) {
+      Vector one;
+      system.multiply(x[k], one, serial_executor());
+      ASSERT_EQ(several[k].size(), one.size());
+      EXPECT_EQ(0, std::memcmp(several[k].data(), one.data(), sizeof(double) * static_cast<size_t>(one.size()))) << "vector " << k;
+    }
+  }
+}
+
 // The V-cycle's float product on K's paired copy (paired_blocks.hpp): the AVX2 + FMA kernel and
 // the portable one give the same bits, however the rows are split; against the double product
 // on K's blocks and x rounded to float (the same inputs, summed in double) it differs only by
