@@ -26,7 +26,7 @@ CurrentSystem::CurrentSystem(const BlockMatrix& stiffness, const Vector& masses,
 namespace {
 
 constexpr int rows_per_thread = 256;  // as BlockSystem::multiply
-// multiply_several's rows at a time: about 16 KB of the lobe's blocks, read from memory by the
+// multiply_several's rows at a time: about 25 KB of the lobe's blocks (~21 a row), read from memory by the
 // first vector's product and from the caches by the others'.
 constexpr int rows_together = 16;
 
