@@ -147,11 +147,13 @@ CgResult rest_factor_solve(const DeformableModel& model, const RestFactor& facto
 }
 
 // CG on the assembled current system A, preconditioned with the V-cycle of A itself: its
-// Chebyshev smoother on D^-1 A (D A's diagonal) and the rest factor's coarse correction warped
-// by the node rotations, C = R P (P^T A0 P)^-1 P^T R^T. The smoother's interval ends at 1.2 x
-// the rest build's largest eigenvalue of D0^-1 A0: turning the nodes' blocks moves D's entries
-// and with them the top of D^-1 A (+9 % on a ball bent by 0.6 rad, test_current_system), and
-// the Chebyshev step contracts only up to (1 + 1/ratio) x its interval's top. S and C symmetric
+// Chebyshev smoother on D^-1 A and the rest factor's coarse correction warped by the node
+// rotations, C = R P (P^T A0 P)^-1 P^T R^T. D is A's 3x3 node blocks where the factor
+// estimated B0^-1 A0's top (a multigrid_current factor, jacobi_scaling.hpp), else A's
+// diagonal, whose interval ends at 1.2 x the rest build's largest eigenvalue of D0^-1 A0:
+// turning the nodes' blocks moves D's entries and with them the top of D^-1 A (+9 % on a ball
+// bent by 0.6 rad, test_current_system), and the Chebyshev step contracts only up to
+// (1 + 1/ratio) x its interval's top. S and C symmetric
 // make M^-1 symmetric, and SPD while the smoother contracts (multigrid.hpp). The cycle's
 // products are float products on K's paired float copy (paired_blocks.hpp: half the
 // instructions of a double product): M^-1 is then symmetric to float round-off, as good a
@@ -160,6 +162,13 @@ CgResult rest_factor_solve(const DeformableModel& model, const RestFactor& facto
 // `exact`): a residual above the tolerance on the double system restarts CG from it (2 of the
 // quick performance bench's 400 solves).
 constexpr double current_smoothing_margin = 1.2;
+// With the node blocks' scaling (jacobi_scaling.hpp) the rest estimate bounds the current top
+// closely: over every shipped scene's replay the current top (100 power steps, every tenth
+// solve) stayed within 0.993-1.0012 of it, the bent, turned test ball 1.0004. The Chebyshev
+// step contracts up to upper (1 + 1 / ratio), so 1.05 covers 1.085 of the estimate. Less
+// margin, fewer iterations: `bench performance --quick`, the 20248 lobe's mean 6.20 at 1.1, 6.12
+// at 1.05.
+constexpr double node_block_smoothing_margin = 1.05;
 // Above this size of K's single-precision copy the smoother reads its halves
 // (CycleEntries::half_smoother): the products are bound by memory there (a copy several times
 // the second-level caches: 16 MB at 75k EFG elements), and the iterations do not move with the
@@ -174,6 +183,10 @@ CgResult current_vcycle_solve(const DeformableModel& model, const RestFactor& fa
   ChebyshevSmoother smoother;
   smoother.degree = factor.smoothing_degree();
   smoother.upper = current_smoothing_margin * factor.smoothing_eigenvalue();
+  if (factor.node_block_eigenvalue() > 0) {
+    smoother.node_blocks = true;
+    smoother.upper = node_block_smoothing_margin * factor.node_block_eigenvalue();
+  }
   // The paired copy's storage stays with the stepping thread from step to step
   // (PairedBlocks::build).
   thread_local PairedBlocks workspace;

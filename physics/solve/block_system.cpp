@@ -82,6 +82,14 @@ Eigen::VectorXd BlockSystem::diagonal() const {
   return out;
 }
 
+std::vector<Mat3> BlockSystem::diagonal_blocks() const {
+  std::vector<Mat3> out(static_cast<size_t>(nodes()), Mat3::Zero());
+  for (int row = 0; row < nodes(); ++row)
+    for (int k = row_start_[static_cast<size_t>(row)]; k < row_start_[static_cast<size_t>(row) + 1]; ++k)
+      if (columns_[static_cast<size_t>(k)] == row) out[static_cast<size_t>(row)] = block(k);
+  return out;
+}
+
 void BlockSystem::round_to_single() {
   if (single()) return;
   // Lane order is a permutation of each block's entries, so rounding entry by entry rounds as

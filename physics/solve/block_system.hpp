@@ -36,6 +36,8 @@ class BlockSystem {
   void subtract_product(const Eigen::VectorXd& x, Eigen::VectorXd& residual, Executor& executor) const;
   // The scalar diagonal of A0 (of the rounded blocks when single).
   Eigen::VectorXd diagonal() const;
+  // Its node blocks on the diagonal, one a node (the identity's on fixed nodes).
+  std::vector<Mat3> diagonal_blocks() const;
   // Rounds a double system's blocks to float: then as if built with `single` (the rest factor
   // first estimates its smoothing bound on the double one).
   void round_to_single();

@@ -92,6 +92,16 @@ void CurrentSystem::multiply_rows(const double* x, double* y, int begin, int end
   current_rows_product(rows(), x, x, y, begin, end);
 }
 
+Mat3 CurrentSystem::free_diagonal_block(int row) const {
+  // Every diagonal block is in the pattern (BlockMatrix).
+  Mat3 block = stiffness_.blocks()[static_cast<size_t>(
+      std::lower_bound(stiffness_.columns().begin() + stiffness_.row_start()[static_cast<size_t>(row)],
+                       stiffness_.columns().begin() + stiffness_.row_start()[static_cast<size_t>(row) + 1], row) -
+      stiffness_.columns().begin())];
+  if (!spring_blocks_.empty()) block += spring_blocks_[static_cast<size_t>(row)];
+  return block;
+}
+
 Vector CurrentSystem::diagonal() const {
   const int nodes = stiffness_.nodes();
   Vector out(3 * static_cast<Eigen::Index>(nodes));
@@ -101,13 +111,25 @@ Vector CurrentSystem::diagonal() const {
       out.segment<3>(offset).setOnes();
       continue;
     }
-    // Every diagonal block is in the pattern (BlockMatrix).
-    Mat3 block = stiffness_.blocks()[static_cast<size_t>(
-        std::lower_bound(stiffness_.columns().begin() + stiffness_.row_start()[static_cast<size_t>(row)],
-                         stiffness_.columns().begin() + stiffness_.row_start()[static_cast<size_t>(row) + 1], row) -
-        stiffness_.columns().begin())];
-    if (!spring_blocks_.empty()) block += spring_blocks_[static_cast<size_t>(row)];
-    out.segment<3>(offset) = Vec3::Constant(mass_coefficient_ * masses_[row]) + stiffness_coefficient_ * block.diagonal();
+    out.segment<3>(offset) = Vec3::Constant(mass_coefficient_ * masses_[row]) + stiffness_coefficient_ * free_diagonal_block(row).diagonal();
+  }
+  return out;
+}
+
+std::vector<Mat3> CurrentSystem::diagonal_blocks() const {
+  const int nodes = stiffness_.nodes();
+  std::vector<Mat3> out(static_cast<size_t>(nodes));
+  for (int row = 0; row < nodes; ++row) {
+    Mat3& block = out[static_cast<size_t>(row)];
+    if (is_fixed(row)) {
+      block.setIdentity();
+      continue;
+    }
+    // Entry by entry as diagonal() computes the diagonal's: the same bits there.
+    const Mat3 stiffness = free_diagonal_block(row);
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b)
+        block(a, b) = (a == b ? mass_coefficient_ * masses_[row] : 0.0) + stiffness_coefficient_ * stiffness(a, b);
   }
   return out;
 }

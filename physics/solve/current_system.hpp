@@ -46,6 +46,8 @@ class CurrentSystem {
   int block_count() const { return stiffness_.block_count(); }
   // The scalar diagonal of A (1 on fixed nodes).
   Vector diagonal() const;
+  // A's 3x3 blocks on the diagonal, one a node (the identity's on fixed nodes).
+  std::vector<Mat3> diagonal_blocks() const;
   int nodes() const { return stiffness_.nodes(); }
   bool is_fixed(int node) const { return !fixed_.empty() && fixed_[static_cast<size_t>(node)] != 0; }
 
@@ -53,6 +55,8 @@ class CurrentSystem {
   CurrentRows rows() const;
 
  private:
+  // K's diagonal block of `row` with its springs'.
+  Mat3 free_diagonal_block(int row) const;
   // x's entries as the kernel reads them: x itself, or `zeroed` (x zeroed on the fixed nodes).
   const double* free_entries(const Vector& x, Vector& zeroed) const;
 

@@ -19,7 +19,8 @@ CurrentVcycle::CurrentVcycle(const CurrentSystem& system, const RestFactor& fact
       smoother_(smoother),
       executor_(executor),
       steps_(smoother),
-      inverse_diagonal_(jacobi_inverse(system.diagonal())),
+      scaling_(smoother.node_blocks ? JacobiScaling::node_blocks(system.diagonal_blocks())
+                                    : JacobiScaling(jacobi_inverse(system.diagonal()))),
       rows_(system.rows()) {
   if (smoother_.degree < 1 || !(smoother_.upper > 0) || !(smoother_.ratio > 1))
     throw std::invalid_argument("CurrentVcycle: the smoother needs a degree >= 1, upper > 0 and ratio > 1");
@@ -75,7 +76,6 @@ void CurrentVcycle::product_pass(const Vector& from, const std::vector<float>& o
 }
 
 void CurrentVcycle::smooth_steps(Vector& x) {
-  const double* inverse_diagonal = inverse_diagonal_.data();
   const double* residual = residual_.data();
   double* out = x.data();
   for (int k = 1; k < smoother_.degree; ++k) {
@@ -83,8 +83,9 @@ void CurrentVcycle::smooth_steps(Vector& x) {
     const double* step = step_.data();
     double* next = next_step_.data();
     product_pass(step_, step_operand_, [&](Eigen::Index begin, Eigen::Index end) {
+      scaling_.apply(residual, next, begin, end);  // D^-1 r, then the step over it
       for (Eigen::Index i = begin; i < end; ++i) {
-        next[i] = a * step[i] + b * (inverse_diagonal[i] * residual[i]);
+        next[i] = a * step[i] + b * next[i];
         out[i] += next[i];
       }
       round(next_step_, next_operand_, begin, end);
@@ -127,7 +128,6 @@ void CurrentVcycle::operator()(const Vector& r, Vector& z) {
   for (Vector* v : {&residual_, &step_, &next_step_, &product_, &turned_}) v->resize(size);
   coarse_.resize(factor_.factored_size());
   z.resize(size);
-  const double* inverse_diagonal = inverse_diagonal_.data();
   const double theta = steps_.theta;
   double* residual = residual_.data();
   double* step = step_.data();
@@ -136,9 +136,11 @@ void CurrentVcycle::operator()(const Vector& r, Vector& z) {
   executor_.parallel_for(nodes, [&](int begin, int end) {
     for (int node = begin; node < end; ++node) {
       const bool fixed = system_.is_fixed(node);
-      for (Eigen::Index i = 3 * static_cast<Eigen::Index>(node); i < 3 * static_cast<Eigen::Index>(node) + 3; ++i) {
-        residual[i] = fixed ? 0.0 : r[i];
-        step[i] = inverse_diagonal[i] * residual[i] / theta;
+      const Eigen::Index first = 3 * static_cast<Eigen::Index>(node);
+      for (Eigen::Index i = first; i < first + 3; ++i) residual[i] = fixed ? 0.0 : r[i];
+      scaling_.apply(residual, step, first, first + 3);
+      for (Eigen::Index i = first; i < first + 3; ++i) {
+        step[i] = step[i] / theta;
         x[i] = 0.0 + step[i];
       }
     }
@@ -157,8 +159,9 @@ void CurrentVcycle::operator()(const Vector& r, Vector& z) {
   // The correction's product, and the post-smoothing's first step.
   double* next = next_step_.data();
   product_pass(step_, step_operand_, [&](Eigen::Index begin, Eigen::Index end) {
+    scaling_.apply(residual, next, begin, end);
     for (Eigen::Index i = begin; i < end; ++i) {
-      next[i] = inverse_diagonal[i] * residual[i] / theta;
+      next[i] = next[i] / theta;
       x[i] += next[i];
     }
     round(next_step_, next_operand_, begin, end);

@@ -28,6 +28,7 @@
 #include "physics/core/executor.hpp"
 #include "physics/core/model.hpp"
 #include "physics/solve/current_system.hpp"
+#include "physics/solve/jacobi_scaling.hpp"
 #include "physics/solve/multigrid.hpp"
 #include "physics/solve/paired_blocks.hpp"
 #include "physics/solve/rest_factor.hpp"
@@ -76,7 +77,7 @@ class CurrentVcycle {
   ChebyshevSmoother smoother_;
   Executor& executor_;
   ChebyshevSteps steps_;
-  Vector inverse_diagonal_;
+  JacobiScaling scaling_;  // the smoother's D^-1 (smoother.node_blocks: A's node blocks')
   CurrentRows rows_;
   // K's blocks in float pairs (single_precision: the workspace or own_paired_), null: the
   // double blocks.

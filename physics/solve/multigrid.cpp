@@ -14,12 +14,12 @@ namespace incise::physics {
 
 namespace {
 
-// Lanczos on D^-1/2 A D^-1/2, `product` computing y = A x.
-double lanczos_largest(const Vector& diagonal, const std::function<void(const Vector&, Vector&)>& product, int steps) {
-  const Eigen::Index size = diagonal.size();
+using VectorMap = std::function<void(const Vector&, Vector&)>;
+
+// Lanczos on S A S (S symmetric: D^-1/2 or B^-1/2), `scale` computing y = S x and `product`
+// y = A x, on vectors of `size`.
+double lanczos_largest(Eigen::Index size, const VectorMap& scale_by, const VectorMap& product, int steps) {
   if (size == 0) return 1;
-  Vector scale = diagonal;
-  for (Eigen::Index i = 0; i < size; ++i) scale[i] = scale[i] > 0 ? 1 / std::sqrt(scale[i]) : 1;
   // A start with every mode in it: not an eigenvector of a regular grid's operator.
   Vector v(size);
   for (Eigen::Index i = 0; i < size; ++i) v[i] = 1 + 0.5 * std::sin(0.7 * static_cast<double>(i));
@@ -29,9 +29,10 @@ double lanczos_largest(const Vector& diagonal, const std::function<void(const Ve
   double beta = 0;
   steps = static_cast<int>(std::min<Eigen::Index>(steps, size));
   for (int k = 0; k < steps; ++k) {
-    scaled = scale.cwiseProduct(v);
+    scale_by(v, scaled);
     product(scaled, product_out);
-    w = scale.cwiseProduct(product_out) - beta * previous;
+    scale_by(product_out, w);
+    w -= beta * previous;
     const double alpha = v.dot(w);
     w -= alpha * v;
     alphas.push_back(alpha);
@@ -53,14 +54,36 @@ double lanczos_largest(const Vector& diagonal, const std::function<void(const Ve
   return largest;
 }
 
+// x -> D^-1/2 x (1 where an entry of D is not positive).
+VectorMap diagonal_scaling(const Vector& diagonal) {
+  Vector scale = diagonal;
+  for (Eigen::Index i = 0; i < scale.size(); ++i) scale[i] = scale[i] > 0 ? 1 / std::sqrt(scale[i]) : 1;
+  return [scale = std::move(scale)](const Vector& x, Vector& y) { y = scale.cwiseProduct(x); };
+}
+
 }  // namespace
 
 double largest_jacobi_eigenvalue(const Eigen::SparseMatrix<double>& a, int steps) {
-  return lanczos_largest(a.diagonal(), [&](const Vector& x, Vector& y) { y = a * x; }, steps);
+  return lanczos_largest(a.rows(), diagonal_scaling(a.diagonal()), [&](const Vector& x, Vector& y) { y = a * x; }, steps);
 }
 
 double largest_jacobi_eigenvalue(const BlockSystem& a, int steps) {
-  return lanczos_largest(a.diagonal(), [&](const Vector& x, Vector& y) { a.multiply(x, y, serial_executor()); }, steps);
+  return lanczos_largest(3 * static_cast<Eigen::Index>(a.nodes()), diagonal_scaling(a.diagonal()),
+                         [&](const Vector& x, Vector& y) { a.multiply(x, y, serial_executor()); }, steps);
+}
+
+double largest_block_jacobi_eigenvalue(const BlockSystem& a, int steps) {
+  std::vector<Mat3> roots = a.diagonal_blocks();
+  for (Mat3& block : roots) block = inverse_square_root(block);
+  const VectorMap scale_by = [&](const Vector& x, Vector& y) {
+    y.resize(x.size());
+    for (size_t node = 0; node < roots.size(); ++node) {
+      const Eigen::Index offset = 3 * static_cast<Eigen::Index>(node);
+      y.segment<3>(offset) = roots[node] * Vec3(x.segment<3>(offset));
+    }
+  };
+  return lanczos_largest(3 * static_cast<Eigen::Index>(a.nodes()), scale_by,
+                         [&](const Vector& x, Vector& y) { a.multiply(x, y, serial_executor()); }, steps);
 }
 
 ChebyshevSteps::ChebyshevSteps(const ChebyshevSmoother& smoother)
@@ -77,11 +100,11 @@ ChebyshevSteps::ChebyshevSteps(const ChebyshevSmoother& smoother)
   }
 }
 
-VcyclePreconditioner::VcyclePreconditioner(const LinearOperator& apply, Vector inverse_diagonal, const RestFactor& coarse,
+VcyclePreconditioner::VcyclePreconditioner(const LinearOperator& apply, JacobiScaling scaling, const RestFactor& coarse,
                                            std::vector<Eigen::Quaterniond> rotations,
                                            const std::vector<std::uint8_t>& fixed, ChebyshevSmoother smoother)
     : apply_(apply),
-      inverse_diagonal_(std::move(inverse_diagonal)),
+      scaling_(std::move(scaling)),
       coarse_(coarse),
       rotations_(std::move(rotations)),
       fixed_(fixed),
@@ -99,11 +122,14 @@ void VcyclePreconditioner::zero_fixed(Vector& v) const {
 // `degree` Chebyshev steps (ChebyshevSteps) from x's current value.
 void VcyclePreconditioner::smooth(Vector& x, Vector& residual, bool keep_residual) {
   const ChebyshevSteps steps(smoother_);
-  step_ = inverse_diagonal_.cwiseProduct(residual) / steps.theta;
+  scaled_.resize(residual.size());
+  scaling_.apply(residual.data(), scaled_.data(), 0, residual.size());
+  step_ = scaled_ / steps.theta;
   zero_fixed(step_);
   for (int k = 0; k < smoother_.degree; ++k) {
     if (k > 0) {
-      step_ = steps.a[static_cast<size_t>(k)] * step_ + steps.b[static_cast<size_t>(k)] * inverse_diagonal_.cwiseProduct(residual);
+      scaling_.apply(residual.data(), scaled_.data(), 0, residual.size());
+      step_ = steps.a[static_cast<size_t>(k)] * step_ + steps.b[static_cast<size_t>(k)] * scaled_;
       zero_fixed(step_);
     }
     x += step_;

@@ -24,6 +24,7 @@
 
 #include "physics/core/cg.hpp"
 #include "physics/solve/block_system.hpp"
+#include "physics/solve/jacobi_scaling.hpp"
 #include "physics/solve/rest_factor.hpp"
 
 #include <Eigen/Geometry>
@@ -42,11 +43,17 @@ double largest_jacobi_eigenvalue(const Eigen::SparseMatrix<double>& a, int steps
 // calling thread): the rest factor's estimate, several times cheaper than forming the scalar
 // matrix for it. Its products round differently, so the estimate agrees to round-off only.
 double largest_jacobi_eigenvalue(const BlockSystem& a, int steps = 24);
+// The largest eigenvalue of B^-1 A, B the 3x3 node blocks of A's diagonal (jacobi_scaling.hpp),
+// by the same Lanczos on B^-1/2 A B^-1/2 (B^-1/2 each block's symmetric inverse root).
+double largest_block_jacobi_eigenvalue(const BlockSystem& a, int steps = 24);
 
 struct ChebyshevSmoother {
   int degree = 2;      // A products per smoothing (1: damped Jacobi)
   double upper = 2;    // the interval [upper / ratio, upper] whose eigenvalues of D^-1 A it damps
   double ratio = 30;   // the low end, below which the coarse grid takes over
+  // D: A's 3x3 node blocks (point-block Jacobi, jacobi_scaling.hpp), else its diagonal; the
+  // fused current cycle's choice (CurrentVcycle), `upper` then bounding B^-1 A's spectrum.
+  bool node_blocks = false;
 };
 
 // The Chebyshev iteration's steps on D^-1 A over [upper / ratio, upper] (Saad, Iterative
@@ -61,9 +68,10 @@ struct ChebyshevSteps {
 
 class VcyclePreconditioner {
  public:
-  // `apply`: B; `inverse_diagonal`: D^-1 (jacobi_inverse); `coarse`: a coarse RestFactor;
-  // `rotations`: its warp (empty: none); `fixed`: per node, 1 = fixed (zeroed throughout).
-  VcyclePreconditioner(const LinearOperator& apply, Vector inverse_diagonal, const RestFactor& coarse,
+  // `apply`: B; `scaling`: the smoother's D^-1 (jacobi_inverse's vector, or node blocks);
+  // `coarse`: a coarse RestFactor; `rotations`: its warp (empty: none); `fixed`: per node,
+  // 1 = fixed (zeroed throughout).
+  VcyclePreconditioner(const LinearOperator& apply, JacobiScaling scaling, const RestFactor& coarse,
                        std::vector<Eigen::Quaterniond> rotations, const std::vector<std::uint8_t>& fixed,
                        ChebyshevSmoother smoother);
 
@@ -76,12 +84,12 @@ class VcyclePreconditioner {
   void zero_fixed(Vector& v) const;
 
   const LinearOperator& apply_;
-  Vector inverse_diagonal_;
+  JacobiScaling scaling_;
   const RestFactor& coarse_;
   std::vector<Eigen::Quaterniond> rotations_;
   const std::vector<std::uint8_t>& fixed_;
   ChebyshevSmoother smoother_;
-  Vector residual_, step_, product_, correction_;
+  Vector residual_, step_, product_, correction_, scaled_;
 };
 
 }  // namespace incise::physics

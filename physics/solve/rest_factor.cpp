@@ -53,7 +53,8 @@ struct RestFactor::Solver {
 
 RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
                        double mass_coefficient, double stiffness_coefficient, FactorBackend backend,
-                       const CoarseSpace* coarse, int smoothing_degree, bool single_precision_smoother)
+                       const CoarseSpace* coarse, int smoothing_degree, bool single_precision_smoother,
+                       bool node_block_smoother)
     : solver_(std::make_unique<Solver>()), size_(3 * stiffness.nodes()), backend_(backend) {
   const auto start = std::chrono::steady_clock::now();
   if (!(mass_coefficient > 0) || !(stiffness_coefficient >= 0))
@@ -65,6 +66,7 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
     // rounded if asked.
     rest_system_ = BlockSystem(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient);
     smoothing_eigenvalue_ = largest_jacobi_eigenvalue(rest_system_);
+    if (node_block_smoother) node_block_eigenvalue_ = largest_block_jacobi_eigenvalue(rest_system_);
     if (single_precision_smoother) rest_system_.round_to_single();
     rest_inverse_diagonal_ = rest_system_.diagonal().cwiseInverse();
     if (single_precision_smoother) rest_inverse_diagonal_ = rest_inverse_diagonal_.cast<float>().cast<double>();

@@ -49,12 +49,15 @@ class RestFactor {
   // (multigrid.hpp) whose Chebyshev smoother has that degree; the largest eigenvalue of
   // D0^-1 A0 that bounds its interval is estimated here, off the step's critical path.
   // `single_precision_smoother`: the smoother's copy of A0 (and D0^-1) rounded to float
-  // (block_system.hpp); the factor and the estimate stay double.
+  // (block_system.hpp); the factor and the estimate stay double. `node_block_smoother`: the
+  // top of B0^-1 A0 (B0 A0's 3x3 node blocks) is estimated too, for a cycle that scales by
+  // the node blocks (jacobi_scaling.hpp).
   // Throws std::runtime_error if A0 is not positive definite (a body with a free rigid mode
   // and no mass term cannot be: the mass coefficient must be positive).
   RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
              double mass_coefficient, double stiffness_coefficient, FactorBackend backend = default_factor_backend(),
-             const CoarseSpace* coarse = nullptr, int smoothing_degree = 0, bool single_precision_smoother = false);
+             const CoarseSpace* coarse = nullptr, int smoothing_degree = 0, bool single_precision_smoother = false,
+             bool node_block_smoother = false);
   ~RestFactor();
   RestFactor(const RestFactor&) = delete;
   RestFactor& operator=(const RestFactor&) = delete;
@@ -74,6 +77,7 @@ class RestFactor {
   int size() const { return size_; }
   int smoothing_degree() const { return smoothing_degree_; }        // 0: additive two-level
   double smoothing_eigenvalue() const { return smoothing_eigenvalue_; }  // of D0^-1 A0
+  double node_block_eigenvalue() const { return node_block_eigenvalue_; }  // of B0^-1 A0; 0: not estimated
   long long factor_nonzeros() const { return factor_nonzeros_; }
   double build_ms() const { return build_ms_; }  // the matrix and its factorisation
   // A V-cycle's factor (smoothing_degree() > 0) also keeps the rest system A0 itself in
@@ -101,6 +105,7 @@ class RestFactor {
   double build_ms_ = 0;
   int smoothing_degree_ = 0;
   double smoothing_eigenvalue_ = 0;
+  double node_block_eigenvalue_ = 0;
   FactorBackend backend_;
 };
 

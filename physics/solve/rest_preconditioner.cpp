@@ -34,14 +34,18 @@ RestPreconditioner::Pending RestPreconditioner::start(const DeformableModel& mod
       settings.kind == PreconditionerKind::two_level || multigrid ? settings.coarsening * model.node_spacing() : 0.0;
   const int smoothing = multigrid ? settings.smoothing : 0;
   const bool single = settings.kind == PreconditionerKind::multigrid && settings.single_precision;
+  // The current cycle scales its smoother by the node blocks (jacobi_scaling.hpp); its fallback
+  // for a model without an assembled system, the rest cycle, by the diagonal.
+  const bool node_blocks = settings.kind == PreconditionerKind::multigrid_current;
   pending.done = executor.run_async([result = pending.result, assemble = std::move(assemble),
                                      masses = model.lumped_masses(), rest = model.rest_positions(), fixed,
-                                     mass_coefficient, stiffness_coefficient, coarse_spacing, smoothing, single] {
+                                     mass_coefficient, stiffness_coefficient, coarse_spacing, smoothing, single,
+                                     node_blocks] {
     const BlockMatrix stiffness = assemble();
     if (coarse_spacing > 0) {
       const CoarseSpace coarse = make_coarse_space(rest, coarse_spacing, fixed, &stiffness);
       *result = std::make_shared<const RestFactor>(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient,
-                                                   default_factor_backend(), &coarse, smoothing, single);
+                                                   default_factor_backend(), &coarse, smoothing, single, node_blocks);
     } else {
       *result = std::make_shared<const RestFactor>(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient);
     }

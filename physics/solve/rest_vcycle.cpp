@@ -10,6 +10,7 @@ RestVcycle::RestVcycle(const RestFactor& factor, const std::vector<Eigen::Quater
   if (factor_.smoothing_degree() <= 0) throw std::invalid_argument("RestVcycle: the factor is not a V-cycle's");
   if (smoother_.degree < 1 || !(smoother_.upper > 0) || !(smoother_.ratio > 1))
     throw std::invalid_argument("RestVcycle: the smoother needs a degree >= 1, upper > 0 and ratio > 1");
+  if (smoother_.node_blocks) throw std::invalid_argument("RestVcycle: its smoother scales by A0's diagonal, not its node blocks");
   if (!rotations_.empty() && static_cast<int>(rotations_.size()) != factor_.size() / 3)
     throw std::invalid_argument("RestVcycle: one rotation per node");
 }

@@ -17,6 +17,7 @@ target_sources(incise_physics PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/element_groups.cpp
   ${CMAKE_CURRENT_LIST_DIR}/galerkin.cpp
   ${CMAKE_CURRENT_LIST_DIR}/half_float.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/jacobi_scaling.cpp
   ${CMAKE_CURRENT_LIST_DIR}/paired_blocks.cpp
   ${CMAKE_CURRENT_LIST_DIR}/multigrid.cpp
   ${CMAKE_CURRENT_LIST_DIR}/rest_factor.cpp

@@ -10,6 +10,7 @@
 #include "physics/solve/current_system.hpp"
 #include "physics/solve/current_vcycle.hpp"
 #include "physics/solve/half_float.hpp"
+#include "physics/solve/jacobi_scaling.hpp"
 #include "physics/solve/paired_blocks.hpp"
 #include "physics/solve/element_assembly.hpp"
 #include "physics/solve/multigrid.hpp"
@@ -487,6 +488,89 @@ TEST(CurrentSystem, TheRestSmoothingBoundCoversTheCurrentSpectrum) {
       current.system(model.lumped_masses(), ball.fixed, mass_coefficient, stiffness_coefficient), 80);
   std::printf("largest eigenvalue of D^-1 A: rest %.4f, bent and turned %.4f\n", rest_top, current_top);
   EXPECT_LT(current_top, 1.2 * rest_top);
+  // With A's node blocks for D (jacobi_scaling.hpp) the top barely moves: a block turns with
+  // its node, so the smoother's margin over the rest estimate can be small.
+  const double rest_block_top = largest_block_jacobi_eigenvalue(
+      BlockSystem(rest, model.lumped_masses(), ball.fixed, mass_coefficient, stiffness_coefficient));
+  const double current_block_top = largest_block_jacobi_eigenvalue(
+      BlockSystem(current, model.lumped_masses(), ball.fixed, mass_coefficient, stiffness_coefficient), 80);
+  std::printf("largest eigenvalue of B^-1 A: rest %.4f, bent and turned %.4f\n", rest_block_top, current_block_top);
+  EXPECT_LT(current_block_top, 1.02 * rest_block_top);
+  EXPECT_GT(current_block_top, 0.9 * rest_block_top);
+}
+
+// The node blocks' scaling is the inverse of each block: B (B^-1 r) = r node by node; a block
+// that is not positive definite falls back to its diagonal's inverse (1 for a non-positive
+// entry), as jacobi_inverse does.
+TEST(CurrentSystem, TheNodeBlockScalingInvertsEachBlock) {
+  BentBall ball;
+  CorotationalEfg& model = *ball.model;
+  model.update_rotations(ball.x);
+  const CurrentSystem system(*model.current_stiffness(), model.lumped_masses(), ball.fixed, {}, 1.0, 1e-4);
+  const std::vector<Mat3> blocks = system.diagonal_blocks();
+  const Vector diagonal = system.diagonal();
+  const JacobiScaling scaling = JacobiScaling::node_blocks(blocks);
+  const Vector r = random_vector(diagonal.size(), 9);
+  Vector scaled(r.size());
+  scaling.apply(r.data(), scaled.data(), 0, r.size());
+  for (int node = 0; node < system.nodes(); ++node) {
+    const Mat3& block = blocks[static_cast<size_t>(node)];
+    ASSERT_EQ(block.diagonal(), Vec3(diagonal.segment<3>(3 * node))) << "node " << node;  // the diagonal's bits
+    EXPECT_LE((block * Vec3(scaled.segment<3>(3 * node)) - Vec3(r.segment<3>(3 * node))).norm(),
+              1e-12 * r.segment<3>(3 * node).norm()) << "node " << node;
+  }
+  Mat3 indefinite = Mat3::Identity();
+  indefinite(0, 1) = indefinite(1, 0) = 2.0;  // eigenvalues -1, 3, 1
+  Mat3 negative = Mat3::Identity();
+  negative(2, 2) = -4.0;
+  const JacobiScaling fallback = JacobiScaling::node_blocks({indefinite, negative});
+  const double ones[6] = {1, 1, 1, 1, 1, 1};
+  double out[6];
+  fallback.apply(ones, out, 0, 6);
+  EXPECT_EQ(out[0], 1.0);
+  EXPECT_EQ(out[1], 1.0);
+  EXPECT_EQ(out[2], 1.0);
+  EXPECT_EQ(out[5], 1.0);  // -4 is not a positive entry
+}
+
+// On the bent ball stepped by the engine's path (the current V-cycle of degree 4), scaling the
+// smoother by the node blocks takes fewer CG iterations than by the diagonal, to the same
+// solution.
+TEST(CurrentSystem, TheNodeBlockSmootherSavesIterations) {
+  ImplicitEulerSettings settings;
+  settings.dt = 0.01;
+  settings.cg.tolerance = 1e-8;
+  settings.cg.max_iterations = 300;
+  settings.assembled_system = true;
+  struct Run {
+    int iterations = 0;
+    Vector positions;
+  };
+  const auto run = [&](bool node_blocks) {
+    BentBall ball;
+    CorotationalEfg& model = *ball.model;
+    const CoarseSpace space = make_coarse_space(model.rest_positions(), 2 * model.node_spacing(), ball.fixed);
+    model.update_rotations(model.rest_positions());
+    const RestFactor factor(model.rest_stiffness_job()(), model.lumped_masses(), ball.fixed, 1.0,
+                            settings.dt * settings.dt, default_factor_backend(), &space, 4, false, node_blocks);
+    EXPECT_EQ(factor.node_block_eigenvalue() > 0, node_blocks);
+    State state{ball.x, Vector::Zero(ball.x.size())};
+    Run result;
+    for (int step = 0; step < 5; ++step) {
+      const Vector load = gravity_forces(model.lumped_masses(), Vec3(20, 0, -9.81));
+      const StepReport report = implicit_euler_step(model, state, ball.fixed, load, {}, settings, nullptr, &factor);
+      EXPECT_TRUE(report.cg.converged) << "step " << step;
+      result.iterations += report.cg.iterations;
+    }
+    result.positions = state.positions;
+    return result;
+  };
+  const Run diagonal = run(false), blocks = run(true);
+  const double moved = (diagonal.positions - BentBall().x).cwiseAbs().maxCoeff();
+  std::printf("bent ball, 5 steps from rest: %d CG iterations with the diagonal's scaling, %d with the node blocks'\n",
+              diagonal.iterations, blocks.iterations);
+  EXPECT_LT(blocks.iterations, diagonal.iterations);
+  EXPECT_LE((blocks.positions - diagonal.positions).cwiseAbs().maxCoeff(), 1e-5 * moved);
 }
 
 // The ball, from rest, follows a load that turns slowly, stepped as the engine steps it (the
@@ -590,6 +674,8 @@ TEST(CurrentSystem, TheCurrentVcycleIsSymmetricPositiveAndConverges) {
   // float round-off (its operands and sums are rounded), positive, and within the float
   // rounding's reach of the double cycle.
   smoother.degree = 4;
+  for (const bool node_blocks : {false, true}) {
+  smoother.node_blocks = node_blocks;
   CurrentVcycle single(system, factor, rotations, smoother, serial_executor(), CycleEntries::single);
   CurrentVcycle dual(system, factor, rotations, smoother, serial_executor());
   for (unsigned seed = 1; seed <= 5; ++seed) {
@@ -602,6 +688,7 @@ TEST(CurrentSystem, TheCurrentVcycleIsSymmetricPositiveAndConverges) {
     EXPECT_GT(x.dot(mx), 0.0) << "seed " << seed;
     EXPECT_FALSE(same_bits(mx, mx_double));
     EXPECT_LE((mx - mx_double).norm(), 1e-5 * mx_double.norm()) << "seed " << seed;
+  }
   }
 }
 
@@ -662,15 +749,19 @@ TEST(CurrentSystem, TheFusedCurrentVcycleHasTheBitsOfTheVcycleOnAnyThreads) {
   TwoThreadExecutor two;
   ShufflingExecutor shuffling;
   for (int degree = 1; degree <= 4; ++degree)
-    for (const CycleEntries entries : {CycleEntries::double_precision, CycleEntries::single, CycleEntries::half_smoother}) {
+    for (const CycleEntries entries : {CycleEntries::double_precision, CycleEntries::single, CycleEntries::half_smoother})
+    for (const bool node_blocks : {false, true}) {
     ChebyshevSmoother smoother;
     smoother.degree = degree;
     smoother.upper = 1.2 * factor.smoothing_eigenvalue();
+    smoother.node_blocks = node_blocks;
+    const JacobiScaling scaling = node_blocks ? JacobiScaling::node_blocks(system.diagonal_blocks())
+                                              : JacobiScaling(jacobi_inverse(system.diagonal()));
     for (const std::vector<Eigen::Quaterniond>* warp : std::array<const std::vector<Eigen::Quaterniond>*, 2>{&rotations, &none}) {
       const LinearOperator product = entries == CycleEntries::double_precision ? apply
                                      : apply_rounded(entries == CycleEntries::single ? PairedPrecision::single
                                                                                       : PairedPrecision::half);
-      VcyclePreconditioner reference(product, jacobi_inverse(system.diagonal()), factor, *warp, ball.fixed, smoother);
+      VcyclePreconditioner reference(product, scaling, factor, *warp, ball.fixed, smoother);
       CurrentVcycle one_thread(system, factor, *warp, smoother, serial_executor(), entries);
       CurrentVcycle two_threads(system, factor, *warp, smoother, two, entries);
       CurrentVcycle shuffled(system, factor, *warp, smoother, shuffling, entries);
@@ -682,6 +773,7 @@ TEST(CurrentSystem, TheFusedCurrentVcycleHasTheBitsOfTheVcycleOnAnyThreads) {
         two_threads(r, z2);
         shuffled(r, z3);
         const std::string where = "degree " + std::to_string(degree) + " entries " + std::to_string(static_cast<int>(entries)) +
+                                  (node_blocks ? " node blocks" : " diagonal") +
                                   (warp->empty() ? " unwarped" : " warped") +
                                   " seed " + std::to_string(seed);
         ASSERT_TRUE(expected.allFinite()) << where;
