@@ -402,6 +402,7 @@ void CorotationalEfg::drop_unused_particles() {
 }
 
 void CorotationalEfg::restride(int stride) {
+  ++topology_revision_;
   const int elements = element_count();
   const size_t slots = static_cast<size_t>(elements) * stride;
   std::vector<int> neighbours(slots, 0);

@@ -395,6 +395,17 @@ class CorotationalEfg final : public DeformableModel {
   // current_stiffness's plan (rebuilt when the rows change; it holds the turned gradients and
   // each element's weight: its volume, 0 for an element taken out).
   mutable ElementAssembly assembly_;
+  // node_rotations' incidence: per node, the live elements (volume > 0) whose rows hold it, in
+  // element order, an element once per entry of its row (efg_rest_stiffness.cpp). Laid again
+  // when topology_revision_, which every edit of the rows or of which elements live moves,
+  // is not the one it was laid at.
+  struct NodeIncidence {
+    long long revision = -1;
+    std::vector<int> start, elements;
+  };
+  mutable NodeIncidence node_incidence_;
+  long long topology_revision_ = 0;
+  void lay_node_incidence() const;
   Executor* executor_ = &serial_executor();
 };
 

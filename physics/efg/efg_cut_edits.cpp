@@ -24,6 +24,7 @@ void CorotationalEfg::set_neighbourhood(int element, std::span<const int> partic
     fail("set_neighbourhood: element " + std::to_string(element) + " outside [0, " +
          std::to_string(element_count()) + ")");
   }
+  ++topology_revision_;  // node_rotations' incidence is laid again (a refused edit restores the row)
   const int length = static_cast<int>(particles.size());
   if (length < 4 || length > longest_row) {
     fail("set_neighbourhood: element " + std::to_string(element) + " needs 4 to " +
@@ -182,6 +183,7 @@ void CorotationalEfg::deactivate_element(int element) {
     }
   }
   volumes_[element] = 0;  // no force, no stiffness, no energy from now on
+  ++topology_revision_;
   // The energy's force matrix had the old volume (its rotation, extracted afresh, comes out
   // the same).
   if (static_cast<size_t>(element) < energy_valid_.size()) energy_valid_[element] = 0;

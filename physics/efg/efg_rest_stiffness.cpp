@@ -167,16 +167,48 @@ std::function<BlockMatrix()> CorotationalEfg::rest_stiffness_job() const {
   };
 }
 
+// Each node's mean of its elements' rotations, the nodes on the executor's threads: the sums
+// of NodeRotations' serial pass over the elements (their order per node, their bits), which
+// ran every multigrid_current step on its critical path.
 void CorotationalEfg::node_rotations(std::vector<Eigen::Quaterniond>& out) const {
-  NodeRotations mean;
-  mean.reset(node_count());
+  const int nodes = node_count();
+  if (node_incidence_.revision != topology_revision_ || node_incidence_.start.size() != static_cast<size_t>(nodes) + 1)
+    lay_node_incidence();
+  const std::vector<int>& start = node_incidence_.start;
+  const std::vector<int>& elements = node_incidence_.elements;
+  out.resize(static_cast<size_t>(nodes));
+  executor_->parallel_for(nodes, [&](int begin, int end) {
+    for (int node = begin; node < end; ++node) {
+      Eigen::Vector4d sum = Eigen::Vector4d::Zero();
+      for (int i = start[static_cast<size_t>(node)]; i < start[static_cast<size_t>(node) + 1]; ++i) {
+        const size_t e = static_cast<size_t>(elements[static_cast<size_t>(i)]);
+        NodeRotations::accumulate(sum, orientations_[e], volumes_[e]);
+      }
+      out[static_cast<size_t>(node)] = NodeRotations::normalised(sum);
+    }
+  }, 256);
+}
+
+void CorotationalEfg::lay_node_incidence() const {
+  const int nodes = node_count();
+  std::vector<int>& start = node_incidence_.start;
+  std::vector<int>& elements = node_incidence_.elements;
+  start.assign(static_cast<size_t>(nodes) + 1, 0);
+  for (int e = 0; e < element_count(); ++e) {
+    if (!(volumes_[static_cast<size_t>(e)] > 0)) continue;
+    const size_t base = static_cast<size_t>(e) * stride_;
+    for (int k = 0; k < row_lengths_[static_cast<size_t>(e)]; ++k) ++start[static_cast<size_t>(neighbours_[base + k]) + 1];
+  }
+  for (int node = 0; node < nodes; ++node) start[static_cast<size_t>(node) + 1] += start[static_cast<size_t>(node)];
+  elements.resize(static_cast<size_t>(start.back()));
+  std::vector<int> next(start.begin(), start.end() - 1);
   for (int e = 0; e < element_count(); ++e) {
     if (!(volumes_[static_cast<size_t>(e)] > 0)) continue;
     const size_t base = static_cast<size_t>(e) * stride_;
     for (int k = 0; k < row_lengths_[static_cast<size_t>(e)]; ++k)
-      mean.add(neighbours_[base + k], orientations_[static_cast<size_t>(e)], volumes_[static_cast<size_t>(e)]);
+      elements[static_cast<size_t>(next[static_cast<size_t>(neighbours_[base + k])]++)] = e;
   }
-  mean.finish(out);
+  node_incidence_.revision = topology_revision_;
 }
 
 double CorotationalEfg::node_spacing() const { return 2 * shape_->settings.spacing; }  // the particle grid's

@@ -5,17 +5,12 @@ namespace incise::physics {
 void NodeRotations::reset(int nodes) { sums_.assign(static_cast<size_t>(nodes), Eigen::Vector4d::Zero()); }
 
 void NodeRotations::add(int node, const Eigen::Quaterniond& rotation, double weight) {
-  Eigen::Vector4d& sum = sums_[static_cast<size_t>(node)];
-  const Eigen::Vector4d q = rotation.coeffs();
-  sum += (sum.dot(q) < 0 ? -weight : weight) * q;
+  accumulate(sums_[static_cast<size_t>(node)], rotation, weight);
 }
 
 void NodeRotations::finish(std::vector<Eigen::Quaterniond>& out) const {
   out.resize(sums_.size());
-  for (size_t node = 0; node < sums_.size(); ++node) {
-    const double norm = sums_[node].norm();
-    out[node] = norm > 0 ? Eigen::Quaterniond(Eigen::Vector4d(sums_[node] / norm)) : Eigen::Quaterniond::Identity();
-  }
+  for (size_t node = 0; node < sums_.size(); ++node) out[node] = normalised(sums_[node]);
 }
 
 void warped_solve(const RestFactor& factor, const std::vector<Eigen::Quaterniond>& rotations, const Vector& r,

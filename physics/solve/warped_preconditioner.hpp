@@ -24,6 +24,16 @@ class NodeRotations {
   void add(int node, const Eigen::Quaterniond& rotation, double weight);
   // Normalises the sums (a node nothing reached gets the identity) into `out`.
   void finish(std::vector<Eigen::Quaterniond>& out) const;
+  // One node's sum and its normalisation, as add and finish do them: a caller that sums each
+  // node's rotations apart (in the same order) gets the same bits.
+  static void accumulate(Eigen::Vector4d& sum, const Eigen::Quaterniond& rotation, double weight) {
+    const Eigen::Vector4d q = rotation.coeffs();
+    sum += (sum.dot(q) < 0 ? -weight : weight) * q;
+  }
+  static Eigen::Quaterniond normalised(const Eigen::Vector4d& sum) {
+    const double norm = sum.norm();
+    return norm > 0 ? Eigen::Quaterniond(Eigen::Vector4d(sum / norm)) : Eigen::Quaterniond::Identity();
+  }
 
  private:
   std::vector<Eigen::Vector4d> sums_;

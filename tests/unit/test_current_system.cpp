@@ -14,6 +14,7 @@
 #include "physics/solve/paired_blocks.hpp"
 #include "physics/solve/element_assembly.hpp"
 #include "physics/solve/multigrid.hpp"
+#include "physics/solve/warped_preconditioner.hpp"
 
 #include <gtest/gtest.h>
 
@@ -173,6 +174,57 @@ TEST(CurrentSystem, EqualsTheMatrixFreeProductOnABentTurnedBodyAndAfterACut) {
   model.deactivate_element(elements / 3);
   model.update_rotations(ball.x);
   expect_assembled_equals_matrix_free(model, ball.fixed);
+}
+
+// The node rotations (each node's mean of its elements' rotations, the warp of the coarse
+// correction) summed per node on the executor's threads have the bits of NodeRotations' one
+// serial pass, also after cut edits: a model whose incidence was laid before the edits (and is
+// laid again after them) and one that lays it only after them give the same rotations, on
+// one thread and on shuffled ranges.
+TEST(CurrentSystem, TheNodeRotationsFollowTheCutsWithTheBitsOfTheSerialMean) {
+  BentBall before, after;
+  ShufflingExecutor shuffling;
+  before.model->update_rotations(before.x);
+  after.model->update_rotations(after.x);  // the same history: the rotations' warm starts alike
+  std::vector<Eigen::Quaterniond> first, edited, fresh, serial;
+  before.model->node_rotations(first);  // lays the incidence before the edits
+  for (BentBall* ball : {&before, &after}) {
+    CorotationalEfg& model = *ball->model;
+    const int elements = model.element_count();
+    for (int e : {5, elements / 2}) {
+      const size_t base = static_cast<size_t>(e) * model.row_stride();
+      std::vector<int> row(model.neighbours().begin() + base, model.neighbours().begin() + base + model.row_lengths()[e]);
+      std::reverse(row.begin(), row.end());
+      if (row.size() > 6) row.pop_back();
+      model.set_neighbourhood(e, row);
+    }
+    model.deactivate_element(elements / 3);
+    model.update_rotations(ball->x);
+  }
+  before.model->node_rotations(edited);
+  after.model->set_executor(&shuffling);
+  after.model->node_rotations(fresh);
+  ASSERT_EQ(edited.size(), fresh.size());
+  // Against NodeRotations' serial pass over the elements, from the element rotations as
+  // matrices (their quaternions round differently from the model's kept ones).
+  const CorotationalEfg& model = *after.model;
+  NodeRotations mean;
+  mean.reset(model.node_count());
+  for (int e = 0; e < model.element_count(); ++e) {
+    if (!(model.element_volumes()[static_cast<size_t>(e)] > 0)) continue;
+    const size_t base = static_cast<size_t>(e) * model.row_stride();
+    for (int k = 0; k < model.row_lengths()[static_cast<size_t>(e)]; ++k)
+      mean.add(model.neighbours()[base + k], Eigen::Quaterniond(model.rotations()[static_cast<size_t>(e)]),
+               model.element_volumes()[static_cast<size_t>(e)]);
+  }
+  mean.finish(serial);
+  bool moved = false;
+  for (size_t node = 0; node < fresh.size(); ++node) {
+    EXPECT_EQ(edited[node].coeffs(), fresh[node].coeffs()) << "node " << node;
+    EXPECT_LE(fresh[node].angularDistance(serial[node]), 1e-12) << "node " << node;
+    moved = moved || edited[node].coeffs() != first[node].coeffs();
+  }
+  EXPECT_TRUE(moved);  // the edits changed some node's mean
 }
 
 // The product as CurrentSystem wrote it in Eigen before its kernel (current_product.hpp): each
