@@ -13,15 +13,6 @@ namespace incise::physics {
 
 namespace {
 
-// sum += B v, B column-major, in Eigen's order (current_product.hpp). This file is compiled
-// without contraction into fused multiply-adds.
-inline void add_block_product(const double* b, const double* v, double sum[3]) {
-  const double x0 = v[0], x1 = v[1], x2 = v[2];
-  sum[0] += (b[0] * x0 + b[3] * x1) + b[6] * x2;
-  sum[1] += (b[1] * x0 + b[4] * x1) + b[7] * x2;
-  sum[2] += (b[5] * x1 + b[8] * x2) + b[2] * x0;
-}
-
 void portable_current_rows(const CurrentRows& rows, const double* stiffness, const double* x, const double* free_x,
                            double* y, int begin, int end) {
   for (int row = begin; row < end; ++row) {
@@ -96,13 +87,6 @@ __attribute__((target("avx2"))) void avx2_current_rows(const CurrentRows& rows, 
 #endif
 
 }  // namespace
-
-void finish_current_row(const CurrentRows& rows, const double* x, double* y, int row, double sum[3]) {
-  const std::size_t offset = 3 * static_cast<std::size_t>(row);
-  if (rows.springs) add_block_product(rows.springs + 9 * static_cast<std::size_t>(row), x + offset, sum);
-  const double mass = rows.mass_coefficient * rows.masses[row];
-  for (int i = 0; i < 3; ++i) y[offset + i] = mass * x[offset + i] + rows.stiffness_coefficient * sum[i];
-}
 
 void current_rows_product(const CurrentRows& rows, const double* x, const double* free_x, double* y, int begin, int end) {
 #if defined(INCISE_CURRENT_PRODUCT_AVX2)

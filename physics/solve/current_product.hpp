@@ -48,9 +48,24 @@ inline bool copy_fixed_row(const CurrentRows& rows, const double* x, double* y, 
 // y rows [begin, end) of A x; `free_x` is x zeroed on the fixed nodes (x itself when it is).
 void current_rows_product(const CurrentRows& rows, const double* x, const double* free_x, double* y, int begin, int end);
 
+// sum += B v, B column-major, in Eigen's order. Inline, as finish_current_row, for the kernels'
+// row loops; their files are compiled without contraction into fused multiply-adds
+// (solve.cmake), so every caller rounds alike.
+inline void add_block_product(const double* b, const double* v, double sum[3]) {
+  const double x0 = v[0], x1 = v[1], x2 = v[2];
+  sum[0] += (b[0] * x0 + b[3] * x1) + b[6] * x2;
+  sum[1] += (b[1] * x0 + b[4] * x1) + b[7] * x2;
+  sum[2] += (b[5] * x1 + b[8] * x2) + b[2] * x0;
+}
+
 // A free row's y from its stiffness sum (K's blocks times x, in `sum`, which gains the springs'
 // product): y_row = (c_m m_row) x_row + c_k (sum + S_row x_row), in the kernels' order; for a
 // kernel that sums K's part its own way (paired_blocks.hpp).
-void finish_current_row(const CurrentRows& rows, const double* x, double* y, int row, double sum[3]);
+inline void finish_current_row(const CurrentRows& rows, const double* x, double* y, int row, double sum[3]) {
+  const std::size_t offset = 3 * static_cast<std::size_t>(row);
+  if (rows.springs) add_block_product(rows.springs + 9 * static_cast<std::size_t>(row), x + offset, sum);
+  const double mass = rows.mass_coefficient * rows.masses[row];
+  for (int i = 0; i < 3; ++i) y[offset + i] = mass * x[offset + i] + rows.stiffness_coefficient * sum[i];
+}
 
 }  // namespace incise::physics
