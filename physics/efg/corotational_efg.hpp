@@ -405,6 +405,10 @@ class CorotationalEfg final : public DeformableModel {
   };
   mutable NodeIncidence node_incidence_;
   long long topology_revision_ = 0;
+  // current_stiffness's plan: the revision it was laid at (-1: none), and the elements whose
+  // rows set_neighbourhood edited since (a plan is edited in those alone, no row compared).
+  mutable long long planned_revision_ = -1;
+  mutable std::vector<int> rows_edited_;
   void lay_node_incidence() const;
   Executor* executor_ = &serial_executor();
 };

@@ -4,11 +4,22 @@
 // integration point's neighbourhood twice (issue 29).
 #include "physics/efg/corotational_efg.hpp"
 
+#include <algorithm>
+
 namespace incise::physics {
 
 void CorotationalEfg::plan_current_stiffness() const {
-  if (!assembly_.matches(node_count(), stride_, row_lengths_, neighbours_))
+  if (planned_revision_ == topology_revision_) return;  // no row edited since the plan was laid
+  if (planned_revision_ < 0) {
     assembly_.build(node_count(), stride_, row_lengths_, neighbours_);
+  } else if (!rows_edited_.empty()) {
+    // The plan edited in the rows set_neighbourhood listed, none compared (ElementAssembly::edit).
+    std::sort(rows_edited_.begin(), rows_edited_.end());
+    rows_edited_.erase(std::unique(rows_edited_.begin(), rows_edited_.end()), rows_edited_.end());
+    assembly_.build(node_count(), stride_, row_lengths_, neighbours_, &rows_edited_);
+  }  // else only elements were taken out: their weights, which the refill reads, are 0
+  rows_edited_.clear();
+  planned_revision_ = topology_revision_;
 }
 
 const BlockMatrix* CorotationalEfg::current_stiffness() const {

@@ -24,7 +24,10 @@ void CorotationalEfg::set_neighbourhood(int element, std::span<const int> partic
     fail("set_neighbourhood: element " + std::to_string(element) + " outside [0, " +
          std::to_string(element_count()) + ")");
   }
-  ++topology_revision_;  // node_rotations' incidence is laid again (a refused edit restores the row)
+  // node_rotations' incidence and current_stiffness's plan follow (a refused edit restores the
+  // row: listed anyway, the plan finds it unchanged).
+  ++topology_revision_;
+  rows_edited_.push_back(element);
   const int length = static_cast<int>(particles.size());
   if (length < 4 || length > longest_row) {
     fail("set_neighbourhood: element " + std::to_string(element) + " needs 4 to " +

@@ -16,8 +16,9 @@ bool ElementAssembly::matches(int nodes, int stride, const std::vector<int>& len
   return matrix_.nodes() == nodes && stride_ == stride && lengths_ == lengths && neighbours_ == neighbours;
 }
 
-void ElementAssembly::build(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours) {
-  if (edit(nodes, stride, lengths, neighbours)) return;  // element_assembly_edit.cpp
+void ElementAssembly::build(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours,
+                            const std::vector<int>* changed) {
+  if (edit(nodes, stride, lengths, neighbours, changed)) return;  // element_assembly_edit.cpp
   groups_ = group_elements(stride, lengths, neighbours);
   for (int node : groups_.nodes)
     if (node < 0 || node >= nodes) throw std::invalid_argument("ElementAssembly: a row names a node outside [0, nodes)");

@@ -50,8 +50,12 @@ class ElementAssembly {
   // True when the plan was built for exactly these rows: element e's nodes are
   // neighbours[e * stride + k], k < lengths[e].
   bool matches(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours) const;
-  // Builds the plan for these rows (see the file comment on the pattern).
-  void build(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours);
+  // Builds the plan for these rows (see the file comment on the pattern). `changed`, when
+  // given: the elements whose rows may differ from the last plan's (increasing, no repeats; any
+  // element whose row did change must be in it), which spares the edit its comparison of every
+  // row; the plan is the same.
+  void build(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours,
+             const std::vector<int>* changed = nullptr);
 
   // Element e's vectors, to fill before assemble: entry k's h (3 doubles) at gradients(e) +
   // 3 local(e, k). Every element's vectors are in its group's node order.
@@ -86,7 +90,8 @@ class ElementAssembly {
   };
   // The plan for rows edited in a few elements, from the last plan; false (nothing done) when
   // there is none to edit or the rows changed throughout.
-  bool edit(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours);
+  bool edit(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours,
+            const std::vector<int>* changed);
   // Adds the (row, column) blocks `missing` names (not in the pattern, both of a pair's
   // mirrors); returns per old block its index in the grown pattern.
   std::vector<int> grow_pattern(std::vector<std::pair<int, int>> missing);

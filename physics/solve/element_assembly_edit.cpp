@@ -18,20 +18,31 @@ constexpr int edited_share = 4;  // 1 / 4
 
 }  // namespace
 
-bool ElementAssembly::edit(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours) {
+bool ElementAssembly::edit(int nodes, int stride, const std::vector<int>& lengths, const std::vector<int>& neighbours,
+                           const std::vector<int>* listed) {
   if (matrix_.nodes() != nodes || stride_ != stride || lengths_.size() != lengths.size() ||
       neighbours.size() != neighbours_.size() || groups_.node_start.empty())
     return false;
   const int elements = static_cast<int>(lengths.size());
   std::vector<int> changed;
-  for (int e = 0; e < elements; ++e) {
-    const size_t base = static_cast<size_t>(e) * static_cast<size_t>(stride);
-    const int length = lengths[static_cast<size_t>(e)];
-    if (length != lengths_[static_cast<size_t>(e)] ||
-        !std::equal(neighbours.begin() + static_cast<std::ptrdiff_t>(base), neighbours.begin() + static_cast<std::ptrdiff_t>(base) + std::max(0, std::min(length, stride)),
-                    neighbours_.begin() + static_cast<std::ptrdiff_t>(base)))
-      changed.push_back(e);
-    if (static_cast<int>(changed.size()) * edited_share > elements) return false;
+  if (listed) {
+    // The caller's list (a superset of the changed rows: regrouping an unchanged row finds its
+    // own node set again).
+    if (static_cast<int>(listed->size()) * edited_share > elements) return false;
+    for (size_t i = 0; i < listed->size(); ++i)
+      if ((*listed)[i] < 0 || (*listed)[i] >= elements || (i > 0 && (*listed)[i] <= (*listed)[i - 1]))
+        throw std::invalid_argument("ElementAssembly: the changed elements must increase within [0, elements)");
+    changed = *listed;
+  } else {
+    for (int e = 0; e < elements; ++e) {
+      const size_t base = static_cast<size_t>(e) * static_cast<size_t>(stride);
+      const int length = lengths[static_cast<size_t>(e)];
+      if (length != lengths_[static_cast<size_t>(e)] ||
+          !std::equal(neighbours.begin() + static_cast<std::ptrdiff_t>(base), neighbours.begin() + static_cast<std::ptrdiff_t>(base) + std::max(0, std::min(length, stride)),
+                      neighbours_.begin() + static_cast<std::ptrdiff_t>(base)))
+        changed.push_back(e);
+      if (static_cast<int>(changed.size()) * edited_share > elements) return false;
+    }
   }
   std::vector<int> previous_group;
   ElementGroups groups = regroup_elements(groups_, stride, lengths, neighbours, changed, &previous_group);

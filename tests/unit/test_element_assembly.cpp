@@ -234,11 +234,14 @@ TEST(ElementAssembly, TheVectorisedSumsOfEightNodeGroupsHaveThePortableBits) {
 // Edits a few rows as a cut's re-selection does: a corner replaced by another node (often one
 // of another cell, a new pair), a row shortened, its entries reordered, or made another row's
 // node set (joining its group, which may move the group's first element).
-void edit_rows(Elements& elements, std::mt19937& random) {
+// Edits one to three rows; returns the elements edited (some may have kept their rows).
+std::vector<int> edit_rows(Elements& elements, std::mt19937& random) {
   const int count = static_cast<int>(elements.lengths.size());
   std::uniform_int_distribution<int> element(0, count - 1), node(0, elements.nodes - 1), kind(0, 3);
+  std::vector<int> edited;
   for (int edits = 1 + element(random) % 3; edits > 0; --edits) {
     const int e = element(random);
+    edited.push_back(e);
     int* row = elements.neighbours.data() + static_cast<size_t>(e) * elements.stride;
     int& length = elements.lengths[static_cast<size_t>(e)];
     switch (kind(random)) {
@@ -259,6 +262,7 @@ void edit_rows(Elements& elements, std::mt19937& random) {
     }
     elements.vectors[static_cast<size_t>(e)].resize(static_cast<size_t>(length), Vec3(0.25, -0.5, 0.75));
   }
+  return edited;
 }
 
 TEST(ElementGroups, RegroupingEditedRowsGivesTheGroupsOfGroupingThemAfresh) {
@@ -311,13 +315,29 @@ TEST(ElementGroups, RegroupingEditedRowsGivesTheGroupsOfGroupingThemAfresh) {
 TEST(ElementAssembly, APlanEditedCutByCutHasTheBitsOfOneBuiltForTheLastRows) {
   Elements elements = cell_elements();
   std::mt19937 random(11);
-  ElementAssembly edited;
+  ElementAssembly edited, listed;
   assemble(edited, elements, serial_executor());
+  assemble(listed, elements, serial_executor());
   int grown = 0;
   for (int round = 0; round < 100; ++round) {
-    edit_rows(elements, random);
+    std::vector<int> changed = edit_rows(elements, random);
     const int blocks = edited.matrix().block_count();
     const BlockMatrix& by_edits = assemble(edited, elements, serial_executor());
+    // The same edits told by their list (with two elements whose rows did not change), as the
+    // EFG model tells them: no row compared, the same plan.
+    changed.push_back(static_cast<int>(random() % elements.lengths.size()));
+    changed.push_back(static_cast<int>(random() % elements.lengths.size()));
+    std::sort(changed.begin(), changed.end());
+    changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+    listed.build(elements.nodes, elements.stride, elements.lengths, elements.neighbours, &changed);
+    ASSERT_TRUE(listed.matches(elements.nodes, elements.stride, elements.lengths, elements.neighbours));
+    const BlockMatrix& by_list = assemble(listed, elements, serial_executor());
+    ASSERT_EQ(by_list.row_start(), by_edits.row_start()) << "round " << round;
+    ASSERT_EQ(by_list.columns(), by_edits.columns()) << "round " << round;
+    for (int k = 0; k < by_edits.block_count(); ++k)
+      ASSERT_EQ(0, std::memcmp(by_list.blocks()[static_cast<size_t>(k)].data(), by_edits.blocks()[static_cast<size_t>(k)].data(),
+                               sizeof(Mat3)))
+          << "round " << round << ", block " << k;
     grown += edited.pattern_rebuilt() ? 1 : 0;
     EXPECT_GE(by_edits.block_count(), blocks);  // kept, or grown by new pairs
     expect_equals_reference(by_edits, elements);
