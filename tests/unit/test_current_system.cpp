@@ -103,6 +103,32 @@ struct BentBall {
   }
 };
 
+// The step's settings on the engine's path: the assembled system, the current V-cycle.
+ImplicitEulerSettings current_cycle_settings(double tolerance) {
+  ImplicitEulerSettings settings;
+  settings.dt = 0.01;
+  settings.cg.tolerance = tolerance;
+  settings.cg.max_iterations = 300;
+  settings.assembled_system = true;
+  return settings;
+}
+
+// The ball's coarse factor for a degree-4 cycle, built at rest (`node_blocks`: with the top of
+// B0^-1 A0 for the node blocks' scaling).
+std::unique_ptr<RestFactor> ball_factor(BentBall& ball, double dt, bool node_blocks = false) {
+  CorotationalEfg& model = *ball.model;
+  const CoarseSpace space = make_coarse_space(model.rest_positions(), 2 * model.node_spacing(), ball.fixed);
+  model.update_rotations(model.rest_positions());
+  return std::make_unique<RestFactor>(model.rest_stiffness_job()(), model.lumped_masses(), ball.fixed, 1.0, dt * dt,
+                                      default_factor_backend(), &space, 4, false, node_blocks);
+}
+
+// A few steps' summed CG iterations and the positions they reach.
+struct BallRun {
+  int iterations = 0;
+  Vector positions;
+};
+
 // A's product as implicit_euler_step computes it matrix-free, with one spring.
 Vector matrix_free_system(const CorotationalEfg& model, const NodalSpring& spring, double mass_coefficient,
                           double stiffness_coefficient, const Vector& p) {
@@ -589,35 +615,24 @@ TEST(CurrentSystem, TheNodeBlockScalingInvertsEachBlock) {
 // smoother by the node blocks takes fewer CG iterations than by the diagonal, to the same
 // solution.
 TEST(CurrentSystem, TheNodeBlockSmootherSavesIterations) {
-  ImplicitEulerSettings settings;
-  settings.dt = 0.01;
-  settings.cg.tolerance = 1e-8;
-  settings.cg.max_iterations = 300;
-  settings.assembled_system = true;
-  struct Run {
-    int iterations = 0;
-    Vector positions;
-  };
+  const ImplicitEulerSettings settings = current_cycle_settings(1e-8);
   const auto run = [&](bool node_blocks) {
     BentBall ball;
     CorotationalEfg& model = *ball.model;
-    const CoarseSpace space = make_coarse_space(model.rest_positions(), 2 * model.node_spacing(), ball.fixed);
-    model.update_rotations(model.rest_positions());
-    const RestFactor factor(model.rest_stiffness_job()(), model.lumped_masses(), ball.fixed, 1.0,
-                            settings.dt * settings.dt, default_factor_backend(), &space, 4, false, node_blocks);
-    EXPECT_EQ(factor.node_block_eigenvalue() > 0, node_blocks);
+    const std::unique_ptr<RestFactor> factor = ball_factor(ball, settings.dt, node_blocks);
+    EXPECT_EQ(factor->node_block_eigenvalue() > 0, node_blocks);
     State state{ball.x, Vector::Zero(ball.x.size())};
-    Run result;
+    BallRun result;
     for (int step = 0; step < 5; ++step) {
       const Vector load = gravity_forces(model.lumped_masses(), Vec3(20, 0, -9.81));
-      const StepReport report = implicit_euler_step(model, state, ball.fixed, load, {}, settings, nullptr, &factor);
+      const StepReport report = implicit_euler_step(model, state, ball.fixed, load, {}, settings, nullptr, factor.get());
       EXPECT_TRUE(report.cg.converged) << "step " << step;
       result.iterations += report.cg.iterations;
     }
     result.positions = state.positions;
     return result;
   };
-  const Run diagonal = run(false), blocks = run(true);
+  const BallRun diagonal = run(false), blocks = run(true);
   const double moved = (diagonal.positions - BentBall().x).cwiseAbs().maxCoeff();
   std::printf("bent ball, 5 steps from rest: %d CG iterations with the diagonal's scaling, %d with the node blocks'\n",
               diagonal.iterations, blocks.iterations);
@@ -630,36 +645,25 @@ TEST(CurrentSystem, TheNodeBlockSmootherSavesIterations) {
 // (warm_start.hpp) CG needs fewer iterations in all than from the newest dv alone, and the
 // two runs reach the same state to the solver's tolerance.
 TEST(CurrentSystem, TheCombinedWarmStartSavesIterationsOfTheVcycle) {
-  ImplicitEulerSettings settings;
-  settings.dt = 0.01;
-  settings.cg.tolerance = 1e-5;
-  settings.cg.max_iterations = 300;
-  settings.assembled_system = true;
-  struct Run {
-    int iterations = 0;
-    Vector positions;
-  };
+  const ImplicitEulerSettings settings = current_cycle_settings(1e-5);
   const auto run = [&](int depth) {
     BentBall ball;
     CorotationalEfg& model = *ball.model;
-    const CoarseSpace space = make_coarse_space(model.rest_positions(), 2 * model.node_spacing(), ball.fixed);
-    model.update_rotations(model.rest_positions());
-    const RestFactor factor(model.rest_stiffness_job()(), model.lumped_masses(), ball.fixed, 1.0,
-                            settings.dt * settings.dt, default_factor_backend(), &space, 4);
+    const std::unique_ptr<RestFactor> factor = ball_factor(ball, settings.dt);
     State state{model.rest_positions(), Vector::Zero(ball.x.size())};
     WarmStart start(depth);
-    Run result;
+    BallRun result;
     for (int step = 0; step < 30; ++step) {
       const double angle = 0.05 * step;
       const Vector load = gravity_forces(model.lumped_masses(), Vec3(30 * std::cos(angle), 30 * std::sin(angle), -9.81));
-      const StepReport report = implicit_euler_step(model, state, ball.fixed, load, {}, settings, &start, &factor);
+      const StepReport report = implicit_euler_step(model, state, ball.fixed, load, {}, settings, &start, factor.get());
       EXPECT_TRUE(report.cg.converged) << "step " << step;
       result.iterations += report.cg.iterations;
     }
     result.positions = state.positions;
     return result;
   };
-  const Run newest = run(1), combined = run(WarmStart::default_depth);
+  const BallRun newest = run(1), combined = run(WarmStart::default_depth);
   const double moved = (newest.positions - BentBall().model->rest_positions()).cwiseAbs().maxCoeff();
   std::printf("ball, 30 steps: %d CG iterations from the newest dv, %d from the combination of %d; moved %.3e m\n",
               newest.iterations, combined.iterations, WarmStart::default_depth, moved);
