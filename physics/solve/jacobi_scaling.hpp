@@ -31,7 +31,6 @@ class JacobiScaling {
   // symmetric (the smoother's S = p(B^-1 A) B^-1 must be symmetric for CG).
   static JacobiScaling node_blocks(const std::vector<Mat3>& blocks);
 
-  bool blocks() const { return !inverse_blocks_.empty(); }
   // out = D^-1 r over the entries [begin, end) (whole nodes with blocks). Each entry is computed
   // in the one order written here, so every caller gets the same bits.
   void apply(const double* r, double* out, Eigen::Index begin, Eigen::Index end) const {
