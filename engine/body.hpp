@@ -50,6 +50,10 @@ struct Body {
   // with a side thread for a cuttable body with efg.threads >= 2, on which a cutting step's
   // surface cut runs beside the volume's (apply_topology). The model owns none.
   std::unique_ptr<ThreadPoolExecutor> executor;
+  // The executor the body's loops run on: its threads, or the caller's alone.
+  physics::Executor& threads() const {
+    return executor ? static_cast<physics::Executor&>(*executor) : physics::serial_executor();
+  }
   std::shared_ptr<physics::gpu::EfgStep> gpu;  // solver.backend "gpu": its step, surface and rows
   BuildTimes build_ms;
 };

@@ -60,7 +60,7 @@ void World::resist_cutting(StepStats& stats) {
     const auto& body = bodies_[b];
     if (!body.cut) continue;
     const physics::Vector& x = body.data.embedding ? body.data.surface_positions : body.data.state.positions;
-    physics::mark_engaged(x, body.data.surface, body.data.render_cut_face, tool_.radius, pieces, &engaged_hints_[b]);
+    physics::mark_engaged(x, body.data.surface, body.data.render_cut_face, tool_.radius, pieces, &engaged_hints_[b], body.threads());
   }
   // The engaged length, and its part across the edge's mean motion: the width of the crack its
   // first advance would open (a blade pushed along its own edge opens only its rounded width).

@@ -30,7 +30,7 @@ const physics::RestFactor* World::prepare_preconditioner(Body& body, StepStats& 
   const physics::ImplicitEulerSettings& integrator = body.model->integrator;
   const double dt = integrator.dt;
   physics::PreconditionerReport report;
-  physics::Executor& executor = body.executor ? static_cast<physics::Executor&>(*body.executor) : physics::serial_executor();
+  physics::Executor& executor = body.threads();
   const physics::RestFactor* factor = body.data.preconditioner.prepare(
       body.model->preconditioner, *body.data.mechanics, body.data.fixed, 1.0 + dt * integrator.rayleigh_mass,
       dt * integrator.rayleigh_stiffness + dt * dt, body.data.topology_revision, static_cast<long long>(steps_), executor,

@@ -10,7 +10,8 @@ void World::update_surface(Body& body) const {
   if (body.gpu)
     body.gpu->surface_positions(*body.data.embedding, body.data.surface_positions);
   else
-    physics::CorotationalEfg::surface_positions(*body.data.embedding, body.data.state.positions, body.data.surface_positions);
+    physics::CorotationalEfg::surface_positions(*body.data.embedding, body.data.state.positions,
+                                                body.data.surface_positions, body.threads());
 }
 
 }  // namespace incise::engine

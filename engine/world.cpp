@@ -126,8 +126,7 @@ std::optional<physics::RestSweep> World::detect_cuts(Body& body, physics::CutSte
 void World::apply_topology(Body& body, const std::optional<physics::RestSweep>& sweep, physics::CutStepReport& report) {
   physics::CutContext context{*body.model, body.data, *body.cut_model, *body.cut, cut_totals_, report,
                               body.gpu != nullptr, static_cast<long>(steps_ + 1)};
-  physics::apply_topology(context, blade_sweep(), sweep,
-                          body.executor ? static_cast<physics::Executor&>(*body.executor) : physics::serial_executor());
+  physics::apply_topology(context, blade_sweep(), sweep, body.threads());
 }
 
 namespace {

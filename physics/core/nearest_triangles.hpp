@@ -14,6 +14,7 @@
 // the work is, never the result.
 #pragma once
 
+#include "physics/core/executor.hpp"
 #include "physics/core/model.hpp"
 
 #include <array>
@@ -32,10 +33,12 @@ struct NearestTriangle {
 // The usable triangles: those `skip` does not mark (1: a cut face; skip may be shorter than
 // the surface, or empty) with a nonzero face normal (b - a) x (c - a).
 // hint (optional, in and out): any triangle indices (those out of range or unusable are
-// ignored); on return, the points' nearest triangles, each once, for the next call.
+// ignored); on return, the points' nearest triangles, each once, for the next call. The pass
+// over every triangle's box runs on `executor`'s threads, in fixed chunks joined in order: the
+// same result on any executor.
 std::vector<NearestTriangle> nearest_triangles(const Vector& x, const std::vector<std::array<int, 3>>& surface,
                                                const std::vector<std::uint8_t>& skip, const std::vector<Vec3>& points,
-                                               std::vector<int>* hint = nullptr);
+                                               std::vector<int>* hint = nullptr, Executor& executor = serial_executor());
 
 // The face normal the scans use: (b - a) x (c - a), not normalised.
 Vec3 face_normal(const Vector& x, const std::array<int, 3>& triangle);

@@ -34,8 +34,6 @@ void TriangleGrid::build() {
   const std::size_t count = used_.size();
   lo_.resize(count);
   hi_.resize(count);
-  stamp_.assign(count, 0);
-  seen_.assign(count, -1);
   Vec3 low = Vec3::Constant(std::numeric_limits<double>::infinity()), high = -low;
   double extent_sum = 0;
   for (std::size_t s = 0; s < count; ++s) {
@@ -92,11 +90,18 @@ void TriangleGrid::all(std::vector<int>& out) const {
   for (std::size_t s = 0; s < out.size(); ++s) out[s] = static_cast<int>(s);
 }
 
-void TriangleGrid::candidates(const Vec3& p, std::vector<int>& out) {
+void TriangleGrid::candidates(const Vec3& p, std::vector<int>& out, Scratch& scratch) const {
   out.clear();
   if (used_.empty()) return;
   if (!finite_ || !p.allFinite()) return all(out);
-  ++query_;
+  if (scratch.stamp.size() != used_.size()) {
+    scratch.stamp.assign(used_.size(), 0);
+    scratch.seen.assign(used_.size(), -1);
+    scratch.query = 0;
+  }
+  std::vector<int>& stamp = scratch.stamp;
+  std::vector<double>& seen = scratch.seen;
+  const int query = ++scratch.query;
   std::array<int, 3> centre{};
   int rings = 0;  // past this ring every cell has been seen
   for (int k = 0; k < 3; ++k) {
@@ -114,13 +119,13 @@ void TriangleGrid::candidates(const Vec3& p, std::vector<int>& out) {
     for (int n = start_[c]; n < start_[c + 1]; ++n) {
       const int slot = items_[static_cast<std::size_t>(n)];
       const std::size_t s = static_cast<std::size_t>(slot);
-      if (stamp_[s] == query_) continue;
-      stamp_[s] = query_;
+      if (stamp[s] == query) continue;
+      stamp[s] = query;
       out.push_back(slot);
-      seen_[s] = -1;  // its distance not computed: its box was no nearer than the nearest then
+      seen[s] = -1;  // its distance not computed: its box was no nearer than the nearest then
       if ((lo_[s] - p).cwiseMax(p - hi_[s]).cwiseMax(Vec3::Zero()).norm() < best) {
-        seen_[s] = distance(p, slot);
-        best = std::min(best, seen_[s]);
+        seen[s] = distance(p, slot);
+        best = std::min(best, seen[s]);
       }
     }
   };
@@ -143,7 +148,7 @@ void TriangleGrid::candidates(const Vec3& p, std::vector<int>& out) {
   const double within = reach();
   std::erase_if(out, [&](int slot) {
     const std::size_t s = static_cast<std::size_t>(slot);
-    return seen_[s] > within || (lo_[s] - p).cwiseMax(p - hi_[s]).cwiseMax(Vec3::Zero()).norm() > within;
+    return seen[s] > within || (lo_[s] - p).cwiseMax(p - hi_[s]).cwiseMax(Vec3::Zero()).norm() > within;
   });
   std::sort(out.begin(), out.end());
 }

@@ -29,9 +29,19 @@ class TriangleGrid {
   // Over `triangles` (indices into surface, increasing).
   TriangleGrid(const Vector& x, const std::vector<std::array<int, 3>>& surface, std::vector<int> triangles);
 
+  // A query's bookkeeping (per slot: the query that last saw it, its distance there): one per
+  // thread that queries the grid at once.
+  struct Scratch {
+    std::vector<int> stamp;
+    std::vector<double> seen;  // -1: not computed
+    int query = 0;
+  };
+
   // The slots to scan for p's nearest, in increasing order (every slot where the positions or
-  // p are not finite).
-  void candidates(const Vec3& p, std::vector<int>& out);
+  // p are not finite). The first form keeps its scratch in the grid; the second takes the
+  // caller's, so threads may query one grid side by side.
+  void candidates(const Vec3& p, std::vector<int>& out) { candidates(p, out, scratch_); }
+  void candidates(const Vec3& p, std::vector<int>& out, Scratch& scratch) const;
 
   int size() const { return static_cast<int>(used_.size()); }
   int triangle(int slot) const { return used_[static_cast<std::size_t>(slot)]; }
@@ -53,9 +63,7 @@ class TriangleGrid {
   double cell_ = 0, slack_ = 0;  // cell size; the absolute margin
   std::array<int, 3> dims_{0, 0, 0};
   std::vector<int> start_, items_;  // cell c's slots: items_[start_[c] .. start_[c + 1]), in order
-  std::vector<int> stamp_;          // per slot: the query that last saw it
-  std::vector<double> seen_;        // per slot: its distance in that query (-1: not computed)
-  int query_ = 0;
+  Scratch scratch_;
 };
 
 }  // namespace incise::physics

@@ -32,14 +32,14 @@ std::vector<EdgePiece> edge_pieces(const std::vector<Vec3>& start, const std::ve
 
 void mark_engaged(const Vector& x, const std::vector<std::array<int, 3>>& surface,
                   const std::vector<std::uint8_t>& cut_face, double reach, std::vector<EdgePiece>& pieces,
-                  std::vector<int>* hint) {
+                  std::vector<int>* hint, Executor& executor) {
   if (pieces.empty()) return;
   // The faces the scan looks at (not a cut face, not degenerate): each piece's nearest, from
   // only the triangles near it (physics/core/nearest_triangles.hpp).
   std::vector<Vec3> points;
   points.reserve(pieces.size());
   for (const EdgePiece& piece : pieces) points.push_back(piece.point);
-  const std::vector<NearestTriangle> nearest = nearest_triangles(x, surface, cut_face, points, hint);
+  const std::vector<NearestTriangle> nearest = nearest_triangles(x, surface, cut_face, points, hint, executor);
   for (std::size_t i = 0; i < pieces.size(); ++i) {
     const NearestTriangle& n = nearest[i];
     if (n.triangle < 0) continue;

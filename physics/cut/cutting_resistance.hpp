@@ -7,6 +7,7 @@
 // times the engaged edge length, plus the friction of the flanks it slides between.
 #pragma once
 
+#include "physics/core/executor.hpp"
 #include "physics/core/model.hpp"
 
 #include <array>
@@ -59,7 +60,7 @@ std::vector<EdgePiece> edge_pieces(const std::vector<Vec3>& start, const std::ve
 // nearest to the pieces at the previous call, which only spare work (nearest_triangles).
 void mark_engaged(const Vector& positions, const std::vector<std::array<int, 3>>& surface,
                   const std::vector<std::uint8_t>& cut_face, double reach, std::vector<EdgePiece>& pieces,
-                  std::vector<int>* hint = nullptr);
+                  std::vector<int>* hint = nullptr, Executor& executor = serial_executor());
 
 struct CuttingForce {
   Vec3 on_tool = Vec3::Zero();  // N, against the edge's motion

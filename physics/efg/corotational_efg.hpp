@@ -290,9 +290,10 @@ class CorotationalEfg final : public DeformableModel {
   // map_front_surface takes for a cuttable body's first mapping (FrontVisibility::inside).
   static bool sees_through_body(const std::function<bool(const Vec3&)>& inside, const Vec3& vertex, const Vec3& point,
                                 double a);
-  // out (resized to 3 x vertices) = the embedded vertex positions for particle positions x.
+  // out (resized to 3 x vertices) = the embedded vertex positions for particle positions x,
+  // vertices on `executor`'s threads (each vertex its own sum: the same bits on any executor).
   static void surface_positions(const SurfaceEmbedding& embedding, const Vector& particle_positions,
-                                Vector& out);
+                                Vector& out, Executor& executor = serial_executor());
 
  private:
   // The build, step by step: the settings checked, the grids laid over the box, the elements

@@ -116,21 +116,23 @@ Vector CurrentSystem::diagonal() const {
   return out;
 }
 
-std::vector<Mat3> CurrentSystem::diagonal_blocks() const {
+std::vector<Mat3> CurrentSystem::diagonal_blocks(Executor& executor) const {
   const int nodes = stiffness_.nodes();
   std::vector<Mat3> out(static_cast<size_t>(nodes));
-  for (int row = 0; row < nodes; ++row) {
-    Mat3& block = out[static_cast<size_t>(row)];
-    if (is_fixed(row)) {
-      block.setIdentity();
-      continue;
+  executor.parallel_for(nodes, [&](int begin, int end) {
+    for (int row = begin; row < end; ++row) {
+      Mat3& block = out[static_cast<size_t>(row)];
+      if (is_fixed(row)) {
+        block.setIdentity();
+        continue;
+      }
+      // Entry by entry as diagonal() computes the diagonal's: the same bits there.
+      const Mat3 stiffness = free_diagonal_block(row);
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+          block(a, b) = (a == b ? mass_coefficient_ * masses_[row] : 0.0) + stiffness_coefficient_ * stiffness(a, b);
     }
-    // Entry by entry as diagonal() computes the diagonal's: the same bits there.
-    const Mat3 stiffness = free_diagonal_block(row);
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b)
-        block(a, b) = (a == b ? mass_coefficient_ * masses_[row] : 0.0) + stiffness_coefficient_ * stiffness(a, b);
-  }
+  }, 512);
   return out;
 }
 

@@ -47,7 +47,7 @@ class CurrentSystem {
   // The scalar diagonal of A (1 on fixed nodes).
   Vector diagonal() const;
   // A's 3x3 blocks on the diagonal, one a node (the identity's on fixed nodes).
-  std::vector<Mat3> diagonal_blocks() const;
+  std::vector<Mat3> diagonal_blocks(Executor& executor = serial_executor()) const;
   int nodes() const { return stiffness_.nodes(); }
   bool is_fixed(int node) const { return !fixed_.empty() && fixed_[static_cast<size_t>(node)] != 0; }
 

@@ -19,7 +19,7 @@ CurrentVcycle::CurrentVcycle(const CurrentSystem& system, const RestFactor& fact
       smoother_(smoother),
       executor_(executor),
       steps_(smoother),
-      scaling_(smoother.node_blocks ? JacobiScaling::node_blocks(system.diagonal_blocks())
+      scaling_(smoother.node_blocks ? JacobiScaling::node_blocks(system.diagonal_blocks(executor), executor)
                                     : JacobiScaling(jacobi_inverse(system.diagonal()))),
       rows_(system.rows()) {
   if (smoother_.degree < 1 || !(smoother_.upper > 0) || !(smoother_.ratio > 1))

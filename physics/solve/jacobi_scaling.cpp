@@ -19,29 +19,31 @@ Mat3 symmetric(const Mat3& block) {
   return out;
 }
 
+// A block that is not finite and positive definite (Sylvester's minors) falls back to its
+// diagonal's inverse, as jacobi_inverse does (1 where an entry is not a positive number): the
+// scaling stays positive and CG's own product reports what is wrong with the system.
+Mat3 inverse_block(const Mat3& given) {
+  const Mat3 block = symmetric(given);
+  const double minor = block(0, 0) * block(1, 1) - block(0, 1) * block(1, 0);
+  const double determinant = block.determinant();
+  if (std::isfinite(determinant) && block(0, 0) > 0 && minor > 0 && determinant > 0) return symmetric(block.inverse());
+  Mat3 fallback = Mat3::Zero();
+  for (int a = 0; a < 3; ++a) {
+    const double d = block(a, a);
+    fallback(a, a) = d > 0.0 && std::isfinite(d) ? 1.0 / d : 1.0;
+  }
+  return fallback;
+}
+
 }  // namespace
 
-JacobiScaling JacobiScaling::node_blocks(const std::vector<Mat3>& blocks) {
+JacobiScaling JacobiScaling::node_blocks(const std::vector<Mat3>& blocks, Executor& executor) {
   JacobiScaling out;
   out.inverse_blocks_.resize(blocks.size());
-  for (std::size_t node = 0; node < blocks.size(); ++node) {
-    const Mat3 block = symmetric(blocks[node]);
-    // A block that is not finite and positive definite (Sylvester's minors) falls back to its
-    // diagonal's inverse, as jacobi_inverse does (1 where an entry is not a positive number): the
-    // scaling stays positive and CG's own product reports what is wrong with the system.
-    const double minor = block(0, 0) * block(1, 1) - block(0, 1) * block(1, 0);
-    const double determinant = block.determinant();
-    if (std::isfinite(determinant) && block(0, 0) > 0 && minor > 0 && determinant > 0) {
-      out.inverse_blocks_[node] = symmetric(block.inverse());
-      continue;
-    }
-    Mat3 fallback = Mat3::Zero();
-    for (int a = 0; a < 3; ++a) {
-      const double d = block(a, a);
-      fallback(a, a) = d > 0.0 && std::isfinite(d) ? 1.0 / d : 1.0;
-    }
-    out.inverse_blocks_[node] = fallback;
-  }
+  executor.parallel_for(static_cast<int>(blocks.size()), [&](int begin, int end) {
+    for (auto node = static_cast<std::size_t>(begin); node < static_cast<std::size_t>(end); ++node)
+      out.inverse_blocks_[node] = inverse_block(blocks[node]);
+  }, 512);
   return out;
 }
 

@@ -12,6 +12,7 @@
 // moves with every rotation (the scalar cycle's 1.2 margin).
 #pragma once
 
+#include "physics/core/executor.hpp"
 #include "physics/core/model.hpp"
 
 #include <Eigen/Core>
@@ -29,7 +30,7 @@ class JacobiScaling {
   JacobiScaling(Vector inverse_diagonal) : inverse_diagonal_(std::move(inverse_diagonal)) {}  // NOLINT
   // The inverse of each node's block of A (fixed nodes: the identity), each made exactly
   // symmetric (the smoother's S = p(B^-1 A) B^-1 must be symmetric for CG).
-  static JacobiScaling node_blocks(const std::vector<Mat3>& blocks);
+  static JacobiScaling node_blocks(const std::vector<Mat3>& blocks, Executor& executor = serial_executor());
 
   // out = D^-1 r over the entries [begin, end) (whole nodes with blocks). Each entry is computed
   // in the one order written here, so every caller gets the same bits.

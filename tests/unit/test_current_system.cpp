@@ -16,6 +16,8 @@
 #include "physics/solve/multigrid.hpp"
 #include "physics/solve/warped_preconditioner.hpp"
 
+#include "tests/unit/test_executors.hpp"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -33,6 +35,9 @@
 namespace incise::physics {
 namespace {
 
+using test::ShufflingExecutor;
+using test::TwoThreadExecutor;
+
 const Material tissue{5e3, 0.45, 1060};
 
 Vector random_vector(Eigen::Index size, unsigned seed) {
@@ -42,38 +47,6 @@ Vector random_vector(Eigen::Index size, unsigned seed) {
   for (Eigen::Index i = 0; i < size; ++i) v[i] = uniform(random);
   return v;
 }
-
-// Hands a parallel_for's ranges out in small pieces, last first, on one thread: a result that
-// depended on the split would show.
-class ShufflingExecutor final : public Executor {
- public:
-  int thread_count() const override { return 3; }
-  void parallel_for(int count, const std::function<void(int, int)>& task, int) override {
-    const int piece = 7;
-    for (int begin = (count - 1) / piece * piece; begin >= 0; begin -= piece) task(begin, std::min(count, begin + piece));
-  }
-  void run_beside(const std::function<void()>& own, const std::function<void()>& side) override {
-    side();
-    own();
-  }
-};
-
-// Two threads: a parallel_for's second half on a thread of its own, the first on the caller's.
-class TwoThreadExecutor final : public Executor {
- public:
-  int thread_count() const override { return 2; }
-  void parallel_for(int count, const std::function<void(int, int)>& task, int) override {
-    const int half = count / 2;
-    std::thread other([&] { task(half, count); });
-    task(0, half);
-    other.join();
-  }
-  void run_beside(const std::function<void()>& own, const std::function<void()>& side) override {
-    std::thread other(side);
-    own();
-    other.join();
-  }
-};
 
 bool same_bits(const Vector& a, const Vector& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;

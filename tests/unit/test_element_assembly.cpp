@@ -9,6 +9,8 @@
 #include "physics/solve/element_assembly.hpp"
 #include "physics/solve/element_groups.hpp"
 
+#include "tests/unit/test_executors.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -21,6 +23,9 @@
 namespace incise::physics {
 namespace {
 
+// Pieces of 3: the small test matrices still split into several.
+using Shuffling = test::ShufflingExecutor;
+
 constexpr double lambda = 3.0, mu = 0.7;
 
 // C(S) = lambda S + mu S^T + mu tr(S) I, the corotated EFG's block.
@@ -28,20 +33,6 @@ void combine(const Mat3& s, Mat3& out) {
   out += lambda * s + mu * s.transpose();
   out.diagonal().array() += mu * s.trace();
 }
-
-// Hands a parallel_for's ranges out in small pieces, last first, on one thread.
-class ShufflingExecutor final : public Executor {
- public:
-  int thread_count() const override { return 3; }
-  void parallel_for(int count, const std::function<void(int, int)>& task, int) override {
-    const int piece = 3;
-    for (int begin = (count - 1) / piece * piece; begin >= 0; begin -= piece) task(begin, std::min(count, begin + piece));
-  }
-  void run_beside(const std::function<void()>& own, const std::function<void()>& side) override {
-    side();
-    own();
-  }
-};
 
 struct Elements {
   int nodes = 12, stride = 5;
@@ -175,7 +166,7 @@ TEST(ElementAssembly, HasTheSameBitsHoweverTheRowsAreSplitAndWhateverEditsLedThe
   const BlockMatrix& serial = assemble(edited, elements, serial_executor());
   EXPECT_FALSE(edited.pattern_rebuilt());
   ElementAssembly fresh;
-  ShufflingExecutor shuffling;
+  Shuffling shuffling(3);
   const BlockMatrix& shuffled = assemble(fresh, elements, shuffling);
   // The edited plan keeps the pairs of node 11, now zero; every block of the fresh one is there.
   EXPECT_GT(serial.block_count(), shuffled.block_count());
@@ -220,7 +211,7 @@ Elements cell_elements() {
 TEST(ElementAssembly, TheVectorisedSumsOfEightNodeGroupsHaveThePortableBits) {
   const Elements elements = cell_elements();
   ElementAssembly vectorised, portable;
-  ShufflingExecutor shuffling;
+  Shuffling shuffling(3);
   const BlockMatrix& fast = assemble(vectorised, elements, shuffling);
   set_element_assembly_vectorised(false);
   const BlockMatrix& slow = assemble(portable, elements, serial_executor());
@@ -342,7 +333,7 @@ TEST(ElementAssembly, APlanEditedCutByCutHasTheBitsOfOneBuiltForTheLastRows) {
     EXPECT_GE(by_edits.block_count(), blocks);  // kept, or grown by new pairs
     expect_equals_reference(by_edits, elements);
     ElementAssembly fresh;
-    ShufflingExecutor shuffling;
+    Shuffling shuffling(3);
     const BlockMatrix& built = assemble(fresh, elements, shuffling);
     for (int row = 0; row < by_edits.nodes(); ++row)
       for (int k = by_edits.row_start()[static_cast<size_t>(row)]; k < by_edits.row_start()[static_cast<size_t>(row) + 1]; ++k) {

@@ -13,6 +13,8 @@
 #include "physics/solve/rest_vcycle.hpp"
 #include "physics/solve/warped_preconditioner.hpp"
 
+#include "tests/unit/test_executors.hpp"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -24,6 +26,8 @@
 
 namespace incise::physics {
 namespace {
+
+using test::ShufflingExecutor;
 
 const Material tissue{5e3, 0.45, 1060};
 
@@ -105,21 +109,6 @@ void expect_exact_for_rigid_rotation(DeformableModel& model) {
   const Preconditioner unwarped = [&](const Vector& r, Vector& z) { warped_solve(factor, {}, r, z); };
   EXPECT_GT(preconditioned_conjugate_gradient(apply, random_vector(rest.size(), 3), unwarped, fixed, y, settings).iterations, 3);
 }
-
-// Hands a parallel_for's ranges out in small pieces, last first: what a pool of threads may
-// do, on one thread, so that a result that depended on the split would show.
-class ShufflingExecutor final : public Executor {
- public:
-  int thread_count() const override { return 3; }
-  void parallel_for(int count, const std::function<void(int, int)>& task, int) override {
-    const int piece = 7;
-    for (int begin = (count - 1) / piece * piece; begin >= 0; begin -= piece) task(begin, std::min(count, begin + piece));
-  }
-  void run_beside(const std::function<void()>& own, const std::function<void()>& side) override {
-    side();
-    own();
-  }
-};
 
 // The V-cycle's assembled rest system (block_system.hpp) is the scalar system the factor is
 // built from (BlockMatrix::system), fixed rows and columns included, and its product has the

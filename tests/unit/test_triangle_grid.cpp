@@ -7,6 +7,7 @@
 #include "physics/core/contact.hpp"
 #include "physics/core/nearest_triangles.hpp"
 #include "physics/core/triangle_grid.hpp"
+#include "tests/unit/test_executors.hpp"
 
 #include <gtest/gtest.h>
 
@@ -201,6 +202,39 @@ TEST(NearestTriangles, AnyHintGivesTheScanOfEveryTriangleBitForBit) {
     EXPECT_FALSE(carried.empty());
   }
   EXPECT_EQ(checked, 40 * 5 * 30);
+}
+
+// resist_cutting runs it on the body's threads: the box pass in chunks of 8192 triangles and the
+// points' scans in ranges. A surface of three chunks, split in pieces or on two threads, gives
+// the serial result, hint and all.
+TEST(NearestTriangles, OnThreadsGiveTheSerialResultBitForBit) {
+  std::mt19937 random(47);
+  Surface s = bumpy_sphere(100, 96, random);
+  ASSERT_GT(s.triangles.size(), 2u * 8192u);
+  std::vector<std::uint8_t> skip(s.triangles.size(), 0);
+  for (std::size_t t = 3; t < skip.size(); t += 19) skip[t] = 1;
+  std::vector<Vec3> points;
+  for (int k = 0; k < 41; ++k) points.push_back(Vec3(0.002 * (k - 20), 0.001 * k, 0.07 - 0.003 * k));
+  incise::test::ShufflingExecutor pieces(3);
+  incise::test::TwoThreadExecutor two;
+  std::vector<int> serial_hint{0, 7}, pieces_hint = serial_hint, two_hint = serial_hint;
+  for (int step = 0; step < 3; ++step) {
+    const auto serial = physics::nearest_triangles(s.x, s.triangles, skip, points, &serial_hint);
+    const auto split = physics::nearest_triangles(s.x, s.triangles, skip, points, &pieces_hint, pieces);
+    const auto threads = physics::nearest_triangles(s.x, s.triangles, skip, points, &two_hint, two);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      ASSERT_GE(serial[i].triangle, 0);
+      EXPECT_EQ(serial[i].triangle, scan_every(s, skip, points[i]).triangle);
+      for (const auto* other : {&split, &threads}) {
+        EXPECT_EQ((*other)[i].triangle, serial[i].triangle);
+        EXPECT_EQ((*other)[i].distance, serial[i].distance);
+        EXPECT_EQ((*other)[i].closest, serial[i].closest);
+      }
+    }
+    EXPECT_EQ(pieces_hint, serial_hint);
+    EXPECT_EQ(two_hint, serial_hint);
+    for (Eigen::Index i = 0; i < s.x.size(); ++i) s.x[i] *= 1.01;
+  }
 }
 
 TEST(NearestTriangles, NoUsableTriangleOrNonFinitePointFindsNone) {
