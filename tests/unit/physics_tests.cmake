@@ -14,6 +14,7 @@ add_executable(test_integrator
   ${CMAKE_CURRENT_LIST_DIR}/test_integrator_implicit_euler.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_rest_preconditioner.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_current_system.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_current_vcycle.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_element_assembly.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_supernodal_factor.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_half_float.cpp
