@@ -8,10 +8,13 @@
 #include "physics/solve/rest_factor.hpp"
 
 #include <Eigen/Geometry>
+#include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <memory>
 #include <random>
+#include <string>
 #include <vector>
 
 namespace incise::physics::fixtures {
@@ -24,6 +27,29 @@ inline Vector random_vector(Eigen::Index size, unsigned seed) {
   Vector v(size);
   for (Eigen::Index i = 0; i < size; ++i) v[i] = uniform(random);
   return v;
+}
+
+// A random vector zero on the fixed nodes, as CG's vectors are.
+inline Vector free_random(const std::vector<std::uint8_t>& fixed, unsigned seed) {
+  Vector v = random_vector(3 * static_cast<Eigen::Index>(fixed.size()), seed);
+  for (std::size_t i = 0; i < fixed.size(); ++i)
+    if (fixed[i]) v.segment<3>(3 * static_cast<Eigen::Index>(i)).setZero();
+  return v;
+}
+
+// What CG asks of a preconditioner M, on five pairs of such vectors: x . M y = y . M x within
+// `tolerance` of |x| |M y|, and x . M x > 0.
+template <class Preconditioner>
+void expect_symmetric_positive(Preconditioner& m, const std::vector<std::uint8_t>& fixed, double tolerance,
+                               const std::string& what = "") {
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    const Vector x = free_random(fixed, seed), y = free_random(fixed, 100 + seed);
+    Vector mx(x.size()), my(y.size());
+    m(x, mx);
+    m(y, my);
+    EXPECT_LE(std::abs(x.dot(my) - y.dot(mx)), tolerance * x.norm() * my.norm()) << what << " seed " << seed;
+    EXPECT_GT(x.dot(mx), 0.0) << what << " seed " << seed;
+  }
 }
 
 inline bool same_bits(const Vector& a, const Vector& b) {

@@ -13,6 +13,7 @@
 #include "physics/solve/rest_vcycle.hpp"
 #include "physics/solve/warped_preconditioner.hpp"
 
+#include "tests/unit/bent_ball.hpp"
 #include "tests/unit/test_executors.hpp"
 
 #include <gtest/gtest.h>
@@ -27,6 +28,9 @@
 namespace incise::physics {
 namespace {
 
+using fixtures::expect_symmetric_positive;
+using fixtures::free_random;
+using fixtures::random_vector;
 using test::ShufflingExecutor;
 
 const Material tissue{5e3, 0.45, 1060};
@@ -41,14 +45,6 @@ std::unique_ptr<CorotationalEfg> small_efg(double spacing = 0.005) {
 
 std::unique_ptr<CorotationalTetFem> small_fem() {
   return std::make_unique<CorotationalTetFem>(make_box_tets(Vec3::Zero(), Vec3(0.04, 0.02, 0.02), {4, 2, 2}), tissue);
-}
-
-Vector random_vector(Eigen::Index size, unsigned seed) {
-  std::mt19937 random(seed);
-  std::uniform_real_distribution<double> uniform(-1, 1);
-  Vector v(size);
-  for (Eigen::Index i = 0; i < size; ++i) v[i] = uniform(random);
-  return v;
 }
 
 // K0 p from the assembled blocks.
@@ -615,25 +611,13 @@ TEST(Multigrid, TheVcycleIsSymmetricAndPositive) {
   smoother.degree = 3;
   smoother.upper = 1.2 * factor.smoothing_eigenvalue();
   VcyclePreconditioner vcycle(apply, jacobi_inverse(diagonal), factor, rotations, ball.fixed, smoother);
-  auto free_random = [&](unsigned seed) {
-    Vector v = random_vector(ball.x.size(), seed);
-    for (int i = 0; i < model.node_count(); ++i)
-      if (ball.fixed[static_cast<size_t>(i)]) v.segment<3>(3 * i).setZero();
-    return v;
-  };
+  expect_symmetric_positive(vcycle, ball.fixed, 1e-10);
   for (unsigned seed = 1; seed <= 5; ++seed) {
-    const Vector x = free_random(seed), y = free_random(100 + seed);
-    Vector mx(x.size()), my(y.size());
-    vcycle(x, mx);
-    vcycle(y, my);
-    const double xy = x.dot(my), yx = y.dot(mx);
-    EXPECT_LE(std::abs(xy - yx), 1e-10 * x.norm() * my.norm()) << "seed " << seed;
-    EXPECT_GT(x.dot(mx), 0.0) << "seed " << seed;
     // A smooth vector too (the coarse grid's part): a rigid translation of the free nodes.
-    Vector smooth = Vector::Zero(x.size());
+    Vector smooth = Vector::Zero(ball.x.size());
     for (int i = 0; i < model.node_count(); ++i)
       if (!ball.fixed[static_cast<size_t>(i)]) smooth.segment<3>(3 * i) = Vec3(1, 0.5 * seed, -0.3);
-    Vector msmooth(x.size());
+    Vector msmooth(ball.x.size());
     vcycle(smooth, msmooth);
     EXPECT_GT(smooth.dot(msmooth), 0.0) << "seed " << seed;
   }
@@ -647,7 +631,7 @@ TEST(Multigrid, TheVcycleIsSymmetricAndPositive) {
   RestVcycle fused(factor, rotations, smoother, serial_executor());
   const Eigen::Index nodes = ball.x.size() / 3;
   for (unsigned seed = 1; seed <= 3; ++seed) {
-    const Vector r = free_random(seed);
+    const Vector r = free_random(ball.fixed, seed);
     Vector turned(r.size()), rest_z(r.size()), unfused(r.size()), z(r.size());
     for (Eigen::Index i = 0; i < nodes; ++i)
       turned.segment<3>(3 * i) = rotations[static_cast<size_t>(i)].conjugate() * Vec3(r.segment<3>(3 * i));
@@ -659,15 +643,7 @@ TEST(Multigrid, TheVcycleIsSymmetricAndPositive) {
   }
   for (const RestFactor* cycle_factor : {&factor, &single}) {
     RestVcycle cycle(*cycle_factor, rotations, smoother, serial_executor());
-    const char* precision = cycle_factor == &single ? "float" : "double";
-    for (unsigned seed = 1; seed <= 5; ++seed) {
-      const Vector x = free_random(seed), y = free_random(100 + seed);
-      Vector mx(x.size()), my(y.size());
-      cycle(x, mx);
-      cycle(y, my);
-      EXPECT_LE(std::abs(x.dot(my) - y.dot(mx)), 1e-10 * x.norm() * my.norm()) << precision << " seed " << seed;
-      EXPECT_GT(x.dot(mx), 0.0) << precision << " seed " << seed;
-    }
+    expect_symmetric_positive(cycle, ball.fixed, 1e-10, cycle_factor == &single ? "float" : "double");
   }
 }
 
