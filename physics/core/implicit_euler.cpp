@@ -152,7 +152,7 @@ CgResult rest_factor_solve(const DeformableModel& model, const RestFactor& facto
 // estimated B0^-1 A0's top (a multigrid_current factor, jacobi_scaling.hpp), else A's
 // diagonal, whose interval ends at 1.2 x the rest build's largest eigenvalue of D0^-1 A0:
 // turning the nodes' blocks moves D's entries and with them the top of D^-1 A (+9 % on a ball
-// bent by 0.6 rad, test_current_system), and the Chebyshev step contracts only up to
+// bent by 0.6 rad, test_current_vcycle), and the Chebyshev step contracts only up to
 // (1 + 1/ratio) x its interval's top. S and C symmetric
 // make M^-1 symmetric, and SPD while the smoother contracts (multigrid.hpp). The cycle's
 // products are float products on K's paired float copy (paired_blocks.hpp: half the

@@ -18,7 +18,7 @@
 // on the double A). The coarse solve runs the two halves of its elimination tree beside each
 // other (supernodal_factor.hpp). Every entry is computed by one thread in the order
 // VcyclePreconditioner computes it, so the result
-// has its bits whatever the threads (test_current_system).
+// has its bits whatever the threads (test_current_vcycle).
 //
 // The fixed nodes' rows of A are the identity's and r is zeroed on them, so their residual,
 // steps and correction stay +0 without VcyclePreconditioner's zeroing of every product (the

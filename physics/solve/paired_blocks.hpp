@@ -28,7 +28,7 @@
 // The copy is symmetric bit for bit (the off-diagonal blocks are their mirrors' transposes in K;
 // a diagonal block's lower entries are taken from its upper ones). The product is not exactly
 // linear (x and the sums are rounded), so a cycle on it is a symmetric operator to float
-// round-off: CG converges on it as on the double cycle (test_current_system), and confirms its
+// round-off: CG converges on it as on the double cycle (test_current_vcycle), and confirms its
 // convergence on the double system (preconditioned_conjugate_gradient's `exact`).
 #pragma once
 
