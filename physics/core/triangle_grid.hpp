@@ -38,9 +38,7 @@ class TriangleGrid {
   };
 
   // The slots to scan for p's nearest, in increasing order (every slot where the positions or
-  // p are not finite). The first form keeps its scratch in the grid; the second takes the
-  // caller's, so threads may query one grid side by side.
-  void candidates(const Vec3& p, std::vector<int>& out) { candidates(p, out, scratch_); }
+  // p are not finite). The scratch is the caller's, so threads may query one grid side by side.
   void candidates(const Vec3& p, std::vector<int>& out, Scratch& scratch) const;
 
   int size() const { return static_cast<int>(used_.size()); }
@@ -63,7 +61,6 @@ class TriangleGrid {
   double cell_ = 0, slack_ = 0;  // cell size; the absolute margin
   std::array<int, 3> dims_{0, 0, 0};
   std::vector<int> start_, items_;  // cell c's slots: items_[start_[c] .. start_[c + 1]), in order
-  Scratch scratch_;
 };
 
 }  // namespace incise::physics

@@ -104,9 +104,10 @@ TEST(TriangleGrid, ItsCandidatesGiveTheSameNearestTriangleAsAScanOfEveryTriangle
     points.push_back(w * s.x.segment<3>(3 * tri[0]) + (1 - w) * s.x.segment<3>(3 * tri[1]));  // on edges
   }
   std::vector<int> candidates;
+  physics::TriangleGrid::Scratch scratch;
   int checked = 0;
   for (const Vec3& p : points) {
-    grid.candidates(p, candidates);
+    grid.candidates(p, candidates, scratch);
     EXPECT_TRUE(std::is_sorted(candidates.begin(), candidates.end()));
     const Nearest all = scan(s, grid, p, slots), near = scan(s, grid, p, candidates);
     // Near the surface the grid leaves most of it out (deep inside, a point is nearly as far
@@ -127,12 +128,13 @@ TEST(TriangleGrid, NonFinitePositionsOrPointsScanEveryUsedTriangle) {
   std::vector<std::uint8_t> use(s.triangles.size(), 1);
   use[0] = 0;
   std::vector<int> candidates;
+  physics::TriangleGrid::Scratch scratch;
   physics::TriangleGrid grid(s.x, s.triangles, use);
-  grid.candidates(Vec3(std::nan(""), 0, 0), candidates);
+  grid.candidates(Vec3(std::nan(""), 0, 0), candidates, scratch);
   EXPECT_EQ(candidates.size(), s.triangles.size() - 1);
   s.x[4] = std::numeric_limits<double>::infinity();
   physics::TriangleGrid broken(s.x, s.triangles, use);
-  broken.candidates(Vec3::Zero(), candidates);
+  broken.candidates(Vec3::Zero(), candidates, scratch);
   EXPECT_EQ(candidates.size(), s.triangles.size() - 1);
   EXPECT_EQ(broken.triangle(candidates.front()), 1);
 }
