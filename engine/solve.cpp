@@ -4,9 +4,12 @@
 #include "engine/world.hpp"
 
 #include "physics/core/guarded_step.hpp"
+#include "physics/cut/rest_cut.hpp"
 #include "physics/gpu/efg_step.hpp"
 
 #include <algorithm>
+#include <functional>
+#include <memory>
 #include <string>
 
 namespace incise::engine {
@@ -31,10 +34,19 @@ const physics::RestFactor* World::prepare_preconditioner(Body& body, StepStats& 
   const double dt = integrator.dt;
   physics::PreconditionerReport report;
   physics::Executor& executor = body.threads();
+  // A build's coarse space splits where the cut hides a node from a vertex: it takes a copy of
+  // the rest cut as it stands (the cut goes on meanwhile).
+  std::function<physics::CutSeparation()> separation;
+  if (body.cut && body.cut->rest_cut && body.cut->rest_cut->size() > 0)
+    separation = [&body]() -> physics::CutSeparation {
+      auto cut = std::make_shared<const physics::RestCut>(*body.cut->rest_cut);
+      return {[cut](const physics::Vec3& lo, const physics::Vec3& hi) { return cut->near_box(lo, hi, 0); },
+              [cut](const physics::Vec3& a, const physics::Vec3& b) { return cut->crosses(a, b); }};
+    };
   const physics::RestFactor* factor = body.data.preconditioner.prepare(
       body.model->preconditioner, *body.data.mechanics, body.data.fixed, 1.0 + dt * integrator.rayleigh_mass,
       dt * integrator.rayleigh_stiffness + dt * dt, body.data.topology_revision, static_cast<long long>(steps_), executor,
-      report);
+      report, separation);
   if (factor) {
     stats.preconditioner = physics::to_string(body.model->preconditioner.kind);
     stats.preconditioner_age = std::max(stats.preconditioner_age, report.age);

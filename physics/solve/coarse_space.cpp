@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 
 namespace incise::physics {
@@ -14,14 +15,29 @@ struct Corner {
   double weight;
 };
 
+// The cut as the grid's vertices see it: a vertex's support splits where the segment from the
+// vertex to a node crosses the cut.
+struct Separation {
+  const CutSeparation& cut;
+  const Eigen::Map<const Eigen::Matrix3Xd>& points;
+  Eigen::Vector3d origin;
+  std::array<long long, 3> counts;
+  double spacing;
+  Eigen::Vector3d vertex(long long v) const {
+    const long long x = v % counts[0], y = (v / counts[0]) % counts[1], z = v / (counts[0] * counts[1]);
+    return origin + spacing * Eigen::Vector3d(static_cast<double>(x), static_cast<double>(y), static_cast<double>(z));
+  }
+  Eigen::Vector3d node(int i) const { return points.col(i); }
+};
+
 // Splits each grid vertex into the pieces of its support (the free nodes of weight > 0 on it)
 // that `coupling`'s nonzero blocks connect inside that support: copy_of[node][c] is the copy
 // node's corner c leans on (-1 where the node is fixed or the weight 0), copy_best per copy the
 // largest weight a node gives it. Copies are numbered vertex by vertex, a vertex's pieces in
 // the order of their first nodes, so an unsplit grid keeps its vertices' order.
 void split_cut_vertices(const BlockMatrix& coupling, const std::vector<std::array<Corner, 8>>& corners, size_t vertices,
-                        const std::vector<std::uint8_t>& fixed, std::vector<std::array<int, 8>>& copy_of,
-                        std::vector<double>& copy_best) {
+                        const std::vector<std::uint8_t>& fixed, const Separation* separation,
+                        std::vector<std::array<int, 8>>& copy_of, std::vector<double>& copy_best) {
   const size_t nodes = corners.size();
   if (static_cast<size_t>(coupling.nodes()) != nodes)
     throw std::invalid_argument("make_coarse_space: the coupling has another node count than the rest positions");
@@ -45,6 +61,7 @@ void split_cut_vertices(const BlockMatrix& coupling, const std::vector<std::arra
   copy_of.assign(nodes, std::array<int, 8>{-1, -1, -1, -1, -1, -1, -1, -1});
   copy_best.clear();
   std::vector<int> slot(nodes, -1), parent, label;
+  std::vector<std::uint8_t> hidden;
   auto root = [&](int k) {
     while (parent[static_cast<size_t>(k)] != k) k = parent[static_cast<size_t>(k)] = parent[static_cast<size_t>(parent[static_cast<size_t>(k)])];
     return k;
@@ -60,11 +77,23 @@ void split_cut_vertices(const BlockMatrix& coupling, const std::vector<std::arra
       parent[static_cast<size_t>(k)] = k;
       slot[static_cast<size_t>(support[static_cast<size_t>(first + k)].first)] = k;
     }
+    hidden.assign(static_cast<size_t>(count), 0);
+    if (separation) {
+      // The support lies within H of its vertex along each axis.
+      const Eigen::Vector3d at = separation->vertex(static_cast<long long>(v));
+      const Eigen::Vector3d reach = Eigen::Vector3d::Constant(separation->spacing);
+      if (separation->cut.near(at - reach, at + reach))
+        for (int k = 0; k < count; ++k)
+          hidden[static_cast<size_t>(k)] =
+              separation->cut.crosses(at, separation->node(support[static_cast<size_t>(first + k)].first)) ? 1 : 0;
+    }
     for (int k = 0; k < count; ++k) {
       const int node = support[static_cast<size_t>(first + k)].first;
       for (int b = row_start[static_cast<size_t>(node)]; b < row_start[static_cast<size_t>(node) + 1]; ++b) {
         const int other = slot[static_cast<size_t>(columns[static_cast<size_t>(b)])];
-        if (other < 0 || !(blocks[static_cast<size_t>(b)].array() != 0).any()) continue;
+        if (other < 0 || hidden[static_cast<size_t>(k)] != hidden[static_cast<size_t>(other)] ||
+            !(blocks[static_cast<size_t>(b)].array() != 0).any())
+          continue;
         const int a = root(k), c = root(other);
         if (a != c) parent[static_cast<size_t>(std::max(a, c))] = std::min(a, c);
       }
@@ -87,7 +116,7 @@ void split_cut_vertices(const BlockMatrix& coupling, const std::vector<std::arra
 }  // namespace
 
 CoarseSpace make_coarse_space(const Eigen::VectorXd& rest, double spacing, const std::vector<std::uint8_t>& fixed,
-                              const BlockMatrix* coupling) {
+                              const BlockMatrix* coupling, const CutSeparation* separation) {
   if (!(spacing > 0)) throw std::invalid_argument("make_coarse_space: the spacing must be positive");
   const Eigen::Index nodes = rest.size() / 3;
   const Eigen::Map<const Eigen::Matrix3Xd> points(rest.data(), 3, nodes);
@@ -120,7 +149,9 @@ CoarseSpace make_coarse_space(const Eigen::VectorXd& rest, double spacing, const
   // support) becomes one vertex per piece; each node leans on its own piece's copy.
   std::vector<std::array<int, 8>> copy_of;
   std::vector<double> copy_best;
-  if (coupling) split_cut_vertices(*coupling, corners, best.size(), fixed, copy_of, copy_best);
+  std::optional<Separation> seen;
+  if (separation && *separation) seen.emplace(Separation{*separation, points, origin, counts, spacing});
+  if (coupling) split_cut_vertices(*coupling, corners, best.size(), fixed, seen ? &*seen : nullptr, copy_of, copy_best);
   // Keep the vertices (or copies) some free node leans on with half its weight or more; number
   // them in the grid's order (a vertex's copies in the order of their first nodes).
   const std::vector<double>& kept_best = coupling ? copy_best : best;

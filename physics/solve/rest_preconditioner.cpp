@@ -20,7 +20,8 @@ const char* to_string(PreconditionerKind kind) {
 RestPreconditioner::Pending RestPreconditioner::start(const DeformableModel& model, const std::vector<std::uint8_t>& fixed,
                                                       double mass_coefficient, double stiffness_coefficient,
                                                       std::uint64_t revision, long long step,
-                                                      const PreconditionerSettings& settings, Executor& executor) {
+                                                      const PreconditionerSettings& settings, Executor& executor,
+                                                      CutSeparation separation) {
   Pending pending;
   pending.revision = revision;
   pending.started = step;
@@ -40,10 +41,10 @@ RestPreconditioner::Pending RestPreconditioner::start(const DeformableModel& mod
   pending.done = executor.run_async([result = pending.result, assemble = std::move(assemble),
                                      masses = model.lumped_masses(), rest = model.rest_positions(), fixed,
                                      mass_coefficient, stiffness_coefficient, coarse_spacing, smoothing, single,
-                                     node_blocks] {
+                                     node_blocks, separation = std::move(separation)] {
     const BlockMatrix stiffness = assemble();
     if (coarse_spacing > 0) {
-      const CoarseSpace coarse = make_coarse_space(rest, coarse_spacing, fixed, &stiffness);
+      const CoarseSpace coarse = make_coarse_space(rest, coarse_spacing, fixed, &stiffness, &separation);
       *result = std::make_shared<const RestFactor>(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient,
                                                    default_factor_backend(), &coarse, smoothing, single, node_blocks);
     } else {
@@ -56,7 +57,8 @@ RestPreconditioner::Pending RestPreconditioner::start(const DeformableModel& mod
 
 const RestFactor* RestPreconditioner::prepare(const PreconditionerSettings& settings, const DeformableModel& model, const std::vector<std::uint8_t>& fixed,
                                               double mass_coefficient, double stiffness_coefficient, std::uint64_t revision,
-                                              long long step, Executor& executor, PreconditionerReport& report) {
+                                              long long step, Executor& executor, PreconditionerReport& report,
+                                              const std::function<CutSeparation()>& separation) {
   if (settings.kind == PreconditionerKind::jacobi || unsupported_) return nullptr;
   if (!current_) {
     if (!model.rest_stiffness_job() || ((settings.kind == PreconditionerKind::two_level || settings.kind == PreconditionerKind::multigrid ||
@@ -66,7 +68,8 @@ const RestFactor* RestPreconditioner::prepare(const PreconditionerSettings& sett
       return nullptr;
     }
     // The first factor, at the first step: on the critical path, the solve needs it now.
-    Pending first = start(model, fixed, mass_coefficient, stiffness_coefficient, revision, step, settings, serial_executor());
+    Pending first = start(model, fixed, mass_coefficient, stiffness_coefficient, revision, step, settings, serial_executor(),
+                          separation ? separation() : CutSeparation{});
     first.done.get();
     current_ = *first.result;
     current_revision_ = revision;
@@ -86,7 +89,8 @@ const RestFactor* RestPreconditioner::prepare(const PreconditionerSettings& sett
     report.adopted = true;
   }
   if (!pending_ && revision != current_revision_)
-    pending_ = std::make_shared<Pending>(start(model, fixed, mass_coefficient, stiffness_coefficient, revision, step, settings, executor));
+    pending_ = std::make_shared<Pending>(start(model, fixed, mass_coefficient, stiffness_coefficient, revision, step, settings, executor,
+                                                    separation ? separation() : CutSeparation{}));
   report.age = lacking_.empty() ? 0 : step - lacking_.front().second;
   report.build_ms = current_->build_ms();
   return current_.get();

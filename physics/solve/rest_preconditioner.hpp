@@ -13,10 +13,12 @@
 
 #include "physics/core/executor.hpp"
 #include "physics/core/model.hpp"
+#include "physics/solve/coarse_space.hpp"
 #include "physics/solve/rest_factor.hpp"
 
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <utility>
 #include <future>
 #include <memory>
@@ -65,9 +67,11 @@ class RestPreconditioner {
   // that offers no rest stiffness). `revision` counts the model's topology changes
   // (BodyData::topology_revision); `masses`, `fixed` and the coefficients are the current
   // system's. Starts a build on `executor` when the topology moved past the last one started.
+  // `separation` (optional): a copy of the body's cut for a build's coarse space
+  // (make_coarse_space), asked for when a build starts.
   const RestFactor* prepare(const PreconditionerSettings& settings, const DeformableModel& model, const std::vector<std::uint8_t>& fixed, double mass_coefficient,
                             double stiffness_coefficient, std::uint64_t revision, long long step, Executor& executor,
-                            PreconditionerReport& report);
+                            PreconditionerReport& report, const std::function<CutSeparation()>& separation = {});
 
   int builds() const { return builds_; }
 
@@ -90,7 +94,7 @@ class RestPreconditioner {
   };
   Pending start(const DeformableModel& model, const std::vector<std::uint8_t>& fixed, double mass_coefficient,
                 double stiffness_coefficient, std::uint64_t revision, long long step, const PreconditionerSettings& settings,
-                Executor& executor);
+                Executor& executor, CutSeparation separation);
 
   FactorPtr current_;
   std::uint64_t current_revision_ = 0;
