@@ -223,6 +223,10 @@ bool advance(const State& state, const Vector& velocity_change, const std::vecto
 
 }  // namespace
 
+bool assembles_current_stiffness(const DeformableModel& model) {
+  return model.has_current_stiffness() && !model.has_damping() && !extra_stiffness(model);
+}
+
 Vector gravity_forces(const Vector& lumped_masses, const Vec3& g) {
   Vector forces(3 * lumped_masses.size());
   for (Index node = 0; node < lumped_masses.size(); ++node) {
@@ -259,7 +263,7 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   // The assembled current stiffness K(x) (settings.assembled_system; it holds K only), read by
   // the right-hand side's K v and by every product of the solve.
   const BlockMatrix* current = nullptr;
-  if (settings.assembled_system && !damped && !extra) {
+  if (settings.assembled_system && assembles_current_stiffness(model)) {
     const Stopwatch assembly;
     current = model.current_stiffness();
     report.assembly_ms = assembly.ms();
@@ -355,7 +359,7 @@ StepReport implicit_euler_step(DeformableModel& model, State& state,
   } else if (system && rest_factor && rest_factor->size() == size && rest_factor->smoothing_degree() > 0) {
     report.cg = current_vcycle_solve(model, *rest_factor, product, *system, right_hand_side, fixed_nodes, velocity_change,
                                      cg_settings);
-  } else if (rest_factor && rest_factor->size() == size) {
+  } else if (rest_factor && rest_factor->size() == size && rest_factor->serves_rest_cycles()) {
     // The additive two-level's fine part (the V-cycle smooths with the rest system's own).
     const Vector inverse_diagonal =
         rest_factor->coarse() && rest_factor->smoothing_degree() == 0

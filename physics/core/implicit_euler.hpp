@@ -26,6 +26,11 @@ struct ImplicitEulerSettings {
   bool assembled_system = false;
 };
 
+// Whether a step with assembled_system assembles `model`'s current stiffness, and solves on it
+// with the current system's V-cycle (given a factor with a smoother): the model offers one and
+// has no dashpots nor extra stiffness of its own.
+bool assembles_current_stiffness(const DeformableModel& model);
+
 struct StepReport {
   CgResult cg;
   bool nonfinite = false;     // the step was rejected and the State left unchanged

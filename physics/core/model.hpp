@@ -75,6 +75,8 @@ class DeformableModel {
   // stay matrix-free). Not called unless a solver asks for it (solver.preconditioner
   // "multigrid_current").
   virtual const BlockMatrix* current_stiffness() const { return nullptr; }
+  // Whether current_stiffness gives one, without assembling it.
+  virtual bool has_current_stiffness() const { return false; }
   // Lays current_stiffness's plan for the model's rows as they are now: the part of it a
   // topology change makes, the refill staying with the step. For a caller with a thread to
   // spare after a cut (physics/cut/apply_topology.cpp): it touches nothing but the plan, so it

@@ -213,6 +213,7 @@ class CorotationalEfg final : public DeformableModel {
   double elastic_energy(const Vector& x) const override;
   std::function<BlockMatrix()> rest_stiffness_job() const override;
   const BlockMatrix* current_stiffness() const override;  // efg_current_stiffness.cpp
+  bool has_current_stiffness() const override { return true; }
   void plan_current_stiffness() const override;           // efg_current_stiffness.cpp
   void node_rotations(std::vector<Eigen::Quaterniond>& out) const override;
   double node_spacing() const override;

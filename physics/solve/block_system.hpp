@@ -28,7 +28,7 @@ class BlockSystem {
   BlockSystem(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
               double mass_coefficient, double stiffness_coefficient, bool single = false);
 
-  int nodes() const { return static_cast<int>(row_start_.size()) - 1; }
+  int nodes() const { return row_start_.empty() ? 0 : static_cast<int>(row_start_.size()) - 1; }
   bool single() const { return !single_blocks_.empty(); }
   // y = A0 x (x and y of size 3 nodes, distinct), its rows on `executor`'s threads.
   void multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y, Executor& executor) const;

@@ -65,12 +65,19 @@ RestFactor::RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& mass
     // The smoother's operator, in double for the estimate of its interval's upper end, then
     // rounded if asked.
     rest_system_ = BlockSystem(stiffness, masses, fixed, mass_coefficient, stiffness_coefficient);
-    smoothing_eigenvalue_ = largest_jacobi_eigenvalue(rest_system_);
-    if (node_block_smoother) node_block_eigenvalue_ = largest_block_jacobi_eigenvalue(rest_system_);
-    if (single_precision_smoother) rest_system_.round_to_single();
-    rest_inverse_diagonal_ = rest_system_.diagonal().cwiseInverse();
-    if (single_precision_smoother) rest_inverse_diagonal_ = rest_inverse_diagonal_.cast<float>().cast<double>();
-    rest_fixed_ = fixed;
+    if (node_block_smoother) {
+      // The current cycle's factor: it smooths with the step's own system, so A0 serves the
+      // estimate alone and goes (the scalar estimate was a quarter of a build, its 24
+      // products streaming A0 beside the steps).
+      node_block_eigenvalue_ = largest_block_jacobi_eigenvalue(rest_system_);
+      rest_system_ = BlockSystem();
+    } else {
+      smoothing_eigenvalue_ = largest_jacobi_eigenvalue(rest_system_);
+      if (single_precision_smoother) rest_system_.round_to_single();
+      rest_inverse_diagonal_ = rest_system_.diagonal().cwiseInverse();
+      if (single_precision_smoother) rest_inverse_diagonal_ = rest_inverse_diagonal_.cast<float>().cast<double>();
+      rest_fixed_ = fixed;
+    }
   }
   // A coarse factor's matrix straight from the blocks (its lower triangle, what both backends
   // read); the whole system's in scalar form.

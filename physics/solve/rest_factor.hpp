@@ -50,8 +50,9 @@ class RestFactor {
   // D0^-1 A0 that bounds its interval is estimated here, off the step's critical path.
   // `single_precision_smoother`: the smoother's copy of A0 (and D0^-1) rounded to float
   // (block_system.hpp); the factor and the estimate stay double. `node_block_smoother`: the
-  // top of B0^-1 A0 (B0 A0's 3x3 node blocks) is estimated too, for a cycle that scales by
-  // the node blocks (jacobi_scaling.hpp).
+  // top of B0^-1 A0 (B0 A0's 3x3 node blocks) is estimated instead, for the current system's
+  // cycle, which scales by the node blocks (jacobi_scaling.hpp) and smooths with the step's
+  // own system: such a factor keeps no copy of A0 and serves no rest cycle.
   // Throws std::runtime_error if A0 is not positive definite (a body with a free rigid mode
   // and no mass term cannot be: the mass coefficient must be positive).
   RestFactor(const BlockMatrix& stiffness, const Eigen::VectorXd& masses, const std::vector<std::uint8_t>& fixed,
@@ -76,8 +77,11 @@ class RestFactor {
 
   int size() const { return size_; }
   int smoothing_degree() const { return smoothing_degree_; }        // 0: additive two-level
-  double smoothing_eigenvalue() const { return smoothing_eigenvalue_; }  // of D0^-1 A0
+  double smoothing_eigenvalue() const { return smoothing_eigenvalue_; }  // of D0^-1 A0; 0: not estimated
   double node_block_eigenvalue() const { return node_block_eigenvalue_; }  // of B0^-1 A0; 0: not estimated
+  // Whether the rest cycle (rest_vcycle.hpp) or the two-level may use it: not a current-cycle
+  // factor's (node_block_smoother).
+  bool serves_rest_cycles() const { return smoothing_degree_ == 0 || smoothing_eigenvalue_ > 0; }
   long long factor_nonzeros() const { return factor_nonzeros_; }
   double build_ms() const { return build_ms_; }  // the matrix and its factorisation
   // A V-cycle's factor (smoothing_degree() > 0) also keeps the rest system A0 itself in

@@ -1,5 +1,6 @@
 #include "physics/solve/rest_preconditioner.hpp"
 
+#include "physics/core/implicit_euler.hpp"
 #include "physics/core/stopwatch.hpp"
 
 #include <stdexcept>
@@ -36,8 +37,9 @@ RestPreconditioner::Pending RestPreconditioner::start(const DeformableModel& mod
   const int smoothing = multigrid ? settings.smoothing : 0;
   const bool single = settings.kind == PreconditionerKind::multigrid && settings.single_precision;
   // The current cycle scales its smoother by the node blocks (jacobi_scaling.hpp); its fallback
-  // for a model without an assembled system, the rest cycle, by the diagonal.
-  const bool node_blocks = settings.kind == PreconditionerKind::multigrid_current;
+  // for a model without an assembled system (implicit_euler.hpp), the rest cycle, by the
+  // diagonal.
+  const bool node_blocks = settings.kind == PreconditionerKind::multigrid_current && assembles_current_stiffness(model);
   pending.done = executor.run_async([result = pending.result, assemble = std::move(assemble),
                                      masses = model.lumped_masses(), rest = model.rest_positions(), fixed,
                                      mass_coefficient, stiffness_coefficient, coarse_spacing, smoothing, single,

@@ -104,6 +104,45 @@ TEST(CurrentSystem, TheNodeBlockScalingInvertsEachBlock) {
   EXPECT_EQ(out[5], 1.0);  // -4 is not a positive entry
 }
 
+// A current-cycle factor (node blocks) estimates B0^-1 A0's top alone and keeps no copy of A0:
+// it serves no rest cycle. A step that does not assemble the current system (here the
+// settings', as for a damped body) falls back to Jacobi with it, to the current cycle's
+// solution; a diagonal-scaled factor's rest cycle gets there too.
+TEST(CurrentSystem, ACurrentCycleFactorServesNoRestCycle) {
+  BentBall ball;
+  CorotationalEfg& model = *ball.model;
+  const ImplicitEulerSettings current = current_cycle_settings(1e-8);
+  ImplicitEulerSettings matrix_free = current;
+  matrix_free.assembled_system = false;
+  const std::unique_ptr<RestFactor> blocks = ball_factor(ball, current.dt, true);
+  const std::unique_ptr<RestFactor> diagonal = ball_factor(ball, current.dt, false);
+  EXPECT_GT(blocks->node_block_eigenvalue(), 0.0);
+  EXPECT_EQ(blocks->smoothing_eigenvalue(), 0.0);
+  EXPECT_EQ(blocks->rest_system().nodes(), 0);
+  EXPECT_FALSE(blocks->serves_rest_cycles());
+  EXPECT_GT(diagonal->smoothing_eigenvalue(), 0.0);
+  EXPECT_TRUE(diagonal->serves_rest_cycles());
+  EXPECT_TRUE(assembles_current_stiffness(model));
+  const Vector load = gravity_forces(model.lumped_masses(), Vec3(20, 0, -9.81));
+  const auto step = [&](const ImplicitEulerSettings& settings, const RestFactor& factor) {
+    State state{ball.x, Vector::Zero(ball.x.size())};
+    const StepReport report = implicit_euler_step(model, state, ball.fixed, load, {}, settings, nullptr, &factor);
+    EXPECT_TRUE(report.cg.converged);
+    return std::make_pair(report.cg.iterations, state.positions);
+  };
+  const auto [cycle_iterations, cycle] = step(current, *blocks);
+  const auto [fallback_iterations, fallback] = step(matrix_free, *blocks);
+  const auto [rest_iterations, rest] = step(matrix_free, *diagonal);
+  const double moved = (cycle - ball.x).cwiseAbs().maxCoeff();
+  EXPECT_LE((fallback - cycle).cwiseAbs().maxCoeff(), 1e-5 * moved);
+  EXPECT_LE((rest - cycle).cwiseAbs().maxCoeff(), 1e-5 * moved);
+  // Jacobi's iterations, well above either cycle's.
+  EXPECT_GT(fallback_iterations, 2 * rest_iterations);
+  EXPECT_GT(fallback_iterations, 2 * cycle_iterations);
+  std::printf("bent ball, one step: %d CG iterations on the current cycle, %d on the rest cycle, %d on Jacobi\n",
+              cycle_iterations, rest_iterations, fallback_iterations);
+}
+
 // On the bent ball stepped by the engine's path (the current V-cycle of degree 4), scaling the
 // smoother by the node blocks takes fewer CG iterations than by the diagonal, to the same
 // solution.
