@@ -47,6 +47,9 @@ const physics::RestFactor* World::prepare_preconditioner(Body& body, StepStats& 
       body.model->preconditioner, *body.data.mechanics, body.data.fixed, 1.0 + dt * integrator.rayleigh_mass,
       dt * integrator.rayleigh_stiffness + dt * dt, body.data.topology_revision, static_cast<long long>(steps_), executor,
       report, separation);
+  if (!report.build_error.empty())
+    log_guard(body.model->name, "preconditioner_build_failed",
+              "a factor's build failed (" + report.build_error + "); the steps go on with the previous one");
   if (factor) {
     stats.preconditioner = physics::to_string(body.model->preconditioner.kind);
     stats.preconditioner_age = std::max(stats.preconditioner_age, report.age);

@@ -28,16 +28,28 @@ struct Separation {
     return origin + spacing * Eigen::Vector3d(static_cast<double>(x), static_cast<double>(y), static_cast<double>(z));
   }
   Eigen::Vector3d node(int i) const { return points.col(i); }
+  // Whether the cut lies between the vertex and the node: the segment between them, less a
+  // millionth at either end, crosses it. A node (or vertex) on the cut itself is hidden from
+  // nothing: the closed segment would hide it from every vertex, and a node midway between two
+  // vertices would give each an identical column of that node alone.
+  std::uint8_t hides(const Eigen::Vector3d& vertex, const Eigen::Vector3d& node) const {
+    const Eigen::Vector3d d = node - vertex;
+    return cut.crosses(vertex + 1e-6 * d, node - 1e-6 * d) ? 1 : 0;
+  }
 };
 
 // Splits each grid vertex into the pieces of its support (the free nodes of weight > 0 on it)
 // that `coupling`'s nonzero blocks connect inside that support: copy_of[node][c] is the copy
 // node's corner c leans on (-1 where the node is fixed or the weight 0), copy_best per copy the
-// largest weight a node gives it. Copies are numbered vertex by vertex, a vertex's pieces in
-// the order of their first nodes, so an unsplit grid keeps its vertices' order.
+// largest weight a node gives it. With `separation`, the nodes the cut hides from the vertex
+// are never joined to those it sees; copy_hidden marks the copies that only this made (hidden
+// nodes the coupling alone joins to seen ones). Copies are numbered vertex by vertex, a
+// vertex's pieces in the order of their first nodes, so an unsplit grid keeps its vertices'
+// order.
 void split_cut_vertices(const BlockMatrix& coupling, const std::vector<std::array<Corner, 8>>& corners, size_t vertices,
                         const std::vector<std::uint8_t>& fixed, const Separation* separation,
-                        std::vector<std::array<int, 8>>& copy_of, std::vector<double>& copy_best) {
+                        std::vector<std::array<int, 8>>& copy_of, std::vector<double>& copy_best,
+                        std::vector<std::uint8_t>& copy_hidden) {
   const size_t nodes = corners.size();
   if (static_cast<size_t>(coupling.nodes()) != nodes)
     throw std::invalid_argument("make_coarse_space: the coupling has another node count than the rest positions");
@@ -60,12 +72,19 @@ void split_cut_vertices(const BlockMatrix& coupling, const std::vector<std::arra
   }
   copy_of.assign(nodes, std::array<int, 8>{-1, -1, -1, -1, -1, -1, -1, -1});
   copy_best.clear();
-  std::vector<int> slot(nodes, -1), parent, label;
-  std::vector<std::uint8_t> hidden;
-  auto root = [&](int k) {
-    while (parent[static_cast<size_t>(k)] != k) k = parent[static_cast<size_t>(k)] = parent[static_cast<size_t>(parent[static_cast<size_t>(k)])];
+  copy_hidden.clear();
+  // parent: the pieces (coupled, and alike seen or hidden); joined: coupled alone.
+  std::vector<int> slot(nodes, -1), parent, joined, label;
+  std::vector<std::uint8_t> hidden, joined_seen;
+  auto find = [](std::vector<int>& p, int k) {
+    while (p[static_cast<size_t>(k)] != k) k = p[static_cast<size_t>(k)] = p[static_cast<size_t>(p[static_cast<size_t>(k)])];
     return k;
   };
+  auto unite = [&](std::vector<int>& p, int k, int other) {
+    const int a = find(p, k), c = find(p, other);
+    if (a != c) p[static_cast<size_t>(std::max(a, c))] = std::min(a, c);
+  };
+  auto root = [&](int k) { return find(parent, k); };
   const std::vector<int>& row_start = coupling.row_start();
   const std::vector<int>& columns = coupling.columns();
   const std::vector<Mat3>& blocks = coupling.blocks();
@@ -73,8 +92,9 @@ void split_cut_vertices(const BlockMatrix& coupling, const std::vector<std::arra
     const int first = start[v], count = start[v + 1] - start[v];
     if (count == 0) continue;
     parent.resize(static_cast<size_t>(count));
+    joined.resize(static_cast<size_t>(count));
     for (int k = 0; k < count; ++k) {
-      parent[static_cast<size_t>(k)] = k;
+      parent[static_cast<size_t>(k)] = joined[static_cast<size_t>(k)] = k;
       slot[static_cast<size_t>(support[static_cast<size_t>(first + k)].first)] = k;
     }
     hidden.assign(static_cast<size_t>(count), 0);
@@ -84,20 +104,21 @@ void split_cut_vertices(const BlockMatrix& coupling, const std::vector<std::arra
       const Eigen::Vector3d reach = Eigen::Vector3d::Constant(separation->spacing);
       if (separation->cut.near(at - reach, at + reach))
         for (int k = 0; k < count; ++k)
-          hidden[static_cast<size_t>(k)] =
-              separation->cut.crosses(at, separation->node(support[static_cast<size_t>(first + k)].first)) ? 1 : 0;
+          hidden[static_cast<size_t>(k)] = separation->hides(at, separation->node(support[static_cast<size_t>(first + k)].first));
     }
     for (int k = 0; k < count; ++k) {
       const int node = support[static_cast<size_t>(first + k)].first;
       for (int b = row_start[static_cast<size_t>(node)]; b < row_start[static_cast<size_t>(node) + 1]; ++b) {
         const int other = slot[static_cast<size_t>(columns[static_cast<size_t>(b)])];
-        if (other < 0 || hidden[static_cast<size_t>(k)] != hidden[static_cast<size_t>(other)] ||
-            !(blocks[static_cast<size_t>(b)].array() != 0).any())
-          continue;
-        const int a = root(k), c = root(other);
-        if (a != c) parent[static_cast<size_t>(std::max(a, c))] = std::min(a, c);
+        if (other < 0 || !(blocks[static_cast<size_t>(b)].array() != 0).any()) continue;
+        unite(joined, k, other);
+        if (hidden[static_cast<size_t>(k)] == hidden[static_cast<size_t>(other)]) unite(parent, k, other);
       }
     }
+    // A hidden piece that the coupling alone would have left joined to nodes the vertex sees.
+    joined_seen.assign(static_cast<size_t>(count), 0);
+    for (int k = 0; k < count; ++k)
+      if (!hidden[static_cast<size_t>(k)]) joined_seen[static_cast<size_t>(find(joined, k))] = 1;
     label.assign(static_cast<size_t>(count), -1);
     for (int k = 0; k < count; ++k) {
       const auto [node, c] = support[static_cast<size_t>(first + k)];
@@ -105,6 +126,7 @@ void split_cut_vertices(const BlockMatrix& coupling, const std::vector<std::arra
       if (copy < 0) {
         copy = static_cast<int>(copy_best.size());
         copy_best.push_back(0.0);
+        copy_hidden.push_back(hidden[static_cast<size_t>(k)] && joined_seen[static_cast<size_t>(find(joined, k))] ? 1 : 0);
       }
       copy_of[static_cast<size_t>(node)][static_cast<size_t>(c)] = copy;
       copy_best[static_cast<size_t>(copy)] = std::max(copy_best[static_cast<size_t>(copy)], corners[static_cast<size_t>(node)][static_cast<size_t>(c)].weight);
@@ -149,16 +171,20 @@ CoarseSpace make_coarse_space(const Eigen::VectorXd& rest, double spacing, const
   // support) becomes one vertex per piece; each node leans on its own piece's copy.
   std::vector<std::array<int, 8>> copy_of;
   std::vector<double> copy_best;
+  std::vector<std::uint8_t> copy_hidden;
   std::optional<Separation> seen;
   if (separation && *separation) seen.emplace(Separation{*separation, points, origin, counts, spacing});
-  if (coupling) split_cut_vertices(*coupling, corners, best.size(), fixed, seen ? &*seen : nullptr, copy_of, copy_best);
+  if (coupling) split_cut_vertices(*coupling, corners, best.size(), fixed, seen ? &*seen : nullptr, copy_of, copy_best, copy_hidden);
   // Keep the vertices (or copies) some free node leans on with half its weight or more; number
   // them in the grid's order (a vertex's copies in the order of their first nodes).
   const std::vector<double>& kept_best = coupling ? copy_best : best;
   std::vector<int> index(kept_best.size(), -1);
   int kept = 0;
+  // A copy that only the cut's visibility made needs a node of more than half its weight: that
+  // node can lean so on no other column, so no two such copies share their pivot (two copies of
+  // one node midway between two vertices, each holding half of it, would be one column twice).
   for (size_t v = 0; v < kept_best.size(); ++v)
-    if (kept_best[v] >= 0.5) index[v] = kept++;
+    if (kept_best[v] > 0.5 || (kept_best[v] == 0.5 && !(coupling && copy_hidden[v]))) index[v] = kept++;
   auto column_of = [&](Eigen::Index node, int c) {
     const long long slot = coupling ? copy_of[static_cast<size_t>(node)][static_cast<size_t>(c)]
                                     : corners[static_cast<size_t>(node)][static_cast<size_t>(c)].vertex;

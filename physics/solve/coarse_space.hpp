@@ -27,11 +27,14 @@
 // (2H wide, as wide as a default incision is deep): the two lips stay connected around the front
 // and the function still ties them together. Given the cut itself (`separation`), the support's
 // nodes that the vertex does not see (the segment from the vertex to the node crosses the cut,
-// EFG's own visibility criterion) are never joined to those it sees, so they become a copy of
-// their own (or, holding under half a weight, lean on their other corners). CG's iterations on
-// the cutting steps of the default incision: 3948 elements 4.67 -> 4.52 (mean), 20248 6.42 ->
-// 6.04, 75458 6.89 -> 6.45; cut_twisting_blade 6.62 -> 6.28, cut_organ 5.37 -> 5.27, the
-// others within 1 % (docs/status.md).
+// EFG's own visibility criterion; a node or vertex lying on the cut hides nothing) are never
+// joined to those it sees, so they become a copy of their own, or lean on their other corners
+// where none of them holds more than half a weight on it (a copy that only visibility made
+// needs a pivot above one half: two such copies of one node midway between two vertices would
+// be the same column, and P^T A P singular, as a soak's strokes drawn along a node layer found).
+// CG's iterations on the cutting steps of the default incision: 3948 elements 4.67 -> 4.52
+// (mean), 20248 6.42 -> 6.04, 75458 6.89 -> 6.46; cut_twisting_blade 6.62 -> 6.34, cut_organ
+// 5.37 -> 5.27, the others within 1 % (docs/status.md).
 #pragma once
 
 #include "physics/solve/block_matrix.hpp"

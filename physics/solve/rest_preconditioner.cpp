@@ -82,15 +82,23 @@ const RestFactor* RestPreconditioner::prepare(const PreconditionerSettings& sett
   }
   if (pending_ && step >= pending_->due) {
     const Stopwatch wait;
-    pending_->done.get();  // rethrows the build's error
+    try {
+      pending_->done.get();  // rethrows the build's error
+      current_ = *pending_->result;
+      current_revision_ = pending_->revision;
+      while (!lacking_.empty() && lacking_.front().first <= current_revision_) lacking_.pop_front();
+      report.adopted = true;
+    } catch (const std::exception& e) {
+      // Any SPD approximation still preconditions: the one in use goes on (older, so more
+      // iterations), and this topology is not tried again; the next cut's is.
+      report.build_error = e.what();
+      failed_revision_ = pending_->revision;
+      failed_ = true;
+    }
     report.wait_ms = wait.ms();
-    current_ = *pending_->result;
-    current_revision_ = pending_->revision;
-    while (!lacking_.empty() && lacking_.front().first <= current_revision_) lacking_.pop_front();
     pending_.reset();
-    report.adopted = true;
   }
-  if (!pending_ && revision != current_revision_)
+  if (!pending_ && revision != current_revision_ && !(failed_ && revision == failed_revision_))
     pending_ = std::make_shared<Pending>(start(model, fixed, mass_coefficient, stiffness_coefficient, revision, step, settings, executor,
                                                     separation ? separation() : CutSeparation{}));
   report.age = lacking_.empty() ? 0 : step - lacking_.front().second;

@@ -22,6 +22,7 @@
 #include <utility>
 #include <future>
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace incise::physics {
@@ -59,6 +60,9 @@ struct PreconditionerReport {
   double wait_ms = 0;       // this step waited for a late factor
   bool adopted = false;     // a new factor took over this step
   bool built_here = false;  // built on the step's critical path (the first one)
+  // A build beside the steps that failed (its error): the steps go on with the factor they
+  // had, and no build starts again for that topology.
+  std::string build_error;
 };
 
 class RestPreconditioner {
@@ -101,6 +105,8 @@ class RestPreconditioner {
   // The topology revisions the factor in use lacks, with the step each was first seen at.
   std::deque<std::pair<std::uint64_t, long long>> lacking_;
   std::shared_ptr<Pending> pending_;
+  std::uint64_t failed_revision_ = 0;  // the topology a build failed for (0: none)
+  bool failed_ = false;
   int builds_ = 0;
   bool unsupported_ = false;
 };
