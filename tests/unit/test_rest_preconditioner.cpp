@@ -238,14 +238,23 @@ class DeferredExecutor final : public Executor {
   int started = 0;
 };
 
-TEST(RestPreconditioner, ANewFactorTakesOverExactlyLatencyStepsAfterTheChange) {
-  auto model = small_fem();
-  model->update_rotations(model->rest_positions());
-  const std::vector<std::uint8_t> fixed(static_cast<size_t>(model->node_count()), 0);
+// A small tet body, nothing fixed, and a rest preconditioner of latency 3 whose builds run
+// when the step asks for them (DeferredExecutor).
+struct LatencyRig {
+  std::unique_ptr<CorotationalTetFem> model = small_fem();
+  std::vector<std::uint8_t> fixed = std::vector<std::uint8_t>(static_cast<size_t>(model->node_count()), 0);
   PreconditionerSettings settings;
-  settings.latency = 3;
   RestPreconditioner preconditioner;
   DeferredExecutor executor;
+  LatencyRig() {
+    model->update_rotations(model->rest_positions());
+    settings.latency = 3;
+  }
+};
+
+TEST(RestPreconditioner, ANewFactorTakesOverExactlyLatencyStepsAfterTheChange) {
+  LatencyRig rig;
+  auto& [model, fixed, settings, preconditioner, executor] = rig;
   std::uint64_t revision = 0;
   PreconditionerReport report;
   const RestFactor* first = preconditioner.prepare(settings, *model, fixed, 1, 1e-4, revision, 0, executor, report);
@@ -277,13 +286,8 @@ TEST(RestPreconditioner, ANewFactorTakesOverExactlyLatencyStepsAfterTheChange) {
 // refuses) leaves the factor in use in place and says why; the same topology is not built
 // again, and the next change's build takes over as usual.
 TEST(RestPreconditioner, AFailedBuildLeavesTheFactorInUse) {
-  auto model = small_fem();
-  model->update_rotations(model->rest_positions());
-  const std::vector<std::uint8_t> fixed(static_cast<size_t>(model->node_count()), 0);
-  PreconditionerSettings settings;
-  settings.latency = 3;
-  RestPreconditioner preconditioner;
-  DeferredExecutor executor;
+  LatencyRig rig;
+  auto& [model, fixed, settings, preconditioner, executor] = rig;
   PreconditionerReport report;
   const RestFactor* first = preconditioner.prepare(settings, *model, fixed, 1, 1e-4, 0, 0, executor, report);
   ASSERT_NE(first, nullptr);
