@@ -436,6 +436,19 @@ int disconnected_columns(const CoarseSpace& space, const BlockMatrix& k) {
   return disconnected;
 }
 
+// P's rows sum to one on the free nodes a column reaches, to zero on the fixed ones.
+void expect_partition_of_unity_where_reached(const CoarseSpace& space, const std::vector<std::uint8_t>& fixed) {
+  const Vector row_sums = space.prolongation * Vector::Ones(3 * space.coarse_nodes);
+  for (size_t node = 0; node < fixed.size(); ++node) {
+    const double sum = row_sums[3 * static_cast<Eigen::Index>(node)];
+    if (fixed[node]) {
+      EXPECT_EQ(sum, 0.0);
+    } else if (sum != 0.0) {
+      EXPECT_NEAR(sum, 1.0, 1e-12) << "node " << node;
+    }
+  }
+}
+
 // Given the cut body's stiffness, the coarse space splits each vertex whose support the cut
 // divides: every column's nodes connected through the stiffness (the plain grid has columns
 // across the cut), still a partition of unity on the free nodes it reaches, with more columns;
@@ -462,15 +475,7 @@ TEST(CoarseSpace, ACutSplitsTheVerticesWhoseSupportItDivides) {
   EXPECT_GE(across, 5);  // 7 of 104
   EXPECT_EQ(disconnected_columns(split, k), 0);
   EXPECT_GT(split.coarse_nodes, plain.coarse_nodes);
-  const Vector row_sums = split.prolongation * Vector::Ones(3 * split.coarse_nodes);
-  for (int node = 0; node < model->node_count(); ++node) {
-    const double sum = row_sums[3 * node];
-    if (fixed[static_cast<size_t>(node)]) {
-      EXPECT_EQ(sum, 0.0);
-    } else if (sum != 0.0) {
-      EXPECT_NEAR(sum, 1.0, 1e-12) << "node " << node;
-    }
-  }
+  expect_partition_of_unity_where_reached(split, fixed);
   std::printf("coarse space of the half-cut ball: %d columns across the cut of %d; split: %d columns\n", across,
               plain.coarse_nodes, split.coarse_nodes);
 }
@@ -532,15 +537,7 @@ TEST(CoarseSpace, AVertexLeavesTheNodesTheCutHidesFromIt) {
   EXPECT_EQ(disconnected_columns(seen, k), 0);
   const Eigen::SparseMatrix<double> gram = seen.prolongation.transpose() * seen.prolongation;
   EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Eigen::MatrixXd(gram)).eigenvalues().minCoeff(), 1e-6);
-  const Vector row_sums = seen.prolongation * Vector::Ones(3 * seen.coarse_nodes);
-  for (int node = 0; node < model->node_count(); ++node) {
-    const double sum = row_sums[3 * node];
-    if (fixed[static_cast<size_t>(node)]) {
-      EXPECT_EQ(sum, 0.0);
-    } else if (sum != 0.0) {
-      EXPECT_NEAR(sum, 1.0, 1e-12) << "node " << node;
-    }
-  }
+  expect_partition_of_unity_where_reached(seen, fixed);
   CutSeparation elsewhere;
   elsewhere.near = [](const Vec3&, const Vec3&) { return false; };
   elsewhere.crosses = [](const Vec3&, const Vec3&) { return true; };
