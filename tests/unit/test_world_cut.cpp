@@ -427,55 +427,76 @@ TEST(WorldCut, TheFrontSurfaceKeptAcrossOtherShippedCutScenesIsTheWholeSurfacesA
   }
 }
 
-// The warped rest factors (solver.preconditioner "warped_cholesky", "two_level" and
-// "multigrid"): rebuilt
-// after each cut on a thread of their own and taking over a fixed number of steps later, they
-// replay bit-for-bit and reach the Jacobi CG's solution (same tolerance) in fewer iterations,
-// through the cut.
-TEST(WorldCut, TheRestFactorsReplayBitForBitThroughCutsAndAgreeWithJacobi) {
+namespace {
+
+// One replay of the beam's cut with a preconditioner rebuilt after each cut on a thread of its
+// own, taking over two steps later: the state's hash and positions, the iterations, the oldest
+// factor a step ran on.
+struct FactorRun {
+  std::uint64_t hash = 0;
+  physics::Vector positions;
+  long long iterations = 0;
+  long long max_age = 0;
+};
+
+FactorRun run_beam_cut(const Scene& scene, const TempDir& dir, const std::string& preconditioner) {
+  Scene s = scene;
+  s.solver.preconditioner = preconditioner;
+  s.solver.preconditioner_latency = 2;
+  World world(s, read_trajectory(dir.path / "cut.traj"));
+  FactorRun run;
+  int events = 0;
+  for (int k = 0; k < 30; ++k) {
+    const StepStats stats = world.step();
+    events += stats.cut_event ? 1 : 0;
+    run.iterations += stats.cg_iterations;
+    run.max_age = std::max(run.max_age, stats.preconditioner_age);
+    EXPECT_EQ(stats.preconditioner, preconditioner);
+  }
+  EXPECT_GT(events, 0);
+  run.hash = world.state_hash();
+  run.positions = world.bodies()[0].data.state.positions;
+  return run;
+}
+
+}  // namespace
+
+// The rest factors (solver.preconditioner "multigrid", as "warped_cholesky" and "two_level":
+// RestPreconditioner) rebuilt beside the steps after each cut replay bit-for-bit: a step takes
+// a new factor at a fixed step, whenever its build ends. ThreadSanitizer runs this one.
+TEST(WorldCut, TheRestFactorsReplayBitForBitThroughCuts) {
+  TempDir dir("incise_world_cut_replay");
+  const Scene scene = beam_cut_scene(dir, 0.02);
+  const FactorRun multigrid = run_beam_cut(scene, dir, "multigrid");
+  const FactorRun again = run_beam_cut(scene, dir, "multigrid");
+  EXPECT_EQ(multigrid.hash, again.hash);
+  EXPECT_EQ(multigrid.iterations, again.iterations);
+  EXPECT_GE(multigrid.max_age, 1);  // steps ran on a factor older than the cut
+}
+
+// Each rest factor reaches the Jacobi CG's solution (same tolerance) in fewer iterations through
+// the cut, the multigrid in fewer than the two-level one; the warped Cholesky replays too.
+TEST(WorldCut, TheRestFactorsAgreeWithJacobiThroughCuts) {
   TempDir dir("incise_world_cut_warped");
-  Scene scene = beam_cut_scene(dir, 0.02);
-  auto run = [&](const std::string& preconditioner, long long* iterations, long long* max_age) {
-    Scene s = scene;
-    s.solver.preconditioner = preconditioner;
-    s.solver.preconditioner_latency = 2;
-    World world(s, read_trajectory(dir.path / "cut.traj"));
-    int events = 0;
-    for (int k = 0; k < 30; ++k) {
-      const StepStats stats = world.step();
-      events += stats.cut_event ? 1 : 0;
-      *iterations += stats.cg_iterations;
-      *max_age = std::max(*max_age, stats.preconditioner_age);
-      EXPECT_EQ(stats.preconditioner, preconditioner);
-    }
-    EXPECT_GT(events, 0);
-    return std::make_pair(world.state_hash(), world.bodies()[0].data.state.positions);
-  };
-  long long warped_iterations = 0, again_iterations = 0, jacobi_iterations = 0, age = 0, unused = 0;
-  long long two_level_iterations = 0, two_level_age = 0;
-  const auto two_level = run("two_level", &two_level_iterations, &two_level_age);
-  long long multigrid_iterations = 0, multigrid_again_iterations = 0, multigrid_age = 0;
-  const auto multigrid = run("multigrid", &multigrid_iterations, &multigrid_age);
-  const auto multigrid_again = run("multigrid", &multigrid_again_iterations, &unused);
-  const auto warped = run("warped_cholesky", &warped_iterations, &age);
-  const auto again = run("warped_cholesky", &again_iterations, &unused);
-  const auto jacobi = run("jacobi", &jacobi_iterations, &unused);
-  EXPECT_EQ(warped.first, again.first);
-  EXPECT_EQ(warped_iterations, again_iterations);
-  EXPECT_GE(age, 1);  // steps ran on a factor older than the cut
-  EXPECT_LT(warped_iterations, jacobi_iterations / 2);
+  const Scene scene = beam_cut_scene(dir, 0.02);
+  const FactorRun two_level = run_beam_cut(scene, dir, "two_level");
+  const FactorRun multigrid = run_beam_cut(scene, dir, "multigrid");
+  const FactorRun warped = run_beam_cut(scene, dir, "warped_cholesky");
+  const FactorRun again = run_beam_cut(scene, dir, "warped_cholesky");
+  const FactorRun jacobi = run_beam_cut(scene, dir, "jacobi");
+  EXPECT_EQ(warped.hash, again.hash);
+  EXPECT_EQ(warped.iterations, again.iterations);
+  EXPECT_GE(warped.max_age, 1);
+  EXPECT_LT(warped.iterations, jacobi.iterations / 2);
   const physics::Vector rest = World(scene, read_trajectory(dir.path / "cut.traj")).bodies()[0].data.state.positions;
-  const double moved = (jacobi.second - rest).cwiseAbs().maxCoeff();
+  const double moved = (jacobi.positions - rest).cwiseAbs().maxCoeff();
   ASSERT_GT(moved, 0);
-  EXPECT_LE((warped.second - jacobi.second).cwiseAbs().maxCoeff(), 1e-4 * moved);
-  EXPECT_LT(two_level_iterations, jacobi_iterations);
-  EXPECT_GE(two_level_age, 1);
-  EXPECT_LE((two_level.second - jacobi.second).cwiseAbs().maxCoeff(), 1e-4 * moved);
-  EXPECT_EQ(multigrid.first, multigrid_again.first);
-  EXPECT_EQ(multigrid_iterations, multigrid_again_iterations);
-  EXPECT_LT(multigrid_iterations, two_level_iterations);
-  EXPECT_GE(multigrid_age, 1);
-  EXPECT_LE((multigrid.second - jacobi.second).cwiseAbs().maxCoeff(), 1e-4 * moved);
+  EXPECT_LE((warped.positions - jacobi.positions).cwiseAbs().maxCoeff(), 1e-4 * moved);
+  EXPECT_LT(two_level.iterations, jacobi.iterations);
+  EXPECT_GE(two_level.max_age, 1);
+  EXPECT_LE((two_level.positions - jacobi.positions).cwiseAbs().maxCoeff(), 1e-4 * moved);
+  EXPECT_LT(multigrid.iterations, two_level.iterations);
+  EXPECT_LE((multigrid.positions - jacobi.positions).cwiseAbs().maxCoeff(), 1e-4 * moved);
   std::printf("CG iterations over 30 cut steps: jacobi %lld, two_level %lld, multigrid %lld, warped %lld\n",
-              jacobi_iterations, two_level_iterations, multigrid_iterations, warped_iterations);
+              jacobi.iterations, two_level.iterations, multigrid.iterations, warped.iterations);
 }
