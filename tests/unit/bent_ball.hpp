@@ -1,5 +1,7 @@
-// The bent, turned EFG ball and the helpers the assembled current system's tests share
-// (test_current_system.cpp: K(x) and its products; test_current_vcycle.cpp: the V-cycle on it).
+// The EFG balls and the helpers the solver's tests share: the small ball at rest (the rest
+// preconditioner's, coarse space's and multigrid's tests), the bent, turned one of the assembled
+// current system (test_current_system.cpp: K(x) and its products; test_current_vcycle.cpp: the
+// V-cycle on it).
 #pragma once
 
 #include "physics/core/implicit_euler.hpp"
@@ -20,6 +22,16 @@
 namespace incise::physics::fixtures {
 
 inline const Material tissue{5e3, 0.45, 1060};
+
+// An EFG ball of the given node spacing, nothing fixed, at rest: partial cubes, re-selected
+// neighbourhoods and varied rows, not only full cells (the rest preconditioner's, coarse
+// space's and multigrid's tests).
+inline std::unique_ptr<CorotationalEfg> small_efg(double spacing = 0.005) {
+  EfgSettings settings;
+  settings.spacing = spacing;
+  return std::make_unique<CorotationalEfg>([](const Vec3& p) { return p.norm() < 0.021; }, Vec3::Constant(-0.025),
+                                           Vec3::Constant(0.025), tissue, settings);
+}
 
 inline Vector random_vector(Eigen::Index size, unsigned seed) {
   std::mt19937 random(seed);

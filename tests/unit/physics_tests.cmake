@@ -13,6 +13,8 @@ add_executable(test_integrator
   ${CMAKE_CURRENT_LIST_DIR}/test_integrator_cg.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_integrator_implicit_euler.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_rest_preconditioner.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_coarse_space.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/test_multigrid.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_current_system.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_current_vcycle.cpp
   ${CMAKE_CURRENT_LIST_DIR}/test_element_assembly.cpp
