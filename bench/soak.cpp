@@ -258,9 +258,17 @@ Run soak(const engine::Scene& scene, const SoakOptions& options, std::ostream& p
       run.rows.push_back(row_now(seconds_since(start), run.totals, session));
       run.rows.back().session_start = true;
       const std::size_t triangles_at_build = surface_triangles(session.world());
+      std::size_t guards_printed = 0;
       while (seconds_since(start) < options.seconds) {
         session.step();
         const double t = seconds_since(start);
+        // Each guard that fired, as it fires: which one and its figures (World::guard_events).
+        const auto& guards = session.world().guard_events();
+        for (; guards_printed < guards.size(); ++guards_printed) {
+          const engine::GuardEvent& g = guards[guards_printed];
+          progress << "soak " << static_cast<long>(t) << " s: guard event " << g.kind << " at the body's step " << g.step
+                   << " (" << g.body << "): " << g.detail << '\n';
+        }
         if (t >= next_row) {
           run.rows.push_back(row_now(t, run.totals, session));
           next_row = options.sample_every_s * (std::floor(t / options.sample_every_s) + 1);
