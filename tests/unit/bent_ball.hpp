@@ -25,7 +25,7 @@ inline const Material tissue{5e3, 0.45, 1060};
 
 // An EFG ball of the given node spacing, nothing fixed, at rest: partial cubes, re-selected
 // neighbourhoods and varied rows, not only full cells (the rest preconditioner's, coarse
-// space's and multigrid's tests).
+// space's and multigrid's tests, and BentBall's before it bends it).
 inline std::unique_ptr<CorotationalEfg> small_efg(double spacing = 0.005) {
   EfgSettings settings;
   settings.spacing = spacing;
@@ -75,10 +75,7 @@ struct BentBall {
   Vector x;
   std::vector<std::uint8_t> fixed;
   explicit BentBall(double spacing = 0.0025) {
-    EfgSettings settings;
-    settings.spacing = spacing;
-    model = std::make_unique<CorotationalEfg>([](const Vec3& p) { return p.norm() < 0.021; }, Vec3::Constant(-0.025),
-                                              Vec3::Constant(0.025), tissue, settings);
+    model = small_efg(spacing);
     const Vector& rest = model->rest_positions();
     const Eigen::Quaterniond turn(Eigen::AngleAxisd(0.5, Vec3(1, 2, 3).normalized()));
     x.resize(rest.size());
